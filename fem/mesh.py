@@ -1,0 +1,50 @@
+"""Unstructured 2D meshes of triangles (P1) or quadrilaterals (Q1) with named boundary parts."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A 2D mesh.
+
+    points : (n_nodes, 2) float coordinates.
+    cells : (n_cells, 3) triangles or (n_cells, 4) quadrilaterals, counterclockwise.
+    boundaries : name -> (n_edges, 2) node pairs; each edge (a, b) has the domain on its left
+        (boundary traversed counterclockwise); edges of one part are ordered along the part.
+    """
+
+    points: np.ndarray
+    cells: np.ndarray
+    boundaries: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def cell_type(self) -> str:
+        """'triangle' or 'quad'."""
+        return "triangle" if self.cells.shape[1] == 3 else "quad"
+
+    @property
+    def n_nodes(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def n_cells(self) -> int:
+        return self.cells.shape[0]
+
+    def boundary_nodes(self, name: str) -> np.ndarray:
+        """Sorted unique node indices of the boundary part `name`."""
+        if name not in self.boundaries:
+            raise KeyError(
+                f"unknown boundary {name!r}; this mesh has: {', '.join(sorted(self.boundaries))}"
+            )
+        return np.unique(self.boundaries[name])
+
+    @property
+    def h(self) -> float:
+        """Mesh size: the largest cell diameter."""
+        P = self.points[self.cells]  # (n_cells, k, 2)
+        d = np.linalg.norm(P[:, :, None, :] - P[:, None, :, :], axis=-1)  # (n_cells, k, k)
+        return float(d.max())

@@ -1,0 +1,244 @@
+"""Problem 3.1 in matrix form: the mixed variational inequality.
+
+Find u ∈ R^n, λ ∈ Λ ⊂ R^m with
+
+    A u + Bᵀ λ = f,        (B u − gap)ᵀ (μ − λ) ≤ 0   for all μ ∈ Λ,
+
+A sparse with A + Aᵀ positive definite (possibly non-symmetric), Λ closed and convex.
+`gap` (default 0) generalises the paper's Problem 3.1 to obstacle and Signorini problems.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .sets import ConvexSet, as_product
+
+
+@dataclass(frozen=True)
+class Scaling:
+    """Diagonal equilibration u = s_u ⊙ u', λ = s_lam ⊙ λ' (see `MixedVI.equilibrated`)."""
+
+    s_u: np.ndarray  # (n,)
+    s_lam: np.ndarray  # (m,)
+
+    def to_scaled(self, u: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return u / self.s_u, lam / self.s_lam
+
+    def to_physical(self, u: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return u * self.s_u, lam * self.s_lam
+
+
+@dataclass(frozen=True)
+class Residual:
+    """The natural-map residual of a candidate (u, λ), in equilibrated variables.
+
+    r1 = A'u' + B'ᵀλ' − f',  r2 = λ' − P_Λ'(λ' + c (B'u' − gap')) with c = 1 (the equilibrated
+    problem has unit diagonal in A' and unit rows in B'). `relative` = ‖(r1, r2)‖₂ / scale with
+    scale = max(‖f'‖₂, ‖gap'‖₂) (1 when both vanish: then the solution is 0).
+    """
+
+    equilibrium: float  # ‖r1‖₂
+    complementarity: float  # ‖r2‖₂
+    scale: float
+    relative: float
+
+
+@dataclass(eq=False)
+class MixedVI:
+    """The discrete mixed VI  A u + Bᵀλ = f, λ ∈ Λ, (Bu − gap)ᵀ(μ − λ) ≤ 0 ∀ μ ∈ Λ.
+
+    Parameters
+    ----------
+    A : (n, n) sparse, A + Aᵀ positive definite (not necessarily symmetric).
+    B : (m, n) sparse, full row rank (discrete inf-sup), m = Lambda.size.
+    f : (n,) right-hand side.
+    Lambda : the convex set, e.g. ``product(Free(k), Box(-g, g))``; rows of B follow its blocks.
+    gap : (m,) optional offset of the constraint (default 0, the paper's Problem 3.1).
+    X, Y : optional Gram matrices of the norms of X (n × n) and Y (m × m) for `constants`.
+    info : free-form metadata of the plug-in (names of fields, dof counts, …).
+    """
+
+    A: Any
+    B: Any
+    f: Any
+    Lambda: ConvexSet
+    gap: Any = None
+    X: Any = None
+    Y: Any = None
+    info: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.A = sp.csr_matrix(self.A, dtype=float)
+        n = self.A.shape[0]
+        if self.A.shape != (n, n):
+            raise ValueError(f"A must be square, got shape {self.A.shape}")
+        self.B = sp.csr_matrix(self.B, dtype=float)
+        if self.B.shape[1] != n:
+            raise ValueError(f"B must have {n} columns (A is {n}×{n}), got shape {self.B.shape}")
+        if not isinstance(self.Lambda, ConvexSet):
+            raise TypeError("Lambda must be a ConvexSet (Box, Ball, Free, NonNegative, product)")
+        self.Lambda = as_product(self.Lambda)
+        m = self.B.shape[0]
+        if self.Lambda.size != m:
+            raise ValueError(f"Lambda has {self.Lambda.size} coordinates but B has {m} rows")
+        self.f = np.asarray(self.f, dtype=float).ravel()
+        if self.f.shape != (n,):
+            raise ValueError(f"f must have {n} entries, got {self.f.size}")
+        self.gap = np.zeros(m) if self.gap is None else np.asarray(self.gap, float).ravel()
+        if self.gap.shape != (m,):
+            raise ValueError(f"gap must have {m} entries, got {self.gap.size}")
+        for name in ("A", "B"):
+            if not np.isfinite(getattr(self, name).data).all():
+                raise ValueError(f"{name} contains NaN or inf")
+        for name in ("f", "gap"):
+            if not np.isfinite(getattr(self, name)).all():
+                raise ValueError(f"{name} contains NaN or inf")
+        d = self.A.diagonal()
+        if (d <= 0).any():
+            i = int(np.flatnonzero(d <= 0)[0])
+            raise ValueError(f"A must have a positive diagonal (A + Aᵀ > 0); A[{i},{i}] = {d[i]}")
+
+    @property
+    def n(self) -> int:
+        return self.A.shape[0]
+
+    @property
+    def m(self) -> int:
+        return self.B.shape[0]
+
+    @cached_property
+    def A0(self) -> sp.csr_matrix:
+        """Symmetric part (A + Aᵀ)/2."""
+        return ((self.A + self.A.T) * 0.5).tocsr()
+
+    @cached_property
+    def C(self) -> sp.csr_matrix:
+        """Skew part (A − Aᵀ)/2."""
+        C = ((self.A - self.A.T) * 0.5).tocsr()
+        C.eliminate_zeros()
+        return C
+
+    @cached_property
+    def structure(self) -> str:
+        """'symmetric', 'skew-coupled' or 'general' (see `skew_split`)."""
+        scale = max(abs(self.A).max(), 1e-300) if self.A.nnz else 1.0
+        C = self.C
+        if C.nnz == 0 or abs(C).max() <= 1e-14 * scale:
+            return "symmetric"
+        return "skew-coupled" if self.skew_split is not None else "general"
+
+    @cached_property
+    def skew_split(self) -> np.ndarray | None:
+        """Mask `first` with A = [[K, Gᵀ], [−G, P]] in the split (first, ~first), K and P
+        symmetric, and B acting on the first block only; None if A has no such structure."""
+        n = self.n
+        A0 = self.A0.tocoo()
+        C = self.C.tocoo()
+        tol = 1e-13 * max(abs(self.A).max(), 1e-300)
+        keep0 = np.abs(A0.data) > tol
+        keepc = np.abs(C.data) > tol
+        g0 = sp.csr_matrix((np.ones(keep0.sum()), (A0.row[keep0], A0.col[keep0])), shape=(n, n))
+        ncomp, label = connected_components(g0, directed=False)
+        # C edges must join different components, and the component graph must be 2-colourable
+        ci, cj = label[C.row[keepc]], label[C.col[keepc]]
+        if (ci == cj).any():
+            return None
+        q = sp.csr_matrix((np.ones(ci.size), (ci, cj)), shape=(ncomp, ncomp))
+        colour = -np.ones(ncomp, dtype=int)
+        indptr, indices = q.indptr, q.indices
+        for start in range(ncomp):
+            if colour[start] >= 0:
+                continue
+            colour[start] = 0
+            stack = [start]
+            while stack:
+                a = stack.pop()
+                for b in indices[indptr[a] : indptr[a + 1]]:
+                    if colour[b] < 0:
+                        colour[b] = 1 - colour[a]
+                        stack.append(b)
+                    elif colour[b] == colour[a]:
+                        return None
+        first = colour[label] == 0
+        cols = np.unique(self.B.tocoo().col)
+        if cols.size and not first[cols].all():
+            if (~first)[cols].all():
+                first = ~first
+            else:
+                return None
+        return first
+
+    # ----------------------------------------------------------------- scaling
+    @cached_property
+    def scaling(self) -> Scaling:
+        """Jacobi equilibration: s_u = diag(A)^{-1/2}; s_lam makes the rows of B' unit.
+
+        The equilibrated problem is invariant under a change of units of any field (up to
+        rounding), which makes every solver unit-invariant.
+        """
+        s_u = 1.0 / np.sqrt(self.A.diagonal())
+        Bs = self.B @ sp.diags(s_u)
+        row = np.sqrt(np.asarray(Bs.multiply(Bs).sum(axis=1)).ravel())  # (m,)
+        row[row == 0] = 1.0
+        s_lam = 1.0 / row
+        # balls must be scaled uniformly: use the block mean
+        sizes = self.Lambda.block_sizes()
+        if (sizes > 1).any():
+            starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+            means = np.add.reduceat(s_lam, starts) / sizes
+            s_lam = np.repeat(means, sizes)
+        return Scaling(s_u=s_u, s_lam=s_lam)
+
+    @cached_property
+    def equilibrated(self) -> MixedVI:
+        """The same VI in variables u' = u / s_u, λ' = λ / s_lam (unit diagonal, unit rows)."""
+        s = self.scaling
+        Su, Sl = sp.diags(s.s_u), sp.diags(1.0 / s.s_lam)
+        # A u + Bᵀλ = f  →  (Su A Su) u' + (Su Bᵀ Sl^{-1}) λ' = Su f
+        # (Bu − gap) ∈ N_Λ(λ)  →  Sl^{-1}(B Su u' − gap) ∈ N_{Λ/s_lam}(λ')
+        return MixedVI(
+            A=(Su @ self.A @ Su).tocsr(),
+            B=(Sl @ self.B @ Su).tocsr(),
+            f=self.f * s.s_u,
+            Lambda=self.Lambda.scaled(s.s_lam),
+            gap=self.gap / s.s_lam,
+            info={"equilibrated": True},
+        )
+
+    # ---------------------------------------------------------------- residual
+    def residual(self, u: np.ndarray, lam: np.ndarray) -> Residual:
+        """Natural-map residual of (u, λ) in equilibrated variables (see `Residual`)."""
+        up, lp = self.scaling.to_scaled(np.asarray(u, float), np.asarray(lam, float))
+        return natural_residual(self.equilibrated, up, lp)
+
+    def with_rhs(self, f: np.ndarray | None = None, gap: np.ndarray | None = None) -> MixedVI:
+        """A copy with another right-hand side (same A, B, Λ)."""
+        return MixedVI(
+            A=self.A,
+            B=self.B,
+            f=self.f if f is None else f,
+            Lambda=self.Lambda,
+            gap=self.gap if gap is None else gap,
+            X=self.X,
+            Y=self.Y,
+            info=dict(self.info),
+        )
+
+    def __repr__(self):
+        return f"MixedVI(n={self.n}, m={self.m}, Lambda={self.Lambda!r}, {self.structure})"
+
+
+def natural_residual(vi: MixedVI, u: np.ndarray, lam: np.ndarray, c: float = 1.0) -> Residual:
+    """Natural-map residual of (u, λ) for `vi` as given (no equilibration; see `Residual`)."""
+    r1 = vi.A @ u + vi.B.T @ lam - vi.f
+    r2 = lam - vi.Lambda.project(lam + c * (vi.B @ u - vi.gap))
+    scale = max(float(np.linalg.norm(vi.f)), float(np.linalg.norm(vi.gap))) or 1.0
+    n1, n2 = float(np.linalg.norm(r1)), float(np.linalg.norm(r2))
+    return Residual(n1, n2, scale, float(np.hypot(n1, n2) / scale))

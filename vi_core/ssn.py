@@ -1,0 +1,197 @@
+"""Semismooth Newton on the natural map = primal-dual active set strategy.
+
+F(u, λ) = [A u + Bᵀλ − f ; λ − P_Λ(λ + B u − gap)] = 0 on the equilibrated problem (c = 1).
+With J ∈ ∂P_Λ(y), y = λ + Bu − gap, p = P_Λ(y), W = I − J, one Newton step for the new
+iterate (u⁺, λ⁺) solves
+
+    A u⁺ + Bᵀλ⁺ = f,        W λ⁺ − J B u⁺ = p − J y − J gap.
+
+For a Box, J is 0/1 (active/inactive sets); for a Ball, J = (r/‖y‖)(I − ŷŷᵀ) outside.
+Works for non-symmetric A as it is; a backtracking damping on the residual guards against
+active-set cycling.
+
+**Condensation.** When B has a block-diagonal "slave" part — columns S, each used by one
+small group of rows only, as with dual mortar multipliers — λ = D^{-T}(f_S − A_S u) with
+D = B[:, S], and the step is a linear system in u alone of size n whose sparsity pattern does
+not depend on the active set.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .linalg import factorize, resolve_backend
+from .problem import MixedVI, natural_residual
+from .solution import Solution
+
+
+@dataclass(frozen=True)
+class Condensation:
+    """B[:, S] = D block diagonal (rows grouped), S = columns private to their row group."""
+
+    S: np.ndarray  # (m,) column assigned to each row of B
+    R: np.ndarray  # (n − m,) the remaining columns
+    D: sp.csr_matrix  # (m, m) B[:, S], block diagonal in row order
+    Dt_inv: sp.csr_matrix  # (m, m) D^{-T}
+
+    @staticmethod
+    def detect(B: sp.csr_matrix, max_block: int = 3) -> Condensation | None:
+        """Find S, or None if B has no invertible block-diagonal private part."""
+        m, n = B.shape
+        if m == 0 or m > n:
+            return None
+        Bc = sp.csc_matrix(B)
+        Bc.eliminate_zeros()
+        counts = np.diff(Bc.indptr)  # (n,) nonzeros per column
+        small = np.flatnonzero((counts >= 1) & (counts <= max_block))
+        # group the small columns by their exact row set
+        groups: dict[tuple, list[int]] = {}
+        for j in small:
+            rows = tuple(Bc.indices[Bc.indptr[j] : Bc.indptr[j + 1]].tolist())
+            groups.setdefault(rows, []).append(int(j))
+        S = -np.ones(m, dtype=int)
+        for rows, cols in groups.items():
+            if len(cols) != len(rows) or (S[list(rows)] >= 0).any():
+                continue
+            block = B[list(rows)][:, cols].toarray()
+            if np.linalg.cond(block) > 1e8:
+                continue
+            S[list(rows)] = cols
+        if (S < 0).any():
+            return None
+        D = sp.csr_matrix(B[:, S])
+        # D is block diagonal in row order; invert its transpose block by block
+        Dt = sp.csr_matrix(D.T)
+        ncomp, label = sp.csgraph.connected_components(abs(D) + abs(Dt), directed=False)
+        Dt_inv = sp.lil_matrix((m, m))
+        order = np.argsort(label, kind="stable")
+        bounds = np.flatnonzero(np.diff(label[order])) + 1
+        for idx in np.split(order, bounds):
+            Dt_inv[np.ix_(idx, idx)] = np.linalg.inv(Dt[idx][:, idx].toarray())
+        R = np.setdiff1d(np.arange(n), S)
+        return Condensation(S=S, R=R, D=D, Dt_inv=sp.csr_matrix(Dt_inv))
+
+
+class _Stepper:
+    """Computes Newton iterates (u⁺, λ⁺) for the equilibrated VI `e`."""
+
+    def __init__(self, e: MixedVI, condense: bool, linear_solver: str):
+        self.e = e
+        self.linear_solver = linear_solver
+        self.cond = Condensation.detect(e.B) if condense else None
+        if self.cond is not None:
+            c = self.cond
+            A = e.A.tocsr()
+            self.A_S = A[c.S]  # (m, n)
+            self.f_S = e.f[c.S]
+            # fixed rows: A_R − B_Rᵀ D^{-T} A_S
+            BR_t = sp.csr_matrix(e.B[:, c.R].T)  # (n−m, m)
+            self.K_R = (A[c.R] - BR_t @ (c.Dt_inv @ self.A_S)).tocsr()
+            self.rhs_R = e.f[c.R] - BR_t @ (c.Dt_inv @ self.f_S)
+            # row permutation: fixed rows at positions R, constraint rows at positions S
+            self.perm_rows = np.concatenate([c.R, c.S])
+
+    def step(self, u, lam, J, W, rhs_c):
+        """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c."""
+        e = self.e
+        if self.cond is None:
+            K = sp.bmat([[e.A, e.B.T], [-J @ e.B, W]], format="csr")
+            x = factorize(K, self.linear_solver)(np.concatenate([e.f, rhs_c]))
+            return x[: e.n], x[e.n :]
+        c = self.cond
+        Dt = c.D.T
+        # Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)   (rhs_c = p − Jy − J gap)
+        K_S = (Dt @ (W @ (c.Dt_inv @ self.A_S)) + Dt @ (J @ e.B)).tocsr()
+        rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
+        K = sp.vstack([self.K_R, K_S], format="csr")
+        # rows currently ordered [R; S]; reorder to the natural dof order
+        P = sp.csr_matrix(
+            (np.ones(e.n), (self.perm_rows, np.arange(e.n))), shape=(e.n, e.n)
+        )
+        K = (P @ K).tocsr()
+        rhs = P @ np.concatenate([self.rhs_R, rhs_S])
+        u_new = factorize(K, self.linear_solver)(rhs)
+        lam_new = c.Dt_inv @ (self.f_S - self.A_S @ u_new)
+        return u_new, lam_new
+
+
+def solve_ssn(
+    vi: MixedVI,
+    tol: float = 1e-10,
+    max_iter: int = 60,
+    u0: np.ndarray | None = None,
+    lam0: np.ndarray | None = None,
+    linear_solver: str = "auto",
+    condense: bool = True,
+    damping: bool = True,
+) -> Solution:
+    """Semismooth Newton / primal-dual active set for `vi` (see module docstring).
+
+    Stops when the relative natural-map residual (`MixedVI.residual`) is ≤ tol.
+    """
+    t0 = time.perf_counter()
+    e = vi.equilibrated
+    sc = vi.scaling
+    u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
+    lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
+    linear_solver = resolve_backend(linear_solver)
+    stepper = _Stepper(e, condense=condense, linear_solver=linear_solver)
+    Lam = e.Lambda
+
+    res = natural_residual(e, u, lam).relative
+    history = [res]
+    damped = 0
+    converged = res <= tol
+    k = 0
+    while not converged and k < max_iter:
+        k += 1
+        y = lam + e.B @ u - e.gap
+        p = Lam.project(y)
+        J = Lam.jacobian(y)
+        W = sp.identity(e.m, format="csr") - J
+        rhs_c = p - J @ y - J @ e.gap
+        u_new, lam_new = stepper.step(u, lam, J, W, rhs_c)
+        du, dl = u_new - u, lam_new - lam
+        t, best = 1.0, None
+        while True:
+            cand = natural_residual(e, u + t * du, lam + t * dl).relative
+            if best is None or cand < best[1]:
+                best = (t, cand)
+            if not damping or cand <= (1.0 - 1e-4 * t) * res or t < 1.0 / 64:
+                break
+            t *= 0.5
+        t, res = best
+        if t < 1.0:
+            damped += 1
+        u, lam = u + t * du, lam + t * dl
+        history.append(res)
+        converged = res <= tol
+
+    y = lam + e.B @ u - e.gap
+    inner = (np.abs(y - Lam.project(y)) <= 1e-12 * max(1.0, np.abs(y).max(initial=0))).sum()
+    u_phys, lam_phys = sc.to_physical(u, lam)
+    sol = Solution(
+        u=u_phys,
+        lam=lam_phys,
+        converged=bool(converged),
+        iterations=k,
+        residual=float(res),
+        history=history,
+        time=time.perf_counter() - t0,
+        method="ssn",
+        info={
+            "condensed": stepper.cond is not None,
+            "damped_steps": damped,
+            "inactive": int(inner),
+            "linear_solver": linear_solver,
+        },
+    )
+    if not converged:
+        sol.warnings.append(
+            f"ssn: residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"
+        )
+    return sol
