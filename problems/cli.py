@@ -1,0 +1,161 @@
+"""The `mixvi` command line.
+
+    mixvi solve [SCENE] [--level N] [--solver NAME] [--tol T] [--set key=value ...] [--out DIR]
+    mixvi scenes
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+import vi_core
+
+from . import registry
+from .errors import SceneError
+from .scene import SCENES_DIR, load_scene
+
+DEFAULT_SCENE = "rigid_foundation"
+
+
+def _plugin_name(scene) -> str:
+    head = scene.data.get("scene", {})
+    name = head.get("plugin", "piezo_contact") if isinstance(head, dict) else "piezo_contact"
+    return name if isinstance(name, str) else "piezo_contact"
+
+
+def _atomic_dir(out: Path):
+    """A temporary directory beside `out`, moved into place by `_commit_dir` on success."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+
+
+def _commit_dir(tmp: Path, out: Path) -> None:
+    old = None
+    if out.exists():
+        old = out.parent / f".{out.name}.old-{os.getpid()}"
+        out.rename(old)
+    tmp.rename(out)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
+
+
+def cmd_solve(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
+    plugin = registry.get(_plugin_name(scene))
+    model = plugin.build(scene, args.level)
+    t_build = time.perf_counter() - t0
+    method = args.solver or model.options.get("method", "ssn")
+    if method not in vi_core.METHODS:
+        raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
+    tol = args.tol if args.tol is not None else model.options.get("tol", 1e-10)
+    sol = vi_core.solve(model.vi, method=method, tol=tol)
+    out = Path(args.out) if args.out else Path("out") / scene.name
+    tmp = _atomic_dir(out)
+    try:
+        extras = plugin.postprocess(model, sol, tmp)
+        summary = {
+            "scene": scene.name,
+            "scene_file": scene.path,
+            "plugin": plugin.NAME,
+            "level": model.level,
+            "solver": method,
+            "tol": tol,
+            "dofs": model.dofs,
+            "converged": sol.converged,
+            "iterations": sol.iterations,
+            "residual": sol.residual,
+            "residual_history": sol.history,
+            **extras,
+            "solver_info": sol.info,
+            "warnings": model.warnings + sol.warnings,
+            "time_s": {
+                "build": t_build,
+                "solve": sol.time,
+                "total": time.perf_counter() - t0,
+            },
+        }
+        (tmp / "summary.json").write_text(json.dumps(_jsonable(summary), indent=2) + "\n")
+        _commit_dir(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    c = summary.get("contact", {})
+    print(
+        f"{scene.name} level {model.level}: {sum(model.dofs.values())} unknowns "
+        f"{model.dofs}, solver {method}"
+    )
+    print(
+        f"  converged {sol.converged} in {sol.iterations} iterations, "
+        f"residual {sol.residual:.2e}, lemma 4.2 gap {summary.get('lemma_4_2', float('nan')):.1e}"
+    )
+    if c:
+        print(f"  contact nodes {c['nodes']}: stick {c['stick']}, slip {c['slip']}")
+    print(f"  time {summary['time_s']['total']:.2f} s; wrote {out}/")
+    for w in summary["warnings"]:
+        print(f"  warning: {w}")
+    return 0 if sol.converged else 1
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    rows = []
+    for p in sorted(SCENES_DIR.glob("*.toml")):
+        head = tomllib.loads(p.read_text()).get("scene", {})
+        rows.append((p.stem, head.get("plugin", "piezo_contact"), head.get("title", "")))
+    w = max(len(r[0]) for r in rows)
+    wp = max(len(r[1]) for r in rows)
+    for name, plugin, title in rows:
+        print(f"{name:<{w}}  {plugin:<{wp}}  {title}")
+    return 0
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="mixvi", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("solve", help="solve a scene and write summary.json, VTU and PNG files")
+    s.add_argument("scene", nargs="?", help=f"scene file or shipped name (default {DEFAULT_SCENE})")
+    s.add_argument("--level", type=int, default=None, help="refinement level (default: scene's)")
+    s.add_argument("--solver", default=None, help="ssn (default) or another vi_core method")
+    s.add_argument("--tol", type=float, default=None, help="relative residual (default 1e-10)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
+    s.add_argument("--out", default=None, help="output directory (default out/SCENE)")
+    s.set_defaults(func=cmd_solve)
+    sc = sub.add_parser("scenes", help="list the scenes that ship")
+    sc.set_defaults(func=cmd_scenes)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `mixvi` command; exit status 2 on bad input."""
+    args = parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except SceneError as err:
+        print(f"mixvi: error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,285 @@
+"""Plug-in: elasto-piezoelectric bodies in bilateral contact with Tresca friction (Problem 4.1).
+
+Dual (biorthogonal) multipliers on the slave side Γ3: λ_h = Σ γ_i ψ_i n_i + α_i ψ_i τ_i, and
+Λ_h = product(Free(N), Box(−g_i, g_i)) with g_i = ∫gφ_i / ∫φ_i (DESIGN.md §5). With a rigid
+foundation the constraint rows are D_i n_iᵀu_i (normal) and D_i τ_iᵀu_i (tangential); with a
+master body they act on the mortar jump D u_s − M u_m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from fem import assembly
+from fem.boundary import Trace, trace
+from fem.dirichlet import expand, reduce_dirichlet
+from vi_core import Box, Free, MixedVI, Solution, product
+
+from . import plots
+from .bodies import Body, build_body
+from .errors import SceneError
+from .scene import Scene, Table
+
+NAME = "piezo_contact"
+DESCRIPTION = "elasto-piezoelectric bodies in bilateral Tresca contact (dual mortar multipliers)"
+
+
+@dataclass
+class Contact:
+    """The contact interface Γ3: slave trace, master (None = rigid), friction bounds."""
+
+    slave: Body
+    slave_part: str
+    tr: Trace  # slave trace (multiplier nodes = tr.nodes)
+    master: Body | None
+    master_part: str | None
+    g: np.ndarray  # (N,) g_i = ∫gφ_i / ∫φ_i
+    B_full: sp.csr_matrix  # (2N, n_full): normal rows then tangential rows
+    g_weights: np.ndarray  # (N,) ∫ g φ_i  (= g_i D_i)
+
+
+@dataclass
+class Model:
+    """A built scene: the mixed VI plus what post-processing needs."""
+
+    scene: Scene
+    level: int
+    bodies: list[Body]
+    contact: Contact
+    vi: MixedVI
+    free: np.ndarray  # (n_free,) full indices of the unknowns
+    values: np.ndarray  # (n_full,) prescribed values (fixed entries)
+    options: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def dofs(self) -> dict[str, int]:
+        """Number of unknowns per field."""
+        is_free = np.zeros(self.values.size, dtype=bool)
+        is_free[self.free] = True
+        disp = pot = 0
+        for b in self.bodies:
+            sl = is_free[b.offset : b.offset + b.size]
+            disp += int(sl[: 2 * b.n_nodes].sum())
+            pot += int(sl[2 * b.n_nodes :].sum())
+        return {"displacement": disp, "potential": pot, "multiplier": self.vi.m}
+
+    def full(self, u: np.ndarray) -> np.ndarray:
+        """Unknowns → full vector including Dirichlet values."""
+        return expand(u, self.free, self.values)
+
+
+def _segment_quadrature(P: np.ndarray, segs: np.ndarray):
+    """3-point Gauss on straight segments: points (n_seg, 3, 2), weights (n_seg, 3), φ (3, 2)."""
+    t = 0.5 + 0.5 * np.array([-np.sqrt(3 / 5), 0.0, np.sqrt(3 / 5)])  # (3,)
+    w = np.array([5 / 18, 8 / 18, 5 / 18])  # (3,)
+    a, b = P[segs[:, 0]], P[segs[:, 1]]  # (n_seg, 2)
+    L = np.linalg.norm(b - a, axis=1)  # (n_seg,)
+    x = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]  # (n_seg, 3, 2)
+    phi = np.stack([1 - t, t], axis=1)  # (3, 2)
+    return x, L[:, None] * w[None, :], phi
+
+
+def friction_weights(tr: Trace, points: np.ndarray, gfun, key: str) -> np.ndarray:
+    """∫ g φ_i ds for each trace node (g ≥ 0 checked)."""
+    x, w, phi = _segment_quadrature(points[tr.nodes], tr.segments)
+    gv = gfun(x[..., 0], x[..., 1])  # (n_seg, 3)
+    if (gv < 0).any():
+        raise SceneError(key, float(gv.min()), "a friction bound g ≥ 0 everywhere on Γ3")
+    out = np.zeros(tr.size)
+    for k in range(2):
+        np.add.at(out, tr.segments[:, k], (gv * w * phi[None, :, k]).sum(axis=1))
+    return out
+
+
+def _split_ref(t: Table, key: str, bodies: dict[str, Body]) -> tuple[Body, str]:
+    ref = t.string(key)
+    if "." not in ref:
+        raise SceneError(t.key(key), ref, "BODY.BOUNDARY, e.g. block.bottom")
+    bname, part = ref.split(".", 1)
+    if bname not in bodies:
+        raise SceneError(t.key(key), ref, f"a body of this scene: {', '.join(bodies)}")
+    body = bodies[bname]
+    if part not in body.mesh.boundaries:
+        raise SceneError(
+            t.key(key), ref, f"a boundary of {bname!r}: {', '.join(sorted(body.mesh.boundaries))}"
+        )
+    return body, part
+
+
+def build(scene: Scene, level: int | None = None) -> Model:
+    """Scene → Model (mesh, assembly, Dirichlet reduction, contact, MixedVI)."""
+    root = scene.root()
+    head = root.table("scene")
+    head.string("title", "")
+    head.string("description", "")
+    head.string("plugin", NAME, choices=(NAME,))
+    default_level = head.integer("level", 1, lo=0, hi=12)
+    head.finish()
+    level = default_level if level is None else level
+    bt = root.table("bodies")
+    if not bt.data:
+        raise SceneError("bodies", {}, "at least one [bodies.NAME] table")
+    bodies: dict[str, Body] = {}
+    offset = 0
+    for name in list(bt.data):
+        tb = bt.table(name)
+        body = build_body(name, tb, level, offset)
+        bodies[name] = body
+        offset += body.size
+    n_full = offset
+    ct = root.table("contact")
+    slave, slave_part = _split_ref(ct, "slave", bodies)
+    master_ref = ct.string("master", "rigid")
+    if master_ref != "rigid":
+        raise SceneError(ct.key("master"), master_ref, "'rigid' (two-body contact: not yet)")
+    g_fun = ct.field("g", 1)
+    ct.finish()
+    contact = _rigid_contact(slave, slave_part, g_fun, ct.key("g"), n_full)
+
+    out = root.table("output", required=False)
+    options = {"potential_along": None}
+    if out is not None:
+        if out.has("potential_along"):
+            b, part = _split_ref(out, "potential_along", bodies)
+            if not b.has_potential:
+                raise SceneError(
+                    out.key("potential_along"), f"{b.name}.{part}", "a boundary of a piezoelectric body"
+                )
+            options["potential_along"] = (b.name, part)
+        out.finish()
+    solver = root.table("solver", required=False)
+    if solver is not None:
+        options["method"] = solver.string("method", "ssn")
+        options["tol"] = solver.number("tol", 1e-10, lo=0.0, lo_open=True)
+        solver.finish()
+    root.finish()
+
+    A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
+    f_full = np.concatenate([b.f for b in bodies.values()])
+    fixed = np.concatenate([b.fixed for b in bodies.values()])
+    values = np.concatenate([b.values for b in bodies.values()])
+    X_full = sp.block_diag([b.X for b in bodies.values()], format="csr")
+    A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
+    B = contact.B_full[:, free]
+    gap = -(contact.B_full[:, fixed] @ values[fixed])
+    rowsum = np.asarray(abs(B).sum(axis=1)).ravel()
+    if (rowsum == 0).any():
+        i = int(np.flatnonzero(rowsum == 0)[0]) % contact.tr.size
+        node = contact.tr.nodes[i]
+        raise SceneError(
+            "contact.slave",
+            f"{slave.name}.{slave_part}",
+            f"a contact boundary whose nodes are not all clamped (node {node} at "
+            f"{slave.mesh.points[node].tolist()} has all displacement dofs prescribed)",
+        )
+    N = contact.tr.size
+    Lam = product(Free(N), Box(-contact.g, contact.g))
+    h_i = np.zeros(N)
+    np.maximum.at(h_i, contact.tr.segments[:, 0], contact.tr.lengths)
+    np.maximum.at(h_i, contact.tr.segments[:, 1], contact.tr.lengths)
+    Y = sp.diags(np.tile(h_i * contact.tr.weights, 2))  # mesh-dependent H^{-1/2} stand-in
+    vi = MixedVI(
+        A=A,
+        B=B,
+        f=f,
+        Lambda=Lam,
+        gap=gap,
+        X=X_full[free][:, free],
+        Y=Y,
+        info={"scene": scene.name, "level": level},
+    )
+    return Model(scene, level, list(bodies.values()), contact, vi, free, values, options)
+
+
+def _rigid_contact(slave: Body, part: str, g_fun, gkey: str, n_full: int) -> Contact:
+    tr = trace(slave.mesh, part)
+    N = tr.size
+    gw = friction_weights(tr, slave.mesh.points, g_fun, gkey)
+    dofs = slave.u_dofs(tr.nodes)  # (N, 2)
+    rows = np.repeat(np.arange(2 * N), 2)
+    cols = np.concatenate([dofs, dofs]).ravel()
+    vals = np.concatenate(
+        [tr.weights[:, None] * tr.normals, tr.weights[:, None] * tr.tangents]
+    ).ravel()
+    B = sp.csr_matrix((vals, (rows, cols)), shape=(2 * N, n_full))
+    return Contact(slave, part, tr, None, None, gw / tr.weights, B, gw)
+
+
+# ------------------------------------------------------------------ post-processing
+def contact_state(model: Model, sol: Solution) -> dict:
+    """Per-node contact quantities along Γ3 and the Lemma 4.2 check."""
+    c = model.contact
+    N = c.tr.size
+    x_full = model.full(sol.u)
+    lam_n, lam_t = sol.lam[:N], sol.lam[N:]
+    Bu = c.B_full @ x_full  # (2N,) = D_i·[u]_n, D_i·[u]_τ
+    jump_t = Bu[N:] / c.tr.weights  # nodal tangential (mortar) jump
+    u_s = x_full[c.slave.u_dofs(c.tr.nodes)]  # (N, 2)
+    ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents)
+    gmax = float(c.g.max(initial=0.0))
+    slip = np.abs(lam_t) >= c.g - 1e-9 * max(gmax, 1e-300)
+    b_uh_lam = float(sol.lam @ Bu)
+    g_abs = float(np.sum(c.g_weights * np.abs(jump_t)))
+    tiny = np.finfo(float).eps * float(np.sum(c.g_weights)) * max(np.abs(x_full).max(), 1e-300)
+    lemma = abs(b_uh_lam - g_abs) / max(g_abs, tiny, 1e-300)
+    return {
+        "s": c.tr.s,
+        "points": c.slave.mesh.points[c.tr.nodes],
+        "lam_n": lam_n,
+        "lam_t": lam_t,
+        "g": c.g,
+        "jump_t": jump_t,
+        "ut_slave": ut_s,
+        "slip": slip,
+        "b_uh_lam": b_uh_lam,
+        "int_g_abs_u": g_abs,
+        "lemma_4_2": float(lemma),
+    }
+
+
+def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
+    """Write VTU fields and PNG plots into `outdir`; return the summary entries."""
+    from fem.io import write_vtu
+
+    state = contact_state(model, sol)
+    x_full = model.full(sol.u)
+    files = []
+    for b in model.bodies:
+        u, phi = b.split(x_full[b.offset : b.offset + b.size])
+        m = b.material
+        sigma, D = assembly.cell_fields(b.mesh, u.ravel(), phi, m.C, m.e, m.kappa)
+        point = {"displacement": u}
+        cell = {"stress": sigma}
+        if phi is not None:
+            point["potential"] = phi
+            cell["electric_displacement"] = D
+        fn = f"{b.name}.vtu"
+        write_vtu(outdir / fn, b.mesh, point, cell)
+        files.append(fn)
+    files += plots.contact_plots(state, outdir, title=model.scene.name)
+    along = model.options.get("potential_along")
+    if along is not None:
+        b = next(bb for bb in model.bodies if bb.name == along[0])
+        tr = trace(b.mesh, along[1])
+        _, phi = b.split(x_full[b.offset : b.offset + b.size])
+        files.append(
+            plots.potential_plot(
+                b.mesh.points[tr.nodes], tr.s, phi[tr.nodes], outdir, f"{along[0]}.{along[1]}"
+            )
+        )
+    n_slip = int(state["slip"].sum())
+    return {
+        "contact": {
+            "nodes": int(state["slip"].size),
+            "stick": int(state["slip"].size - n_slip),
+            "slip": n_slip,
+        },
+        "lemma_4_2": state["lemma_4_2"],
+        "files": sorted(files),
+    }
+

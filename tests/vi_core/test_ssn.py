@@ -1,0 +1,102 @@
+"""Semismooth Newton: closed-form solutions, condensed vs full steps, unit invariance."""
+
+import numpy as np
+import scipy.sparse as sp
+from hypothesis import given
+from hypothesis import strategies as st
+
+from vi_core import Ball, Box, Free, MixedVI, NonNegative, product, solve
+
+seeds = st.integers(0, 2**32 - 1)
+
+
+def _random_set(rng, m):
+    kind = rng.integers(0, 4)
+    if kind == 0:
+        return product(Free(m // 2), Box(-rng.uniform(0, 1, m - m // 2), rng.uniform(0, 1, m - m // 2)))
+    if kind == 1:
+        return NonNegative(m)
+    if kind == 2:
+        return Ball(rng.uniform(0, 1, m // 2), 2) if m % 2 == 0 else Box(-1.0, 1.0, size=m)
+    return product(Box(-rng.uniform(0, 1, m), rng.uniform(0, 1, m)))
+
+
+def _random_vi(rng, n=30, m=8, skew=1.0, mortar=True):
+    M = rng.standard_normal((n, n))
+    A = M @ M.T / n + np.eye(n) + skew * (lambda S: S - S.T)(rng.standard_normal((n, n))) / np.sqrt(n)
+    if mortar:  # dual-mortar-like B: a private diagonal block plus coupling to other columns
+        B = np.zeros((m, n))
+        B[np.arange(m), np.arange(m)] = rng.uniform(0.5, 2, m)
+        B[:, m : 2 * m] = -0.3 * rng.standard_normal((m, m))
+    else:
+        B = rng.standard_normal((m, n))
+    f = 10 * rng.standard_normal(n)
+    return MixedVI(sp.csr_matrix(A), sp.csr_matrix(B), f, _random_set(rng, m))
+
+
+@given(seeds)
+def test_identity_problem_has_projection_solution(seed):
+    """A = I, B = I: λ = P_Λ(f), u = f − λ for every set type."""
+    rng = np.random.default_rng(seed)
+    m = 2 * int(rng.integers(1, 6))
+    Lam = _random_set(rng, m)
+    f = 3 * rng.standard_normal(m)
+    vi = MixedVI(sp.identity(m), sp.identity(m), f, Lam)
+    sol = solve(vi, "ssn", tol=1e-12)
+    assert sol.converged
+    np.testing.assert_allclose(sol.lam, Lam.project(f), atol=1e-11)
+    np.testing.assert_allclose(sol.u, f - Lam.project(f), atol=1e-11)
+
+
+@given(seeds)
+def test_condensed_and_full_newton_agree(seed):
+    rng = np.random.default_rng(seed)
+    vi = _random_vi(rng)
+    a = solve(vi, "ssn", tol=1e-11, condense=True)
+    b = solve(vi, "ssn", tol=1e-11, condense=False)
+    assert a.converged and b.converged
+    assert a.info["condensed"] and not b.info["condensed"]
+    np.testing.assert_allclose(a.u, b.u, rtol=1e-8, atol=1e-9 * np.abs(b.u).max())
+    np.testing.assert_allclose(a.lam, b.lam, rtol=1e-8, atol=1e-9 * max(np.abs(b.lam).max(), 1))
+
+
+@given(seeds)
+def test_general_b_and_nonsymmetric_a_converge(seed):
+    rng = np.random.default_rng(seed)
+    vi = _random_vi(rng, mortar=False, skew=2.0)
+    sol = solve(vi, "ssn", tol=1e-10)
+    assert sol.converged, sol.history
+    r = vi.residual(sol.u, sol.lam)
+    assert r.relative <= 1e-10
+    assert vi.Lambda.contains(sol.lam, 1e-9 * max(1.0, np.abs(sol.lam).max()))
+
+
+@given(seeds)
+def test_unit_change_gives_the_same_physical_answer(seed):
+    """Rescaling unknowns and equations (a change of units) changes nothing physical."""
+    rng = np.random.default_rng(seed)
+    vi = _random_vi(rng)
+    su = 10.0 ** rng.integers(-8, 9, vi.n)  # u = su ⊙ u_new
+    sl = 10.0 ** rng.integers(-6, 7)  # one unit for all multipliers (sets scale uniformly)
+    Su = sp.diags(su)
+    vi2 = MixedVI(
+        Su @ vi.A @ Su, vi.B @ Su * (1 / 1.0), su * vi.f, vi.Lambda, gap=vi.gap
+    )  # same λ units
+    vi3 = MixedVI(vi.A, vi.B * sl, vi.f, vi.Lambda.scaled(np.full(vi.m, sl)), gap=vi.gap * sl)
+    a = solve(vi, "ssn", tol=1e-11)
+    b = solve(vi2, "ssn", tol=1e-11)
+    c = solve(vi3, "ssn", tol=1e-11)
+    assert a.converged and b.converged and c.converged
+    np.testing.assert_allclose(b.u * su, a.u, rtol=1e-7, atol=1e-8 * np.abs(a.u).max())
+    np.testing.assert_allclose(b.lam, a.lam, rtol=1e-7, atol=1e-8 * max(np.abs(a.lam).max(), 1))
+    np.testing.assert_allclose(c.lam * sl, a.lam, rtol=1e-7, atol=1e-8 * max(np.abs(a.lam).max(), 1))
+    assert abs(a.residual - vi.residual(a.u, a.lam).relative) == 0
+
+
+def test_history_starts_at_initial_guess_and_ends_at_residual():
+    rng = np.random.default_rng(3)
+    vi = _random_vi(rng)
+    sol = solve(vi, "ssn")
+    assert sol.history[0] == vi.residual(np.zeros(vi.n), np.zeros(vi.m)).relative
+    assert sol.history[-1] == sol.residual
+    assert len(sol.history) == sol.iterations + 1
