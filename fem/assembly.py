@@ -39,13 +39,19 @@ class Geometry:
     grad: np.ndarray
 
 
+def _det(J: np.ndarray) -> np.ndarray:
+    """Determinants of a stack of 2×2 matrices (..., 2, 2) -> (...)."""
+    return J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+
+
 def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray) -> Geometry:
     ref = reference_element(mesh.cell_type)
     X = mesh.points[mesh.cells]  # (n_cells, n_loc, 2)
     # det J is constant (P1) or affine in the reference coordinates (Q1): it is positive on the
     # whole cell iff it is positive at the vertices
-    Jv = np.einsum("cai,vaj->cvij", X, ref.gradients(ref.vertices))  # (n_cells, n_loc, 2, 2)
-    bad = np.flatnonzero((np.linalg.det(Jv) <= 0).any(axis=1))  # (n_bad,)
+    XT = X.transpose(0, 2, 1)[:, None]  # (n_cells, 1, 2, n_loc)
+    Jv = XT @ ref.gradients(ref.vertices)  # (n_cells, n_loc, 2, 2) J at the vertices
+    bad = np.flatnonzero((_det(Jv) <= 0).any(axis=1))  # (n_bad,)
     if bad.size:
         raise ValueError(
             f"inverted or degenerate cell {bad[0]} (nodes {mesh.cells[bad[0]].tolist()}): "
@@ -53,11 +59,12 @@ def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray) -> Geometry:
         )
     phi = ref.values(pts)  # (n_qp, n_loc)
     dphi = ref.gradients(pts)  # (n_qp, n_loc, 2)
-    J = np.einsum("cai,qaj->cqij", X, dphi)  # (n_cells, n_qp, 2, 2)
-    detJ = np.linalg.det(J)  # (n_cells, n_qp)
-    invJ = np.linalg.inv(J)  # (n_cells, n_qp, 2, 2)
-    grad = np.einsum("qaj,cqji->cqai", dphi, invJ)  # (n_cells, n_qp, n_loc, 2)
-    x = np.einsum("qa,cai->cqi", phi, X)  # (n_cells, n_qp, 2)
+    J = XT @ dphi  # (n_cells, n_qp, 2, 2) J_ij = ∂x_i/∂ξ_j
+    detJ = _det(J)  # (n_cells, n_qp)
+    adj = np.stack([J[..., 1, 1], -J[..., 0, 1], -J[..., 1, 0], J[..., 0, 0]], axis=-1)
+    invJ = adj.reshape(J.shape) / detJ[..., None, None]  # (n_cells, n_qp, 2, 2)
+    grad = dphi @ invJ  # (n_cells, n_qp, n_loc, 2) ∇φ = J⁻ᵀ ∇_ξ φ
+    x = phi @ X  # (n_cells, n_qp, 2)
     w = wts[None, :] * detJ  # (n_cells, n_qp)
     return Geometry(x=x, w=w, phi=phi, grad=grad)
 
@@ -106,7 +113,8 @@ def elasticity_matrix(mesh: Mesh, C: np.ndarray) -> sp.csr_matrix:
     C = _check_matrix("C", C, (3, 3))
     g = cell_geometry(mesh, order=2)
     B = _strain_operator(g.grad)  # (n_cells, n_qp, 3, 2 n_loc)
-    Ke = np.einsum("cq,cqip,ij,cqjr->cpr", g.w, B, C, B)  # (n_cells, 2 n_loc, 2 n_loc)
+    wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (n_cells, n_qp, 2 n_loc, 3)
+    Ke = (wBt @ (C @ B)).sum(axis=1)  # (n_cells, 2 n_loc, 2 n_loc)
     dofs = _vector_dofs(mesh)  # (n_cells, 2 n_loc)
     n = 2 * mesh.n_nodes
     return _assemble(Ke, dofs, dofs, (n, n))
@@ -117,7 +125,8 @@ def coupling_matrix(mesh: Mesh, e: np.ndarray) -> sp.csr_matrix:
     e = _check_matrix("e", e, (2, 3))
     g = cell_geometry(mesh, order=2)
     B = _strain_operator(g.grad)  # (n_cells, n_qp, 3, 2 n_loc)
-    Ge = np.einsum("cq,cqai,ij,cqjr->car", g.w, g.grad, e, B)  # (n_cells, n_loc, 2 n_loc)
+    wgrad = g.grad * g.w[:, :, None, None]  # (n_cells, n_qp, n_loc, 2)
+    Ge = (wgrad @ (e @ B)).sum(axis=1)  # (n_cells, n_loc, 2 n_loc)
     return _assemble(Ge, mesh.cells, _vector_dofs(mesh), (mesh.n_nodes, 2 * mesh.n_nodes))
 
 
@@ -125,7 +134,8 @@ def permittivity_matrix(mesh: Mesh, kappa: np.ndarray) -> sp.csr_matrix:
     """(N × N) ∫ κ∇φ·∇θ, κ a 2×2 symmetric positive definite matrix."""
     kappa = _check_matrix("kappa", kappa, (2, 2))
     g = cell_geometry(mesh, order=2)
-    Pe = np.einsum("cq,cqai,ij,cqbj->cab", g.w, g.grad, kappa, g.grad)  # (n_cells, n_loc, n_loc)
+    wgrad = g.grad * g.w[:, :, None, None]  # (n_cells, n_qp, n_loc, 2)
+    Pe = (wgrad @ kappa @ g.grad.transpose(0, 1, 3, 2)).sum(axis=1)  # (n_cells, n_loc, n_loc)
     return _assemble(Pe, mesh.cells, mesh.cells, (mesh.n_nodes, mesh.n_nodes))
 
 
@@ -137,7 +147,7 @@ def stiffness_matrix(mesh: Mesh) -> sp.csr_matrix:
 def mass_matrix(mesh: Mesh) -> sp.csr_matrix:
     """(N × N) ∫ φ θ (the L² Gram matrix)."""
     g = cell_geometry(mesh, order=2)
-    Me = np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi)  # (n_cells, n_loc, n_loc)
+    Me = np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (n_cells, n_loc, n_loc)
     return _assemble(Me, mesh.cells, mesh.cells, (mesh.n_nodes, mesh.n_nodes))
 
 
@@ -168,7 +178,7 @@ def volume_load(mesh: Mesh, func: Func, ncomp: int, order: int = 4) -> np.ndarra
     """∫_Ω f·v dx as a vector of length ncomp·N (interleaved: dof ncomp·i + k)."""
     g = cell_geometry(mesh, order)
     f = _evaluate(func, g.x[..., 0], g.x[..., 1], ncomp)  # (n_cells, n_qp, ncomp)
-    Fe = np.einsum("cq,qa,cqk->cak", g.w, g.phi, f)  # (n_cells, n_loc, ncomp)
+    Fe = np.einsum("cq,qa,cqk->cak", g.w, g.phi, f, optimize=True)  # (n_cells, n_loc, ncomp)
     return _scatter(Fe, mesh.cells, mesh.n_nodes)
 
 
@@ -189,9 +199,9 @@ def boundary_load(mesh: Mesh, name: str, func: Func, ncomp: int) -> np.ndarray:
     P = mesh.points[edges]  # (n_e, 2, 2)
     L = np.linalg.norm(P[:, 1] - P[:, 0], axis=1)  # (n_e,)
     N = np.stack([1 - _GAUSS3_T, _GAUSS3_T], axis=1)  # (3, 2) trace shape functions
-    x = np.einsum("qa,eai->eqi", N, P)  # (n_e, 3, 2)
+    x = np.einsum("qa,eai->eqi", N, P, optimize=True)  # (n_e, 3, 2)
     f = _evaluate(func, x[..., 0], x[..., 1], ncomp)  # (n_e, 3, ncomp)
-    Fe = np.einsum("e,q,qa,eqk->eak", L, _GAUSS3_W, N, f)  # (n_e, 2, ncomp)
+    Fe = np.einsum("e,q,qa,eqk->eak", L, _GAUSS3_W, N, f, optimize=True)  # (n_e, 2, ncomp)
     return _scatter(Fe, edges, mesh.n_nodes)
 
 
@@ -213,7 +223,7 @@ def cell_fields(
     g = _geometry(mesh, ref.centroid[None, :], np.ones(1))
     grad = g.grad[:, 0]  # (n_cells, n_loc, 2)
     U = np.asarray(u, dtype=float).reshape(mesh.n_nodes, 2)[mesh.cells]  # (n_cells, n_loc, 2)
-    Du = np.einsum("cak,cai->cki", U, grad)  # (n_cells, 2, 2) ∂u_k/∂x_i
+    Du = np.einsum("cak,cai->cki", U, grad, optimize=True)  # (n_cells, 2, 2) ∂u_k/∂x_i
     eps = np.stack([Du[:, 0, 0], Du[:, 1, 1], Du[:, 0, 1] + Du[:, 1, 0]], axis=1)  # (n_cells, 3)
     sigma = eps @ C.T  # (n_cells, 3)
     if phi is None:
@@ -234,7 +244,7 @@ def l2_error(mesh: Mesh, uh: np.ndarray, exact: Func, ncomp: int, order: int = 4
     """‖u − u_h‖_{L²(Ω)} by quadrature of `order` (uh interleaved, length ncomp·N)."""
     g = cell_geometry(mesh, order)
     U = np.asarray(uh, dtype=float).reshape(mesh.n_nodes, ncomp)[mesh.cells]  # (n_c, n_loc, nc)
-    vh = np.einsum("qa,cak->cqk", g.phi, U)  # (n_cells, n_qp, ncomp)
+    vh = np.einsum("qa,cak->cqk", g.phi, U, optimize=True)  # (n_cells, n_qp, ncomp)
     d = _evaluate(exact, g.x[..., 0], g.x[..., 1], ncomp) - vh  # (n_cells, n_qp, ncomp)
     return float(np.sqrt(np.einsum("cq,cqk,cqk->", g.w, d, d)))
 
@@ -245,7 +255,7 @@ def h1_seminorm_error(
     """|u − u_h|_{H¹(Ω)}; grad_exact(x, y) returns x.shape + (ncomp, 2) (or x.shape + (2,))."""
     g = cell_geometry(mesh, order)
     U = np.asarray(uh, dtype=float).reshape(mesh.n_nodes, ncomp)[mesh.cells]  # (n_c, n_loc, nc)
-    Gh = np.einsum("cqai,cak->cqki", g.grad, U)  # (n_cells, n_qp, ncomp, 2)
+    Gh = np.einsum("cqai,cak->cqki", g.grad, U, optimize=True)  # (n_cells, n_qp, ncomp, 2)
     x, y = g.x[..., 0], g.x[..., 1]  # (n_cells, n_qp) each
     G = np.asarray(grad_exact(x, y), dtype=float).reshape(x.shape + (ncomp, 2))
     d = G - Gh  # (n_cells, n_qp, ncomp, 2)
