@@ -153,18 +153,20 @@ def mass_matrix(mesh: Mesh) -> sp.csr_matrix:
 
 def _evaluate(func: Func, x: np.ndarray, y: np.ndarray, ncomp: int) -> np.ndarray:
     """func at points (x, y) of any shape as an array x.shape + (ncomp,)."""
+    shape = x.shape + (ncomp,)
     if callable(func):
         v = np.asarray(func(x, y), dtype=float)
         if ncomp == 1 and v.shape == x.shape:
             v = v[..., None]
+        ok = v.shape == shape or v.ndim == 0
     else:
-        v = np.asarray(func, dtype=float).reshape(-1)  # (ncomp,)
-    try:
-        return np.broadcast_to(v, x.shape + (ncomp,))
-    except ValueError:
-        raise ValueError(
-            f"function values of shape {v.shape} do not fit points {x.shape} with ncomp={ncomp}"
-        ) from None
+        v = np.asarray(func, dtype=float)
+        ok = v.size == ncomp and v.ndim <= 1
+        v = v.reshape(-1)  # (ncomp,)
+    if not ok:
+        what = "function values" if callable(func) else "constant"
+        raise ValueError(f"{what} of shape {v.shape} do not fit points {x.shape}, ncomp={ncomp}")
+    return np.broadcast_to(v, shape)
 
 
 def _scatter(local: np.ndarray, nodes: np.ndarray, n_nodes: int) -> np.ndarray:

@@ -207,10 +207,6 @@ def test_patch_elasticity(element):
     Ar, fr, free = reduce_dirichlet(A, np.zeros(2 * mesh.n_nodes), fixed, exact)
     u = expand(spla.spsolve(Ar.tocsc(), fr), free, exact)
     assert np.abs(u - exact).max() <= 1e-10 * np.abs(exact).max()
-    # and the check fails for a wrong operator (the patch test can fail)
-    Ab = elasticity_matrix(mesh, C_ANISO) + sp.diags(np.linspace(0, 1, 2 * mesh.n_nodes))
-    Ar, fr, free = reduce_dirichlet(Ab, np.zeros(2 * mesh.n_nodes), fixed, exact)
-    assert np.abs(expand(spla.spsolve(Ar.tocsc(), fr), free, exact) - exact).max() > 1e-6
 
 
 @pytest.mark.parametrize("element", ELEMENTS)
@@ -305,8 +301,10 @@ def test_volume_load_exact(element):
     assert np.isclose(Fv[0::2].sum(), 3.0) and np.isclose(Fv[1::2].sum(), -6.0)
     Fv = volume_load(mesh, lambda x, y: np.stack([y, x * x], -1), 2)
     assert np.isclose(Fv[0::2].sum(), 2 * 1.125) and np.isclose(Fv[1::2] @ y, 8 / 3 * 1.125)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="constant"):
         volume_load(mesh, (1.0, 2.0, 3.0), 2)
+    with pytest.raises(ValueError, match="function values"):  # a scalar field for ncomp = 2
+        volume_load(mesh, lambda x, y: x, 2)
 
 
 def _poisson_errors(element: str, levels: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
