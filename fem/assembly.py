@@ -259,6 +259,10 @@ def h1_seminorm_error(
     U = np.asarray(uh, dtype=float).reshape(mesh.n_nodes, ncomp)[mesh.cells]  # (n_c, n_loc, nc)
     Gh = np.einsum("cqai,cak->cqki", g.grad, U, optimize=True)  # (n_cells, n_qp, ncomp, 2)
     x, y = g.x[..., 0], g.x[..., 1]  # (n_cells, n_qp) each
-    G = np.asarray(grad_exact(x, y), dtype=float).reshape(x.shape + (ncomp, 2))
+    G = np.asarray(grad_exact(x, y), dtype=float)  # (n_cells, n_qp, ncomp, 2)
+    if ncomp == 1 and G.shape == x.shape + (2,):
+        G = G[..., None, :]
+    if G.shape != x.shape + (ncomp, 2):
+        raise ValueError(f"grad_exact returned shape {G.shape}, expected {x.shape + (ncomp, 2)}")
     d = G - Gh  # (n_cells, n_qp, ncomp, 2)
     return float(np.sqrt(np.einsum("cq,cqki,cqki->", g.w, d, d)))

@@ -24,6 +24,8 @@ def rectangle(
 ) -> Mesh:
     """Structured mesh of [x0, x1] × [y0, y1] with nx × ny cells ("quad" Q1 or "triangle" P1).
 
+    Triangles: each square is split along its lower-left → upper-right diagonal.
+
     Boundary parts "bottom" (left → right), "right" (bottom → top), "top" (right → left) and
     "left" (top → bottom): counterclockwise, with the domain on the left of each edge.
     """

@@ -286,6 +286,8 @@ def test_interpolate_and_errors_of_linear_functions(element):
     assert np.isclose(l2_error(mesh, zero, 2.0, 1), 2 * np.sqrt(3.0))
     grad_x = lambda x, y: np.stack([np.ones_like(x), np.zeros_like(x)], axis=-1)  # noqa: E731
     assert np.isclose(h1_seminorm_error(mesh, zero, grad_x, 1), np.sqrt(3.0))
+    with pytest.raises(ValueError, match="grad_exact"):
+        h1_seminorm_error(mesh, uh, lambda x, y: np.zeros(x.shape + (2, 3)), 2)
 
 
 @pytest.mark.parametrize("element", ELEMENTS)
