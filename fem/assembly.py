@@ -1,0 +1,268 @@
+"""Vectorised (over cells) assembly of P1/Q1 forms, loads, post-processing and error norms.
+
+Dof numbering: displacement component k of node i is dof 2 i + k; scalar fields (the electric
+potential) have dof = node index. Voigt order on (xx, yy, xy) with engineering shear strain
+γ_xy = 2 ε_xy. Sign convention of the paper: σ = C ε(u) + eᵀ∇φ, D = e ε(u) − κ∇φ.
+
+Functions `func` given to loads, interpolation and error norms are called as func(x, y) with
+arrays of any shape and return x.shape + (ncomp,) (or x.shape when ncomp = 1); a constant (float
+or length-ncomp sequence) may be given instead.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .elements import reference_element
+from .mesh import Mesh
+
+Func = Callable[[np.ndarray, np.ndarray], np.ndarray] | float | Sequence[float]
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """Quadrature data of all cells.
+
+    x : (n_cells, n_qp, 2) physical quadrature points.
+    w : (n_cells, n_qp) quadrature weights × |det J|.
+    phi : (n_qp, n_loc) shape function values.
+    grad : (n_cells, n_qp, n_loc, 2) physical shape function gradients.
+    """
+
+    x: np.ndarray
+    w: np.ndarray
+    phi: np.ndarray
+    grad: np.ndarray
+
+
+def _det(J: np.ndarray) -> np.ndarray:
+    """Determinants of a stack of 2×2 matrices (..., 2, 2) -> (...)."""
+    return J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+
+
+def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray) -> Geometry:
+    ref = reference_element(mesh.cell_type)
+    X = mesh.points[mesh.cells]  # (n_cells, n_loc, 2)
+    # det J is constant (P1) or affine in the reference coordinates (Q1): it is positive on the
+    # whole cell iff it is positive at the vertices
+    XT = X.transpose(0, 2, 1)[:, None]  # (n_cells, 1, 2, n_loc)
+    Jv = XT @ ref.gradients(ref.vertices)  # (n_cells, n_loc, 2, 2) J at the vertices
+    bad = np.flatnonzero((_det(Jv) <= 0).any(axis=1))  # (n_bad,)
+    if bad.size:
+        raise ValueError(
+            f"inverted or degenerate cell {bad[0]} (nodes {mesh.cells[bad[0]].tolist()}): "
+            f"det J <= 0; {bad.size} bad cell(s) in total"
+        )
+    phi = ref.values(pts)  # (n_qp, n_loc)
+    dphi = ref.gradients(pts)  # (n_qp, n_loc, 2)
+    J = XT @ dphi  # (n_cells, n_qp, 2, 2) J_ij = ∂x_i/∂ξ_j
+    detJ = _det(J)  # (n_cells, n_qp)
+    adj = np.stack([J[..., 1, 1], -J[..., 0, 1], -J[..., 1, 0], J[..., 0, 0]], axis=-1)
+    invJ = adj.reshape(J.shape) / detJ[..., None, None]  # (n_cells, n_qp, 2, 2)
+    grad = dphi @ invJ  # (n_cells, n_qp, n_loc, 2) ∇φ = J⁻ᵀ ∇_ξ φ
+    x = phi @ X  # (n_cells, n_qp, 2)
+    w = wts[None, :] * detJ  # (n_cells, n_qp)
+    return Geometry(x=x, w=w, phi=phi, grad=grad)
+
+
+def cell_geometry(mesh: Mesh, order: int = 2) -> Geometry:
+    """Quadrature points, weights, shape values and physical gradients for a rule of `order`.
+
+    Raises ValueError naming the first cell whose Jacobian determinant is ≤ 0 (inverted).
+    """
+    pts, wts = reference_element(mesh.cell_type).quadrature(order)
+    return _geometry(mesh, pts, wts)
+
+
+def _vector_dofs(mesh: Mesh) -> np.ndarray:
+    """(n_cells, 2 n_loc) global dofs 2 i + k, local order 2 a + k."""
+    return (2 * mesh.cells[:, :, None] + np.arange(2)).reshape(mesh.n_cells, -1)
+
+
+def _assemble(local: np.ndarray, rows: np.ndarray, cols: np.ndarray, shape) -> sp.csr_matrix:
+    """Sum local matrices (n_cells, r, c) into a sparse matrix (duplicates added)."""
+    R = np.broadcast_to(rows[:, :, None], local.shape)  # (n_cells, r, c)
+    C = np.broadcast_to(cols[:, None, :], local.shape)  # (n_cells, r, c)
+    return sp.csr_matrix((local.ravel(), (R.ravel(), C.ravel())), shape=shape)
+
+
+def _strain_operator(grad: np.ndarray) -> np.ndarray:
+    """Voigt strain-displacement matrices B: (n_cells, n_qp, 3, 2 n_loc), local dof 2 a + k."""
+    n_cells, n_qp, n_loc, _ = grad.shape
+    B = np.zeros((n_cells, n_qp, 3, n_loc, 2))  # (n_cells, n_qp, 3, n_loc, 2)
+    B[:, :, 0, :, 0] = grad[..., 0]
+    B[:, :, 1, :, 1] = grad[..., 1]
+    B[:, :, 2, :, 0] = grad[..., 1]
+    B[:, :, 2, :, 1] = grad[..., 0]
+    return B.reshape(n_cells, n_qp, 3, 2 * n_loc)
+
+
+def _check_matrix(name: str, M: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    M = np.asarray(M, dtype=float)
+    if M.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {M.shape}")
+    return M
+
+
+def elasticity_matrix(mesh: Mesh, C: np.ndarray) -> sp.csr_matrix:
+    """(2N × 2N) ∫ C ε(u)·ε(v), C the 3×3 Voigt matrix on (xx, yy, xy)."""
+    C = _check_matrix("C", C, (3, 3))
+    g = cell_geometry(mesh, order=2)
+    B = _strain_operator(g.grad)  # (n_cells, n_qp, 3, 2 n_loc)
+    wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (n_cells, n_qp, 2 n_loc, 3)
+    Ke = (wBt @ (C @ B)).sum(axis=1)  # (n_cells, 2 n_loc, 2 n_loc)
+    dofs = _vector_dofs(mesh)  # (n_cells, 2 n_loc)
+    n = 2 * mesh.n_nodes
+    return _assemble(Ke, dofs, dofs, (n, n))
+
+
+def coupling_matrix(mesh: Mesh, e: np.ndarray) -> sp.csr_matrix:
+    """(N × 2N) G[θ, u] = ∫ ∇θ · (e ε(u)), e the 2×3 piezoelectric matrix (rows D_x, D_y)."""
+    e = _check_matrix("e", e, (2, 3))
+    g = cell_geometry(mesh, order=2)
+    B = _strain_operator(g.grad)  # (n_cells, n_qp, 3, 2 n_loc)
+    wgrad = g.grad * g.w[:, :, None, None]  # (n_cells, n_qp, n_loc, 2)
+    Ge = (wgrad @ (e @ B)).sum(axis=1)  # (n_cells, n_loc, 2 n_loc)
+    return _assemble(Ge, mesh.cells, _vector_dofs(mesh), (mesh.n_nodes, 2 * mesh.n_nodes))
+
+
+def permittivity_matrix(mesh: Mesh, kappa: np.ndarray) -> sp.csr_matrix:
+    """(N × N) ∫ κ∇φ·∇θ, κ a 2×2 symmetric positive definite matrix."""
+    kappa = _check_matrix("kappa", kappa, (2, 2))
+    g = cell_geometry(mesh, order=2)
+    wgrad = g.grad * g.w[:, :, None, None]  # (n_cells, n_qp, n_loc, 2)
+    Pe = (wgrad @ kappa @ g.grad.transpose(0, 1, 3, 2)).sum(axis=1)  # (n_cells, n_loc, n_loc)
+    return _assemble(Pe, mesh.cells, mesh.cells, (mesh.n_nodes, mesh.n_nodes))
+
+
+def stiffness_matrix(mesh: Mesh) -> sp.csr_matrix:
+    """(N × N) ∫ ∇φ·∇θ (the H¹ seminorm Gram matrix)."""
+    return permittivity_matrix(mesh, np.eye(2))
+
+
+def mass_matrix(mesh: Mesh) -> sp.csr_matrix:
+    """(N × N) ∫ φ θ (the L² Gram matrix)."""
+    g = cell_geometry(mesh, order=2)
+    Me = np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (n_cells, n_loc, n_loc)
+    return _assemble(Me, mesh.cells, mesh.cells, (mesh.n_nodes, mesh.n_nodes))
+
+
+def _evaluate(func: Func, x: np.ndarray, y: np.ndarray, ncomp: int) -> np.ndarray:
+    """func at points (x, y) of any shape as an array x.shape + (ncomp,)."""
+    shape = x.shape + (ncomp,)
+    if callable(func):
+        v = np.asarray(func(x, y), dtype=float)
+        if ncomp == 1 and v.shape == x.shape:
+            v = v[..., None]
+        ok = v.shape == shape or v.ndim == 0
+    else:
+        v = np.asarray(func, dtype=float)
+        ok = v.size == ncomp and v.ndim <= 1
+        v = v.reshape(-1)  # (ncomp,)
+    if not ok:
+        what = "function values" if callable(func) else "constant"
+        raise ValueError(f"{what} of shape {v.shape} do not fit points {x.shape}, ncomp={ncomp}")
+    return np.broadcast_to(v, shape)
+
+
+def _scatter(local: np.ndarray, nodes: np.ndarray, n_nodes: int) -> np.ndarray:
+    """Sum local nodal vectors (n_items, n_loc, ncomp) into the interleaved global vector."""
+    ncomp = local.shape[-1]
+    dofs = ncomp * nodes[:, :, None] + np.arange(ncomp)  # (n_items, n_loc, ncomp)
+    return np.bincount(dofs.ravel(), weights=local.ravel(), minlength=ncomp * n_nodes)
+
+
+def volume_load(mesh: Mesh, func: Func, ncomp: int, order: int = 4) -> np.ndarray:
+    """∫_Ω f·v dx as a vector of length ncomp·N (interleaved: dof ncomp·i + k)."""
+    g = cell_geometry(mesh, order)
+    f = _evaluate(func, g.x[..., 0], g.x[..., 1], ncomp)  # (n_cells, n_qp, ncomp)
+    Fe = np.einsum("cq,qa,cqk->cak", g.w, g.phi, f, optimize=True)  # (n_cells, n_loc, ncomp)
+    return _scatter(Fe, mesh.cells, mesh.n_nodes)
+
+
+_GAUSS3_T = 0.5 + 0.5 * np.sqrt(0.6) * np.array([-1.0, 0.0, 1.0])  # (3,) on [0, 1]
+_GAUSS3_W = np.array([5.0, 8.0, 5.0]) / 18.0  # (3,) sum 1
+
+
+def boundary_load(mesh: Mesh, name: str, func: Func, ncomp: int) -> np.ndarray:
+    """∫_Γ f·v ds over boundary part `name` (straight segments, 3-point Gauss per edge).
+
+    Same layout and `func` conventions as `volume_load`; KeyError for an unknown part.
+    """
+    if name not in mesh.boundaries:
+        raise KeyError(
+            f"unknown boundary {name!r}; this mesh has: {', '.join(sorted(mesh.boundaries))}"
+        )
+    edges = mesh.boundaries[name]  # (n_e, 2)
+    P = mesh.points[edges]  # (n_e, 2, 2)
+    L = np.linalg.norm(P[:, 1] - P[:, 0], axis=1)  # (n_e,)
+    N = np.stack([1 - _GAUSS3_T, _GAUSS3_T], axis=1)  # (3, 2) trace shape functions
+    x = np.einsum("qa,eai->eqi", N, P, optimize=True)  # (n_e, 3, 2)
+    f = _evaluate(func, x[..., 0], x[..., 1], ncomp)  # (n_e, 3, ncomp)
+    Fe = np.einsum("e,q,qa,eqk->eak", L, _GAUSS3_W, N, f, optimize=True)  # (n_e, 2, ncomp)
+    return _scatter(Fe, edges, mesh.n_nodes)
+
+
+def cell_fields(
+    mesh: Mesh,
+    u: np.ndarray,
+    phi: np.ndarray | None,
+    C: np.ndarray,
+    e: np.ndarray | None,
+    kappa: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Stress σ = Cε(u) + eᵀ∇φ (n_cells, 3) and electric displacement D = eε(u) − κ∇φ
+    (n_cells, 2) at the cell centroids.
+
+    With `phi` None (purely elastic body) σ = Cε(u), D = 0 and `e`, `kappa` are ignored.
+    """
+    C = _check_matrix("C", C, (3, 3))
+    ref = reference_element(mesh.cell_type)
+    g = _geometry(mesh, ref.centroid[None, :], np.ones(1))
+    grad = g.grad[:, 0]  # (n_cells, n_loc, 2)
+    U = np.asarray(u, dtype=float).reshape(mesh.n_nodes, 2)[mesh.cells]  # (n_cells, n_loc, 2)
+    Du = np.einsum("cak,cai->cki", U, grad, optimize=True)  # (n_cells, 2, 2) ∂u_k/∂x_i
+    eps = np.stack([Du[:, 0, 0], Du[:, 1, 1], Du[:, 0, 1] + Du[:, 1, 0]], axis=1)  # (n_cells, 3)
+    sigma = eps @ C.T  # (n_cells, 3)
+    if phi is None:
+        return sigma, np.zeros((mesh.n_cells, 2))
+    e = _check_matrix("e", e, (2, 3))
+    kappa = _check_matrix("kappa", kappa, (2, 2))
+    E = np.einsum("ca,cai->ci", np.asarray(phi, dtype=float)[mesh.cells], grad)  # (n_cells, 2)
+    return sigma + E @ e, eps @ e.T - E @ kappa.T
+
+
+def interpolate(mesh: Mesh, func: Func, ncomp: int) -> np.ndarray:
+    """Nodal interpolant: vector of length ncomp·N (interleaved)."""
+    x, y = mesh.points.T  # (N,) each
+    return np.array(_evaluate(func, x, y, ncomp)).ravel()
+
+
+def l2_error(mesh: Mesh, uh: np.ndarray, exact: Func, ncomp: int, order: int = 4) -> float:
+    """‖u − u_h‖_{L²(Ω)} by quadrature of `order` (uh interleaved, length ncomp·N)."""
+    g = cell_geometry(mesh, order)
+    U = np.asarray(uh, dtype=float).reshape(mesh.n_nodes, ncomp)[mesh.cells]  # (n_c, n_loc, nc)
+    vh = np.einsum("qa,cak->cqk", g.phi, U, optimize=True)  # (n_cells, n_qp, ncomp)
+    d = _evaluate(exact, g.x[..., 0], g.x[..., 1], ncomp) - vh  # (n_cells, n_qp, ncomp)
+    return float(np.sqrt(np.einsum("cq,cqk,cqk->", g.w, d, d)))
+
+
+def h1_seminorm_error(
+    mesh: Mesh, uh: np.ndarray, grad_exact: Callable, ncomp: int, order: int = 4
+) -> float:
+    """|u − u_h|_{H¹(Ω)}; grad_exact(x, y) returns x.shape + (ncomp, 2) (or x.shape + (2,))."""
+    g = cell_geometry(mesh, order)
+    U = np.asarray(uh, dtype=float).reshape(mesh.n_nodes, ncomp)[mesh.cells]  # (n_c, n_loc, nc)
+    Gh = np.einsum("cqai,cak->cqki", g.grad, U, optimize=True)  # (n_cells, n_qp, ncomp, 2)
+    x, y = g.x[..., 0], g.x[..., 1]  # (n_cells, n_qp) each
+    G = np.asarray(grad_exact(x, y), dtype=float)  # (n_cells, n_qp, ncomp, 2)
+    if ncomp == 1 and G.shape == x.shape + (2,):
+        G = G[..., None, :]
+    if G.shape != x.shape + (ncomp, 2):
+        raise ValueError(f"grad_exact returned shape {G.shape}, expected {x.shape + (ncomp, 2)}")
+    d = G - Gh  # (n_cells, n_qp, ncomp, 2)
+    return float(np.sqrt(np.einsum("cq,cqki,cqki->", g.w, d, d)))
