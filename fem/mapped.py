@@ -44,7 +44,8 @@ def arc(center: Sequence[float], radius: float, theta0: float, theta1: float) ->
     c = np.asarray(center, dtype=float)
 
     def curve(t: np.ndarray) -> np.ndarray:
-        th = theta0 + np.asarray(t, dtype=float) * (theta1 - theta0)  # (n,)
+        t = np.asarray(t, dtype=float)
+        th = (1 - t) * theta0 + t * theta1  # (n,) exactly theta0, theta1 at the ends
         return c + radius * np.stack([np.cos(th), np.sin(th)], axis=-1)  # (n, 2)
 
     return curve

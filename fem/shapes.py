@@ -19,10 +19,10 @@ from .mesh import Mesh
 def contact_ends(
     center: Sequence[float], radius: float, angle: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The end points (C_l, C_r) of the contact arc."""
-    cx, cy = center
-    s, c = radius * np.sin(angle / 2), radius * np.cos(angle / 2)
-    return np.array([cx - s, cy - c]), np.array([cx + s, cy - c])
+    """The end points (C_l, C_r) of the contact arc, bit-identical to the mesh nodes there."""
+    th_l, th_r = 1.5 * np.pi - angle / 2, 1.5 * np.pi + angle / 2
+    Cl, Cr = arc(center, radius, th_l, th_r)(np.array([0.0, 1.0]))  # (2, 2)
+    return Cl, Cr
 
 
 def _check_angle(angle: float) -> None:
