@@ -117,6 +117,29 @@ def test_linear_functions_converge_at_rate_two_on_the_arc():
     assert (np.array(errs) < np.array(sagittas)).all(), (errs, sagittas)
 
 
+def test_matching_curved_meshes_give_m_equal_to_d():
+    """Identical node sets on the arc: π is the identity, so M = diag(D) exactly."""
+    d, c = half_disc(level=1), cradle(n_contact=8, level=1)
+    mo = mortar_coupling(d, "contact", c, "contact")
+    xs, xm = d.points[mo.slave_nodes], c.points[mo.master_nodes]
+    np.testing.assert_allclose(xs, xm[::-1], atol=1e-15)
+    np.testing.assert_allclose(mo.M.toarray()[:, ::-1], np.diag(mo.D), atol=1e-13)
+
+
+@pytest.mark.parametrize("level", [0, 2])
+def test_coupling_respects_the_mirror_symmetry_of_the_paper_geometry(level):
+    """The example is symmetric about x = 0; so is M (slave i ↔ ns−1−i, master j ↔ nm−1−j).
+
+    This is sensitive to the projection direction: a normal that is not interpolated along
+    the slave segment breaks the symmetry.
+    """
+    d, c, mo = paper(level)
+    xs = d.points[mo.slave_nodes]
+    np.testing.assert_allclose(xs[::-1] * [-1, 1], xs, atol=1e-14)
+    M = mo.M.toarray()
+    np.testing.assert_allclose(M[::-1, ::-1], M, atol=1e-13 * M.max())
+
+
 @pytest.mark.parametrize("slave_is_upper", [True, False])
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_linear_functions_are_exact_on_a_straight_interface(slave_is_upper, seed):
