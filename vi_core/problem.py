@@ -200,15 +200,15 @@ class MixedVI:
     def equilibrated(self) -> MixedVI:
         """The same VI in variables u' = u / s_u, λ' = λ / s_lam (unit diagonal, unit rows)."""
         s = self.scaling
-        Su, Sl = sp.diags(s.s_u), sp.diags(1.0 / s.s_lam)
-        # A u + Bᵀλ = f  →  (Su A Su) u' + (Su Bᵀ Sl^{-1}) λ' = Su f
-        # (Bu − gap) ∈ N_Λ(λ)  →  Sl^{-1}(B Su u' − gap) ∈ N_{Λ/s_lam}(λ')
+        Su, Sl = sp.diags(s.s_u), sp.diags(s.s_lam)
+        # A u + Bᵀλ = f  →  (Su A Su) u' + (Su Bᵀ Sl) λ' = Su f
+        # (Bu − gap) ∈ N_Λ(λ)  ⇔  Sl (B Su u' − gap) ∈ N_{Λ/s_lam}(λ')   (Sl diagonal > 0)
         return MixedVI(
             A=(Su @ self.A @ Su).tocsr(),
             B=(Sl @ self.B @ Su).tocsr(),
             f=self.f * s.s_u,
             Lambda=self.Lambda.scaled(s.s_lam),
-            gap=self.gap / s.s_lam,
+            gap=self.gap * s.s_lam,
             info={"equilibrated": True},
         )
 

@@ -100,3 +100,19 @@ def test_history_starts_at_initial_guess_and_ends_at_residual():
     assert sol.history[0] == vi.residual(np.zeros(vi.n), np.zeros(vi.m)).relative
     assert sol.history[-1] == sol.residual
     assert len(sol.history) == sol.iterations + 1
+
+
+@given(seeds)
+def test_equilibrated_problem_has_unit_diagonal_and_unit_rows(seed):
+    rng = np.random.default_rng(seed)
+    vi = _random_vi(rng)
+    su = 10.0 ** rng.integers(-8, 9, vi.n)
+    vi = MixedVI(sp.diags(su) @ vi.A @ sp.diags(su), 1e-7 * vi.B @ sp.diags(su), vi.f, vi.Lambda)
+    e = vi.equilibrated
+    np.testing.assert_allclose(e.A.diagonal(), 1.0, rtol=1e-12)
+    rows = np.sqrt(np.asarray(e.B.multiply(e.B).sum(axis=1)).ravel())
+    sizes = vi.Lambda.block_sizes()
+    if (sizes == 1).all():
+        np.testing.assert_allclose(rows, 1.0, rtol=1e-12)
+    else:
+        assert 0.1 < rows.min() and rows.max() < 10
