@@ -49,7 +49,7 @@ class Model:
     scene: Scene
     level: int
     bodies: list[Body]
-    contact: Contact
+    contact: Contact | None
     vi: MixedVI
     free: np.ndarray  # (n_free,) full indices of the unknowns
     values: np.ndarray  # (n_full,) prescribed values (fixed entries)
@@ -132,14 +132,16 @@ def build(scene: Scene, level: int | None = None) -> Model:
         bodies[name] = body
         offset += body.size
     n_full = offset
-    ct = root.table("contact")
-    slave, slave_part = _split_ref(ct, "slave", bodies)
-    master_ref = ct.string("master", "rigid")
-    if master_ref != "rigid":
-        raise SceneError(ct.key("master"), master_ref, "'rigid' (two-body contact: not yet)")
-    g_fun = ct.field("g", 1)
-    ct.finish()
-    contact = _rigid_contact(slave, slave_part, g_fun, ct.key("g"), n_full)
+    ct = root.table("contact", required=False)
+    contact = None
+    if ct is not None:
+        slave, slave_part = _split_ref(ct, "slave", bodies)
+        master_ref = ct.string("master", "rigid")
+        if master_ref != "rigid":
+            raise SceneError(ct.key("master"), master_ref, "'rigid' (two-body contact: not yet)")
+        g_fun = ct.field("g", 1)
+        ct.finish()
+        contact = _rigid_contact(slave, slave_part, g_fun, ct.key("g"), n_full)
 
     out = root.table("output", required=False)
     options = {"potential_along": None}
@@ -165,24 +167,10 @@ def build(scene: Scene, level: int | None = None) -> Model:
     values = np.concatenate([b.values for b in bodies.values()])
     X_full = sp.block_diag([b.X for b in bodies.values()], format="csr")
     A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
-    B = contact.B_full[:, free]
-    gap = -(contact.B_full[:, fixed] @ values[fixed])
-    rowsum = np.asarray(abs(B).sum(axis=1)).ravel()
-    if (rowsum == 0).any():
-        i = int(np.flatnonzero(rowsum == 0)[0]) % contact.tr.size
-        node = contact.tr.nodes[i]
-        raise SceneError(
-            "contact.slave",
-            f"{slave.name}.{slave_part}",
-            f"a contact boundary whose nodes are not all clamped (node {node} at "
-            f"{slave.mesh.points[node].tolist()} has all displacement dofs prescribed)",
-        )
-    N = contact.tr.size
-    Lam = product(Free(N), Box(-contact.g, contact.g))
-    h_i = np.zeros(N)
-    np.maximum.at(h_i, contact.tr.segments[:, 0], contact.tr.lengths)
-    np.maximum.at(h_i, contact.tr.segments[:, 1], contact.tr.lengths)
-    Y = sp.diags(np.tile(h_i * contact.tr.weights, 2))  # mesh-dependent H^{-1/2} stand-in
+    if contact is None:  # no contact: no multipliers
+        B, gap, Lam, Y = sp.csr_matrix((0, free.size)), None, product(), sp.csr_matrix((0, 0))
+    else:
+        B, gap, Lam, Y = _contact_rows(contact, free, fixed, values)
     vi = MixedVI(
         A=A,
         B=B,
@@ -194,6 +182,29 @@ def build(scene: Scene, level: int | None = None) -> Model:
         info={"scene": scene.name, "level": level},
     )
     return Model(scene, level, list(bodies.values()), contact, vi, free, values, options)
+
+
+def _contact_rows(contact: Contact, free, fixed, values):
+    """B restricted to the unknowns, the gap from Dirichlet data, Λ_h and the Y Gram matrix."""
+    B = contact.B_full[:, free]
+    gap = -(contact.B_full[:, fixed] @ values[fixed])
+    rowsum = np.asarray(abs(B).sum(axis=1)).ravel()
+    tr = contact.tr
+    if (rowsum == 0).any():
+        node = tr.nodes[int(np.flatnonzero(rowsum == 0)[0]) % tr.size]
+        raise SceneError(
+            "contact.slave",
+            f"{contact.slave.name}.{contact.slave_part}",
+            f"a contact boundary whose nodes are not clamped (node {node} at "
+            f"{contact.slave.mesh.points[node].tolist()} has all displacement dofs prescribed)",
+        )
+    N = tr.size
+    Lam = product(Free(N), Box(-contact.g, contact.g))
+    h_i = np.zeros(N)
+    np.maximum.at(h_i, tr.segments[:, 0], tr.lengths)
+    np.maximum.at(h_i, tr.segments[:, 1], tr.lengths)
+    Y = sp.diags(np.tile(h_i * tr.weights, 2))  # mesh-dependent H^{-1/2} stand-in
+    return B, gap, Lam, Y
 
 
 def _rigid_contact(slave: Body, part: str, g_fun, gkey: str, n_full: int) -> Contact:
@@ -246,7 +257,6 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """Write VTU fields and PNG plots into `outdir`; return the summary entries."""
     from fem.io import write_vtu
 
-    state = contact_state(model, sol)
     x_full = model.full(sol.u)
     files = []
     for b in model.bodies:
@@ -261,7 +271,17 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         fn = f"{b.name}.vtu"
         write_vtu(outdir / fn, b.mesh, point, cell)
         files.append(fn)
-    files += plots.contact_plots(state, outdir, title=model.scene.name)
+    summary: dict = {}
+    if model.contact is not None:
+        state = contact_state(model, sol)
+        files += plots.contact_plots(state, outdir, title=model.scene.name)
+        n_slip = int(state["slip"].sum())
+        summary["contact"] = {
+            "nodes": int(state["slip"].size),
+            "stick": int(state["slip"].size - n_slip),
+            "slip": n_slip,
+        }
+        summary["lemma_4_2"] = state["lemma_4_2"]
     along = model.options.get("potential_along")
     if along is not None:
         b = next(bb for bb in model.bodies if bb.name == along[0])
@@ -272,14 +292,5 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
                 b.mesh.points[tr.nodes], tr.s, phi[tr.nodes], outdir, f"{along[0]}.{along[1]}"
             )
         )
-    n_slip = int(state["slip"].sum())
-    return {
-        "contact": {
-            "nodes": int(state["slip"].size),
-            "stick": int(state["slip"].size - n_slip),
-            "slip": n_slip,
-        },
-        "lemma_4_2": state["lemma_4_2"],
-        "files": sorted(files),
-    }
-
+    summary["files"] = sorted(files)
+    return summary

@@ -171,8 +171,14 @@ def solve_ssn(
         history.append(res)
         converged = res <= tol
 
+    # return a feasible multiplier: λ ∈ Λ exactly (moves λ by rounding only once converged)
+    lam_feasible = Lam.project(lam)
+    res_feasible = natural_residual(e, u, lam_feasible).relative
+    if res_feasible <= max(res, tol):
+        lam, res = lam_feasible, res_feasible
+        history[-1] = res
     y = lam + e.B @ u - e.gap
-    inner = (np.abs(y - Lam.project(y)) <= 1e-12 * max(1.0, np.abs(y).max(initial=0))).sum()
+    inner = int((np.abs(y - Lam.project(y)) == 0).sum())
     u_phys, lam_phys = sc.to_physical(u, lam)
     sol = Solution(
         u=u_phys,
@@ -186,7 +192,7 @@ def solve_ssn(
         info={
             "condensed": stepper.cond is not None,
             "damped_steps": damped,
-            "inactive": int(inner),
+            "inside": inner,  # coordinates with λ + Bu − gap strictly inside Λ
             "linear_solver": linear_solver,
         },
     )

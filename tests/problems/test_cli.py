@@ -1,0 +1,83 @@
+"""The `mixvi` command line: outputs of solve, and bad input refused with exit status 2."""
+
+import json
+
+import pytest
+
+from problems.cli import main
+
+
+def test_solve_writes_summary_fields_and_plots(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["solve", "rigid_foundation", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    for key in ("scene", "level", "solver", "dofs", "converged", "iterations", "residual",
+                "contact", "lemma_4_2", "time_s"):
+        assert key in s, key
+    assert set(s["dofs"]) == {"displacement", "potential", "multiplier"}
+    assert set(s["contact"]) == {"nodes", "stick", "slip"}
+    assert set(s["time_s"]) == {"build", "solve", "total"}
+    assert s["converged"] and s["residual"] <= 1e-10 and s["lemma_4_2"] <= 1e-10
+    assert s["contact"]["stick"] > 0 and s["contact"]["slip"] > 0
+    for f in ("block.vtu", "contact_multiplier.png", "contact_displacement.png", "potential.png"):
+        assert (out / f).stat().st_size > 0, f
+    assert "converged True" in capsys.readouterr().out
+
+
+def test_set_overrides_a_value(tmp_path):
+    out = tmp_path / "run"
+    assert main(["solve", "rigid_foundation", "--set", "contact.g=1e12", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["contact"]["slip"] == 0
+
+
+def test_scenes_lists_the_shipped_scenes(capsys):
+    assert main(["scenes"]) == 0
+    assert "rigid_foundation" in capsys.readouterr().out
+
+
+BAD = [
+    (["--set", "contact.g=-1.0"], "contact.g"),
+    (["--set", "contact.g='lots'"], "contact.g"),
+    (["--set", "contact.slave='block.bottm'"], "contact.slave"),
+    (["--set", "bodies.block.displacement=[]"], "bodies.block.displacement"),
+    (["--set", "bodies.block.material={kind='anisotropic', C=[[1,2,0],[2,1,0],[0,0,1]]}"], "C"),
+    (
+        [
+            "--set",
+            "bodies.block.material={kind='piezoelectric', C=[[2,1,0],[1,2,0],[0,0,1]], "
+            "e=[[0,0,1],[1,1,0]], kappa=[[1,0],[0,-1]]}",
+        ],
+        "kappa",
+    ),
+    (["--set", "scene.levle=2"], "did you mean 'level'"),
+    (["--set", "contact.g=[1,2]"], "contact.g"),
+    (["--solver", "magic"], "--solver"),
+]
+
+
+@pytest.mark.parametrize("extra,needle", BAD)
+def test_bad_input_exits_2_with_one_message_and_no_output(tmp_path, capsys, extra, needle):
+    out = tmp_path / "run"
+    assert main(["solve", "rigid_foundation", "--out", str(out), *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("mixvi: error: ") and err.count("\n") == 1, err
+    assert needle in err
+    assert "Traceback" not in err
+    assert not out.exists()
+    assert not any(tmp_path.iterdir())
+
+
+def test_missing_required_key(tmp_path, capsys):
+    scene = tmp_path / "s.toml"
+    scene.write_text("[scene]\nplugin = 'piezo_contact'\n[bodies.b]\nmaterial = 'BaTiO3'\n")
+    assert main(["solve", str(scene), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "bodies.b.geometry" in err and "required" in err
+
+
+def test_malformed_toml(tmp_path, capsys):
+    scene = tmp_path / "s.toml"
+    scene.write_text("[scene\n")
+    assert main(["solve", str(scene), "--out", str(tmp_path / "o")]) == 2
+    assert "valid TOML" in capsys.readouterr().err
