@@ -107,9 +107,9 @@ def _layout(sets: Sequence[str], m: int, ball_dim: int) -> list[tuple[str, int]]
             spare = k - k_ball
             k = k_ball
         out.append((s, k))
-    if spare:  # the last block was a ball: give the rest to the first non-ball block
-        i = next(i for i, (s, _) in enumerate(out) if s != "ball")
-        out[i] = (out[i][0], out[i][1] + spare)
+    others = [i for i, (s, _) in enumerate(out) if s != "ball"]
+    if spare and others:  # the last block was a ball: give the rest to a non-ball block
+        out[others[0]] = (out[others[0]][0], out[others[0]][1] + spare)
     return [(s, k) for s, k in out if k > 0]
 
 
@@ -134,8 +134,8 @@ def random_vi(
 ) -> MixedVI:
     """A random well-posed MixedVI.
 
-    n, m : sizes (m coordinates of Λ are split among `sets`; a ball block is rounded to a
-        multiple of `ball_dim`). rho : ‖A_0^{-1/2} C A_0^{-1/2}‖₂ (ignored when symmetric).
+    n, m : sizes (m coordinates of Λ are split among `sets`; a ball block is rounded down to
+        a multiple of `ball_dim`, the rest goes to another block, or is dropped). rho : ‖A_0^{-1/2} C A_0^{-1/2}‖₂ (ignored when symmetric).
     cond : condition number of A_0 (of K and P for skew-coupled). spread : decades of random
         variable units (u = S ũ), to exercise equilibration. The bounds of Λ are sized from
         the multiplier of the equality-constrained problem so that about half are active.
