@@ -17,7 +17,8 @@ level; strong coupling needs several and the cost multiplies level by level: tha
 measured price of this method (`info["levels"]`).
 
 **Inexactness.** Every level is warm-started from the current iterate, and level k asks level
-k − 1 for the relative residual max(η · r_k, tol/10), r_k its own current residual (η = `eta`).
+k − 1 for the absolute residual max(η · r_k, tol_k/10), r_k its own current absolute residual
+(η = `eta`; absolute, because the right-hand sides f − (s − τ)C w of the levels differ in size).
 Every level stops on its own natural-map residual; the top level (A_1 = A) stops on the full
 problem's residual ≤ tol. Everything runs on `vi.equilibrated`.
 """
@@ -51,11 +52,15 @@ class _Level:
 
 
 def _level_residual(e: MixedVI, A: sp.csr_matrix, g: np.ndarray, u, lam) -> float:
-    """Relative natural-map residual of (u, λ) for A u + Bᵀλ = g, Bu − gap ∈ N_Λ(λ)."""
+    """Absolute natural-map residual ‖(r1, r2)‖₂ of (u, λ) for A u + Bᵀλ = g, Bu − gap ∈ N_Λ(λ)."""
     r1 = A @ u + e.B.T @ lam - g
     r2 = lam - e.Lambda.project(lam + e.B @ u - e.gap)
-    scale = max(float(np.linalg.norm(g)), float(np.linalg.norm(e.gap))) or 1.0
-    return float(np.hypot(np.linalg.norm(r1), np.linalg.norm(r2)) / scale)
+    return float(np.hypot(np.linalg.norm(r1), np.linalg.norm(r2)))
+
+
+def _scale(e: MixedVI, g: np.ndarray) -> float:
+    """The normalisation of `Residual.relative` for right-hand side g."""
+    return max(float(np.linalg.norm(g)), float(np.linalg.norm(e.gap))) or 1.0
 
 
 class _Homotopy:
@@ -74,22 +79,22 @@ class _Homotopy:
         return float(np.sqrt(max(v @ (self.A0 @ v), 0.0)))
 
     def oracle(self, g, u, lam, tol):
-        """Level-0 (symmetric) solve with right-hand side g, warm-started at (u, λ)."""
+        """Level-0 (symmetric) solve with right-hand side g to absolute residual tol."""
         self.levels[0].calls += 1
         self.levels[0].iterations += 1
         vi0 = self.level0.with_rhs(f=g)
         if self.inner == "ssn":
             from .ssn import solve_ssn
 
-            sol = solve_ssn(vi0, tol=tol, u0=u, lam0=lam, **self.options)
+            sol = solve_ssn(vi0, tol=tol / _scale(self.e, g), u0=u, lam0=lam, **self.options)
         else:
             from .conic import solve_conic
 
-            sol = solve_conic(vi0, tol=tol, **self.options)
+            sol = solve_conic(vi0, tol=tol / _scale(self.e, g), **self.options)
         return sol.u, sol.lam
 
     def solve(self, k: int, g, u, lam, tol, history: list[float] | None = None):
-        """Solve level k with right-hand side g to relative residual tol from (u, λ)."""
+        """Solve level k with right-hand side g to absolute residual tol from (u, λ)."""
         if k == 0:
             return self.oracle(g, u, lam, tol)
         lev, below = self.levels[k], self.levels[k - 1]
@@ -110,7 +115,7 @@ class _Homotopy:
             lev.iterations += 1
             res = _level_residual(self.e, lev.A, g, u, lam)
             if history is not None:
-                history.append(res)
+                history.append(res / _scale(self.e, g))
         return u, lam
 
 
@@ -150,10 +155,10 @@ def solve_homotopy(
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
     history = [natural_residual(e, u, lam).relative]
     if n_levels == 0:
-        u, lam = solver.oracle(e.f, u, lam, tol)
+        u, lam = solver.oracle(e.f, u, lam, tol * _scale(e, e.f))
         history.append(natural_residual(e, u, lam).relative)
     else:
-        u, lam = solver.solve(n_levels, e.f, u, lam, tol, history)
+        u, lam = solver.solve(n_levels, e.f, u, lam, tol * _scale(e, e.f), history)
     res = natural_residual(e, u, lam).relative
     top = solver.levels[-1]
     info: dict[str, Any] = {

@@ -216,7 +216,8 @@ def manufactured_vi(
     start = 0
 
     def draw(k: int) -> np.ndarray:
-        return rng.choice(3, size=k, p=[1 - active - degenerate, active, degenerate])
+        p = np.array([max(1.0 - active - degenerate, 0.0), active, degenerate])
+        return rng.choice(3, size=k, p=p / p.sum())
 
     for name, k in layout:
         s = slice(start, start + k)
