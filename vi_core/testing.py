@@ -263,7 +263,7 @@ def manufactured_vi(
             f=f,
             Lambda=product(*blocks),
             gap=gap,
-            info={"gallery": "manufactured_vi", "seed": seed, "structure": structure},
+            info={"gallery": "manufactured_vi", "seed": seed, "structure": structure, "rho": rho},
         ),
         u=u / scale,
         lam=lam,

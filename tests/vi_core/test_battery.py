@@ -13,12 +13,13 @@ from hypothesis import strategies as st
 from vi_core import constants, solve
 from vi_core.testing import manufactured_strategy, vi_strategy
 
-from .helpers import ACCEPT, AGREE, FAST, TOL, agree, applicable
+from .helpers import ACCEPT, AGREE, FAST, TOL, agree, applicable, record
 
-N_SSN, N_CONIC, N_HOMOTOPY, N_PAIRS, N_UNIQUE, N_STABLE = 100, 30, 30, 25, 20, 50
+N_SSN, N_CONIC, N_HOMOTOPY, N_PAIRS, N_UNIQUE, N_STABLE = 150, 40, 40, 40, 25, 60
 
 
 def _check_exact(mf, method, **options):
+    record(mf.vi, mf.kind)
     sol = solve(mf.vi, method, tol=TOL, **FAST, **options)
     assert sol.converged, sol.warnings
     assert sol.residual <= ACCEPT
@@ -51,6 +52,7 @@ def test_homotopy_recovers_manufactured_solution(mf):
 @settings(max_examples=N_PAIRS)
 @given(vi_strategy(n_range=(6, 24), rho_range=(0.1, 2.0)))
 def test_solvers_agree_pairwise(vi):
+    record(vi)
     sols = {m: solve(vi, m, tol=TOL, **FAST) for m in applicable(vi)}
     sols["auto"] = solve(vi, "auto", tol=TOL, **FAST)
     for m, s in sols.items():
@@ -66,6 +68,7 @@ def test_solvers_agree_pairwise(vi):
 @given(vi_strategy(n_range=(6, 24), rho_range=(0.1, 2.0)), st.integers(0, 2**32 - 1))
 def test_uniqueness_from_different_initial_guesses(vi, seed):
     """Theorem 3.1: one solution; two far-apart initial guesses must reach it."""
+    record(vi)
     rng = np.random.default_rng(seed)
     u0 = 10.0 * rng.standard_normal(vi.n)
     lam0 = 10.0 * rng.standard_normal(vi.m)
@@ -95,6 +98,7 @@ def _gram(rng, k):
 def test_stability_estimate_3_5(vi, seed, size, euclidean):
     """(3.9) ‖Δu‖_X ≤ ‖Δf‖_X'/m_a and (3.5) ‖Δu‖_X + ‖Δλ‖_Y ≤ C ‖Δf‖_X' with
     ‖Δf‖_X' = sqrt(Δfᵀ X^{-1} Δf), the X-norm of the Riesz representative of Δf."""
+    record(vi)
     rng = np.random.default_rng(seed)
     X = None if euclidean else _gram(rng, vi.n)
     Y = None if euclidean else _gram(rng, vi.m)
