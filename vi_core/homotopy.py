@@ -54,7 +54,7 @@ class _Level:
 def _level_residual(e: MixedVI, A: sp.csr_matrix, g: np.ndarray, u, lam) -> float:
     """Absolute natural-map residual ‖(r1, r2)‖₂ of (u, λ) for A u + Bᵀλ = g, Bu − gap ∈ N_Λ(λ)."""
     r1 = A @ u + e.B.T @ lam - g
-    r2 = lam - e.Lambda.project(lam + e.B @ u - e.gap)
+    r2 = lam - e.Lambda.project(lam + (e.B @ u - e.gap))  # as in natural_residual
     return float(np.hypot(np.linalg.norm(r1), np.linalg.norm(r2)))
 
 
@@ -71,7 +71,8 @@ class _Homotopy:
         self.C = e.C
         self.A0 = e.A0
         self.level0 = MixedVI(A=e.A0, B=e.B, f=e.f, Lambda=e.Lambda, gap=e.gap)
-        self.levels = [_Level(s, (e.A0 + s * e.C).tocsr()) for s in levels]
+        # the top level is the full problem: use A itself (A_0 + C differs by rounding)
+        self.levels = [_Level(s, e.A if s == 1.0 else (e.A0 + s * e.C).tocsr()) for s in levels]
         self.inner, self.eta, self.options = inner, eta, options
         self.max_iter = options.pop("max_iter")
 
