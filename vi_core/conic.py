@@ -28,6 +28,7 @@ The answer is judged by the VI residual: if the interior point result misses `to
 from __future__ import annotations
 
 import time
+import warnings as warnings_module
 from typing import Any
 
 import numpy as np
@@ -127,7 +128,9 @@ def solve_conic(
     info: dict[str, Any] = {"structure": e.structure, "clarabel": settings}
     warnings: list[str] = []
     try:
-        prob.solve(solver=cp.CLARABEL, **settings)
+        with warnings_module.catch_warnings():  # statuses are mapped below, not warned about
+            warnings_module.simplefilter("ignore", UserWarning)
+            prob.solve(solver=cp.CLARABEL, **settings)
         status = prob.status
     except cp.error.SolverError as err:
         status = f"solver_error: {err}"
@@ -195,4 +198,3 @@ def solve_conic(
         info=info,
         warnings=warnings,
     )
-

@@ -135,7 +135,8 @@ def random_vi(
     """A random well-posed MixedVI.
 
     n, m : sizes (m coordinates of Λ are split among `sets`; a ball block is rounded down to
-        a multiple of `ball_dim`, the rest goes to another block, or is dropped). rho : ‖A_0^{-1/2} C A_0^{-1/2}‖₂ (ignored when symmetric).
+        a multiple of `ball_dim`, the rest goes to another block, or is dropped).
+    rho : ‖A_0^{-1/2} C A_0^{-1/2}‖₂ (ignored when symmetric).
     cond : condition number of A_0 (of K and P for skew-coupled). spread : decades of random
         variable units (u = S ũ), to exercise equilibration. The bounds of Λ are sized from
         the multiplier of the equality-constrained problem so that about half are active.
