@@ -7,11 +7,14 @@ Methods
 "homotopy"  nested fixed point of Lemma 3.3 (`vi_core.homotopy.solve_homotopy`): any A.
 "auto"      the rule below.
 
-**The "auto" rule.** Semismooth Newton first: it handles every structure and set, and is the
-fastest on every problem measured (superlinear, one sparse factorisation per step). Only if it
-fails to reach `tol` does "auto" fall back, warm-started from nothing: to "conic" when A is
-symmetric or skew-coupled (an interior point method has no active-set cycling), else to
-"homotopy". `info["auto"]` records the choice and the failed attempt's residual.
+**The "auto" rule.** Semismooth Newton first: it handles every structure and set and is the
+fastest on the gallery problems (n ≤ 60: ~10–30 ms against ~70–300 ms for "conic" and
+0.1–3 s for "homotopy"). Measured exception: a skew-coupled 1D problem with n = 42 000 and
+SuperLU took 32 s with "ssn" (12 Newton steps) and 11 s with "conic" (10 interior point steps
+and one polishing Newton step). Only if Newton fails to reach `tol` does "auto" fall back,
+from a cold start: to "conic" when A is symmetric or skew-coupled (an interior point method
+has no active-set cycling), else to "homotopy". `info["auto"]` records the choice and the
+failed attempt's residual.
 """
 
 from __future__ import annotations

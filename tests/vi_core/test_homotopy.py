@@ -69,3 +69,10 @@ def test_rejects_bad_options():
         solve(vi, "homotopy", inner="newton")
     with pytest.raises(ValueError, match="rate"):
         solve(vi, "homotopy", rate=1.0)
+
+
+def test_refuses_too_many_levels():
+    vi = random_vi(4, n=12, m=5, structure="general", rho=3.0)
+    sol = solve(vi, "homotopy", tol=TOL, max_levels=2, report_constants=False, **FAST)
+    assert not sol.converged and sol.iterations == 0
+    assert sol.info["levels_needed"] == 5 and "max_levels = 2" in sol.warnings[0]
