@@ -44,7 +44,7 @@ _OK = ("optimal",)
 _INACCURATE = ("optimal_inaccurate",)
 
 
-def _support_terms(cp, z, e: MixedVI) -> tuple[list, list]:
+def _support_terms(z, e: MixedVI) -> tuple[list, list]:
     """σ_Λ(z) terms and the constraints z_b = 0 (Free), z_b ≤ 0 (NonNegative)."""
     terms, cons = [], []
     for block, s in zip(e.Lambda.blocks(), e.Lambda.slices(), strict=True):
@@ -61,7 +61,12 @@ def _support_terms(cp, z, e: MixedVI) -> tuple[list, list]:
 
 
 def _program(cp, e: MixedVI):
-    """The cvxpy problem for the equilibrated VI `e`; returns (problem, u, link, φ-info)."""
+    """The cvxpy problem for the equilibrated VI `e`.
+
+    Returns (problem, variables, link): variables = (u,) for symmetric A, (u, φ, i1, i2) for
+    skew-coupled A (i1, i2 the index sets of the two blocks); link the constraint
+    `B @ u - gap == z` whose dual value is λ (None when m = 0).
+    """
     structure = e.structure
     if structure == "general":
         raise ValueError(
@@ -75,7 +80,7 @@ def _program(cp, e: MixedVI):
         u = cp.Variable(n)
         obj = 0.5 * cp.quad_form(u, cp.psd_wrap(e.A0)) - e.f @ u
         cons = []
-        x_of = (u, None)
+        x_of = (u,)
     else:
         first = e.skew_split
         i1, i2 = np.flatnonzero(first), np.flatnonzero(~first)
@@ -95,7 +100,7 @@ def _program(cp, e: MixedVI):
     if m:
         Bu = e.B @ u if structure == "symmetric" else e.B[:, x_of[2]] @ u
         link = Bu - e.gap == z
-        terms, extra = _support_terms(cp, z, e)
+        terms, extra = _support_terms(z, e)
         obj = obj + sum(terms) if terms else obj
         cons = cons + [link] + extra
     return cp.Problem(cp.Minimize(obj), cons), x_of, link
