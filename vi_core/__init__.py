@@ -1,8 +1,12 @@
 """vi_core: mixed variational inequalities A u + Bᵀλ = f, λ ∈ Λ, Bu − gap ∈ N_Λ(λ).
 
-    from vi_core import MixedVI, Box, Ball, Free, NonNegative, product, solve
+    from vi_core import MixedVI, Box, Ball, Free, NonNegative, product, solve, constants
+    sol = solve(vi, method="ssn" | "conic" | "homotopy" | "auto", tol=1e-10)
+
+The gallery of test problems and hypothesis strategies live in `vi_core.testing`.
 """
 
+from .constants import Constants, constants, skew_ratio
 from .problem import MixedVI, Residual, Scaling, natural_residual
 from .sets import Ball, Box, ConvexSet, Free, NonNegative, Product, product
 from .solution import Solution
@@ -12,6 +16,7 @@ __all__ = [
     "METHODS",
     "Ball",
     "Box",
+    "Constants",
     "ConvexSet",
     "Free",
     "MixedVI",
@@ -20,7 +25,9 @@ __all__ = [
     "Residual",
     "Scaling",
     "Solution",
+    "constants",
     "natural_residual",
     "product",
+    "skew_ratio",
     "solve",
 ]

@@ -28,11 +28,15 @@ def pardiso_available() -> bool:
 def resolve_backend(backend: str = "auto") -> str:
     """The concrete backend name for `backend` ('auto' → 'pardiso' if available, else 'splu')."""
     if backend not in BACKENDS:
-        raise ValueError(f"linear solver backend {backend!r} unknown; allowed: {', '.join(BACKENDS)}")
+        raise ValueError(
+            f"linear solver backend {backend!r} unknown; allowed: {', '.join(BACKENDS)}"
+        )
     if backend == "auto":
         return "pardiso" if pardiso_available() else "splu"
     if backend == "pardiso" and not pardiso_available():
-        raise ValueError("linear solver 'pardiso' needs the optional package: pip install mixvi[fast]")
+        raise ValueError(
+            "linear solver 'pardiso' needs the optional package: pip install mixvi[fast]"
+        )
     return backend
 
 

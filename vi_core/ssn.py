@@ -109,9 +109,7 @@ class _Stepper:
         rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
         K = sp.vstack([self.K_R, K_S], format="csr")
         # rows currently ordered [R; S]; reorder to the natural dof order
-        P = sp.csr_matrix(
-            (np.ones(e.n), (self.perm_rows, np.arange(e.n))), shape=(e.n, e.n)
-        )
+        P = sp.csr_matrix((np.ones(e.n), (self.perm_rows, np.arange(e.n))), shape=(e.n, e.n))
         K = (P @ K).tocsr()
         rhs = P @ np.concatenate([self.rhs_R, rhs_S])
         u_new = factorize(K, self.linear_solver)(rhs)

@@ -1,0 +1,68 @@
+"""Equilibration consistency and the gallery's own guarantees."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tests.vi_core.conftest import LIBRARY_CONSISTENT
+from vi_core import solve
+from vi_core.constants import skew_ratio
+from vi_core.testing import SET_TYPES, manufactured_strategy, manufactured_vi, random_vi
+
+from .helpers import FAST
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="vi_core/problem.py: MixedVI.equilibrated uses diag(1/s_lam) for B' and gap/s_lam "
+    "where diag(s_lam) and s_lam*gap are needed (see tests/vi_core/conftest.py)",
+)
+def test_library_equilibration_is_consistent():
+    assert LIBRARY_CONSISTENT
+
+
+def test_equilibrated_unit_diagonal_and_rows():
+    vi = random_vi(7, n=30, m=12, structure="general", rho=1.0, spread=3)
+    e = vi.equilibrated
+    assert np.allclose(e.A.diagonal(), 1.0)
+    rows = np.sqrt(np.asarray(e.B.multiply(e.B).sum(axis=1)).ravel())
+    # ball blocks use the mean scale of the ball, so only free/box/nonneg rows are exactly 1
+    assert np.allclose(np.median(rows), 1.0)
+
+
+@settings(max_examples=40)
+@given(manufactured_strategy())
+def test_manufactured_solution_has_zero_residual(mf):
+    vi = mf.vi
+    assert vi.Lambda.contains(mf.lam, tol=1e-12)
+    assert vi.residual(mf.u, mf.lam).relative <= 1e-12
+
+
+@settings(max_examples=20)
+@given(st.integers(0, 2**32 - 1), st.floats(0.1, 3.0), st.sampled_from(["skew-coupled", "general"]))
+def test_gallery_hits_requested_rho(seed, rho, structure):
+    vi = random_vi(seed, n=24, m=8, structure=structure, rho=rho, spread=2)
+    assert vi.structure == structure
+    e = vi.equilibrated
+    assert skew_ratio(e.A0, e.C) == pytest.approx(rho, rel=1e-8)
+
+
+def test_gallery_covers_every_kind():
+    mf = manufactured_vi(3, n=40, m=20, active=0.3, degenerate=0.4)
+    kinds = set(mf.kind)
+    assert {"free", "inactive", "active", "degenerate"} <= kinds
+    names = {type(b).__name__ for b in mf.vi.Lambda.blocks()}
+    assert names == {"Box", "Ball", "Free", "NonNegative"}
+    assert len(SET_TYPES) == 4
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_units_do_not_change_the_solution(seed):
+    """A change of units u = S ũ (spread 3 decades) leaves S ũ and λ unchanged."""
+    a = manufactured_vi(seed, n=30, m=10, structure="general", rho=0.8, spread=0.0)
+    b = manufactured_vi(seed, n=30, m=10, structure="general", rho=0.8, spread=3.0)
+    sa, sb = solve(a.vi, "ssn", **FAST), solve(b.vi, "ssn", **FAST)
+    assert sa.converged and sb.converged
+    np.testing.assert_allclose(sb.lam, b.lam, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(sa.lam, a.lam, rtol=1e-7, atol=1e-9)
