@@ -166,7 +166,9 @@ def build_body(name: str, t: Table, level: int, offset: int) -> Body:
             part = _boundary(tt, mesh, name)
             nodes = mesh.boundary_nodes(part)
             fixed[2 * N + nodes] = True
-            values[2 * N + nodes] = tt.field("value", 1)(mesh.points[nodes, 0], mesh.points[nodes, 1])
+            values[2 * N + nodes] = tt.field("value", 1)(
+                mesh.points[nodes, 0], mesh.points[nodes, 1]
+            )
             tt.finish()
         if not fixed[2 * N :].any():
             raise SceneError(

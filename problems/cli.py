@@ -1,7 +1,7 @@
 """The `mixvi` command line.
 
-    mixvi solve [SCENE] [--level N] [--solver NAME] [--tol T] [--set key=value ...] [--out DIR]
-    mixvi scenes
+mixvi solve [SCENE] [--level N] [--solver NAME] [--tol T] [--set key=value ...] [--out DIR]
+mixvi scenes
 """
 
 from __future__ import annotations

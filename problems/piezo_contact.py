@@ -150,7 +150,9 @@ def build(scene: Scene, level: int | None = None) -> Model:
             b, part = _split_ref(out, "potential_along", bodies)
             if not b.has_potential:
                 raise SceneError(
-                    out.key("potential_along"), f"{b.name}.{part}", "a boundary of a piezoelectric body"
+                    out.key("potential_along"),
+                    f"{b.name}.{part}",
+                    "a boundary of a piezoelectric body",
                 )
             options["potential_along"] = (b.name, part)
         out.finish()

@@ -58,7 +58,9 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
     return ["contact_multiplier.png", "contact_displacement.png"]
 
 
-def potential_plot(points: np.ndarray, s: np.ndarray, phi: np.ndarray, outdir: Path, where: str) -> str:
+def potential_plot(
+    points: np.ndarray, s: np.ndarray, phi: np.ndarray, outdir: Path, where: str
+) -> str:
     """φ along a boundary part, against x (and arc length if the part is not straight)."""
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(points[:, 0], phi, "o-", ms=3)

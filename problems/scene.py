@@ -82,7 +82,9 @@ def load_scene(name_or_path: str, overrides: Iterable[str] = ()) -> Scene:
         for p in parts[:-1]:
             if p not in node or not isinstance(node[p], dict):
                 raise SceneError(
-                    f"--set {'.'.join(parts)}", value, f"a key inside existing tables ({p!r} missing)"
+                    f"--set {'.'.join(parts)}",
+                    value,
+                    f"a key inside existing tables ({p!r} missing)",
                 )
             node = node[p]
         node[parts[-1]] = value
@@ -226,7 +228,9 @@ class Table:
                 raise SceneError(
                     self.key(k),
                     self.data[k],
-                    "unknown key" + _did_you_mean(k, known) + f"; known here: {', '.join(sorted(known))}",
+                    "unknown key"
+                    + _did_you_mean(k, known)
+                    + f"; known here: {', '.join(sorted(known))}",
                 )
 
 

@@ -136,7 +136,6 @@ def solve_ssn(
     sc = vi.scaling
     u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
-    linear_solver = resolve_backend(linear_solver)
     stepper = _Stepper(e, condense=condense, linear_solver=linear_solver)
     Lam = e.Lambda
 
@@ -191,7 +190,7 @@ def solve_ssn(
             "condensed": stepper.cond is not None,
             "damped_steps": damped,
             "inside": inner,  # coordinates with λ + Bu − gap strictly inside Λ
-            "linear_solver": linear_solver,
+            "linear_solver": resolve_backend(linear_solver, e.n),
         },
     )
     if not converged:

@@ -11,8 +11,18 @@ def test_solve_writes_summary_fields_and_plots(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["solve", "rigid_foundation", "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
-    for key in ("scene", "level", "solver", "dofs", "converged", "iterations", "residual",
-                "contact", "lemma_4_2", "time_s"):
+    for key in (
+        "scene",
+        "level",
+        "solver",
+        "dofs",
+        "converged",
+        "iterations",
+        "residual",
+        "contact",
+        "lemma_4_2",
+        "time_s",
+    ):
         assert key in s, key
     assert set(s["dofs"]) == {"displacement", "potential", "multiplier"}
     assert set(s["contact"]) == {"nodes", "stick", "slip"}

@@ -49,7 +49,11 @@ def test_shipped_scene_has_stick_and_slip_and_lemma_4_2():
     g = st["g"]
     np.testing.assert_allclose(np.abs(st["lam_t"][st["slip"]]), g[st["slip"]], rtol=1e-10)
     assert (np.abs(st["lam_t"][~st["slip"]]) < g[~st["slip"]]).all()
-    un = np.einsum("ij,ij->i", model.full(sol.u)[model.contact.slave.u_dofs(model.contact.tr.nodes)], model.contact.tr.normals)
+    un = np.einsum(
+        "ij,ij->i",
+        model.full(sol.u)[model.contact.slave.u_dofs(model.contact.tr.nodes)],
+        model.contact.tr.normals,
+    )
     assert np.abs(un).max() <= 1e-12 * np.abs(sol.u).max()
 
 
@@ -87,7 +91,9 @@ def test_elements_and_levels_converge(element):
 
 
 def test_elastic_body_has_no_potential():
-    scene = load_scene("rigid_foundation", ["bodies.block.material={kind='isotropic', E=1e10, nu=0.3}"])
+    scene = load_scene(
+        "rigid_foundation", ["bodies.block.material={kind='isotropic', E=1e10, nu=0.3}"]
+    )
     del scene.data["bodies"]["block"]["potential"]
     del scene.data["output"]
     model = pc.build(scene, 1)

@@ -5,21 +5,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tests.vi_core.conftest import LIBRARY_CONSISTENT
 from vi_core import solve
 from vi_core.constants import skew_ratio
 from vi_core.testing import SET_TYPES, manufactured_strategy, manufactured_vi, random_vi
 
 from .helpers import FAST
-
-
-@pytest.mark.xfail(
-    strict=True,
-    reason="vi_core/problem.py: MixedVI.equilibrated uses diag(1/s_lam) for B' and gap/s_lam "
-    "where diag(s_lam) and s_lam*gap are needed (see tests/vi_core/conftest.py)",
-)
-def test_library_equilibration_is_consistent():
-    assert LIBRARY_CONSISTENT
 
 
 def test_equilibrated_unit_diagonal_and_rows():

@@ -13,7 +13,9 @@ seeds = st.integers(0, 2**32 - 1)
 def _random_set(rng, m):
     kind = rng.integers(0, 4)
     if kind == 0:
-        return product(Free(m // 2), Box(-rng.uniform(0, 1, m - m // 2), rng.uniform(0, 1, m - m // 2)))
+        return product(
+            Free(m // 2), Box(-rng.uniform(0, 1, m - m // 2), rng.uniform(0, 1, m - m // 2))
+        )
     if kind == 1:
         return NonNegative(m)
     if kind == 2:
@@ -23,7 +25,11 @@ def _random_set(rng, m):
 
 def _random_vi(rng, n=30, m=8, skew=1.0, mortar=True):
     M = rng.standard_normal((n, n))
-    A = M @ M.T / n + np.eye(n) + skew * (lambda S: S - S.T)(rng.standard_normal((n, n))) / np.sqrt(n)
+    A = (
+        M @ M.T / n
+        + np.eye(n)
+        + skew * (lambda S: S - S.T)(rng.standard_normal((n, n))) / np.sqrt(n)
+    )
     if mortar:  # dual-mortar-like B: a private diagonal block plus coupling to other columns
         B = np.zeros((m, n))
         B[np.arange(m), np.arange(m)] = rng.uniform(0.5, 2, m)
@@ -89,7 +95,9 @@ def test_unit_change_gives_the_same_physical_answer(seed):
     assert a.converged and b.converged and c.converged
     np.testing.assert_allclose(b.u * su, a.u, rtol=1e-7, atol=1e-8 * np.abs(a.u).max())
     np.testing.assert_allclose(b.lam, a.lam, rtol=1e-7, atol=1e-8 * max(np.abs(a.lam).max(), 1))
-    np.testing.assert_allclose(c.lam * sl, a.lam, rtol=1e-7, atol=1e-8 * max(np.abs(a.lam).max(), 1))
+    np.testing.assert_allclose(
+        c.lam * sl, a.lam, rtol=1e-7, atol=1e-8 * max(np.abs(a.lam).max(), 1)
+    )
     # the reported residual is the residual of the returned pair (up to rounding)
     assert abs(a.residual - vi.residual(a.u, a.lam).relative) <= 1e-13
 
