@@ -24,7 +24,8 @@ from . import registry
 from .errors import SceneError
 from .scene import SCENES_DIR, load_scene
 
-DEFAULT_SCENE = "rigid_foundation"
+DEFAULT_SCENE = "paper_two_body"
+AGREE = 1e-6  # `mixvi check`: largest allowed relative difference between methods
 
 
 def _plugin_name(scene) -> str:
@@ -63,9 +64,7 @@ def _jsonable(x):
 
 def cmd_solve(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
-    scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
-    plugin = registry.get(_plugin_name(scene))
-    model = plugin.build(scene, args.level)
+    scene, plugin, model = _build(args)
     t_build = time.perf_counter() - t0
     method = args.solver or model.options.get("method", "ssn")
     if method not in vi_core.METHODS:
@@ -119,6 +118,73 @@ def cmd_solve(args: argparse.Namespace) -> int:
     return 0 if sol.converged else 1
 
 
+def _build(args: argparse.Namespace):
+    scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
+    plugin = registry.get(_plugin_name(scene))
+    return scene, plugin, plugin.build(scene, args.level)
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    scene, plugin, model = _build(args)
+    vi = model.vi
+    methods = ["ssn", "homotopy"] + (["conic"] if vi.structure != "general" else [])
+    print(f"{scene.name} level {model.level}: n = {vi.n}, m = {vi.m}, A {vi.structure}")
+    print(f"{'method':<10}{'converged':>10}{'iter':>6}{'residual':>11}{'time [s]':>10}")
+    sols = {}
+    for meth in methods:
+        sol = vi_core.solve(vi, method=meth, tol=args.tol)
+        sols[meth] = sol
+        print(
+            f"{meth:<10}{sol.converged!s:>10}{sol.iterations:>6}{sol.residual:>11.2e}"
+            f"{sol.time:>10.2f}"
+        )
+    print(f"{'pair':<20}{'|Δu|/|u|':>12}{'|Δλ|/|λ|':>12}")
+    worst = 0.0
+    for i, a in enumerate(methods):
+        for b in methods[i + 1 :]:
+            du = _rel(sols[a].u, sols[b].u)
+            dl = _rel(sols[a].lam, sols[b].lam) if vi.m else 0.0
+            worst = max(worst, du, dl)
+            print(f"{a + ' / ' + b:<20}{du:>12.2e}{dl:>12.2e}")
+    ok = all(s.converged for s in sols.values()) and worst <= AGREE
+    print(f"{'agree' if ok else 'DISAGREE'}: largest difference {worst:.2e} (allowed {AGREE:g})")
+    return 0 if ok else 1
+
+
+def cmd_figures(args: argparse.Namespace) -> int:
+    from . import plots
+
+    bounds = (1.5e8, 1.0e8, 0.6e8)
+    states = []
+    for g in bounds:
+        scene = load_scene(args.scene or DEFAULT_SCENE, [*(args.set or []), f"contact.g={g!r}"])
+        plugin = registry.get(_plugin_name(scene))
+        model = plugin.build(scene, args.level)
+        sol = vi_core.solve(model.vi, method="ssn")
+        if not sol.converged:
+            print(
+                f"mixvi: g = {g:g} did not converge (residual {sol.residual:.2e})", file=sys.stderr
+            )
+            return 1
+        states.append((g, plugin.contact_state(model, sol)))
+        st = states[-1][1]
+        print(f"g = {g:.2e}: stick {int((~st['slip']).sum())}, slip {int(st['slip'].sum())}")
+    out = Path(args.out) if args.out else Path("out") / f"{scene.name}_figures"
+    tmp = _atomic_dir(out)
+    try:
+        plots.friction_comparison(states, tmp / "fig_5_4.png", title=scene.name)
+        _commit_dir(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    print(f"wrote {out}/fig_5_4.png")
+    return 0
+
+
 def cmd_scenes(args: argparse.Namespace) -> int:
     rows = []
     for p in sorted(SCENES_DIR.glob("*.toml")):
@@ -144,6 +210,19 @@ def parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_solve)
     sc = sub.add_parser("scenes", help="list the scenes that ship")
     sc.set_defaults(func=cmd_scenes)
+    for name, fn, helptext in (
+        ("check", cmd_check, "solve with every applicable method and compare"),
+        ("figures", cmd_figures, "Fig. 5.4: multiplier and jump for g = 1.5e8, 1e8, 0.6e8"),
+    ):
+        c = sub.add_parser(name, help=helptext)
+        c.add_argument("scene", nargs="?", help=f"scene (default {DEFAULT_SCENE})")
+        c.add_argument("--level", type=int, default=None)
+        c.add_argument("--set", action="append", metavar="KEY=VALUE")
+        if name == "check":
+            c.add_argument("--tol", type=float, default=1e-10)
+        else:
+            c.add_argument("--out", default=None)
+        c.set_defaults(func=fn)
     return p
 
 

@@ -40,6 +40,7 @@ class Contact:
     g: np.ndarray  # (N,) g_i = ∫gφ_i / ∫φ_i
     B_full: sp.csr_matrix  # (2N, n_full): normal rows then tangential rows
     g_weights: np.ndarray  # (N,) ∫ g φ_i  (= g_i D_i)
+    master_proj: sp.csr_matrix | None = None  # (2N, n_full): u ↦ (D⁻¹M u_m) at slave nodes
 
 
 @dataclass
@@ -136,12 +137,19 @@ def build(scene: Scene, level: int | None = None) -> Model:
     contact = None
     if ct is not None:
         slave, slave_part = _split_ref(ct, "slave", bodies)
-        master_ref = ct.string("master", "rigid")
-        if master_ref != "rigid":
-            raise SceneError(ct.key("master"), master_ref, "'rigid' (two-body contact: not yet)")
+        master = None
+        if ct.raw("master", "rigid") != "rigid":
+            master, master_part = _split_ref(ct, "master", bodies)
+            if master is slave:
+                raise SceneError(ct.key("master"), ct.raw("master"), "a body other than the slave")
         g_fun = ct.field("g", 1)
         ct.finish()
-        contact = _rigid_contact(slave, slave_part, g_fun, ct.key("g"), n_full)
+        if master is None:
+            contact = _rigid_contact(slave, slave_part, g_fun, ct.key("g"), n_full)
+        else:
+            contact = _mortar_contact(
+                slave, slave_part, master, master_part, g_fun, ct.key("g"), n_full
+            )
 
     out = root.table("output", required=False)
     options = {"potential_along": None}
@@ -223,6 +231,48 @@ def _rigid_contact(slave: Body, part: str, g_fun, gkey: str, n_full: int) -> Con
     return Contact(slave, part, tr, None, None, gw / tr.weights, B, gw)
 
 
+def _mortar_contact(
+    slave: Body, part: str, master: Body, mpart: str, g_fun, gkey: str, n_full: int
+) -> Contact:
+    """Rows D_i n_iᵀu_s,i − Σ_k M_ik n_iᵀu_m,k (normal) and the same with τ_i (tangential)."""
+    from fem.mortar import mortar_coupling
+
+    mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, ends="keep")
+    if (mort.coverage < 1 - 1e-12).any():
+        raise SceneError(
+            "contact.master",
+            f"{master.name}.{mpart}",
+            f"a master boundary that covers the whole slave boundary {slave.name}.{part} "
+            f"(covered fraction of the worst slave segment: {mort.coverage.min():.3f})",
+        )
+    tr = trace(slave.mesh, part)
+    assert np.array_equal(tr.nodes, mort.slave_nodes) and np.allclose(tr.weights, mort.D)
+    N = tr.size
+    gw = friction_weights(tr, slave.mesh.points, g_fun, gkey)
+    n, t = mort.normals, mort.tangents  # (N, 2)
+    sdofs = slave.u_dofs(mort.slave_nodes)  # (N, 2)
+    mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
+    Ds = mort.Ds.tocoo()
+    M = mort.M.tocoo()
+    rows, cols, vals, prow, pcols, pvals = [], [], [], [], [], []
+    for block, vec in ((0, n), (1, t)):
+        for c in range(2):
+            rows += [block * N + Ds.row, block * N + M.row]
+            cols += [sdofs[Ds.col, c], mdofs[M.col, c]]
+            vals += [Ds.data * vec[Ds.row, c], -M.data * vec[M.row, c]]
+            prow.append(block * N + M.row)
+            pcols.append(mdofs[M.col, c])
+            pvals.append(M.data * vec[M.row, c] / mort.D[M.row])
+    B = sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(2 * N, n_full)
+    )
+    proj = sp.csr_matrix(
+        (np.concatenate(pvals), (np.concatenate(prow), np.concatenate(pcols))),
+        shape=(2 * N, n_full),
+    )
+    return Contact(slave, part, tr, master, mpart, gw / tr.weights, B, gw, proj)
+
+
 # ------------------------------------------------------------------ post-processing
 def contact_state(model: Model, sol: Solution) -> dict:
     """Per-node contact quantities along Γ3 and the Lemma 4.2 check."""
@@ -240,7 +290,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     g_abs = float(np.sum(c.g_weights * np.abs(jump_t)))
     tiny = np.finfo(float).eps * float(np.sum(c.g_weights)) * max(np.abs(x_full).max(), 1e-300)
     lemma = abs(b_uh_lam - g_abs) / max(g_abs, tiny, 1e-300)
-    return {
+    state = {
         "s": c.tr.s,
         "points": c.slave.mesh.points[c.tr.nodes],
         "lam_n": lam_n,
@@ -253,6 +303,9 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "int_g_abs_u": g_abs,
         "lemma_4_2": float(lemma),
     }
+    if c.master_proj is not None:
+        state["ut_master"] = (c.master_proj @ x_full)[N:]
+    return state
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:

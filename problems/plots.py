@@ -72,3 +72,25 @@ def potential_plot(
     fig.savefig(outdir / "potential.png", dpi=120)
     plt.close(fig)
     return "potential.png"
+
+
+def friction_comparison(states: list[tuple[float, dict]], path: Path, title: str = "") -> None:
+    """Fig. 5.4: λ·τ and the tangential jump along Γ3, one panel per friction bound g."""
+    fig, axes = plt.subplots(1, len(states), figsize=(5 * len(states), 4), sharey=True)
+    for ax, (g, st) in zip(np.atleast_1d(axes), states, strict=True):
+        _shade_slip(ax, st["s"], st["slip"])
+        ax.plot(st["s"], st["lam_t"], "o-", ms=2, label=r"$\lambda\cdot\tau$")
+        ax.axhline(g, color="k", ls="--", lw=1, label=r"$\pm g$")
+        ax.axhline(-g, color="k", ls="--", lw=1)
+        ax.set_xlabel("arc length along $\\Gamma_3$ [m]")
+        ax2 = ax.twinx()
+        ax2.plot(st["s"], st["jump_t"], "s-", ms=2, color="tab:orange", label=r"$[u]\cdot\tau$")
+        ax2.set_ylabel(r"$[u]\cdot\tau$ [m]", color="tab:orange")
+        n_slip = int(st["slip"].sum())
+        ax.set_title(f"g = {g:.2g} Pa: stick {st['slip'].size - n_slip}, slip {n_slip}")
+    np.atleast_1d(axes)[0].set_ylabel(r"$\lambda\cdot\tau$ [Pa]")
+    np.atleast_1d(axes)[0].legend(loc="best", fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
