@@ -128,15 +128,28 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
 
 
-def cmd_check(args: argparse.Namespace) -> int:
-    scene, plugin, model = _build(args)
+def _levels(text: str | None, default: int | None) -> list[int | None]:
+    if text is None:
+        return [default]
+    lo, sep, hi = text.partition("..")
+    try:
+        levels = list(range(int(lo), int(hi) + 1)) if sep else [int(lo)]
+    except ValueError:
+        raise SceneError("--levels", text, "a level N or a range A..B, e.g. 0..2") from None
+    if not levels or min(levels) < 0:
+        raise SceneError("--levels", text, "a non-empty range of levels ≥ 0, e.g. 0..2")
+    return levels
+
+
+def _check_level(scene, plugin, level, tol) -> tuple[bool, float, dict]:
+    model = plugin.build(scene, level)
     vi = model.vi
     methods = ["ssn", "homotopy"] + (["conic"] if vi.structure != "general" else [])
-    print(f"{scene.name} level {model.level}: n = {vi.n}, m = {vi.m}, A {vi.structure}")
+    print(f"\n{scene.name} level {model.level}: n = {vi.n}, m = {vi.m}, A {vi.structure}")
     print(f"{'method':<10}{'converged':>10}{'iter':>6}{'residual':>11}{'time [s]':>10}")
     sols = {}
     for meth in methods:
-        sol = vi_core.solve(vi, method=meth, tol=args.tol)
+        sol = vi_core.solve(vi, method=meth, tol=tol)
         sols[meth] = sol
         print(
             f"{meth:<10}{sol.converged!s:>10}{sol.iterations:>6}{sol.residual:>11.2e}"
@@ -150,8 +163,59 @@ def cmd_check(args: argparse.Namespace) -> int:
             dl = _rel(sols[a].lam, sols[b].lam) if vi.m else 0.0
             worst = max(worst, du, dl)
             print(f"{a + ' / ' + b:<20}{du:>12.2e}{dl:>12.2e}")
-    ok = all(s.converged for s in sols.values()) and worst <= AGREE
-    print(f"{'agree' if ok else 'DISAGREE'}: largest difference {worst:.2e} (allowed {AGREE:g})")
+    polish = sols["conic"].info.get("polish") if "conic" in sols else None
+    if polish:
+        print(
+            f"conic: Clarabel's own answer had residual {polish['residual_before']:.2e}; "
+            f"{polish['steps']} Newton polish step(s) moved it by {polish['relative_change']:.2e}"
+        )
+    h = sols["homotopy"].info
+    rates = h.get("rates") or [float("nan")]
+    bound = h.get("rate_bound", float("nan"))
+    rho, t0 = h.get("rho", float("nan")), h.get("t0_paper", float("nan"))
+    print(
+        f"homotopy: rho = {rho:.4f}, levels {len(h.get('levels', [])) - 1}, observed "
+        f"contraction {rates[-1]:.4f} vs (s - tau) rho = {bound:.4f} (ratio "
+        f"{rates[-1] / bound:.2f}); paper's t0 (3.11) = {t0:.2e}"
+    )
+    record = {
+        "level": model.level,
+        "unknowns": vi.n + vi.m,
+        "structure": vi.structure,
+        "methods": {
+            k: {
+                "converged": v.converged,
+                "iterations": v.iterations,
+                "residual": v.residual,
+                "time_s": v.time,
+            }
+            for k, v in sols.items()
+        },
+        "max_difference": worst,
+        "rho": h.get("rho"),
+        "t0_paper": h.get("t0_paper"),
+        "contraction_observed": rates[-1],
+        "contraction_bound": bound,
+    }
+    return all(v.converged for v in sols.values()), worst, record
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
+    plugin = registry.get(_plugin_name(scene))
+    records, ok = [], True
+    for level in _levels(args.levels, args.level):
+        conv, worst, rec = _check_level(scene, plugin, level, args.tol)
+        ok = ok and conv and worst <= AGREE
+        records.append(rec)
+        print(
+            f"{'agree' if conv and worst <= AGREE else 'DISAGREE'}: largest difference "
+            f"{worst:.2e} (allowed {AGREE:g})"
+        )
+    if args.json:
+        Path(args.json).write_text(
+            json.dumps(_jsonable({"scene": scene.name, "records": records}), indent=2)
+        )
     return 0 if ok else 1
 
 
@@ -220,6 +284,8 @@ def parser() -> argparse.ArgumentParser:
         c.add_argument("--set", action="append", metavar="KEY=VALUE")
         if name == "check":
             c.add_argument("--tol", type=float, default=1e-10)
+            c.add_argument("--levels", default=None, help="several levels, e.g. 0..2")
+            c.add_argument("--json", default=None, help="also write the table as JSON")
         else:
             c.add_argument("--out", default=None)
         c.set_defaults(func=fn)

@@ -73,3 +73,17 @@ def test_check_command_agrees(level, capsys):
 def test_figures_command(tmp_path):
     assert main(["figures", "--level", "0", "--out", str(tmp_path / "f")]) == 0
     assert (tmp_path / "f" / "fig_5_4.png").stat().st_size > 0
+
+
+def test_check_over_levels_reports_rho_t0_and_contraction(tmp_path, capsys):
+    import json
+
+    out = tmp_path / "check.json"
+    assert main(["check", "rigid_foundation", "--levels", "0..1", "--json", str(out)]) == 0
+    recs = json.loads(out.read_text())["records"]
+    assert [r["level"] for r in recs] == [0, 1]
+    for r in recs:
+        assert 0 < r["t0_paper"] < 1e-20 < r["rho"] < 1  # (3.11) is very pessimistic here
+        # the homotopy contracts at the rate its step was chosen for (within a factor 1.5)
+        assert r["contraction_bound"] / 1.5 <= r["contraction_observed"] <= r["contraction_bound"]
+    assert "contraction" in capsys.readouterr().out
