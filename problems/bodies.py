@@ -7,7 +7,7 @@ then potential (N).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -37,7 +37,6 @@ class Body:
     fixed: np.ndarray = None  # (n_b,) bool
     values: np.ndarray = None  # (n_b,) prescribed values on fixed dofs
     X: sp.csr_matrix = None  # (n_b, n_b) H1 Gram matrix of the body's fields
-    info: dict = field(default_factory=dict)
 
     @property
     def n_nodes(self) -> int:
@@ -147,9 +146,7 @@ def build_body(name: str, t: Table, level: int, offset: int) -> Body:
     Mu = assembly.mass_matrix(mesh)
     Su = assembly.stiffness_matrix(mesh)
     H1 = (Mu + Su).tocsr()
-    X_blocks = [sp.kron(H1, sp.identity(2)).tocsr()]
-    # reorder kron (component-major inside node) to node-major: kron(H1, I2) is already
-    # node-major since dof 2*i + k ↔ (i, k)
+    X_blocks = [sp.kron(H1, sp.identity(2)).tocsr()]  # node-major: dof 2·i + k ↔ (i, k)
     if material.piezoelectric:
         G = assembly.coupling_matrix(mesh, material.e)
         P = assembly.permittivity_matrix(mesh, material.kappa)
