@@ -92,10 +92,12 @@ class _Stepper:
             BR_t = sp.csr_matrix(e.B[:, c.R].T)  # (n−m, m)
             self.K_R = (A[c.R] - BR_t @ (c.Dt_inv @ self.A_S)).tocsr()
             self.rhs_R = e.f[c.R] - BR_t @ (c.Dt_inv @ self.f_S)
-            # row permutation: fixed rows at positions R, constraint rows at positions S
-            self.perm_rows = np.concatenate([c.R, c.S])
+            # row permutation: rows stacked [R; S] go to their natural dof positions
+            n = e.n
+            rows = np.concatenate([c.R, c.S])
+            self.P = sp.csr_matrix((np.ones(n), (rows, np.arange(n))), shape=(n, n))
 
-    def step(self, u, lam, J, W, rhs_c):
+    def step(self, J, W, rhs_c):
         """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c."""
         e = self.e
         if self.cond is None:
@@ -107,11 +109,8 @@ class _Stepper:
         # Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)   (rhs_c = p − Jy − J gap)
         K_S = (Dt @ (W @ (c.Dt_inv @ self.A_S)) + Dt @ (J @ e.B)).tocsr()
         rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
-        K = sp.vstack([self.K_R, K_S], format="csr")
-        # rows currently ordered [R; S]; reorder to the natural dof order
-        P = sp.csr_matrix((np.ones(e.n), (self.perm_rows, np.arange(e.n))), shape=(e.n, e.n))
-        K = (P @ K).tocsr()
-        rhs = P @ np.concatenate([self.rhs_R, rhs_S])
+        K = (self.P @ sp.vstack([self.K_R, K_S], format="csr")).tocsr()
+        rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])
         u_new = factorize(K, self.linear_solver)(rhs)
         lam_new = c.Dt_inv @ (self.f_S - self.A_S @ u_new)
         return u_new, lam_new
@@ -151,7 +150,7 @@ def solve_ssn(
         J = Lam.jacobian(y)
         W = sp.identity(e.m, format="csr") - J
         rhs_c = p - J @ y - J @ e.gap
-        u_new, lam_new = stepper.step(u, lam, J, W, rhs_c)
+        u_new, lam_new = stepper.step(J, W, rhs_c)
         du, dl = u_new - u, lam_new - lam
         t, best = 1.0, None
         while True:
@@ -174,6 +173,7 @@ def solve_ssn(
     if res_feasible <= max(res, tol):
         lam, res = lam_feasible, res_feasible
         history[-1] = res
+        converged = res <= tol
     y = lam + e.B @ u - e.gap
     inner = int((np.abs(y - Lam.project(y)) == 0).sum())
     u_phys, lam_phys = sc.to_physical(u, lam)
