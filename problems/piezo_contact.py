@@ -17,6 +17,7 @@ import scipy.sparse as sp
 from fem import assembly
 from fem.boundary import Trace, trace
 from fem.dirichlet import expand, reduce_dirichlet
+from fem.mesh import Mesh
 from vi_core import Box, Free, MixedVI, Solution, product
 
 from . import plots
@@ -74,27 +75,16 @@ class Model:
         return expand(u, self.free, self.values)
 
 
-def _segment_quadrature(P: np.ndarray, segs: np.ndarray):
-    """3-point Gauss on straight segments: points (n_seg, 3, 2), weights (n_seg, 3), φ (3, 2)."""
-    t = 0.5 + 0.5 * np.array([-np.sqrt(3 / 5), 0.0, np.sqrt(3 / 5)])  # (3,)
-    w = np.array([5 / 18, 8 / 18, 5 / 18])  # (3,)
-    a, b = P[segs[:, 0]], P[segs[:, 1]]  # (n_seg, 2)
-    L = np.linalg.norm(b - a, axis=1)  # (n_seg,)
-    x = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]  # (n_seg, 3, 2)
-    phi = np.stack([1 - t, t], axis=1)  # (3, 2)
-    return x, L[:, None] * w[None, :], phi
+def friction_weights(mesh: Mesh, part: str, tr: Trace, gfun, key: str) -> np.ndarray:
+    """∫ g φ_i ds for each trace node (g ≥ 0 checked at every quadrature point)."""
 
+    def g_checked(x, y):
+        gv = gfun(x, y)
+        if (gv < 0).any():
+            raise SceneError(key, float(gv.min()), "a friction bound g ≥ 0 everywhere on Γ3")
+        return gv
 
-def friction_weights(tr: Trace, points: np.ndarray, gfun, key: str) -> np.ndarray:
-    """∫ g φ_i ds for each trace node (g ≥ 0 checked)."""
-    x, w, phi = _segment_quadrature(points[tr.nodes], tr.segments)
-    gv = gfun(x[..., 0], x[..., 1])  # (n_seg, 3)
-    if (gv < 0).any():
-        raise SceneError(key, float(gv.min()), "a friction bound g ≥ 0 everywhere on Γ3")
-    out = np.zeros(tr.size)
-    for k in range(2):
-        np.add.at(out, tr.segments[:, k], (gv * w * phi[None, :, k]).sum(axis=1))
-    return out
+    return assembly.boundary_load(mesh, part, g_checked, 1)[tr.nodes]
 
 
 def _split_ref(t: Table, key: str, bodies: dict[str, Body]) -> tuple[Body, str]:
@@ -220,7 +210,7 @@ def _contact_rows(contact: Contact, free, fixed, values):
 def _rigid_contact(slave: Body, part: str, g_fun, gkey: str, n_full: int) -> Contact:
     tr = trace(slave.mesh, part)
     N = tr.size
-    gw = friction_weights(tr, slave.mesh.points, g_fun, gkey)
+    gw = friction_weights(slave.mesh, part, tr, g_fun, gkey)
     dofs = slave.u_dofs(tr.nodes)  # (N, 2)
     rows = np.repeat(np.arange(2 * N), 2)
     cols = np.concatenate([dofs, dofs]).ravel()
@@ -248,7 +238,7 @@ def _mortar_contact(
     tr = trace(slave.mesh, part)
     assert np.array_equal(tr.nodes, mort.slave_nodes) and np.allclose(tr.weights, mort.D)
     N = tr.size
-    gw = friction_weights(tr, slave.mesh.points, g_fun, gkey)
+    gw = friction_weights(slave.mesh, part, tr, g_fun, gkey)
     n, t = mort.normals, mort.tangents  # (N, 2)
     sdofs = slave.u_dofs(mort.slave_nodes)  # (N, 2)
     mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
