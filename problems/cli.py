@@ -14,6 +14,8 @@ import sys
 import tempfile
 import time
 import tomllib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -34,13 +36,17 @@ def _plugin_name(scene) -> str:
     return name if isinstance(name, str) else "piezo_contact"
 
 
-def _atomic_dir(out: Path):
-    """A temporary directory beside `out`, moved into place by `_commit_dir` on success."""
+@contextmanager
+def atomic_output(out: Path) -> Iterator[Path]:
+    """Yield a temporary directory beside `out`; on success it replaces `out`, on any
+    exception it is removed, so a half-written output directory never appears."""
     out.parent.mkdir(parents=True, exist_ok=True)
-    return Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
-
-
-def _commit_dir(tmp: Path, out: Path) -> None:
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     old = None
     if out.exists():
         old = out.parent / f".{out.name}.old-{os.getpid()}"
@@ -72,8 +78,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
     tol = args.tol if args.tol is not None else model.options.get("tol", 1e-10)
     sol = vi_core.solve(model.vi, method=method, tol=tol)
     out = Path(args.out) if args.out else Path("out") / scene.name
-    tmp = _atomic_dir(out)
-    try:
+    with atomic_output(out) as tmp:
         extras = plugin.postprocess(model, sol, tmp)
         summary = {
             "scene": scene.name,
@@ -97,10 +102,6 @@ def cmd_solve(args: argparse.Namespace) -> int:
             },
         }
         (tmp / "summary.json").write_text(json.dumps(_jsonable(summary), indent=2) + "\n")
-        _commit_dir(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     c = summary.get("contact", {})
     print(
         f"{scene.name} level {model.level}: {sum(model.dofs.values())} unknowns "
@@ -238,13 +239,8 @@ def cmd_figures(args: argparse.Namespace) -> int:
         st = states[-1][1]
         print(f"g = {g:.2e}: stick {int((~st['slip']).sum())}, slip {int(st['slip'].sum())}")
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_figures"
-    tmp = _atomic_dir(out)
-    try:
+    with atomic_output(out) as tmp:
         plots.friction_comparison(states, tmp / "fig_5_4.png", title=scene.name)
-        _commit_dir(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     print(f"wrote {out}/fig_5_4.png")
     return 0
 
