@@ -263,6 +263,28 @@ def _mortar_contact(
     return Contact(slave, part, tr, master, mpart, gw / tr.weights, B, gw, proj)
 
 
+def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
+    """Initial guess for `fine` from the solution on the coarser level (nested iteration).
+
+    The multiplier coefficients are interpolated along Γ3 by normalised arc length (the
+    interface is the same curve on every level). Coefficients that were on the friction bound
+    stay exactly on it (|α_i| = g_i), so the first Newton step starts from the coarse
+    stick/slip partition instead of rediscovering it (rounding in the interpolation would
+    otherwise put them a hair inside the bound and make them stick).
+    """
+    if coarse.contact is None or fine.contact is None:
+        return {}
+    tc, tf = coarse.contact.tr, fine.contact.tr
+    sc, sf = tc.s / tc.s[-1], tf.s / tf.s[-1]
+    Nc = tc.size
+    lam_n = np.interp(sf, sc, coarse_sol.lam[:Nc])
+    lam_t = np.interp(sf, sc, coarse_sol.lam[Nc:])
+    g = fine.contact.g
+    on_bound = np.abs(lam_t) >= g * (1.0 - 1e-9)
+    lam_t[on_bound] = np.sign(lam_t[on_bound]) * g[on_bound]
+    return {"lam0": np.concatenate([lam_n, np.clip(lam_t, -g, g)])}
+
+
 # ------------------------------------------------------------------ post-processing
 def contact_state(model: Model, sol: Solution) -> dict:
     """Per-node contact quantities along Γ3 and the Lemma 4.2 check."""

@@ -87,3 +87,21 @@ def test_check_over_levels_reports_rho_t0_and_contraction(tmp_path, capsys):
         # the homotopy contracts at the rate its step was chosen for (within a factor 1.5)
         assert r["contraction_bound"] / 1.5 <= r["contraction_observed"] <= r["contraction_bound"]
     assert "contraction" in capsys.readouterr().out
+
+
+def test_nested_iteration_keeps_newton_steps_bounded():
+    """Warm-starting each level from the coarser one (the CLI's default for ssn): at most
+    2 Newton steps per level, and the same solution as a cold start."""
+    scene = load_scene("paper_two_body")
+    prev = None
+    for level in range(4):
+        model = pc.build(scene, level)
+        kw = pc.warm_start(*prev, model) if prev else {}
+        sol = solve(model.vi, "ssn", tol=1e-12, **kw)
+        assert sol.converged
+        if level > 0:
+            assert sol.iterations <= 2, (level, sol.history)
+        prev = (model, sol)
+    cold = solve(model.vi, "ssn", tol=1e-12)
+    assert cold.iterations > 2  # the cold start does need more: the test is not vacuous
+    assert _rel(sol.u, cold.u) <= 1e-10 and _rel(sol.lam, cold.lam) <= 1e-10
