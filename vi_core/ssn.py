@@ -54,26 +54,32 @@ class Condensation:
             rows = tuple(Bc.indices[Bc.indptr[j] : Bc.indptr[j + 1]].tolist())
             groups.setdefault(rows, []).append(int(j))
         S = -np.ones(m, dtype=int)
+        inv_r, inv_c, inv_v = [], [], []  # D^{-T}, block by block, in row numbering
         for rows, cols in groups.items():
             if len(cols) != len(rows) or (S[list(rows)] >= 0).any():
                 continue
-            block = B[list(rows)][:, cols].toarray()
+            block = np.zeros((len(rows), len(cols)))  # B[rows, cols], read from the CSC arrays
+            pos = {r: i for i, r in enumerate(rows)}
+            for c, j in enumerate(cols):
+                lo, hi = Bc.indptr[j], Bc.indptr[j + 1]
+                for r, v in zip(Bc.indices[lo:hi], Bc.data[lo:hi], strict=True):
+                    block[pos[r], c] = v
             if np.linalg.cond(block) > 1e8:
                 continue
             S[list(rows)] = cols
+            # with S[rows] = cols, D = B[:, S] has the block D[rows, rows] = block
+            rr = np.asarray(rows)
+            inv_r.append(np.repeat(rr, len(rr)))
+            inv_c.append(np.tile(rr, len(rr)))
+            inv_v.append(np.linalg.inv(block.T).ravel())
         if (S < 0).any():
             return None
         D = sp.csr_matrix(B[:, S])
-        # D is block diagonal in row order; invert its transpose block by block
-        Dt = sp.csr_matrix(D.T)
-        ncomp, label = sp.csgraph.connected_components(abs(D) + abs(Dt), directed=False)
-        Dt_inv = sp.lil_matrix((m, m))
-        order = np.argsort(label, kind="stable")
-        bounds = np.flatnonzero(np.diff(label[order])) + 1
-        for idx in np.split(order, bounds):
-            Dt_inv[np.ix_(idx, idx)] = np.linalg.inv(Dt[idx][:, idx].toarray())
+        Dt_inv = sp.csr_matrix(
+            (np.concatenate(inv_v), (np.concatenate(inv_r), np.concatenate(inv_c))), shape=(m, m)
+        )
         R = np.setdiff1d(np.arange(n), S)
-        return Condensation(S=S, R=R, D=D, Dt_inv=sp.csr_matrix(Dt_inv))
+        return Condensation(S=S, R=R, D=D, Dt_inv=Dt_inv)
 
 
 class _Stepper:
