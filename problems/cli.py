@@ -30,6 +30,31 @@ DEFAULT_SCENE = "paper_two_body"
 AGREE = 1e-6  # `mixvi check`: largest allowed relative difference between methods
 
 
+MAX_LEVEL = 12
+
+
+def _level(text: str) -> int:
+    """argparse type: a refinement level 0 … MAX_LEVEL (exit 2 with a message otherwise)."""
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if not 0 <= v <= MAX_LEVEL:
+        raise argparse.ArgumentTypeError(f"{text!r}: a level is an integer from 0 to {MAX_LEVEL}")
+    return v
+
+
+def _tol(text: str) -> float:
+    """argparse type: a relative residual tolerance in (0, 1)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = -1.0
+    if not 0.0 < v < 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: a tolerance is a number in (0, 1)")
+    return v
+
+
 def _plugin_name(scene) -> str:
     head = scene.data.get("scene", {})
     name = head.get("plugin", "piezo_contact") if isinstance(head, dict) else "piezo_contact"
@@ -155,8 +180,10 @@ def _levels(text: str | None, default: int | None) -> list[int | None]:
         levels = list(range(int(lo), int(hi) + 1)) if sep else [int(lo)]
     except ValueError:
         raise SceneError("--levels", text, "a level N or a range A..B, e.g. 0..2") from None
-    if not levels or min(levels) < 0:
-        raise SceneError("--levels", text, "a non-empty range of levels ≥ 0, e.g. 0..2")
+    if not levels or min(levels) < 0 or max(levels) > MAX_LEVEL:
+        raise SceneError(
+            "--levels", text, f"a non-empty range of levels 0 … {MAX_LEVEL}, e.g. 0..2"
+        )
     return levels
 
 
@@ -280,9 +307,9 @@ def parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     s = sub.add_parser("solve", help="solve a scene and write summary.json, VTU and PNG files")
     s.add_argument("scene", nargs="?", help=f"scene file or shipped name (default {DEFAULT_SCENE})")
-    s.add_argument("--level", type=int, default=None, help="refinement level (default: scene's)")
+    s.add_argument("--level", type=_level, default=None, help="refinement level (default: scene's)")
     s.add_argument("--solver", default=None, help="ssn (default) or another vi_core method")
-    s.add_argument("--tol", type=float, default=None, help="relative residual (default 1e-10)")
+    s.add_argument("--tol", type=_tol, default=None, help="relative residual (default 1e-10)")
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
     s.add_argument("--out", default=None, help="output directory (default out/SCENE)")
     s.add_argument(
@@ -299,10 +326,10 @@ def parser() -> argparse.ArgumentParser:
     ):
         c = sub.add_parser(name, help=helptext)
         c.add_argument("scene", nargs="?", help=f"scene (default {DEFAULT_SCENE})")
-        c.add_argument("--level", type=int, default=None)
+        c.add_argument("--level", type=_level, default=None)
         c.add_argument("--set", action="append", metavar="KEY=VALUE")
         if name == "check":
-            c.add_argument("--tol", type=float, default=1e-10)
+            c.add_argument("--tol", type=_tol, default=1e-10)
             c.add_argument("--levels", default=None, help="several levels, e.g. 0..2")
             c.add_argument("--json", default=None, help="also write the table as JSON")
         else:

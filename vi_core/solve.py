@@ -53,6 +53,8 @@ def solve(vi: MixedVI, method: str = "auto", tol: float = 1e-10, **options: Any)
     """
     if method not in METHODS:
         raise ValueError(f"method {method!r} unknown; allowed: {', '.join(METHODS)}")
+    if not 0.0 < tol < 1.0:
+        raise ValueError(f"tol = {tol!r}: a relative residual tolerance must lie in (0, 1)")
     if method != "auto":
         return _run(vi, method, tol, options)
     sol = _run(vi, "ssn", tol, options)

@@ -91,3 +91,24 @@ def test_malformed_toml(tmp_path, capsys):
     scene.write_text("[scene\n")
     assert main(["solve", str(scene), "--out", str(tmp_path / "o")]) == 2
     assert "valid TOML" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["solve", "--level", "-1"],
+        ["solve", "--level", "40"],
+        ["solve", "--tol", "0"],
+        ["solve", "--tol", "-1"],
+        ["check", "--levels", "2..1"],
+        ["check", "--levels", "0..99"],
+        ["figures", "--level", "-2"],
+    ],
+)
+def test_bad_levels_and_tolerances_exit_2(tmp_path, capsys, args):
+    with pytest.raises(SystemExit) as exc:  # argparse's own usage errors
+        rc = main([*args, "--out", str(tmp_path / "o")] if args[0] != "check" else args)
+        raise SystemExit(rc)
+    assert exc.value.code == 2
+    assert "Traceback" not in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
