@@ -31,6 +31,7 @@ AGREE = 1e-6  # `mixvi check`: largest allowed relative difference between metho
 
 
 MAX_LEVEL = 12
+CONDITION_LIMIT = 200_000  # estimate the Newton matrix's condition up to this many unknowns
 
 
 def _level(text: str) -> int:
@@ -81,6 +82,21 @@ def atomic_output(out: Path) -> Iterator[Path]:
         shutil.rmtree(old, ignore_errors=True)
 
 
+def _scaling_summary(model) -> dict:
+    """The equilibration scales per field (geometric means): u = s_u·u', λ = s_λ·λ'."""
+    sc = model.vi.scaling
+
+    def gmean(v):
+        return float(np.exp(np.mean(np.log(v)))) if v.size else None
+
+    out = {"note": "u = s_u u', lambda = s_lam lambda' (Jacobi equilibration, geometric means)"}
+    fields = model.unknown_fields() if hasattr(model, "unknown_fields") else {"u": slice(None)}
+    for name, mask in fields.items():
+        out[f"s_{name}"] = gmean(sc.s_u[mask])
+    out["s_multiplier"] = gmean(sc.s_lam)
+    return out
+
+
 def _jsonable(x):
     if isinstance(x, dict):
         return {k: _jsonable(v) for k, v in x.items()}
@@ -113,6 +129,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
             nested.append({"level": lev, "iterations": csol.iterations, "time_s": csol.time})
             prev = (coarse, csol)
         warm = plugin.warm_start(*prev, model)
+    if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
+        warm["estimate_condition"] = True
     sol = vi_core.solve(model.vi, method=method, tol=tol, **warm)
     if nested:
         nested.append({"level": model.level, "iterations": sol.iterations, "time_s": sol.time})
@@ -132,8 +150,10 @@ def cmd_solve(args: argparse.Namespace) -> int:
             "residual": sol.residual,
             "residual_history": sol.history,
             **extras,
+            "scaling": _scaling_summary(model),
+            "condition_estimate": sol.info.get("condition_estimate"),
             "solver_info": sol.info,
-            "warnings": model.warnings + sol.warnings,
+            "warnings": model.warnings + sol.warnings + extras.get("warnings", []),
             "nested": nested,
             "time_s": {
                 "build": t_build,

@@ -26,6 +26,7 @@ from .errors import SceneError
 from .scene import Scene, Table
 
 NAME = "piezo_contact"
+LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
 DESCRIPTION = "elasto-piezoelectric bodies in bilateral Tresca contact (dual mortar multipliers)"
 
 
@@ -58,17 +59,18 @@ class Model:
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
+    def unknown_fields(self) -> dict[str, np.ndarray]:
+        """Boolean masks over the unknowns: which are displacement, which potential."""
+        is_disp = np.zeros(self.values.size, dtype=bool)
+        for b in self.bodies:
+            is_disp[b.offset : b.offset + 2 * b.n_nodes] = True
+        return {"displacement": is_disp[self.free], "potential": ~is_disp[self.free]}
+
     @property
     def dofs(self) -> dict[str, int]:
         """Number of unknowns per field."""
-        is_free = np.zeros(self.values.size, dtype=bool)
-        is_free[self.free] = True
-        disp = pot = 0
-        for b in self.bodies:
-            sl = is_free[b.offset : b.offset + b.size]
-            disp += int(sl[: 2 * b.n_nodes].sum())
-            pot += int(sl[2 * b.n_nodes :].sum())
-        return {"displacement": disp, "potential": pot, "multiplier": self.vi.m}
+        counts = {k: int(v.sum()) for k, v in self.unknown_fields().items()}
+        return {**counts, "multiplier": self.vi.m}
 
     def full(self, u: np.ndarray) -> np.ndarray:
         """Unknowns → full vector including Dirichlet values."""
@@ -181,7 +183,16 @@ def build(scene: Scene, level: int | None = None) -> Model:
         Y=Y,
         info={"scene": scene.name, "level": level},
     )
-    return Model(scene, level, list(bodies.values()), contact, vi, free, values, options)
+    model = Model(scene, level, list(bodies.values()), contact, vi, free, values, options)
+    for b in model.bodies:
+        ev = np.linalg.eigvalsh(b.material.C)
+        if ev[-1] / ev[0] > LOCKING_RATIO:
+            model.warnings.append(
+                f"body {b.name!r}: nearly incompressible material (eigenvalue ratio of C "
+                f"{ev[-1] / ev[0]:.3g} > {LOCKING_RATIO:g}); lowest-order elements lock — "
+                "displacements are underestimated on coarse meshes"
+            )
+    return model
 
 
 def _contact_rows(contact: Contact, free, fixed, values):
@@ -320,6 +331,20 @@ def contact_state(model: Model, sol: Solution) -> dict:
     return state
 
 
+def contact_warnings(state: dict) -> list[str]:
+    """What a user must know about the friction bound of this solution."""
+    g, lam_t = state["g"], state["lam_t"]
+    if not g.any():
+        return ["g = 0 on Γ3: frictionless sliding (a linear problem)"]
+    if not state["slip"].any():
+        used = float(np.max(np.abs(lam_t) / np.where(g > 0, g, np.inf)))
+        return [
+            f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
+            "bound, so the problem is tied (g above every tangential stress)"
+        ]
+    return []
+
+
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """Write VTU fields and PNG plots into `outdir`; return the summary entries."""
     from fem.io import write_vtu
@@ -349,6 +374,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
             "slip": n_slip,
         }
         summary["lemma_4_2"] = state["lemma_4_2"]
+        summary["warnings"] = contact_warnings(state)
     along = model.options.get("potential_along")
     if along is not None:
         b = next(bb for bb in model.bodies if bb.name == along[0])

@@ -62,13 +62,22 @@ class Factorization:
             self._pardiso = pypardiso.PyPardisoSolver()  # real non-symmetric, METIS ordering
             self._pardiso.factorize(self.A)
             self._solve = lambda b: self._pardiso.solve(self.A, np.ascontiguousarray(b, float))
+            self._solve_t = None  # a factorisation of Aᵀ, made on first use
         else:
             lu = spla.splu(sp.csc_matrix(self.A), permc_spec="COLAMD")
             self._solve = lambda b: lu.solve(np.asarray(b, dtype=float))
+            self._solve_t = lambda b: lu.solve(np.asarray(b, dtype=float), trans="T")
 
     def __call__(self, b: np.ndarray) -> np.ndarray:
         x = self._solve(b)
         return _refine(self.A, b, x, self._solve)
+
+    def solve_transposed(self, b: np.ndarray) -> np.ndarray:
+        """x with Aᵀx = b (PARDISO: factorises Aᵀ on first use)."""
+        if self._solve_t is None:
+            self._transposed = Factorization(self.A.T, self.backend)
+            self._solve_t = self._transposed
+        return self._solve_t(np.ravel(b))
 
     def free(self) -> None:
         """Release the factor's memory now (PARDISO keeps it outside Python's heap)."""
@@ -78,6 +87,19 @@ class Factorization:
 
     def __del__(self):
         self.free()
+
+
+def condition_estimate(F: Factorization) -> float:
+    """‖A‖₁ · est‖A⁻¹‖₁ (Hager–Higham block 1-norm estimator, `scipy...onenormest`).
+
+    Uses solves with A and Aᵀ; with SuperLU both come from one factorisation, with PARDISO the
+    transposed solves factorise Aᵀ once more (about the cost of one more linear solve).
+    """
+    n = F.A.shape[0]
+    if n == 0:
+        return 0.0
+    op = spla.LinearOperator((n, n), matvec=F, rmatvec=F.solve_transposed, dtype=float)
+    return float(abs(F.A).sum(axis=0).max()) * float(spla.onenormest(op))
 
 
 def factorize(A: sp.spmatrix, backend: str = "auto") -> Factorization:

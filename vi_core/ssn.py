@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .linalg import factorize, resolve_backend
+from .linalg import condition_estimate, factorize, resolve_backend
 from .problem import MixedVI, natural_residual
 from .solution import Solution
 
@@ -88,6 +88,7 @@ class _Stepper:
     def __init__(self, e: MixedVI, condense: bool, linear_solver: str):
         self.e = e
         self.linear_solver = linear_solver
+        self.last = None  # factorisation of the last Newton matrix
         self.cond = Condensation.detect(e.B) if condense else None
         if self.cond is not None:
             c = self.cond
@@ -108,7 +109,8 @@ class _Stepper:
         e = self.e
         if self.cond is None:
             K = sp.bmat([[e.A, e.B.T], [-J @ e.B, W]], format="csr")
-            x = factorize(K, self.linear_solver)(np.concatenate([e.f, rhs_c]))
+            self.last = factorize(K, self.linear_solver)
+            x = self.last(np.concatenate([e.f, rhs_c]))
             return x[: e.n], x[e.n :]
         c = self.cond
         Dt = c.D.T
@@ -117,7 +119,8 @@ class _Stepper:
         rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
         K = (self.P @ sp.vstack([self.K_R, K_S], format="csr")).tocsr()
         rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])
-        u_new = factorize(K, self.linear_solver)(rhs)
+        self.last = factorize(K, self.linear_solver)
+        u_new = self.last(rhs)
         lam_new = c.Dt_inv @ (self.f_S - self.A_S @ u_new)
         return u_new, lam_new
 
@@ -131,10 +134,14 @@ def solve_ssn(
     linear_solver: str = "auto",
     condense: bool = True,
     damping: bool = True,
+    estimate_condition: bool = False,
 ) -> Solution:
     """Semismooth Newton / primal-dual active set for `vi` (see module docstring).
 
     Stops when the relative natural-map residual (`MixedVI.residual`) is ≤ tol.
+    estimate_condition : also estimate the 1-norm condition of the last (equilibrated,
+        condensed) Newton matrix into ``info["condition_estimate"]`` (a few extra solves;
+        with PARDISO one extra factorisation).
     """
     t0 = time.perf_counter()
     e = vi.equilibrated
@@ -199,6 +206,8 @@ def solve_ssn(
             "linear_solver": resolve_backend(linear_solver, e.n),
         },
     )
+    if estimate_condition and stepper.last is not None:
+        sol.info["condition_estimate"] = condition_estimate(stepper.last)
     if not converged:
         sol.warnings.append(
             f"ssn: residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"

@@ -112,3 +112,26 @@ def test_bad_levels_and_tolerances_exit_2(tmp_path, capsys, args):
     assert exc.value.code == 2
     assert "Traceback" not in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_summary_reports_scales_condition_and_trust_warnings(tmp_path):
+    out = tmp_path / "tied"
+    assert main(["solve", "rigid_foundation", "--set", "contact.g=1e12", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["scaling"]["s_displacement"] > 0 and s["scaling"]["s_potential"] > 0
+    assert s["condition_estimate"] > 1
+    assert any("tied" in w for w in s["warnings"])
+
+
+def test_nearly_incompressible_body_warns_of_locking(tmp_path):
+    scene = tmp_path / "nu.toml"
+    scene.write_text(
+        "[bodies.b]\nmaterial = { kind = 'isotropic', E = 1e10, nu = 0.49 }\n"
+        "geometry = { kind = 'rectangle', x = [0.0, 1.0], y = [0.0, 1.0], cells = [4, 4] }\n"
+        "[[bodies.b.displacement]]\nboundary = 'top'\nvalue = [1e-4, -1e-4]\n"
+        "[contact]\nslave = 'b.bottom'\ng = 1e6\n[scene]\nlevel = 0\n"
+    )
+    out = tmp_path / "o"
+    assert main(["solve", str(scene), "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert any("lock" in w for w in s["warnings"])
