@@ -365,6 +365,10 @@ def main(argv: list[str] | None = None) -> int:
         from .bench import bench_main
 
         return bench_main(argv[1:])
+    if argv[:1] == ["study"]:  # its own argument parser (study options)
+        from .study import study_main
+
+        return study_main(argv[1:])
     args = parser().parse_args(argv)
     try:
         return args.func(args)

@@ -161,6 +161,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
         options["method"] = solver.string("method", "ssn")
         options["tol"] = solver.number("tol", 1e-10, lo=0.0, lo_open=True)
         solver.finish()
+    root.raw("exact", None)  # optional exact solution, read by `mixvi study`
     root.finish()
 
     A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
@@ -277,23 +278,24 @@ def _mortar_contact(
 def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     """Initial guess for `fine` from the solution on the coarser level (nested iteration).
 
-    The multiplier coefficients are interpolated along Γ3 by normalised arc length (the
-    interface is the same curve on every level). Coefficients that were on the friction bound
-    stay exactly on it (|α_i| = g_i), so the first Newton step starts from the coarse
-    stick/slip partition instead of rediscovering it (rounding in the interpolation would
-    otherwise put them a hair inside the bound and make them stick).
+    Along Γ3 (the same curve on every level, parametrised by normalised arc length) the normal
+    coefficients are interpolated, and the tangential ones through their ratio r = α/g to the
+    friction bound: a fine node between two coarse slip nodes gets |r| = 1, i.e. it starts on
+    the bound even where g varies, and the first Newton step starts from the coarse
+    stick/slip partition instead of rediscovering it.
     """
     if coarse.contact is None or fine.contact is None:
         return {}
     tc, tf = coarse.contact.tr, fine.contact.tr
     sc, sf = tc.s / tc.s[-1], tf.s / tf.s[-1]
     Nc = tc.size
+    gc, g = coarse.contact.g, fine.contact.g
     lam_n = np.interp(sf, sc, coarse_sol.lam[:Nc])
-    lam_t = np.interp(sf, sc, coarse_sol.lam[Nc:])
-    g = fine.contact.g
-    on_bound = np.abs(lam_t) >= g * (1.0 - 1e-9)
-    lam_t[on_bound] = np.sign(lam_t[on_bound]) * g[on_bound]
-    return {"lam0": np.concatenate([lam_n, np.clip(lam_t, -g, g)])}
+    ratio_c = np.divide(coarse_sol.lam[Nc:], gc, out=np.zeros(Nc), where=gc > 0)
+    ratio = np.clip(np.interp(sf, sc, ratio_c), -1.0, 1.0)
+    on_bound = np.abs(ratio) >= 1.0 - 1e-9
+    ratio[on_bound] = np.sign(ratio[on_bound])
+    return {"lam0": np.concatenate([lam_n, ratio * g])}
 
 
 # ------------------------------------------------------------------ post-processing
