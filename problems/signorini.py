@@ -31,6 +31,7 @@ from vi_core import Box, MixedVI, NonNegative, Solution, product
 from . import plots
 from .bodies import Body, build_body
 from .errors import SceneError
+from .materials import material_from_scene
 from .plugin import complementarity_defect, read_head, read_solver
 from .scene import Scene
 
@@ -72,11 +73,12 @@ def build(scene: Scene, level: int | None = None) -> Model:
     root = scene.root()
     default_level = read_head(root, NAME, 1)
     level = default_level if level is None else level
-    body = build_body("body", root.table("body"), level, 0)
-    if body.has_potential:
+    bt = root.table("body")
+    if material_from_scene(bt.key("material"), bt.raw("material")).piezoelectric:
         raise SceneError(
-            "body.material", body.material.name, "an elastic (not piezoelectric) material"
+            "body.material", bt.raw("material"), "an elastic (not piezoelectric) material"
         )
+    body = build_body("body", bt, level, 0)
     ct = root.table("contact")
     part = ct.string("boundary", choices=sorted(body.mesh.boundaries))
     gap_fun = ct.field("gap", 1)
