@@ -167,9 +167,14 @@ def cmd_solve(args: argparse.Namespace) -> int:
         f"{scene.name} level {model.level}: {sum(model.dofs.values())} unknowns "
         f"{model.dofs}, solver {method}"
     )
+    identity = ""
+    if "lemma_4_2" in summary:
+        identity = f", lemma 4.2 gap {summary['lemma_4_2']:.1e}"
+    elif "complementarity" in summary:
+        identity = f", complementarity defect {summary['complementarity']:.1e}"
     print(
         f"  converged {sol.converged} in {sol.iterations} iterations, "
-        f"residual {sol.residual:.2e}, lemma 4.2 gap {summary.get('lemma_4_2', float('nan')):.1e}"
+        f"residual {sol.residual:.2e}{identity}"
     )
     if nested:
         its = ", ".join(f"L{r['level']}: {r['iterations']}" for r in nested)
@@ -239,10 +244,17 @@ def _check_level(scene, plugin, level, tol) -> tuple[bool, float, dict]:
     rates = h.get("rates") or [float("nan")]
     bound = h.get("rate_bound", float("nan"))
     rho, t0 = h.get("rho", float("nan")), h.get("t0_paper", float("nan"))
+    t0_text = f"{t0:.2e}" if isinstance(t0, float) else str(t0)
+    if bound > 0 and h.get("rates"):
+        contraction = (
+            f"observed contraction {rates[-1]:.4f} vs (s - tau) rho = {bound:.4f} "
+            f"(ratio {rates[-1] / bound:.2f})"
+        )
+    else:
+        contraction = "symmetric A: one level-0 solve, no fixed-point iteration"
     print(
-        f"homotopy: rho = {rho:.4f}, levels {len(h.get('levels', [])) - 1}, observed "
-        f"contraction {rates[-1]:.4f} vs (s - tau) rho = {bound:.4f} (ratio "
-        f"{rates[-1] / bound:.2f}); paper's t0 (3.11) = {t0:.2e}"
+        f"homotopy: rho = {rho:.4f}, levels {len(h.get('levels', [])) - 1}, {contraction}; "
+        f"paper's t0 (3.11) = {t0_text}"
     )
     record = {
         "level": model.level,
@@ -289,6 +301,13 @@ def cmd_figures(args: argparse.Namespace) -> int:
     from . import plots
 
     bounds = (1.5e8, 1.0e8, 0.6e8)
+    probe = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
+    if not hasattr(registry.get(_plugin_name(probe)), "contact_state"):
+        raise SceneError(
+            "scene.plugin",
+            _plugin_name(probe),
+            "a contact plug-in (figures compares friction bounds)",
+        )
     states = []
     for g in bounds:
         scene = load_scene(args.scene or DEFAULT_SCENE, [*(args.set or []), f"contact.g={g!r}"])
@@ -311,14 +330,34 @@ def cmd_figures(args: argparse.Namespace) -> int:
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
+    """The shipped scenes, the installed plug-ins, and the scenes plug-ins ship themselves."""
+    dirs = [SCENES_DIR]
+    plugins = []
+    for name in registry.names():
+        try:
+            plug = registry.get(name)
+        except SceneError as err:
+            plugins.append((name, f"(cannot be loaded: {err})"))
+            continue
+        plugins.append((name, getattr(plug, "DESCRIPTION", "")))
+        extra = getattr(plug, "SCENES_DIR", None)
+        if extra is not None and Path(extra) not in dirs:
+            dirs.append(Path(extra))
     rows = []
-    for p in sorted(SCENES_DIR.glob("*.toml")):
-        head = tomllib.loads(p.read_text()).get("scene", {})
-        rows.append((p.stem, head.get("plugin", "piezo_contact"), head.get("title", "")))
+    for d in dirs:
+        for p in sorted(Path(d).glob("*.toml")):
+            head = tomllib.loads(p.read_text()).get("scene", {})
+            label = p.stem if d == SCENES_DIR else str(p)
+            rows.append((label, head.get("plugin", "piezo_contact"), head.get("title", "")))
     w = max(len(r[0]) for r in rows)
     wp = max(len(r[1]) for r in rows)
+    print("scenes:")
     for name, plugin, title in rows:
-        print(f"{name:<{w}}  {plugin:<{wp}}  {title}")
+        print(f"  {name:<{w}}  {plugin:<{wp}}  {title}")
+    print("plug-ins:")
+    wn = max(len(n) for n, _ in plugins)
+    for name, desc in plugins:
+        print(f"  {name:<{wn}}  {desc}")
     return 0
 
 

@@ -120,6 +120,9 @@ class _Homotopy:
         return u, lam
 
 
+REPORT_CONSTANTS_MAX_M = 1000  # contact scenes (m ≤ ~500) take seconds; obstacle m = n did not
+
+
 def solve_homotopy(
     vi: MixedVI,
     tol: float = 1e-10,
@@ -202,7 +205,12 @@ def solve_homotopy(
         ],
         "rates": list(top.rates) if n_levels else [],
     }
-    if report_constants:
+    if report_constants and vi.m > REPORT_CONSTANTS_MAX_M:
+        info["t0_paper"] = (
+            f"not computed: m = {vi.m} > {REPORT_CONSTANTS_MAX_M} multipliers (the sparse "
+            "eigen solves took over 10 minutes at m = n = 3969; call vi_core.constants(vi))"
+        )
+    elif report_constants:
         try:
             c = constants(vi)
             info.update(m_a=c.m_a, M_a=c.M_a, alpha=c.alpha, t0_paper=c.t0)

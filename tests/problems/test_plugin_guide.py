@@ -100,7 +100,7 @@ def _hand_wheel(pkg: Path, dest: Path) -> Path:
     return whl
 
 
-def test_guide_example_as_installed_entry_point(tmp_path):
+def test_guide_example_as_installed_entry_point(tmp_path, capsys):
     pkg = tmp_path / "pkg"
     scene = _write_plugin(pkg)
     (pkg / "pyproject.toml").write_text(_block("[build-system]"))
@@ -129,6 +129,9 @@ def test_guide_example_as_installed_entry_point(tmp_path):
     try:
         assert "sticky" in registry.names()
         assert registry.get("sticky").NAME == "sticky"
+        assert cli.main(["scenes"]) == 0
+        listed = capsys.readouterr().out
+        assert "plug-ins:" in listed and "\n  sticky" in listed
         out = tmp_path / "out"
         assert cli.main(["solve", str(scene), "--out", str(out)]) == 0
         summary = json.loads((out / "summary.json").read_text())
