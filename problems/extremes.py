@@ -203,7 +203,8 @@ def run_row(row: Row) -> dict:
             rec["homotopy_levels"] = max(len(other.info.get("levels", [])) - 1, 0)
         if not other.converged:
             rec["notes"].append(f"{meth} did not converge (residual {other.residual:.1e})")
-        diff = max(_rel(other.u, sol.u), _rel(other.lam, sol.lam) if vi.m else 0.0)
+        du = _rel(model.full(other.u), model.full(sol.u))  # with Dirichlet values: data scale
+        diff = max(du, _rel(other.lam, sol.lam) if vi.m else 0.0)
         rec["agreement"][meth] = diff
     rec.update(contact_checks(model, sol))
     if row.extra is not None:
