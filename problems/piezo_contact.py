@@ -18,7 +18,7 @@ from fem import assembly
 from fem.boundary import Trace, trace
 from fem.dirichlet import expand, reduce_dirichlet
 from fem.mesh import Mesh
-from vi_core import Box, Free, MixedVI, Solution, product
+from vi_core import METHODS, Box, Free, MixedVI, Solution, product
 
 from . import plots
 from .bodies import Body, build_body
@@ -176,7 +176,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         out.finish()
     solver = root.table("solver", required=False)
     if solver is not None:
-        options["method"] = solver.string("method", "ssn")
+        options["method"] = solver.string("method", "ssn", choices=METHODS)
         options["tol"] = solver.number("tol", 1e-10, lo=0.0, lo_open=True)
         solver.finish()
     root.raw("exact", None)  # optional exact solution, read by `mixvi study`

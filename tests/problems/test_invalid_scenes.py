@@ -131,6 +131,8 @@ CASES = [
         ("coupling",),
     ),
     (P, ("bodies", "disc", "geometry", "radius"), 1e300, ("radius",)),
+    # an unknown solver named in the scene (was refused only as --solver, without the file)
+    (R, ("solver",), {"method": "magic"}, ("solver.method", "one of auto, ssn")),
     # a required key deleted
     (P, ("bodies", "cradle", "potential"), DELETE, ("bodies.cradle.potential",)),
     (R, ("contact", "g"), DELETE, ("contact.g", "required")),
