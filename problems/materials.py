@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from .errors import SceneError
+from .scene import MAX_MAGNITUDE
 
 EPS0 = 8.8541878128e-12  # vacuum permittivity, F/m
 
@@ -52,6 +53,7 @@ NAMED: dict[str, dict] = {
     ),
 }
 KINDS = ("isotropic", "anisotropic", "piezoelectric")
+MAX_COUPLING = 1e3  # coupling_scale: e·1e3 already makes e²/(κ·C) ~ 1e6 (ρ far above 1)
 
 
 def isotropic_plane_strain(E: float, nu: float) -> np.ndarray:
@@ -62,14 +64,17 @@ def isotropic_plane_strain(E: float, nu: float) -> np.ndarray:
 
 
 def _matrix(key: str, value: Any, shape: tuple[int, int]) -> np.ndarray:
+    rows = value if isinstance(value, list) else []
+    if any(isinstance(x, bool | str) for r in rows if isinstance(r, list) for x in r):
+        raise SceneError(key, value, f"a {shape[0]}×{shape[1]} matrix of numbers")
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError):
         raise SceneError(key, value, f"a {shape[0]}×{shape[1]} matrix of numbers") from None
     if arr.shape != shape:
         raise SceneError(key, value, f"a {shape[0]}×{shape[1]} matrix of numbers")
-    if not np.isfinite(arr).all():
-        raise SceneError(key, value, "finite numbers (no NaN or inf)")
+    if not (np.isfinite(arr).all() and (np.abs(arr) <= MAX_MAGNITUDE).all()):
+        raise SceneError(key, value, f"finite numbers of size ≤ {MAX_MAGNITUDE:g}")
     return arr
 
 
@@ -87,8 +92,8 @@ def _number(key: str, value: Any, lo: float | None = None, hi: float | None = No
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise SceneError(key, value, "a number")
     v = float(value)
-    if not np.isfinite(v):
-        raise SceneError(key, value, "a finite number")
+    if not (np.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
+        raise SceneError(key, value, f"a finite number of size ≤ {MAX_MAGNITUDE:g}")
     if (lo is not None and v <= lo) or (hi is not None and v >= hi):
         lo_s = "-inf" if lo is None else f"{lo:g}"
         hi_s = "inf" if hi is None else f"{hi:g}"
@@ -111,7 +116,9 @@ def material_from_scene(key: str, spec: Any) -> Material:
             k = sorted(extra)[0]
             raise SceneError(f"{key}.{k}", spec[k], "allowed keys: name, coupling_scale")
         data = NAMED[name]
-        scale = _number(f"{key}.coupling_scale", spec.get("coupling_scale", 1.0), lo=0.0)
+        scale = _number(
+            f"{key}.coupling_scale", spec.get("coupling_scale", 1.0), lo=0.0, hi=MAX_COUPLING
+        )
         label = name if scale == 1.0 else f"{name} (coupling ×{scale:g})"
         return Material(
             label,
@@ -134,7 +141,9 @@ def material_from_scene(key: str, spec: Any) -> Material:
     for req in sorted(allowed - {"label"}):
         if req not in spec:
             raise SceneError(f"{key}.{req}", None, f"required for a {kind} material")
-    label = str(spec.get("label", kind))
+    label = spec.get("label", kind)
+    if not isinstance(label, str):
+        raise SceneError(f"{key}.label", label, "a string (the material's name in outputs)")
     if kind == "isotropic":
         E = _number(f"{key}.E", spec["E"], lo=0.0)
         nu = _number(f"{key}.nu", spec["nu"], lo=-1.0, hi=0.5)

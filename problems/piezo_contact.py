@@ -18,7 +18,7 @@ from fem import assembly
 from fem.boundary import Trace, trace
 from fem.dirichlet import expand, reduce_dirichlet
 from fem.mesh import Mesh
-from vi_core import Box, Free, MixedVI, Solution, product
+from vi_core import METHODS, Box, Free, MixedVI, Solution, product
 
 from . import plots
 from .bodies import Body, build_body
@@ -27,6 +27,13 @@ from .scene import Scene, Table
 
 NAME = "piezo_contact"
 LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
+# Two-body interfaces must coincide in the reference configuration (bilateral contact has no
+# initial gap). A slave node may sit off the master polyline (distance along its normal) by at
+# most SEPARATION_TOL × h, h the longest of its adjacent slave segments and the master segment
+# it faces: this admits the chord-versus-arc discrepancy of a discretised curved interface
+# (the sagitta h²/(8r), i.e. h/(8r) relative to h: 0.02 for the paper's mesh, < 0.1 while
+# h < 0.8 r) and refuses bodies that overlap or stand apart by more.
+SEPARATION_TOL = 0.1
 DESCRIPTION = "elasto-piezoelectric bodies in bilateral Tresca contact (dual mortar multipliers)"
 
 
@@ -105,7 +112,18 @@ def _split_ref(t: Table, key: str, bodies: dict[str, Body]) -> tuple[Body, str]:
 
 
 def build(scene: Scene, level: int | None = None) -> Model:
-    """Scene → Model (mesh, assembly, Dirichlet reduction, contact, MixedVI)."""
+    """Scene → Model (mesh, assembly, Dirichlet reduction, contact, MixedVI).
+
+    Any SceneError raised while building names the scene file.
+    """
+    try:
+        with np.errstate(all="ignore"):
+            return _build(scene, level)
+    except SceneError as err:
+        raise (err if err.file else err.in_file(scene.path)) from None
+
+
+def _build(scene: Scene, level: int | None) -> Model:
     root = scene.root()
     head = root.table("scene")
     head.string("title", "")
@@ -158,7 +176,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
         out.finish()
     solver = root.table("solver", required=False)
     if solver is not None:
-        options["method"] = solver.string("method", "ssn")
+        options["method"] = solver.string("method", "ssn", choices=METHODS)
         options["tol"] = solver.number("tol", 1e-10, lo=0.0, lo_open=True)
         solver.finish()
     root.raw("exact", None)  # optional exact solution, read by `mixvi study`
@@ -169,6 +187,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     fixed = np.concatenate([b.fixed for b in bodies.values()])
     values = np.concatenate([b.values for b in bodies.values()])
     X_full = sp.block_diag([b.X for b in bodies.values()], format="csr")
+    _check_finite(A_full, f_full, values, contact)
     A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
     if contact is None:  # no contact: no multipliers
         B, gap, Lam, Y = sp.csr_matrix((0, free.size)), None, product(), sp.csr_matrix((0, 0))
@@ -194,6 +213,18 @@ def build(scene: Scene, level: int | None = None) -> Model:
                 "displacements are underestimated on coarse meshes"
             )
     return model
+
+
+def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None) -> None:
+    """Refuse data that overflow in assembly (each number finite, their products not)."""
+    parts = {"stiffness (materials)": A_full.data, "loads": f_full, "Dirichlet values": values}
+    if contact is not None:
+        parts["friction bound g"] = contact.g_weights
+    for what, arr in parts.items():
+        if not np.isfinite(arr).all():
+            raise SceneError(
+                "(scene)", what, "data whose assembled system is finite (magnitudes overflow)"
+            )
 
 
 def _contact_rows(contact: Contact, free, fixed, values):
@@ -239,6 +270,8 @@ def _mortar_contact(
     """Rows D_i n_iᵀu_s,i − Σ_k M_ik n_iᵀu_m,k (normal) and the same with τ_i (tangential)."""
     from fem.mortar import mortar_coupling
 
+    tr = trace(slave.mesh, part)
+    _check_separation(slave, part, tr, tr.normals, master, mpart)
     mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, ends="keep")
     if (mort.coverage < 1 - 1e-12).any():
         raise SceneError(
@@ -247,7 +280,6 @@ def _mortar_contact(
             f"a master boundary that covers the whole slave boundary {slave.name}.{part} "
             f"(covered fraction of the worst slave segment: {mort.coverage.min():.3f})",
         )
-    tr = trace(slave.mesh, part)
     assert np.array_equal(tr.nodes, mort.slave_nodes) and np.allclose(tr.weights, mort.D)
     N = tr.size
     gw = friction_weights(slave.mesh, part, tr, g_fun, gkey)
@@ -273,6 +305,60 @@ def _mortar_contact(
         shape=(2 * N, n_full),
     )
     return Contact(slave, part, tr, master, mpart, gw / tr.weights, B, gw, proj)
+
+
+def _normal_distances(
+    x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance t from each point x_i along n_i to the polyline of segments [a_k, b_k],
+    and the index of the segment hit.
+
+    t > 0: the polyline lies outside (a gap), t < 0: behind (an overlap); the hit of smallest
+    |t|, NaN where the line x_i + t n_i misses every segment. Chunked to bound memory.
+    """
+    out = np.full(len(x), np.nan)
+    seg = np.zeros(len(x), dtype=int)
+    d = b - a  # (M, 2)
+    for lo in range(0, len(x), 256):
+        xi, ni = x[lo : lo + 256, None, :], n[lo : lo + 256, None, :]  # (c, 1, 2)
+        det = ni[..., 0] * -d[None, :, 1] + ni[..., 1] * d[None, :, 0]  # (c, M)
+        r = a[None] - xi  # (c, M, 2)
+        with np.errstate(all="ignore"):
+            t = (r[..., 0] * -d[None, :, 1] + r[..., 1] * d[None, :, 0]) / det
+            s = (ni[..., 0] * r[..., 1] - ni[..., 1] * r[..., 0]) / det
+        hit = (np.abs(det) > 0) & (s >= -1e-12) & (s <= 1 + 1e-12)
+        t = np.where(hit, t, np.inf)
+        k = np.argmin(np.abs(t), axis=1)
+        best = t[np.arange(len(k)), k]
+        out[lo : lo + 256] = np.where(np.isfinite(best), best, np.nan)
+        seg[lo : lo + 256] = k
+    return out, seg
+
+
+def _check_separation(slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str) -> None:
+    """SceneError if the interfaces overlap or stand apart by more than SEPARATION_TOL·h
+    (h: the longer of the slave node's adjacent segments and the master segment hit)."""
+    mtr = trace(master.mesh, mpart)
+    P = master.mesh.points[mtr.nodes]
+    t, k = _normal_distances(
+        slave.mesh.points[tr.nodes], normals, P[mtr.segments[:, 0]], P[mtr.segments[:, 1]]
+    )
+    h = mtr.lengths[k]
+    np.maximum.at(h, tr.segments[:, 0], tr.lengths)
+    np.maximum.at(h, tr.segments[:, 1], tr.lengths)
+    rel = t / h
+    bad = np.flatnonzero(np.abs(np.nan_to_num(rel)) > SEPARATION_TOL)
+    if bad.size:
+        i = bad[np.argmax(np.abs(rel[bad]))]
+        what = "overlap the slave body" if rel[i] < 0 else "stand apart from it"
+        raise SceneError(
+            "contact.master",
+            f"{master.name}.{mpart}",
+            f"a master boundary that coincides with {slave.name}.{part} in the "
+            f"reference configuration: it would {what} by {abs(t[i]):.3g} "
+            f"({abs(rel[i]):.2f} × the local mesh size {h[i]:.3g}; allowed "
+            f"{SEPARATION_TOL:g}) at slave node {slave.mesh.points[tr.nodes[i]].tolist()}",
+        )
 
 
 def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:

@@ -21,6 +21,7 @@ from .expressions import ALLOWED as EXPR_ALLOWED
 from .expressions import ExpressionError, compile_expression
 
 SCENES_DIR = Path(__file__).parent / "scenes"
+MAX_MAGNITUDE = 1e100  # |number| in a scene; larger ones overflow when squared in assembly
 
 
 @dataclass
@@ -85,6 +86,7 @@ def load_scene(name_or_path: str, overrides: Iterable[str] = ()) -> Scene:
                     f"--set {'.'.join(parts)}",
                     value,
                     f"a key inside existing tables ({p!r} missing)",
+                    str(path),
                 )
             node = node[p]
         node[parts[-1]] = value
@@ -144,9 +146,10 @@ class Table:
         lo_open: bool = False,
     ) -> float:
         v = self.raw(name, default, "a number")
-        ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+        ok = isinstance(v, int | float) and not isinstance(v, bool) and _moderate(v)
         if not ok:
-            raise SceneError(self.key(name), v, "a finite number" + _range(lo, hi, lo_open))
+            rng = _range(lo, hi, lo_open)
+            raise SceneError(self.key(name), v, f"a finite number{rng} of size ≤ {MAX_MAGNITUDE:g}")
         if (lo is not None and (v < lo or (lo_open and v == lo))) or (hi is not None and v > hi):
             raise SceneError(self.key(name), v, "a number" + _range(lo, hi, lo_open))
         return float(v)
@@ -176,11 +179,11 @@ class Table:
             isinstance(v, list)
             and len(v) == 2
             and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)
-            and all(math.isfinite(x) for x in v)
+            and all(_moderate(x) for x in v)
             and (kind is float or all(isinstance(x, int) for x in v))
         )
         if not good:
-            what = "integers" if kind is int else "finite numbers"
+            what = "integers" if kind is int else f"finite numbers of size ≤ {MAX_MAGNITUDE:g}"
             raise SceneError(self.key(name), v, f"a pair [a, b] of {what}")
         return tuple(kind(x) for x in v)
 
@@ -198,8 +201,10 @@ class Table:
         fns = []
         for it in items:
             if isinstance(it, int | float) and not isinstance(it, bool):
-                if not math.isfinite(it):
-                    raise SceneError(self.key(name), v, "finite numbers (no NaN or inf)")
+                if not _moderate(it):
+                    raise SceneError(
+                        self.key(name), v, f"finite numbers of size ≤ {MAX_MAGNITUDE:g}"
+                    )
                 fns.append(_const(float(it)))
             elif isinstance(it, str):
                 try:
@@ -213,8 +218,10 @@ class Table:
         def fn(x, y):
             parts = [np.broadcast_to(f(x, y), np.shape(x)) for f in fns]
             out = parts[0] if ncomp == 1 else np.stack(parts, axis=-1)
-            if not np.isfinite(out).all():
-                raise SceneError(key, v, "an expression that is finite on the whole domain")
+            if not (np.isfinite(out).all() and (np.abs(out) <= MAX_MAGNITUDE).all()):
+                raise SceneError(
+                    key, v, f"an expression finite and of size ≤ {MAX_MAGNITUDE:g} on the domain"
+                )
             return out
 
         fn.constant = all(getattr(f, "constant", False) for f in fns)
@@ -232,6 +239,11 @@ class Table:
                     + _did_you_mean(k, known)
                     + f"; known here: {', '.join(sorted(known))}",
                 )
+
+
+def _moderate(v: float) -> bool:
+    """Finite and of size ≤ MAX_MAGNITUDE."""
+    return math.isfinite(v) and abs(v) <= MAX_MAGNITUDE
 
 
 def _const(c: float) -> Callable:
