@@ -48,11 +48,10 @@ def _nested_ssn(plugin, scene, level: int, tol: float):
 
 def _record(scene_name: str, level: int, solvers: list[str], tol: float, queue) -> None:
     from . import registry
-    from .cli import _plugin_name
     from .scene import load_scene
 
     scene = load_scene(scene_name)
-    plugin = registry.get(_plugin_name(scene))
+    plugin = registry.for_scene(scene)
     out = []
     # warm-up (untimed): library loading and first-call costs must not land on either timing
     for backend in ("splu", "auto"):

@@ -56,12 +56,6 @@ def _tol(text: str) -> float:
     return v
 
 
-def _plugin_name(scene) -> str:
-    head = scene.data.get("scene", {})
-    name = head.get("plugin", "piezo_contact") if isinstance(head, dict) else "piezo_contact"
-    return name if isinstance(name, str) else "piezo_contact"
-
-
 @contextmanager
 def atomic_output(out: Path) -> Iterator[Path]:
     """Yield a temporary directory beside `out`; on success it replaces `out`, on any
@@ -189,7 +183,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
 def _build(args: argparse.Namespace):
     scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
-    plugin = registry.get(_plugin_name(scene))
+    plugin = registry.for_scene(scene)
     return scene, plugin, plugin.build(scene, args.level)
 
 
@@ -280,7 +274,7 @@ def _check_level(scene, plugin, level, tol) -> tuple[bool, float, dict]:
 
 def cmd_check(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
-    plugin = registry.get(_plugin_name(scene))
+    plugin = registry.for_scene(scene)
     records, ok = [], True
     for level in _levels(args.levels, args.level):
         conv, worst, rec = _check_level(scene, plugin, level, args.tol)
@@ -302,16 +296,16 @@ def cmd_figures(args: argparse.Namespace) -> int:
 
     bounds = (1.5e8, 1.0e8, 0.6e8)
     probe = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
-    if not hasattr(registry.get(_plugin_name(probe)), "contact_state"):
+    if not hasattr(registry.for_scene(probe), "contact_state"):
         raise SceneError(
             "scene.plugin",
-            _plugin_name(probe),
+            probe.data.get("scene", {}).get("plugin"),
             "a contact plug-in (figures compares friction bounds)",
         )
     states = []
     for g in bounds:
         scene = load_scene(args.scene or DEFAULT_SCENE, [*(args.set or []), f"contact.g={g!r}"])
-        plugin = registry.get(_plugin_name(scene))
+        plugin = registry.for_scene(scene)
         model = plugin.build(scene, args.level)
         sol = vi_core.solve(model.vi, method="ssn")
         if not sol.converged:
@@ -404,6 +398,10 @@ def main(argv: list[str] | None = None) -> int:
         from .bench import bench_main
 
         return bench_main(argv[1:])
+    if argv[:1] == ["extremes"]:  # its own argument parser
+        from .extremes import extremes_main
+
+        return extremes_main(argv[1:])
     if argv[:1] == ["study"]:  # its own argument parser (study options)
         from .study import study_main
 

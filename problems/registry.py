@@ -89,3 +89,16 @@ def get(name: str) -> Any:
             + f" (third-party plug-ins register under the entry point group {GROUP!r})",
         )
     return _load(name, eps)
+
+
+def for_scene(scene: Any) -> Any:
+    """The plug-in a scene asks for (`[scene] plugin`, default "piezo_contact"); any
+    SceneError names the scene file."""
+    head = scene.data.get("scene", {})
+    name = head.get("plugin", "piezo_contact") if isinstance(head, dict) else "piezo_contact"
+    try:
+        if not isinstance(name, str):
+            raise SceneError("scene.plugin", name, "the name of an installed plug-in (a string)")
+        return get(name)
+    except SceneError as err:
+        raise err.in_file(scene.path) from None
