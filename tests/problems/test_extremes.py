@@ -28,7 +28,9 @@ def test_extreme_row(row):
         assert agree.pop("conic") > AGREE_OK  # the documented limitation
     assert agree and max(agree.values()) <= AGREE_OK, rec
     assert rec["friction_excess"] <= 1e-9, rec
-    if rec["lemma_4_2"] is not None:
+    # with no slipping node (4.3) reads 0 = 0 and the ratio is rounding over a "tiny"
+    # denominator (3e-9 with SuperLU on the all-stick 10:1 row): checked only where nodes slip
+    if rec["lemma_4_2"] is not None and rec["slip"] > 0:
         assert rec["lemma_4_2"] <= 1e-9, rec
     if "homogeneity" in rec:
         assert rec["homogeneity"] <= 1e-6, rec
