@@ -31,6 +31,8 @@ AGREE = 1e-6  # `mixvi check`: largest allowed relative difference between metho
 
 
 MAX_LEVEL = 12
+# --accuracy presets: (level, tol); measured time and error on the paper scene in the README
+ACCURACY = {"fast": (1, 1e-6), "balanced": (2, 1e-8), "fine": (3, 1e-10)}
 CONDITION_LIMIT = 200_000  # estimate the Newton matrix's condition up to this many unknowns
 
 
@@ -105,6 +107,10 @@ def _jsonable(x):
 
 def cmd_solve(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
+    if args.accuracy is not None:  # a preset fills in what was not given explicitly
+        level, tol = ACCURACY[args.accuracy]
+        args.level = level if args.level is None else args.level
+        args.tol = tol if args.tol is None else args.tol
     scene, plugin, model = _build(args)
     t_build = time.perf_counter() - t0
     method = args.solver or model.options.get("method", "ssn")
@@ -363,6 +369,13 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--level", type=_level, default=None, help="refinement level (default: scene's)")
     s.add_argument("--solver", default=None, help="ssn (default) or another vi_core method")
     s.add_argument("--tol", type=_tol, default=None, help="relative residual (default 1e-10)")
+    s.add_argument(
+        "--accuracy",
+        choices=list(ACCURACY),
+        default=None,
+        help="preset level and tolerance: "
+        + ", ".join(f"{k} = level {lv}, tol {t:g}" for k, (lv, t) in ACCURACY.items()),
+    )
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
     s.add_argument("--out", default=None, help="output directory (default out/SCENE)")
     s.add_argument(

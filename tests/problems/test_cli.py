@@ -135,3 +135,13 @@ def test_nearly_incompressible_body_warns_of_locking(tmp_path):
     assert main(["solve", str(scene), "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert any("lock" in w for w in s["warnings"])
+
+
+def test_accuracy_presets_set_level_and_tolerance(tmp_path):
+    out = tmp_path / "fast"
+    assert main(["solve", "--accuracy", "fast", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["level"] == 1 and s["tol"] == 1e-6 and s["converged"]
+    out2 = tmp_path / "explicit"  # an explicit --level wins over the preset
+    assert main(["solve", "--accuracy", "fast", "--level", "0", "--out", str(out2)]) == 0
+    assert json.loads((out2 / "summary.json").read_text())["level"] == 0
