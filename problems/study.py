@@ -134,7 +134,8 @@ def run_study(
         "scene": scene.name,
         "reference": "exact" if exact is not None else f"level {max(levels)}",
         "records": records,
-        "rates": fit_rates(records),
+        # against the finest level, that level's own error is rounding: fit the levels below it
+        "rates": fit_rates(records, below=None if exact is not None else max(levels)),
     }
 
 
@@ -163,10 +164,13 @@ def _reference_errors(records: list[dict], runs: dict, finest: int, tight: float
         r["err"] = reference_errors(model, sol.u, sol.lam, ref, rsol.u, rsol.lam)
 
 
-def fit_rates(records: list[dict]) -> dict:
+def fit_rates(records: list[dict], below: int | None = None) -> dict:
     """Per solver: slope of log err against log h over the last three levels with a positive
-    error at the tightest tolerance (None if fewer than two such levels)."""
+    error at the tightest tolerance (None if fewer than two such levels); with `below`, only
+    levels below it count (the reference level when errors are taken against the finest)."""
     tight = min(r["tol"] for r in records)
+    if below is not None:
+        records = [r for r in records if r["level"] < below]
     rates = {}
     for solver in dict.fromkeys(r["solver"] for r in records):
         rows = sorted(

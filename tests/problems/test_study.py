@@ -101,3 +101,20 @@ def test_evaluate_reproduces_linear_fields_exactly(mesh):
     w = rng.dirichlet(np.ones(mesh.cells.shape[1]), 200)  # (200, n_loc) convex weights
     pts = np.einsum("ma,mai->mi", w, mesh.points[mesh.cells[cells]])  # points inside cells
     np.testing.assert_allclose(evaluate(mesh, lin(mesh.points), pts), lin(pts), atol=1e-12)
+
+
+def test_rates_against_the_finest_level_leave_the_reference_out():
+    from problems.study import fit_rates
+
+    recs = [
+        {
+            "level": k,
+            "h": 2.0**-k,
+            "solver": "ssn",
+            "tol": 1e-10,
+            "err": {"u_H1": e, "phi_H1": e, "lam": e},
+        }
+        for k, e in enumerate([1.0, 0.5, 0.25, 1e-16])  # level 3 is the reference itself
+    ]
+    assert abs(fit_rates(recs, below=3)["ssn"]["u_H1"] - 1.0) < 1e-12
+    assert fit_rates(recs)["ssn"]["u_H1"] > 10  # what the reference level would do to the fit
