@@ -1,0 +1,1 @@
+"""The `mixvi` commands: solve, check, figures, scenes, study, bench, extremes."""

@@ -1,0 +1,249 @@
+"""`mixvi study`: accuracy and cost of every solver over a range of refinement levels.
+
+    mixvi study SCENE [--levels A..B] [--solvers ssn,conic,homotopy] [--tols 1e-6,1e-8,1e-10]
+                      [--set KEY=VALUE ...] [--out DIR] [--no-progress]
+
+Defaults: levels 0..3, all three solvers, tolerances 1e-6, 1e-8, 1e-10.
+
+For each level, solver and tolerance it records the solve time (`Solution.time`, wall clock),
+the iterations, the peak memory (tracemalloc peak during the solve: numpy arrays and Python
+objects; native workspaces of SuperLU/PARDISO/Clarabel are not seen) and the errors of
+Theorem 4.1 (`problems.plugins.piezo_errors`): against the scene's `[exact]` table if it has one,
+otherwise against the finest level solved by the same solver at the tightest tolerance (that
+level's own records then carry only the solver error of looser tolerances, and rates are fitted
+over the levels below it).
+
+Output (written atomically into DIR, default out/SCENE_study): `study.json`
+
+    {"scene", "reference": "exact" | "level N",
+     "records": [{"level", "h", "unknowns", "solver", "tol", "time_s", "iterations",
+                  "err": {"u_H1", "phi_H1", "phi_L2", "lam"},
+                  "converged", "residual", "peak_mem_mb"}],
+     "rates": {"<solver>": {"u_H1", "phi_H1", "lam"}}}
+
+(rates: slope of np.polyfit(log h, log err) over the last three levels with an error, at the
+tightest tolerance; null when fewer than two levels), `errors_vs_h.png` and
+`errors_vs_time.png`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+import vi_core
+from problems.errors import SceneError
+from problems.plugins import piezo_contact
+from problems.plugins.piezo_errors import NORMS, exact_errors, reference_errors
+from problems.scene import Scene, load_scene
+from problems.scene.exact import Exact, split_exact
+
+from .options import level_range
+
+SOLVERS = ("ssn", "conic", "homotopy")
+RATE_NORMS = ("u_H1", "phi_H1", "lam")
+RATE_LEVELS = 3
+
+
+# ------------------------------------------------------------------ argument parsing
+def parse_solvers(text: str) -> list[str]:
+    """'ssn,conic' → ['ssn', 'conic'] (each one of SOLVERS, no repeats)."""
+    names = [s.strip() for s in text.split(",")]
+    bad = [s for s in names if s not in SOLVERS]
+    if bad or len(set(names)) != len(names):
+        raise SceneError("--solvers", text, "a comma-separated list of " + ", ".join(SOLVERS))
+    return names
+
+
+def parse_tols(text: str) -> list[float]:
+    """'1e-6,1e-8' → [1e-6, 1e-8] (positive finite numbers)."""
+    try:
+        tols = [float(s) for s in text.split(",")]
+    except ValueError:
+        tols = []
+    if not tols or not all(math.isfinite(t) and 0 < t < 1 for t in tols):
+        raise SceneError("--tols", text, "a comma-separated list of tolerances in (0, 1)")
+    return sorted(set(tols), reverse=True)
+
+
+# ------------------------------------------------------------------ the study
+def _solve(model: piezo_contact.Model, solver: str, tol: float) -> tuple[vi_core.Solution, float]:
+    """Solve and return (solution, tracemalloc peak in MB during the solve)."""
+    tracemalloc.start()
+    try:
+        sol = vi_core.solve(model.vi, method=solver, tol=tol)
+        peak = tracemalloc.get_traced_memory()[1] / 2**20
+    finally:
+        tracemalloc.stop()
+    return sol, peak
+
+
+def _h(model: piezo_contact.Model) -> float:
+    return max(b.mesh.h for b in model.bodies)
+
+
+def run_study(
+    scene: Scene,
+    levels: list[int],
+    solvers: list[str],
+    tols: list[float],
+    progress: bool = True,
+) -> dict:
+    """Solve every (level, solver, tol) and measure errors; returns the study.json content."""
+    scene, exact = split_exact(scene)
+    tols = sorted(tols, reverse=True)
+    records, runs = [], {}
+    bar = tqdm(total=len(levels) * len(solvers) * len(tols), disable=not progress, unit="solve")
+    try:
+        for level in levels:
+            model = piezo_contact.build(scene, level)
+            for solver in solvers:
+                if solver == "conic" and model.vi.structure == "general":
+                    raise SceneError(
+                        "--solvers", solver, "ssn or homotopy: A of this scene is general"
+                    )
+                for tol in tols:
+                    bar.set_description(f"level {level} {solver} tol {tol:.0e}")
+                    sol, peak = _solve(model, solver, tol)
+                    runs[level, solver, tol] = (model, sol)
+                    records.append(_record(model, solver, tol, sol, peak, exact))
+                    bar.update()
+    finally:
+        bar.close()
+    if exact is None:
+        _reference_errors(records, runs, max(levels), tols[-1])
+    return {
+        "scene": scene.name,
+        "reference": "exact" if exact is not None else f"level {max(levels)}",
+        "records": records,
+        # against the finest level, that level's own error is rounding: fit the levels below it
+        "rates": fit_rates(records, below=None if exact is not None else max(levels)),
+    }
+
+
+def _record(model, solver: str, tol: float, sol, peak: float, exact: Exact | None) -> dict:
+    err = exact_errors(model, sol.u, sol.lam, exact) if exact is not None else None
+    return {
+        "level": model.level,
+        "h": _h(model),
+        "unknowns": model.vi.n + model.vi.m,
+        "solver": solver,
+        "tol": tol,
+        "time_s": sol.time,
+        "iterations": sol.iterations,
+        "err": err,
+        "converged": sol.converged,
+        "residual": sol.residual,
+        "peak_mem_mb": peak,
+    }
+
+
+def _reference_errors(records: list[dict], runs: dict, finest: int, tight: float) -> None:
+    """Fill `err` of every record against its solver's finest-level, tightest-tol solution."""
+    for r in records:
+        ref, rsol = runs[finest, r["solver"], tight]
+        model, sol = runs[r["level"], r["solver"], r["tol"]]
+        r["err"] = reference_errors(model, sol.u, sol.lam, ref, rsol.u, rsol.lam)
+
+
+def fit_rates(records: list[dict], below: int | None = None) -> dict:
+    """Per solver: slope of log err against log h over the last three levels with a positive
+    error at the tightest tolerance (None if fewer than two such levels); with `below`, only
+    levels below it count (the reference level when errors are taken against the finest)."""
+    tight = min(r["tol"] for r in records)
+    if below is not None:
+        records = [r for r in records if r["level"] < below]
+    rates = {}
+    for solver in dict.fromkeys(r["solver"] for r in records):
+        rows = sorted(
+            (r for r in records if r["solver"] == solver and r["tol"] == tight),
+            key=lambda r: r["level"],
+        )
+        rates[solver] = {}
+        for k in RATE_NORMS:
+            pts = [(r["h"], r["err"][k]) for r in rows if r["err"][k] > 0][-RATE_LEVELS:]
+            if len(pts) < 2:
+                rates[solver][k] = None
+                continue
+            h, e = np.log(np.array(pts)).T  # (p,) each
+            rates[solver][k] = float(np.polyfit(h, e, 1)[0])
+    return rates
+
+
+# ------------------------------------------------------------------ reporting
+def table(result: dict) -> str:
+    """The records as a text table, with the observed rate against the previous level."""
+    head = (
+        f"{'level':>5} {'h':>9} {'unknowns':>9} {'solver':>9} {'tol':>7} {'it':>4} "
+        f"{'time[s]':>8} {'mem[MB]':>8} " + " ".join(f"{k:>9} {'rate':>5}" for k in NORMS)
+    )
+    lines = [head]
+    prev: dict = {}
+    for r in result["records"]:
+        key = (r["solver"], r["tol"])
+        cells = []
+        for k in NORMS:
+            e, p = r["err"][k], prev.get(key)
+            ok = p is not None and e > 0 and p["err"][k] > 0
+            rate = math.log(p["err"][k] / e) / math.log(p["h"] / r["h"]) if ok else None
+            cells.append(f"{e:9.2e} {rate:5.2f}" if rate is not None else f"{e:9.2e} {'':>5}")
+        prev[key] = r
+        lines.append(
+            f"{r['level']:>5} {r['h']:9.3e} {r['unknowns']:>9} {r['solver']:>9} "
+            f"{r['tol']:7.0e} {r['iterations']:>4} {r['time_s']:8.2f} {r['peak_mem_mb']:8.1f} "
+            + " ".join(cells)
+        )
+    lines.append(f"errors against: {result['reference']}")
+    for solver, rates in result["rates"].items():
+        txt = ", ".join(f"{k} {v:.2f}" if v is not None else f"{k} -" for k, v in rates.items())
+        lines.append(f"rates ({solver}, last {RATE_LEVELS} levels, tightest tol): {txt}")
+    return "\n".join(lines)
+
+
+def write_outputs(result: dict, out: Path) -> None:
+    """study.json and the two figures, written atomically into `out`."""
+    from problems.output.files import atomic_output
+    from problems.output.study_plots import plot_errors_vs_h, plot_errors_vs_time
+
+    with atomic_output(out) as tmp:
+        (tmp / "study.json").write_text(json.dumps(result, indent=2) + "\n")
+        plot_errors_vs_h(result, tmp / "errors_vs_h.png")
+        plot_errors_vs_time(result, tmp / "errors_vs_time.png")
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="mixvi study", description=__doc__.splitlines()[0])
+    p.add_argument("scene", help="scene file or shipped name")
+    p.add_argument("--levels", default="0..3", help="levels A..B (default 0..3)")
+    p.add_argument("--solvers", default=",".join(SOLVERS), help="comma list (default: all)")
+    p.add_argument("--tols", default="1e-6,1e-8,1e-10", help="comma list of tolerances")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
+    p.add_argument("--out", default=None, help="output directory (default out/SCENE_study)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def study_main(argv: list[str] | None = None) -> int:
+    """Entry point of `mixvi study`: 0 if every solve converged, 1 if not, 2 on bad input."""
+    args = parser().parse_args(argv)
+    try:
+        levels = level_range(args.levels)
+        solvers = parse_solvers(args.solvers)
+        tols = parse_tols(args.tols)
+        scene = load_scene(args.scene, args.set or [])
+        result = run_study(scene, levels, solvers, tols, progress=not args.no_progress)
+    except SceneError as err:
+        print(f"mixvi: error: {err}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else Path("out") / f"{scene.name}_study"
+    write_outputs(result, out)
+    print(table(result))
+    print(f"wrote {out}/")
+    return 0 if all(r["converged"] for r in result["records"]) else 1

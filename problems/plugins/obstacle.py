@@ -1,0 +1,178 @@
+"""Plug-in: the obstacle problem for a membrane, −Δu = f in Ω, u = u_D on ∂Ω, u ≥ ψ.
+
+P1/Q1 elements; one multiplier per free node, the nodal contact force λ_i ≥ 0:
+
+    K u + Bᵀλ = F,   B = −I (free nodes),   gap = −ψ,   Λ = NonNegative(n_free),
+
+so vi_core's (Bu − gap) ∈ N_Λ(λ) reads ψ − u ≤ 0, λ ≥ 0, λᵢ(ψᵢ − uᵢ) = 0 and K u = F + λ:
+the obstacle pushes the membrane up where they touch. A is the (symmetric) stiffness matrix.
+
+Scene tables: [domain] geometry (as for bodies: rectangle, half_disc, cradle), load f (field),
+obstacle ψ (field); [[dirichlet]] boundary (name or list), value (field); optional [exact]
+u, grad, source; optional [solver] method, tol.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from fem import assembly
+from fem.mesh import Mesh
+from problems.scene import Scene
+from problems.scene.geometry import make_mesh
+from vi_core import MixedVI, NonNegative, Solution
+
+from .contract import (
+    complementarity_defect,
+    read_dirichlet,
+    read_exact,
+    read_head,
+    read_solver,
+    triangles,
+)
+
+NAME = "obstacle"
+DESCRIPTION = "membrane above an obstacle: −Δu = f, u ≥ ψ (nodal contact forces λ ≥ 0)"
+
+
+@dataclass
+class Model:
+    """The assembled obstacle problem."""
+
+    scene: Scene
+    level: int
+    mesh: Mesh
+    vi: MixedVI
+    free: np.ndarray  # (n_free,) node ids of the unknowns
+    values: np.ndarray  # (n_nodes,) Dirichlet values (fixed nodes)
+    psi: np.ndarray  # (n_nodes,) nodal obstacle
+    exact: tuple | None = None  # (u, grad) fields of the exact solution, if the scene has one
+    options: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def dofs(self) -> dict[str, int]:
+        return {"displacement": int(self.free.size), "multiplier": self.vi.m}
+
+    def full(self, u: np.ndarray) -> np.ndarray:
+        """(n_nodes,) nodal values including the Dirichlet data."""
+        x = self.values.copy()
+        x[self.free] = u
+        return x
+
+    def errors(self, sol: Solution) -> dict[str, float]:
+        """|u − u_h|_H1 and ‖u − u_h‖_L2 against the scene's [exact] solution, and h."""
+        if self.exact is None:
+            raise ValueError(f"scene {self.scene.name!r} has no [exact] table")
+        u, grad = self.exact
+        x = self.full(sol.u)
+        return {
+            "h1": assembly.h1_seminorm_error(self.mesh, x, grad, 1),
+            "l2": assembly.l2_error(self.mesh, x, u, 1),
+            "h": self.mesh.h,
+        }
+
+    def complementarity(self, sol: Solution) -> float:
+        """Relative defect of λᵀ(ψ − u) = 0 (exact for any solution of the VI)."""
+        return complementarity_defect(sol.lam, self.vi.B @ sol.u - self.vi.gap, 0.0)
+
+
+def build(scene: Scene, level: int | None = None) -> Model:
+    """Scene → Model: mesh, stiffness, load, Dirichlet reduction, one constraint per free node."""
+    root = scene.root()
+    default_level = read_head(root, NAME, 2)
+    level = default_level if level is None else level
+    dom = root.table("domain")
+    mesh = make_mesh(dom.table("geometry"), level)
+    f_fun = dom.field("load", 1, 0.0)
+    psi_fun = dom.field("obstacle", 1)
+    dom.finish()
+    fixed, values = read_dirichlet(root, mesh)
+    exact = read_exact(root)
+    options = read_solver(root)
+    root.finish()
+
+    x, y = mesh.points.T  # (n_nodes,) each
+    psi = psi_fun(x, y)  # (n_nodes,)
+    K = assembly.stiffness_matrix(mesh)
+    F = assembly.volume_load(mesh, f_fun, 1)  # (n_nodes,)
+    free = np.flatnonzero(~fixed)
+    A = K[free][:, free]
+    f = F[free] - K[free][:, fixed] @ values[fixed]
+    n = free.size
+    X = (assembly.mass_matrix(mesh) + K)[free][:, free]
+    vi = MixedVI(
+        A=A,
+        B=-sp.identity(n, format="csr"),
+        f=f,
+        Lambda=NonNegative(n),
+        gap=-psi[free],
+        X=X,
+        info={"scene": scene.name, "level": level},
+    )
+    warnings = []
+    below = np.flatnonzero(fixed & (values < psi - 1e-12 * max(np.abs(psi).max(), 1.0)))
+    if below.size:
+        warnings.append(
+            f"Dirichlet data lie below the obstacle at {below.size} boundary node(s), e.g. "
+            f"{mesh.points[below[0]].tolist()}: u ≥ ψ cannot hold there"
+        )
+    return Model(scene, level, mesh, vi, free, values, psi, exact, options, warnings)
+
+
+def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
+    """obstacle.vtu (u, ψ, λ, contact) and obstacle.png (u and contact set; mid-line profile)."""
+    from fem.io import write_vtu
+
+    u = model.full(sol.u)  # (n_nodes,)
+    lam = np.zeros_like(u)
+    lam[model.free] = sol.lam
+    on = sol.lam > 1e-9 * max(float(sol.lam.max(initial=0.0)), 1e-300)  # (n_free,) touching
+    contact = np.zeros_like(u)
+    contact[model.free[on]] = 1.0
+    write_vtu(
+        outdir / "obstacle.vtu",
+        model.mesh,
+        {"u": u, "obstacle": model.psi, "contact_force": lam, "contact": contact},
+    )
+    _plot(model, u, contact > 0, outdir / "obstacle.png")
+    summary = {
+        "obstacle": {"nodes": int(model.free.size), "contact": int(on.sum())},
+        "complementarity": model.complementarity(sol),
+        "files": ["obstacle.png", "obstacle.vtu"],
+    }
+    if model.exact is not None:
+        summary["errors"] = model.errors(sol)
+    return summary
+
+
+def _plot(model: Model, u: np.ndarray, touch: np.ndarray, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    P = model.mesh.points  # (n_nodes, 2)
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.5))
+    tpc = a0.tripcolor(P[:, 0], P[:, 1], triangles(model.mesh), u, shading="gouraud")
+    a0.plot(P[touch, 0], P[touch, 1], "k.", ms=2, label="contact (λ > 0)")
+    a0.set_aspect("equal")
+    a0.legend(loc="upper right", fontsize=8)
+    fig.colorbar(tpc, ax=a0, label="u")
+    ymid = P[np.argmin(np.abs(P[:, 1] - np.median(P[:, 1]))), 1]
+    row = np.flatnonzero(np.isclose(P[:, 1], ymid))
+    row = row[np.argsort(P[row, 0])]  # (k,) nodes on the mid line, left to right
+    a1.plot(P[row, 0], u[row], "o-", ms=3, label="$u_h$")
+    a1.plot(P[row, 0], model.psi[row], "k--", lw=1, label=r"obstacle $\psi$")
+    if model.exact is not None:
+        a1.plot(P[row, 0], model.exact[0](P[row, 0], P[row, 1]), "-", lw=1, label="exact")
+    a1.set_xlabel(f"x (y = {ymid:.3g})")
+    a1.legend(loc="best", fontsize=8)
+    fig.suptitle(f"{model.scene.name}, level {model.level}: {int(touch.sum())} nodes in contact")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

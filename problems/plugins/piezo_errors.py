@@ -1,0 +1,160 @@
+"""Error norms of the study (Theorem 4.1): against an exact solution, or against a finer level.
+
+Norms (all absolute, SI units, lengths in m):
+
+- ``u_H1``  = ‖u − u_h‖_{H¹(Ω)} = (‖·‖²_{L²} + |·|²_{H¹})^{1/2}, summed over bodies;
+- ``phi_H1``, ``phi_L2`` the same for φ (piezoelectric bodies only; 0 if there are none);
+- ``lam``   = (Σ_E h_E ‖λ − λ_h‖²_{L²(E)})^{1/2} over the segments E of Γ3 (slave side): the
+  mesh-weighted h^{1/2}‖·‖_{L²(Γ3)} stand-in for H^{-1/2}(Γ3). λ_h is compared as a *function*,
+  λ_h = Σ_i (γ_i n_i + α_i τ_i) ψ_i with the dual basis ψ_i, component-wise in the nodal frame:
+  (Σγ_iψ_i − λ·n)² + (Σα_iψ_i − λ·τ)².
+
+Against an exact solution the integrals use 4th-order cell quadrature (`fem.assembly`) and 4-point
+Gauss on segments. Against a finer reference level the coarse discrete solution is evaluated
+exactly (as a P1/Q1 finite element function) at the nodes of the reference mesh and the
+difference is measured with the reference mesh's mass and stiffness matrices; this is exact for
+nested meshes (structured rectangles) and an O(h²)-accurate transfer for mapped curved blocks,
+whose refined boundary nodes move onto the true arc. λ_h of the coarse level is evaluated at
+Gauss points of the reference Γ3 located by normalised arc length, weighted by the coarse h_E.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from fem import assembly
+from fem.boundary import dual_basis_on_segment
+from fem.elements import reference_element
+from fem.mesh import Mesh
+from problems.scene.exact import Exact
+
+from .piezo_contact import Model
+
+GAUSS_T, GAUSS_W = np.polynomial.legendre.leggauss(4)
+GAUSS_T, GAUSS_W = 0.5 * (GAUSS_T + 1), 0.5 * GAUSS_W  # (4,) on [0, 1], weights sum 1
+NORMS = ("u_H1", "phi_H1", "phi_L2", "lam")
+
+
+def _fields(model: Model, u: np.ndarray):
+    """Per body: (body, displacement (N, 2), potential (N,) or None) of the full solution."""
+    x = model.full(u)
+    return [(b, *b.split(x[b.offset : b.offset + b.size])) for b in model.bodies]
+
+
+def _multiplier(model: Model, lam: np.ndarray):
+    """(trace, γ (N,), α (N,)) of the contact multiplier."""
+    tr = model.contact.tr
+    N = tr.size
+    return tr, lam[:N], lam[N:]
+
+
+def _dual_values(tr, coef: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Σ_i coef_i ψ_i at points t ∈ [0, 1] of segments `seg` (both (k,)): (k,)."""
+    psi = dual_basis_on_segment(t)  # (k, 2)
+    ends = tr.segments[seg]  # (k, 2)
+    return np.einsum("ka,ka->k", psi, coef[ends])
+
+
+def exact_errors(model: Model, u: np.ndarray, lam: np.ndarray, exact: Exact) -> dict[str, float]:
+    """The four norms of the module docstring, against the scene's `[exact]` solution."""
+    sq = dict.fromkeys(NORMS, 0.0)
+    for b, disp, phi in _fields(model, u):
+        m = b.mesh
+        sq["u_H1"] += assembly.l2_error(m, disp.ravel(), exact.u, 2) ** 2
+        sq["u_H1"] += assembly.h1_seminorm_error(m, disp.ravel(), exact.grad_u, 2) ** 2
+        if phi is not None and exact.phi is not None:
+            l2 = assembly.l2_error(m, phi, exact.phi, 1) ** 2
+            sq["phi_L2"] += l2
+            sq["phi_H1"] += l2 + assembly.h1_seminorm_error(m, phi, exact.grad_phi, 1) ** 2
+    if model.contact is not None:
+        tr, gam, alp = _multiplier(model, lam)
+        P = model.contact.slave.mesh.points[tr.nodes]  # (N, 2)
+        n_seg, n_q = tr.segments.shape[0], GAUSS_T.size
+        seg = np.repeat(np.arange(n_seg), n_q)  # (n_seg·n_q,)
+        t = np.tile(GAUSS_T, n_seg)  # (n_seg·n_q,)
+        A, B = P[tr.segments[seg, 0]], P[tr.segments[seg, 1]]  # (n_seg·n_q, 2)
+        X = (1 - t)[:, None] * A + t[:, None] * B  # (n_seg·n_q, 2)
+        ex = exact.lam(X[:, 0], X[:, 1])  # (n_seg·n_q, 2): (λ·n, λ·τ)
+        d2 = (_dual_values(tr, gam, seg, t) - ex[:, 0]) ** 2
+        d2 += (_dual_values(tr, alp, seg, t) - ex[:, 1]) ** 2  # (n_seg·n_q,)
+        w = np.tile(GAUSS_W, n_seg) * tr.lengths[seg] ** 2  # h_E · |E| · Gauss weight
+        sq["lam"] = float(w @ d2)
+    return {k: float(np.sqrt(v)) for k, v in sq.items()}
+
+
+# ------------------------------------------------------------------ transfer between levels
+def _outside(cell_type: str, xi: np.ndarray) -> np.ndarray:
+    """How far reference points (..., 2) lie outside the reference cell (≤ 0 inside)."""
+    s, t = xi[..., 0], xi[..., 1]
+    if cell_type == "triangle":
+        return np.maximum.reduce([-s, -t, s + t - 1])
+    return np.maximum(np.abs(s), np.abs(t)) - 1
+
+
+def evaluate(mesh: Mesh, nodal: np.ndarray, pts: np.ndarray, candidates: int = 8) -> np.ndarray:
+    """The P1/Q1 function with nodal values `nodal` (N, k) at points `pts` (M, 2): (M, k).
+
+    Each point is located among the `candidates` cells with the nearest centroids by inverting
+    the cell maps (Newton; exact after one step for P1); a point outside every candidate (a
+    refined curved boundary) is extrapolated from the candidate it is least outside of.
+    """
+    ref = reference_element(mesh.cell_type)
+    X = mesh.points[mesh.cells]  # (n_cells, n_loc, 2)
+    k = min(candidates, mesh.n_cells)
+    _, cand = cKDTree(X.mean(axis=1)).query(pts, k=k)  # (M, k)
+    cand = cand.reshape(len(pts), k)
+    Xc = X[cand]  # (M, k, n_loc, 2)
+    xi = np.broadcast_to(ref.centroid, cand.shape + (2,)).copy()  # (M, k, 2)
+    for _ in range(6):
+        flat = xi.reshape(-1, 2)
+        phi = ref.values(flat).reshape(xi.shape[:2] + (-1,))  # (M, k, n_loc)
+        dphi = ref.gradients(flat).reshape(xi.shape[:2] + (-1, 2))  # (M, k, n_loc, 2)
+        r = np.einsum("mka,mkai->mki", phi, Xc) - pts[:, None, :]  # (M, k, 2)
+        J = np.einsum("mkai,mkaj->mkij", Xc, dphi)  # (M, k, 2, 2) ∂x_i/∂ξ_j
+        xi = xi - np.linalg.solve(J, r[..., None])[..., 0]
+    best = np.argmin(_outside(mesh.cell_type, xi), axis=1)  # (M,)
+    rows = np.arange(len(pts))
+    phi = ref.values(xi[rows, best])  # (M, n_loc)
+    vals = np.asarray(nodal, dtype=float).reshape(mesh.n_nodes, -1)[mesh.cells[cand[rows, best]]]
+    return np.einsum("ma,mak->mk", phi, vals)  # (M, k)
+
+
+def _locate_on_trace(tr, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Segment index and local t ∈ [0, 1] of normalised arc lengths s ∈ [0, 1] (both (M,))."""
+    edges = np.concatenate([[0.0], np.cumsum(tr.lengths)]) / tr.lengths.sum()  # (n_seg + 1,)
+    seg = np.clip(np.searchsorted(edges, s, side="right") - 1, 0, tr.lengths.size - 1)
+    t = np.clip((s - edges[seg]) / (edges[seg + 1] - edges[seg]), 0.0, 1.0)
+    return seg, t
+
+
+def reference_errors(
+    model: Model, u: np.ndarray, lam: np.ndarray, ref: Model, u_ref: np.ndarray, lam_ref
+) -> dict[str, float]:
+    """The four norms against the solution (u_ref, lam_ref) of a finer level `ref`."""
+    sq = dict.fromkeys(NORMS, 0.0)
+    coarse = {b.name: (b, disp, phi) for b, disp, phi in _fields(model, u)}
+    for bf, disp_f, phi_f in _fields(ref, u_ref):
+        b, disp, phi = coarse[bf.name]
+        m = bf.mesh
+        H1 = (assembly.mass_matrix(m) + assembly.stiffness_matrix(m)).tocsr()
+        nodal = disp if phi is None else np.column_stack([disp, phi])  # (N, 2 or 3)
+        d = np.column_stack([disp_f] + ([phi_f] if phi_f is not None else []))
+        d = d - evaluate(b.mesh, nodal, m.points)  # (N_ref, 2 or 3)
+        sq["u_H1"] += float(sum(d[:, c] @ (H1 @ d[:, c]) for c in range(2)))
+        if phi_f is not None:
+            sq["phi_H1"] += float(d[:, 2] @ (H1 @ d[:, 2]))
+            sq["phi_L2"] += float(d[:, 2] @ (assembly.mass_matrix(m) @ d[:, 2]))
+    if model.contact is not None:
+        tr, gam, alp = _multiplier(model, lam)
+        trf, gam_f, alp_f = _multiplier(ref, lam_ref)
+        n_seg, n_q = trf.segments.shape[0], GAUSS_T.size
+        seg_f = np.repeat(np.arange(n_seg), n_q)  # (n_seg·n_q,)
+        t_f = np.tile(GAUSS_T, n_seg)
+        s = np.concatenate([[0.0], np.cumsum(trf.lengths)])[seg_f] + t_f * trf.lengths[seg_f]
+        seg, t = _locate_on_trace(tr, s / trf.lengths.sum())
+        d2 = (_dual_values(trf, gam_f, seg_f, t_f) - _dual_values(tr, gam, seg, t)) ** 2
+        d2 += (_dual_values(trf, alp_f, seg_f, t_f) - _dual_values(tr, alp, seg, t)) ** 2
+        w = np.tile(GAUSS_W, n_seg) * trf.lengths[seg_f] * tr.lengths[seg]  # |E_f| w_q · h_E
+        sq["lam"] = float(w @ d2)
+    return {k: float(np.sqrt(v)) for k, v in sq.items()}

@@ -1,0 +1,194 @@
+"""Plug-in: a linear elastic body in unilateral (Signorini) contact with a rigid obstacle, with
+Tresca friction — the same solver as every other plug-in, only Λ differs.
+
+On Γ3 (outward normals n_i, tangents τ_i, D_i = ∫φ_i) the rows of B are D_i n_iᵀu_i (normal)
+and D_i τ_iᵀu_i (tangential); the obstacle lies at the normal distance gap(x) ≥ 0. With
+
+    Λ = NonNegative(N) × Box(−g_i, g_i),    gap_B = [D_i gap(x_i); 0],
+
+vi_core's (Bu − gap_B) ∈ N_Λ(λ) reads: u_n ≤ gap, pressure λ_n ≥ 0, λ_n (u_n − gap) = 0
+(the body is pushed back, −Bᵀλ points along −n, only where it touches), and the Tresca law
+|λ_τ| ≤ g_i, λ_τ = g_i sign(u_τ) where u_τ ≠ 0. Tresca's model with a given bound g acts on
+all of Γ3, in contact or not. Lemma 4.2 becomes λᵀ(Bu − gap_B) = ∫g|u_τ|_h.
+
+Scene tables: [body] as one [bodies.NAME] table of piezo_contact (an elastic material);
+[contact] boundary, gap (field ≥ 0), g (field ≥ 0); optional [solver].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from fem import assembly
+from fem.boundary import Trace, trace
+from fem.dirichlet import expand, reduce_dirichlet
+from problems.errors import SceneError
+from problems.output import plots
+from problems.scene import Scene
+from problems.scene.materials import material_from_scene
+from vi_core import Box, MixedVI, NonNegative, Solution, product
+
+from .bodies import Body, build_body
+from .contract import complementarity_defect, read_head, read_solver
+
+NAME = "signorini"
+DESCRIPTION = "elastic body in unilateral contact with a rigid obstacle, Tresca friction"
+
+
+@dataclass
+class Model:
+    """The assembled Signorini–Tresca problem."""
+
+    scene: Scene
+    level: int
+    body: Body
+    vi: MixedVI
+    free: np.ndarray  # (n_free,) full dof indices of the unknowns
+    values: np.ndarray  # (2 n_nodes,) prescribed values (fixed dofs)
+    tr: Trace  # Γ3
+    B_full: sp.csr_matrix  # (2N, 2 n_nodes): normal rows, then tangential rows
+    gap_n: np.ndarray  # (N,) nodal normal distance to the obstacle
+    g_weights: np.ndarray  # (N,) ∫gφ_i
+    options: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def dofs(self) -> dict[str, int]:
+        return {"displacement": int(self.free.size), "multiplier": self.vi.m}
+
+    def complementarity(self, sol: Solution) -> float:
+        """Relative defect of Lemma 4.2: λᵀ(Bu − gap) = ∫g|u_τ|_h."""
+        N = self.tr.size
+        u_t = (self.B_full @ expand(sol.u, self.free, self.values))[N:] / self.tr.weights
+        slack = self.vi.B @ sol.u - self.vi.gap  # (2N,)
+        return complementarity_defect(sol.lam, slack, float(self.g_weights @ np.abs(u_t)))
+
+
+def build(scene: Scene, level: int | None = None) -> Model:
+    """Scene → Model: elastic body, Dirichlet reduction, normal and tangential rows on Γ3."""
+    root = scene.root()
+    default_level = read_head(root, NAME, 1)
+    level = default_level if level is None else level
+    bt = root.table("body")
+    if material_from_scene(bt.key("material"), bt.raw("material")).piezoelectric:
+        raise SceneError(
+            "body.material", bt.raw("material"), "an elastic (not piezoelectric) material"
+        )
+    body = build_body("body", bt, level, 0)
+    ct = root.table("contact")
+    part = ct.string("boundary", choices=sorted(body.mesh.boundaries))
+    gap_fun = ct.field("gap", 1)
+    g_fun = ct.field("g", 1)
+    ct.finish()
+    options = read_solver(root)
+    root.finish()
+
+    mesh = body.mesh
+    tr = trace(mesh, part)
+    N = tr.size
+    x3, y3 = mesh.points[tr.nodes].T  # (N,) each
+    gap_n = gap_fun(x3, y3)  # (N,)
+    if (gap_n < 0).any():
+        raise SceneError("contact.gap", ct.raw("gap"), "a distance ≥ 0 at every node of Γ3")
+    gw = assembly.boundary_load(mesh, part, g_fun, 1)[tr.nodes]  # (N,) ∫gφ_i
+    if (g_fun(x3, y3) < 0).any() or (gw < 0).any():
+        raise SceneError("contact.g", ct.raw("g"), "a friction bound g ≥ 0 everywhere on Γ3")
+    dofs = body.u_dofs(tr.nodes)  # (N, 2)
+    rows = np.repeat(np.arange(2 * N), 2)  # (4N,)
+    cols = np.concatenate([dofs, dofs]).ravel()  # (4N,)
+    vals = (np.concatenate([tr.normals, tr.tangents]) * np.tile(tr.weights, 2)[:, None]).ravel()
+    B_full = sp.csr_matrix((vals, (rows, cols)), shape=(2 * N, body.size))
+    A, f, free = reduce_dirichlet(body.A, body.f, body.fixed, body.values)
+    B = B_full[:, free]
+    dead = np.flatnonzero(np.asarray(abs(B).sum(axis=1)).ravel() == 0)
+    if dead.size:
+        node = tr.nodes[dead[0] % N]
+        raise SceneError(
+            "contact.boundary",
+            part,
+            f"a contact boundary whose nodes are not clamped (node {node} at "
+            f"{mesh.points[node].tolist()} has all displacement dofs prescribed)",
+        )
+    gap = np.concatenate([tr.weights * gap_n, np.zeros(N)])
+    gap -= B_full[:, body.fixed] @ body.values[body.fixed]
+    g_i = gw / tr.weights  # (N,)
+    vi = MixedVI(
+        A=A,
+        B=B,
+        f=f,
+        Lambda=product(NonNegative(N), Box(-g_i, g_i)),
+        gap=gap,
+        X=body.X[free][:, free],
+        info={"scene": scene.name, "level": level},
+    )
+    return Model(scene, level, body, vi, free, body.values, tr, B_full, gap_n, gw, options)
+
+
+def contact_state(model: Model, sol: Solution) -> dict:
+    """Per-node quantities along Γ3: normal (pressure, u_n, gap) and tangential (plots layout)."""
+    N = model.tr.size
+    Bu = model.B_full @ expand(sol.u, model.free, model.values)  # (2N,)
+    u_n, u_t = Bu[:N] / model.tr.weights, Bu[N:] / model.tr.weights  # (N,) each
+    lam_n, lam_t = sol.lam[:N], sol.lam[N:]
+    g = model.g_weights / model.tr.weights
+    slip = np.abs(lam_t) >= g - 1e-9 * max(float(g.max(initial=0.0)), 1e-300)
+    touch = lam_n > 1e-9 * max(float(lam_n.max(initial=0.0)), 1e-300)
+    return {
+        "s": model.tr.s,
+        "lam_n": lam_n,
+        "lam_t": lam_t,
+        "g": g,
+        "u_n": u_n,
+        "gap": model.gap_n,
+        "jump_t": u_t,
+        "ut_slave": u_t,
+        "slip": slip,
+        "touch": touch,
+    }
+
+
+def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
+    """signorini.vtu (displacement, stress), friction plots and contact_normal.png."""
+    from fem.io import write_vtu
+
+    b = model.body
+    u, _ = b.split(expand(sol.u, model.free, model.values))  # (n_nodes, 2)
+    sigma, _ = assembly.cell_fields(b.mesh, u.ravel(), None, b.material.C, None, None)
+    write_vtu(outdir / "signorini.vtu", b.mesh, {"displacement": u}, {"stress": sigma})
+    st = contact_state(model, sol)
+    files = plots.contact_plots(st, outdir, title=f"{model.scene.name} (tangential)")
+    files.append(_normal_plot(st, outdir, model.scene.name))
+    n, n_slip, n_touch = st["slip"].size, int(st["slip"].sum()), int(st["touch"].sum())
+    lemma = model.complementarity(sol)
+    return {
+        "contact": {"nodes": n, "stick": n - n_slip, "slip": n_slip},
+        "signorini": {"nodes": n, "in_contact": n_touch, "separated": n - n_touch},
+        "lemma_4_2": lemma,
+        "complementarity": lemma,
+        "files": sorted([*files, "signorini.vtu"]),
+    }
+
+
+def _normal_plot(st: dict, outdir: Path, title: str) -> str:
+    import matplotlib.pyplot as plt  # backend Agg, set by `plots`
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot(st["s"], st["lam_n"], "o-", ms=3, label=r"pressure $\lambda_n$")
+    ax.set_xlabel("arc length along $\\Gamma_3$ [m]")
+    ax.set_ylabel(r"$\lambda_n$ [Pa]")
+    ax2 = ax.twinx()
+    ax2.plot(st["s"], st["u_n"], "s-", ms=2, color="tab:orange", label="$u_n$")
+    ax2.plot(st["s"], st["gap"], "k--", lw=1, label="gap")
+    ax2.set_ylabel("normal displacement, gap [m]")
+    h1, l1 = ax.get_legend_handles_labels()
+    h2, l2 = ax2.get_legend_handles_labels()
+    ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=8)
+    ax.set_title(f"{title}: {int(st['touch'].sum())} of {st['touch'].size} nodes in contact")
+    fig.tight_layout()
+    fig.savefig(outdir / "contact_normal.png", dpi=120)
+    plt.close(fig)
+    return "contact_normal.png"

@@ -1,0 +1,39 @@
+"""`mixvi bench`: the bench.json contract and bad input."""
+
+import json
+
+from problems.commands.main import main
+
+
+def test_bench_writes_the_contract(tmp_path, capsys):
+    out = tmp_path / "bench.json"
+    assert (
+        main(["bench", "--scenes", "rigid_foundation", "--levels", "0..1", "--out", str(out)]) == 0
+    )
+    data = json.loads(out.read_text())
+    assert set(data) == {"machine", "records"}
+    keys = {
+        "scene",
+        "level",
+        "unknowns",
+        "solver",
+        "iterations",
+        "time_nonlinear_s",
+        "time_linear_s",
+        "ratio",
+        "peak_mem_mb",
+    }
+    assert [r["level"] for r in data["records"]] == [0, 1]
+    for r in data["records"]:
+        assert keys <= set(r)
+        assert r["converged"] and r["time_linear_s"] > 0 and r["peak_mem_mb"] > 0
+        assert abs(r["ratio"] - r["time_nonlinear_s"] / r["time_linear_s"]) < 1e-12
+    assert "ratio" in capsys.readouterr().out
+
+
+def test_bench_bad_input_exits_2(tmp_path, capsys):
+    assert main(["bench", "--levels", "3..1", "--out", str(tmp_path / "b.json")]) == 2
+    assert "--levels" in capsys.readouterr().err
+    assert main(["bench", "--solvers", "magic", "--out", str(tmp_path / "b.json")]) == 2
+    assert main(["bench", "--scenes", "nope", "--out", str(tmp_path / "b.json")]) == 2
+    assert not (tmp_path / "b.json").exists()

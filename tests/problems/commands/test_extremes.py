@@ -1,0 +1,56 @@
+"""The `mixvi extremes` rows at level 0: residual, cross-method agreement and physical checks.
+
+Documented limitation (asserted, so a fix shows up as a failing test to update): with loads and
+g scaled by 1e-12 the conic method (Clarabel, absolute tolerances) does not converge; ssn and
+the homotopy still agree and the solution is homogeneous of degree 1 in the data.
+The Lemma 4.2 gap is held to 1e-9, not the 1e-10 of the shipped scenes: g = 1e-6 σ_ref and the
+10:1 mortar interface give 4.6e-10 (relative to ∫g|[u_τ]|, which is tiny there).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from problems.commands.extremes import AGREE_OK, RESIDUAL_OK, extremes_main, rows, run_row
+
+CONIC_FAILS = {"loads, g × 1e-12"}
+ROWS = [dataclasses.replace(r, level=0) for r in rows() if not r.huge]
+
+
+@pytest.mark.parametrize("row", ROWS, ids=[r.name for r in ROWS])
+def test_extreme_row(row):
+    rec = run_row(row)
+    assert rec["converged"] and rec["residual"] <= RESIDUAL_OK, rec
+    agree = dict(rec["agreement"])
+    if row.name in CONIC_FAILS:
+        assert agree.pop("conic") > AGREE_OK  # the documented limitation
+    assert agree and max(agree.values()) <= AGREE_OK, rec
+    assert rec["friction_excess"] <= 1e-9, rec
+    # with no slipping node (4.3) reads 0 = 0 and the ratio is rounding over a "tiny"
+    # denominator (3e-9 with SuperLU on the all-stick 10:1 row): checked only where nodes slip
+    if rec["lemma_4_2"] is not None and rec["slip"] > 0:
+        assert rec["lemma_4_2"] <= 1e-9, rec
+    if "homogeneity" in rec:
+        assert rec["homogeneity"] <= 1e-6, rec
+    if "locking_overestimate" in rec:  # locking: a coarse mesh is too stiff
+        f = rec["normal_force_levels"]
+        assert abs(f[0]) >= abs(f[1]) >= abs(f[2]) > 0, f
+    if "coupling" in row.name:
+        assert rec["rho"] > 2 and rec["homotopy_levels"] >= 3, rec
+
+
+def test_thresholds_are_physical_checks():
+    """g = 1e6 σ_ref ties every node; g = 0 lets every node slip."""
+    by = {r.name: r for r in ROWS}
+    tied, free = run_row(by["g = 1e6 σ_ref"]), run_row(by["g = 0 (frictionless)"])
+    assert tied["slip"] == 0 and tied["stick"] > 0
+    assert free["stick"] == 0 and free["slip"] > 0
+
+
+def test_command_writes_json(tmp_path, capsys):
+    rc = extremes_main(["--only", "PZT", "--out", str(tmp_path)])
+    assert rc == 0
+    assert "PZT-5H" in capsys.readouterr().out
+    assert (tmp_path / "extremes.json").read_text().count('"row"') == 1

@@ -1,0 +1,120 @@
+"""`mixvi study`: the study.json contract, rates, atomic output, bad input, level transfer."""
+
+import json
+
+import numpy as np
+import pytest
+
+from fem.meshing import rectangle
+from fem.shapes import half_disc
+from problems.commands import study
+from problems.plugins.piezo_errors import evaluate
+
+RECORD_KEYS = {"level", "h", "unknowns", "solver", "tol", "time_s", "iterations", "err"}
+ERR_KEYS = {"u_H1", "phi_H1", "phi_L2", "lam"}
+
+
+@pytest.fixture(scope="module")
+def manufactured_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("study") / "man"
+    argv = ["manufactured", "--levels", "0..2", "--solvers", "ssn", "--tols", "1e-8,1e-10"]
+    code = study.study_main([*argv, "--out", str(out), "--no-progress"])
+    return code, out
+
+
+def test_manufactured_study_writes_the_contract(manufactured_run):
+    code, out = manufactured_run
+    assert code == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "errors_vs_h.png",
+        "errors_vs_time.png",
+        "study.json",
+    ]
+    res = json.loads((out / "study.json").read_text())
+    assert res["scene"] == "manufactured" and res["reference"] == "exact"
+    assert len(res["records"]) == 3 * 2
+    for r in res["records"]:
+        assert RECORD_KEYS <= set(r) and set(r["err"]) == ERR_KEYS
+        assert r["solver"] == "ssn" and r["tol"] in (1e-8, 1e-10) and r["iterations"] > 0
+    assert set(res["rates"]) == {"ssn"} and set(res["rates"]["ssn"]) == {"u_H1", "phi_H1", "lam"}
+
+
+def test_manufactured_rates_point_the_right_way(manufactured_run):
+    res = json.loads((manufactured_run[1] / "study.json").read_text())
+    rates = res["rates"]["ssn"]
+    # Theorem 4.1: at least h^{1/2}; this smooth solution should show about h^1 in H1
+    assert rates["u_H1"] >= 0.9 and rates["phi_H1"] >= 0.9 and rates["lam"] >= 0.5
+    tight = [r for r in res["records"] if r["tol"] == 1e-10]
+    h = [r["h"] for r in tight]
+    assert h == sorted(h, reverse=True) and h[0] / h[-1] == pytest.approx(4.0)
+
+
+def test_reference_mode_measures_against_the_finest_level(tmp_path):
+    out = tmp_path / "rf"
+    argv = ["rigid_foundation", "--levels", "0..2", "--solvers", "ssn", "--tols", "1e-10"]
+    assert study.study_main([*argv, "--out", str(out), "--no-progress"]) == 0
+    res = json.loads((out / "study.json").read_text())
+    assert res["reference"] == "level 2"
+    e = [r["err"]["u_H1"] for r in sorted(res["records"], key=lambda r: r["level"])]
+    assert e[0] > e[1] > 0 and e[2] == 0.0  # the finest level is the reference itself
+
+
+def test_output_is_replaced_atomically_and_never_half_written(tmp_path, monkeypatch):
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "old.txt").write_text("previous run")
+
+    def boom(result, path):
+        raise RuntimeError("figure failed")
+
+    monkeypatch.setattr("problems.output.study_plots.plot_errors_vs_time", boom)
+    argv = ["manufactured", "--levels", "0", "--solvers", "ssn", "--tols", "1e-8"]
+    with pytest.raises(RuntimeError):
+        study.study_main([*argv, "--out", str(out), "--no-progress"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]  # no temporary left behind
+    assert sorted(p.name for p in out.iterdir()) == ["old.txt"]  # old output untouched
+
+
+@pytest.mark.parametrize(
+    "args, word",
+    [
+        (["--levels", "3..1"], "--levels"),
+        (["--levels", "a..b"], "--levels"),
+        (["--solvers", "ssn,newton"], "--solvers"),
+        (["--tols", "0"], "--tols"),
+        (["--set", "contact.g=-1"], "contact.g"),
+    ],
+)
+def test_bad_input_exits_2_with_one_message(args, word, tmp_path, capsys):
+    out = tmp_path / "never"
+    code = study.study_main(["manufactured", *args, "--out", str(out), "--no-progress"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("mixvi: error: ") and word in err[0]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("mesh", [rectangle((0, 2), (0, 1), (3, 2), "triangle"), half_disc()])
+def test_evaluate_reproduces_linear_fields_exactly(mesh):
+    lin = lambda p: np.stack([1 + 2 * p[:, 0] - p[:, 1], 3 * p[:, 1]], axis=1)  # noqa: E731
+    rng = np.random.default_rng(1)
+    cells = rng.integers(0, mesh.n_cells, 200)
+    w = rng.dirichlet(np.ones(mesh.cells.shape[1]), 200)  # (200, n_loc) convex weights
+    pts = np.einsum("ma,mai->mi", w, mesh.points[mesh.cells[cells]])  # points inside cells
+    np.testing.assert_allclose(evaluate(mesh, lin(mesh.points), pts), lin(pts), atol=1e-12)
+
+
+def test_rates_against_the_finest_level_leave_the_reference_out():
+    from problems.commands.study import fit_rates
+
+    recs = [
+        {
+            "level": k,
+            "h": 2.0**-k,
+            "solver": "ssn",
+            "tol": 1e-10,
+            "err": {"u_H1": e, "phi_H1": e, "lam": e},
+        }
+        for k, e in enumerate([1.0, 0.5, 0.25, 1e-16])  # level 3 is the reference itself
+    ]
+    assert abs(fit_rates(recs, below=3)["ssn"]["u_H1"] - 1.0) < 1e-12
+    assert fit_rates(recs)["ssn"]["u_H1"] > 10  # what the reference level would do to the fit
