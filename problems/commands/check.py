@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 import numpy as np
 
 import vi_core
-from problems.output.files import jsonable
+from problems.output.files import jsonable, output_file
 from problems.plugins import registry
 from problems.scene import load_scene
 
-from . import options
+from . import options, resources
 from .options import DEFAULT_SCENE
 
 AGREE = 1e-6  # largest allowed relative difference between methods
@@ -93,17 +92,29 @@ def cmd_check(args: argparse.Namespace) -> int:
     """Compare ssn, homotopy and conic per level; exit status 1 if they disagree."""
     scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
     plugin = registry.for_scene(scene)
+    if args.levels is not None:
+        option, text = "--levels", args.levels
+        a, b = options.level_range(args.levels)
+    else:
+        lev = args.level if args.level is not None else resources.default_level(plugin, scene)
+        option, text, (a, b) = "--level", str(lev), (lev, lev)
+    resources.check_levels(plugin, scene, (a, b), option, text, args.force)
+    if args.json is None:
+        return _check(scene, plugin, range(a, b + 1), args.tol, None)
+    with output_file(args.json, "--json") as target:
+        return _check(scene, plugin, range(a, b + 1), args.tol, target)
+
+
+def _check(scene, plugin, levels, tol, target) -> int:
     records, ok = [], True
-    for level in options.levels(args.levels, args.level):
-        conv, worst, rec = _check_level(scene, plugin, level, args.tol)
+    for level in levels:
+        conv, worst, rec = _check_level(scene, plugin, level, tol)
         ok = ok and conv and worst <= AGREE
         records.append(rec)
         print(
             f"{'agree' if conv and worst <= AGREE else 'DISAGREE'}: largest difference "
             f"{worst:.2e} (allowed {AGREE:g})"
         )
-    if args.json:
-        Path(args.json).write_text(
-            json.dumps(jsonable({"scene": scene.name, "records": records}), indent=2)
-        )
+    if target is not None:
+        target.write(json.dumps(jsonable({"scene": scene.name, "records": records}), indent=2))
     return 0 if ok else 1

@@ -1,0 +1,180 @@
+"""Resource bounds: unknowns and peak memory of a refinement level, known before it is built.
+
+Unknowns. A level refines every cell into 2^d (d = the geometry's dimension: the model's
+optional `dimension`, 2 if absent), so with s = 2^level the number of unknowns is a polynomial
+of degree d in s (cells ~ s^d, boundary and contact nodes ~ s^(d-1), corners ~ 1). It is
+fitted exactly through the levels 0 … d, which are cheap to build; in 2D a level multiplies
+the unknowns by about 4, in 3D by 8.
+
+Peak memory. The peak resident memory of a solve grows faster than the unknowns N because the
+direct factorisation fills in: peak ≈ BASE + a · N^b per linear solver (MEMORY_MODEL). The
+constants were measured on the shipped scenes (peak RSS of `mixvi solve SCENE --level L` in a
+fresh process) and are compared with the measured peak by `mixvi bench` (columns "peak" and
+"estimate"); re-measure them here when the memory per unknown changes.
+
+Caps. A level whose estimate exceeds the machine's memory (physical or cgroup or RLIMIT_AS) is
+above the scene's cap; a level whose estimate exceeds the memory available now is refused. Both
+are SceneErrors naming the option, printing the estimate (exit 2); `--force` skips them.
+"""
+
+from __future__ import annotations
+
+import resource
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from problems.errors import SceneError
+from vi_core.linalg import resolve_backend
+
+from .options import MAX_LEVEL
+
+# peak RSS [bytes] ≈ BASE_BYTES + a · N^b, N = unknowns (n + m); see the module docstring
+BASE_BYTES = 130e6  # interpreter, NumPy/SciPy/cvxpy/matplotlib loaded: measured at N < 2000
+MEMORY_MODEL = {  # linear solver → (a, b)
+    "splu": (2.0e3, 1.10),
+    "pardiso": (2.0e3, 1.10),
+}
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The size of one level of a scene before it is built."""
+
+    scene: str
+    level: int
+    unknowns: int
+    solver: str  # the linear solver the estimate is for ("splu" or "pardiso")
+    peak_bytes: float
+
+
+def peak_bytes(unknowns: float, solver: str) -> float:
+    """The modelled peak resident memory of a solve with `unknowns` unknowns."""
+    a, b = MEMORY_MODEL[solver]
+    return BASE_BYTES + a * float(unknowns) ** b
+
+
+def gb(x: float) -> str:
+    """Bytes as '1.2 GB' (decimal units, as `free -g` and the README use)."""
+    return f"{x / 1e9:.1f} GB" if x >= 1e8 else f"{x / 1e6:.0f} MB"
+
+
+def _read_int(path: str) -> int | None:
+    try:
+        text = Path(path).read_text().strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None
+
+
+def memory() -> tuple[float, float]:
+    """(total, available) bytes for this process: physical memory (MemTotal/MemAvailable),
+    bounded by a cgroup v2 limit and by RLIMIT_AS where set."""
+    total = available = None
+    try:
+        info = dict(line.split(":", 1) for line in Path("/proc/meminfo").read_text().splitlines())
+        total = int(info["MemTotal"].split()[0]) * 1024
+        available = int(info["MemAvailable"].split()[0]) * 1024
+    except (OSError, KeyError, ValueError):
+        import os
+
+        total = available = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    limit = _read_int("/sys/fs/cgroup/memory.max")
+    if limit is not None:
+        used = _read_int("/sys/fs/cgroup/memory.current") or 0
+        total, available = min(total, limit), min(available, max(limit - used, 0))
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY:
+        total, available = min(total, soft), min(available, soft)
+    return float(total), float(available)
+
+
+class Sizes:
+    """Unknowns of every level of one scene, fitted through the levels 0 … d."""
+
+    def __init__(self, plugin, scene):
+        self.scene = scene
+        counts, dim = [], 2
+        for lev in range(4):  # levels 0 … d (d read from the level-0 model)
+            model = plugin.build(scene, lev)
+            dim = int(getattr(model, "dimension", 2))
+            counts.append(model.vi.n + model.vi.m)
+            if lev >= dim:
+                break
+        self.dimension = dim
+        s = 2.0 ** np.arange(len(counts))  # (d+1,)
+        self._coef = np.linalg.solve(np.vander(s, len(counts)), np.array(counts, float))
+        self._exact = counts
+
+    def unknowns(self, level: int) -> int:
+        """Unknowns at `level` (exact for the levels built, the polynomial above them)."""
+        if level < len(self._exact):
+            return self._exact[level]
+        return int(round(float(np.polyval(self._coef, 2.0**level))))
+
+    def estimate(self, level: int) -> Estimate:
+        """Unknowns and peak memory of `level` with the linear solver `auto` would choose."""
+        n = self.unknowns(level)
+        solver = resolve_backend("auto", n)
+        return Estimate(self.scene.name, level, n, solver, peak_bytes(n, solver))
+
+    def cap(self, total: float) -> int:
+        """The largest level (≤ MAX_LEVEL) whose estimate fits in `total` bytes (0 at least)."""
+        cap = 0
+        for lev in range(MAX_LEVEL + 1):
+            if self.estimate(lev).peak_bytes > total:
+                break
+            cap = lev
+        return cap
+
+
+def describe(e: Estimate) -> str:
+    """'level 5 of paper_two_body: about 386,178 unknowns, peak memory about 5.8 GB (splu)'."""
+    return (
+        f"level {e.level} of {e.scene}: about {e.unknowns:,} unknowns, "
+        f"peak memory about {gb(e.peak_bytes)} ({e.solver})"
+    )
+
+
+def check_levels(
+    plugin,
+    scene,
+    levels: tuple[int, int],
+    option: str,
+    text: str,
+    force: bool = False,
+) -> Sizes:
+    """Refuse (SceneError naming `option` and its value `text`) a level range A..B outside
+    0 ≤ A ≤ B ≤ the scene's cap, or whose largest level does not fit in the memory available
+    now; `force` skips the memory checks (the range must still be ordered, ≤ MAX_LEVEL)."""
+    a, b = levels
+    total, available = memory()
+    sizes = Sizes(plugin, scene)
+    cap = MAX_LEVEL if force else sizes.cap(total)
+    if not 0 <= a <= b <= cap:
+        why = (
+            ""
+            if force or cap == MAX_LEVEL
+            else f" ({describe(sizes.estimate(cap + 1))}; this machine has {gb(total)}; "
+            "--force to try anyway)"
+        )
+        raise SceneError(option, text, f"expected A..B with 0 ≤ A ≤ B ≤ {cap}{why}")
+    e = sizes.estimate(b)
+    if not force and e.peak_bytes > available:
+        raise SceneError(
+            option,
+            text,
+            f"a level that fits in the memory available now: {describe(e)}, "
+            f"{gb(available)} available (--force to try anyway)",
+        )
+    return sizes
+
+
+def default_level(plugin, scene) -> int:
+    """The scene's own level (`[scene] level`, else the plug-in's default)."""
+    head = scene.data.get("scene", {})
+    lev = head.get("level") if isinstance(head, dict) else None
+    if isinstance(lev, int) and not isinstance(lev, bool) and 0 <= lev <= MAX_LEVEL:
+        return lev
+    return plugin.build(scene, None).level  # the plug-in's default, or its SceneError
