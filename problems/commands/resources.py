@@ -6,11 +6,16 @@ of degree d in s (cells ~ s^d, boundary and contact nodes ~ s^(d-1), corners ~ 1
 fitted exactly through the levels 0 … d, which are cheap to build; in 2D a level multiplies
 the unknowns by about 4, in 3D by 8.
 
-Peak memory. The peak resident memory of a solve grows faster than the unknowns N because the
-direct factorisation fills in: peak ≈ BASE + a · N^b per linear solver (MEMORY_MODEL). The
-constants were measured on the shipped scenes (peak RSS of `mixvi solve SCENE --level L` in a
-fresh process) and are compared with the measured peak by `mixvi bench` (columns "peak" and
-"estimate"); re-measure them here when the memory per unknown changes.
+Peak memory. The peak resident memory of a solve grows faster than the unknowns because the
+direct factorisation fills in: peak ≈ BASE + a · nnz^b per linear solver (MEMORY_MODEL), with
+nnz the stored entries of A (the matrix Newton factorises after condensing λ; like the
+unknowns, a polynomial of degree d in 2^level). nnz, not the unknowns N, is the predictor:
+fitted on N the measured peaks of the shipped scenes scatter by a factor 7 (a scalar obstacle
+problem with one multiplier per node needs 1.8 kB per unknown, the piezoelectric two-body
+scene 15 kB), fitted on nnz they lie within 0.87 … 1.53 of the model. The constants were
+measured on the shipped scenes (peak RSS of `mixvi solve SCENE --level L` in a fresh process);
+`mixvi bench` prints the measured peak beside the estimate. Re-measure them here when the
+memory per unknown changes.
 
 Caps. A level whose estimate exceeds the machine's memory (physical or cgroup or RLIMIT_AS) is
 above the scene's cap; a level whose estimate exceeds the memory available now is refused. Both
@@ -30,11 +35,11 @@ from vi_core.linalg import resolve_backend
 
 from .options import MAX_LEVEL
 
-# peak RSS [bytes] ≈ BASE_BYTES + a · N^b, N = unknowns (n + m); see the module docstring
+# peak RSS [bytes] ≈ BASE_BYTES + a · nnz(A)^b; see the module docstring
 BASE_BYTES = 130e6  # interpreter, NumPy/SciPy/cvxpy/matplotlib loaded: measured at N < 2000
-MEMORY_MODEL = {  # linear solver → (a, b)
-    "splu": (2.0e3, 1.10),
-    "pardiso": (2.0e3, 1.10),
+MEMORY_MODEL = {  # linear solver → (a, b), fitted to the peaks with peak > 1.5 BASE_BYTES
+    "splu": (65.0, 1.138),
+    "pardiso": (65.0, 1.138),
 }
 
 
@@ -49,10 +54,10 @@ class Estimate:
     peak_bytes: float
 
 
-def peak_bytes(unknowns: float, solver: str) -> float:
-    """The modelled peak resident memory of a solve with `unknowns` unknowns."""
+def peak_bytes(nnz: float, solver: str) -> float:
+    """The modelled peak resident memory of a solve whose matrix A has `nnz` entries."""
     a, b = MEMORY_MODEL[solver]
-    return BASE_BYTES + a * float(unknowns) ** b
+    return BASE_BYTES + a * float(nnz) ** b
 
 
 def gb(x: float) -> str:
@@ -91,7 +96,7 @@ def memory() -> tuple[float, float]:
 
 
 class Sizes:
-    """Unknowns of every level of one scene, fitted through the levels 0 … d."""
+    """Unknowns and nonzeros of every level of one scene, fitted through the levels 0 … d."""
 
     def __init__(self, plugin, scene):
         self.scene = scene
@@ -99,25 +104,34 @@ class Sizes:
         for lev in range(4):  # levels 0 … d (d read from the level-0 model)
             model = plugin.build(scene, lev)
             dim = int(getattr(model, "dimension", 2))
-            counts.append(model.vi.n + model.vi.m)
+            counts.append((model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n))
             if lev >= dim:
                 break
         self.dimension = dim
         s = 2.0 ** np.arange(len(counts))  # (d+1,)
-        self._coef = np.linalg.solve(np.vander(s, len(counts)), np.array(counts, float))
+        v = np.array(counts, float)  # (d+1, 3): unknowns, nnz(A), n
+        self._coef = np.linalg.solve(np.vander(s, len(counts)), v)  # (d+1, 3)
         self._exact = counts
 
-    def unknowns(self, level: int) -> int:
-        """Unknowns at `level` (exact for the levels built, the polynomial above them)."""
+    def _at(self, level: int) -> tuple[int, int, int]:
         if level < len(self._exact):
             return self._exact[level]
-        return int(round(float(np.polyval(self._coef, 2.0**level))))
+        v = np.vander([2.0**level], len(self._exact))[0] @ self._coef  # (3,)
+        return tuple(int(round(float(x))) for x in v)
+
+    def unknowns(self, level: int) -> int:
+        """Unknowns n + m at `level` (exact for the levels built, the polynomial above)."""
+        return self._at(level)[0]
+
+    def nonzeros(self, level: int) -> int:
+        """Stored entries of A at `level` (exact for the levels built, the polynomial above)."""
+        return self._at(level)[1]
 
     def estimate(self, level: int) -> Estimate:
         """Unknowns and peak memory of `level` with the linear solver `auto` would choose."""
-        n = self.unknowns(level)
+        N, nnz, n = self._at(level)
         solver = resolve_backend("auto", n)
-        return Estimate(self.scene.name, level, n, solver, peak_bytes(n, solver))
+        return Estimate(self.scene.name, level, N, solver, peak_bytes(nnz, solver))
 
     def cap(self, total: float) -> int:
         """The largest level (≤ MAX_LEVEL) whose estimate fits in `total` bytes (0 at least)."""
