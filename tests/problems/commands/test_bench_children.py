@@ -83,7 +83,8 @@ def install(site: Path) -> None:
 
 
 def scene_text(mode: str, pidfile: Path | None = None) -> str:
-    text = (SCENES_DIR / "obstacle.toml").read_text().replace('plugin = "obstacle"', 'plugin = "wobbly"')
+    text = (SCENES_DIR / "obstacle.toml").read_text()
+    text = text.replace('plugin = "obstacle"', 'plugin = "wobbly"')
     extra = f"pidfile = {json.dumps(str(pidfile))}\n" if pidfile else ""
     return text + f'\n[wobble]\nmode = "{mode}"\n{extra}'
 
@@ -110,8 +111,8 @@ def test_failed_children_become_rows_and_the_table_is_still_written(site, tmp_pa
     out = tmp_path / "bench.json"
     scenes = ",".join(str(tmp_path / f"{m}.toml") for m in modes)
     t0 = time.monotonic()
-    r = mixvi(["bench", "--scenes", scenes, "--levels", "0", "--timeout", "8", "--out", str(out)],
-              env, tmp_path)  # fmt: skip
+    argv = ["bench", "--scenes", scenes, "--levels", "0", "--timeout", "8", "--out", str(out)]
+    r = mixvi(argv, env, tmp_path)
     elapsed = time.monotonic() - t0
     assert r.returncode == 1, r.stderr
     assert "Traceback" not in r.stderr + r.stdout
