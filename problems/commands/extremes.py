@@ -31,6 +31,8 @@ from problems.output.files import output_folder
 from problems.plugins import piezo_contact as pc
 from problems.scene import Scene, load_scene
 
+from . import resources
+
 RESIDUAL_OK = 1e-8
 AGREE_OK = 1e-6
 CONIC_MAX = 20_000  # unknowns: above this the conic method is skipped (time)
@@ -274,6 +276,9 @@ def extremes_main(argv: list[str]) -> int:
         action="store_true",
         help="write into a folder that holds other files (nothing is deleted)",
     )
+    p.add_argument(
+        "--force", action="store_true", help="run rows whose memory estimate does not fit"
+    )
     args = p.parse_args(argv)
     candidates = [r for r in rows() if args.huge or not r.huge]
     selected = [r for r in candidates if args.only is None or args.only in r.name]
@@ -283,6 +288,9 @@ def extremes_main(argv: list[str]) -> int:
             args.only,
             "text contained in a row name: " + "; ".join(r.name for r in candidates),
         )
+    for row in selected:  # every row's level must fit in memory before anything runs
+        option = "--huge" if row.huge else "--only"
+        resources.check_levels(pc, row.load(), (row.level, row.level), option, row.name, args.force)
     with output_folder(args.out, "--out", overwrite=args.overwrite) as folder:
         print("iters = ssn/conic/homotopy; agree = largest relative difference to ssn")
         print(HEADER)

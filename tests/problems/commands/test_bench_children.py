@@ -38,6 +38,8 @@ def build(scene, level=None):
     data = copy.deepcopy(scene.data)
     wobble = data.pop("wobble", {})
     data["scene"]["plugin"] = "obstacle"
+    if wobble.get("mode") == "bug":  # a bug in the plug-in, in any process
+        raise RuntimeError("wobbly: a bug, not bad input")
     if multiprocessing.parent_process() is not None:
         mode = wobble.get("mode")
         if "pidfile" in wobble:
@@ -163,6 +165,55 @@ def _gone(pid: int) -> bool:
     except FileNotFoundError:
         return True
     return "\nState:\tZ" in state  # a zombie waiting for its reaper is dead
+
+
+def test_an_internal_error_is_one_line_exit_3_and_debug_shows_the_traceback(site, tmp_path):
+    _, env = site
+    (tmp_path / "bug.toml").write_text(scene_text("bug"))
+    r = mixvi(["solve", str(tmp_path / "bug.toml"), "--out", str(tmp_path / "o")], env, tmp_path)
+    assert r.returncode == 3 and "Traceback" not in r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "internal error" in lines[0] and "--debug" in lines[0]
+    assert "a bug, not bad input" in lines[0]
+    argv = ["--debug", "solve", str(tmp_path / "bug.toml"), "--out", str(tmp_path / "o")]
+    r = mixvi(argv, env, tmp_path)
+    assert r.returncode == 3 and "Traceback" in r.stderr and "RuntimeError" in r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_run_case_reports_a_dead_child_at_once(site, tmp_path, monkeypatch):
+    """In-process: a killed child is seen by the liveness check, long before the timeout."""
+    import multiprocessing as mp
+
+    from problems.commands import bench
+
+    s, env = site
+    monkeypatch.syspath_prepend(str(s))  # spawn children get the parent's sys.path
+    (tmp_path / "kill.toml").write_text(scene_text("kill"))
+    t0 = time.monotonic()
+    kind, cause = bench.run_case(
+        mp.get_context("spawn"), str(tmp_path / "kill.toml"), 0, ["ssn"], 1e-10, timeout=120
+    )
+    assert kind == "error" and "SIGKILL" in cause
+    assert time.monotonic() - t0 < 100  # not the timeout
+
+
+def test_mutation_without_the_liveness_check_only_the_timeout_ends_it(site, tmp_path, monkeypatch):
+    import multiprocessing.process
+
+    monkeypatch.setattr(multiprocessing.process.BaseProcess, "is_alive", lambda self: True)
+    from problems.commands import bench
+
+    monkeypatch.setattr(bench, "DEFAULT_TIMEOUT", 5)
+    s, env = site
+    monkeypatch.syspath_prepend(str(s))  # spawn children get the parent's sys.path
+    (tmp_path / "kill.toml").write_text(scene_text("kill"))
+    import multiprocessing as mp
+
+    kind, cause = bench.run_case(
+        mp.get_context("spawn"), str(tmp_path / "kill.toml"), 0, ["ssn"], 1e-10, timeout=5
+    )
+    assert kind == "error" and "timed out" in cause  # the crash is no longer recognised
 
 
 def test_scenes_lists_broken_plugins_and_scenes_and_goes_on(site, tmp_path):
