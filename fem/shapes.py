@@ -58,7 +58,7 @@ def half_disc(
     n_r = max(1, round((r - rho) / h)) * k  # cells along the spokes
     pol = lambda rad, th: c + rad * np.array([np.cos(th), np.sin(th)])  # noqa: E731
     A, E = pol(r, np.pi), pol(r, 0.0)  # ends of the flat top (left, right)
-    Bl, Br = pol(r, th_l), pol(r, th_r)  # C_l, C_r: ends of the contact arc
+    Bl, Br = contact_ends(c, r, angle)  # C_l, C_r: bit-identical to the cradle's
     Ql, Qr = pol(rho, th_l), pol(rho, th_r)  # lower corners of the inner block
     Ul, Ur = c + [-rho, 0.0], c + [rho, 0.0]  # upper corners (on the flat top)
     blocks = [
