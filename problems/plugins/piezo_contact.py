@@ -281,7 +281,7 @@ def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray
 
     Crosspoint rules (module docstring); SceneError listing every unsupported node.
     """
-    fixed = slave.fixed[slave.u_dofs(tr.nodes)]  # (N, 2)
+    fixed = slave.fixed[slave.u_dofs(tr.nodes) - slave.offset]  # (N, 2); body-local dofs
     carry_n, carry_t = ~fixed.all(axis=1), ~fixed.all(axis=1)  # (N,) each
     bad = []
     for i in np.flatnonzero(fixed.any(axis=1) & ~fixed.all(axis=1)):
@@ -327,6 +327,14 @@ def _contact(
 
     tr = trace(slave.mesh, part)
     carry = _carrying(slave, part, tr)
+    if not (carry[0] | carry[1]).any():
+        raise SceneError(
+            "contact.slave",
+            f"{slave.name}.{part}",
+            "a contact boundary with nodes whose displacement is not fully prescribed: every "
+            "node of this one is clamped by a [[displacement]] part, so no contact remains; "
+            "remove the Dirichlet condition on it or the [contact] table",
+        )
     n_seg = tr.segments.shape[0]
     uncovered_local = np.zeros(2 * n_seg, dtype=bool)
     if master is not None:
@@ -360,14 +368,6 @@ def _contact(
         rows_c.append(rows)
         Q_c.append(Q)
         offset += rows.size
-    if not (carry[0] | carry[1]).any():
-        raise SceneError(
-            "contact.slave",
-            f"{slave.name}.{part}",
-            "a contact boundary with nodes whose displacement is not fully prescribed: every "
-            "node of this one is clamped by a [[displacement]] part, so no contact remains; "
-            "remove the Dirichlet condition on it or the [contact] table",
-        )
     if offset == 0:
         raise SceneError(
             "contact.master",
