@@ -239,7 +239,7 @@ def test_nothing_covered_is_refused_naming_the_nodes(tmp_path, capsys):
     assert "no slave node has the master behind its support" in err and "nodes [" in err
 
 
-@pytest.mark.parametrize("angle", [0.3, 1.2, 2.0, 2.5, 2.8])
+@pytest.mark.parametrize("angle", [0.6, 2.0, 2.8])
 def test_paper_scene_at_wide_arcs_through_mixvi_solve(angle, tmp_path):
     out = tmp_path / "o"
     sets = [f"bodies.{b}.geometry.angle={angle}" for b in ("disc", "cradle")]
