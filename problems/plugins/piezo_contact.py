@@ -79,7 +79,8 @@ class Contact:
     rows_t: np.ndarray  # (N_t,) trace indices carrying a tangential multiplier
     Q_n: sp.csr_matrix  # (N_n, 2·n_seg) normal multiplier basis
     Q_t: sp.csr_matrix  # (N_t, 2·n_seg) tangential multiplier basis
-    W_t: np.ndarray  # (N_t,) row weights Σ_j Ds_kj = ∫φ̃_k of the tangential rows
+    W_n: np.ndarray  # (N_n,) row weights Σ_j Ds_kj = ∫φ̃_k of the normal rows
+    W_t: np.ndarray  # (N_t,) the same for the tangential rows
     g: np.ndarray  # (N_t,) g_k = ∫gφ̃_k / ∫φ̃_k
     B_full: sp.csr_matrix  # (N_n + N_t, n_full): normal rows then tangential rows
     g_weights: np.ndarray  # (N_t,) ∫ g φ̃_k  (= g_k W_k)
@@ -379,7 +380,7 @@ def _contact(
     r, c, v = (np.concatenate(x) for x in zip(*blocks, strict=True))
     B = sp.csr_matrix((v, (r, c)), shape=(offset, n_full))
     Q_t, rows_t = Q_c[1], rows_c[1]
-    W_t = np.asarray((Q_t @ Dloc).sum(axis=1)).ravel()  # (N_t,) ∫φ̃_k
+    W_n, W_t = (np.asarray((Q @ Dloc).sum(axis=1)).ravel() for Q in Q_c)  # ∫φ̃_k per row
     gw = Q_t @ gloc  # (N_t,) ∫gφ̃_k
     proj = None
     if master is not None:  # mortar mean of u_m·τ_k over the row's support
@@ -403,6 +404,7 @@ def _contact(
         rows_t=rows_t,
         Q_n=Q_c[0],
         Q_t=Q_t,
+        W_n=W_n,
         W_t=W_t,
         g=gw / W_t,
         B_full=B,

@@ -6,8 +6,9 @@ Norms (all absolute, SI units, lengths in m):
 - ``phi_H1``, ``phi_L2`` the same for φ (piezoelectric bodies only; 0 if there are none);
 - ``lam``   = (Σ_E h_E ‖λ − λ_h‖²_{L²(E)})^{1/2} over the segments E of Γ3 (slave side): the
   mesh-weighted h^{1/2}‖·‖_{L²(Γ3)} stand-in for H^{-1/2}(Γ3). λ_h is compared as a *function*,
-  λ_h = Σ_i (γ_i n_i + α_i τ_i) ψ_i with the dual basis ψ_i, component-wise in the nodal frame:
-  (Σγ_iψ_i − λ·n)² + (Σα_iψ_i − λ·τ)².
+  λ_h = Σ_k (γ_k n_k + α_k τ_k) ψ̃_k with the multiplier basis ψ̃_k (the dual basis, modified at
+  crosspoints by the end treatment), component-wise in the nodal frame:
+  (Σγ_kψ̃_k − λ·n)² + (Σα_kψ̃_k − λ·τ)².
 
 Against an exact solution the integrals use 4th-order cell quadrature (`fem.assembly`) and 4-point
 Gauss on segments. Against a finer reference level the coarse discrete solution is evaluated
