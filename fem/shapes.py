@@ -42,7 +42,9 @@ def half_disc(
     Layout: an inner trapezoid under the flat top, surrounded by three ring blocks whose arc
     sides are exactly "free_left" (angles π … θl), "contact" (θl … θr) and "free_right"
     (θr … 2π), θl,r = 3π/2 ∓ angle/2; block corners on the arc are joined to the inner block by
-    radial spokes, so no cell has an angle near 180°. Parts: "top" (flat side y = center_y,
+    radial spokes, so no cell has an angle near 180° for moderate openings (≤ 150° up to about
+    2 rad; as the opening approaches π the free arcs vanish and the cells beside them flatten:
+    170° at 2.8 rad, still convex). Parts: "top" (flat side y = center_y,
     traversed from right to left), "free_left", "contact" (n_contact·2^level segments),
     "free_right". Element sizes are chosen close to the contact arc's r·angle/n.
     """
