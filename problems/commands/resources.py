@@ -35,13 +35,12 @@ from vi_core.linalg import resolve_backend
 
 from .options import MAX_LEVEL
 
-# peak RSS [bytes] ≈ BASE_BYTES + a · nnz(A)^b; see the module docstring
-BASE_BYTES = 130e6  # interpreter, NumPy/SciPy/cvxpy/matplotlib loaded: measured at N < 2000
-MEMORY_MODEL = {  # linear solver → (a, b), fitted to the peaks with peak > 1.5 BASE_BYTES
-    "splu": (65.0, 1.138),
-    "pardiso": (65.0, 1.138),
+# peak RSS [bytes] ≈ base + a · x^b per linear solver, x = nnz(A) or the unknowns n + m
+# (whichever predicts that solver's measured peaks better; see the module docstring)
+MEMORY_MODEL = {  # linear solver → (predictor, base [bytes], a, b)
+    "splu": ("nnz", 115e6, 158.5, 1.0811),
+    "pardiso": ("unknowns", 175e6, 1.0e4, 0.95),
 }
-
 
 @dataclass(frozen=True)
 class Estimate:
@@ -54,10 +53,12 @@ class Estimate:
     peak_bytes: float
 
 
-def peak_bytes(nnz: float, solver: str) -> float:
-    """The modelled peak resident memory of a solve whose matrix A has `nnz` entries."""
-    a, b = MEMORY_MODEL[solver]
-    return BASE_BYTES + a * float(nnz) ** b
+def peak_bytes(unknowns: float, nnz: float, solver: str) -> float:
+    """The modelled peak resident memory of a solve with `unknowns` unknowns whose matrix A
+    has `nnz` entries, with the linear solver `solver`."""
+    predictor, base, a, b = MEMORY_MODEL[solver]
+    x = float(nnz if predictor == "nnz" else unknowns)
+    return base + a * x**b
 
 
 def gb(x: float) -> str:
@@ -131,7 +132,7 @@ class Sizes:
         """Unknowns and peak memory of `level` with the linear solver `auto` would choose."""
         N, nnz, n = self._at(level)
         solver = resolve_backend("auto", n)
-        return Estimate(self.scene.name, level, N, solver, peak_bytes(nnz, solver))
+        return Estimate(self.scene.name, level, N, solver, peak_bytes(N, nnz, solver))
 
     def cap(self, total: float) -> int:
         """The largest level (≤ MAX_LEVEL) whose estimate fits in `total` bytes (0 at least)."""

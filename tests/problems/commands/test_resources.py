@@ -56,12 +56,14 @@ def test_mutation_ignoring_the_dimension_is_caught():
         assert sizes.unknowns(6) == (4 * 2**6 + 1) ** 3
 
 
-def test_estimate_grows_faster_than_the_unknowns():
+def test_superlu_estimate_grows_faster_than_the_unknowns():
     scene = load_scene("paper_two_body")
     sizes = Sizes(registry.for_scene(scene), scene)
-    e4, e5 = sizes.estimate(4), sizes.estimate(5)
-    extra = (e5.peak_bytes - resources.BASE_BYTES) / (e4.peak_bytes - resources.BASE_BYTES)
-    assert extra > e5.unknowns / e4.unknowns > 3.9
+    base = resources.MEMORY_MODEL["splu"][1]
+    n4, n5 = sizes.unknowns(4), sizes.unknowns(5)
+    p4 = resources.peak_bytes(n4, sizes.nonzeros(4), "splu") - base
+    p5 = resources.peak_bytes(n5, sizes.nonzeros(5), "splu") - base
+    assert p5 / p4 > n5 / n4 > 3.9
 
 
 def test_caps_and_refusals_name_the_option_and_print_the_estimate(monkeypatch):
