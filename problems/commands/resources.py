@@ -7,15 +7,17 @@ fitted exactly through the levels 0 … d, which are cheap to build; in 2D a lev
 the unknowns by about 4, in 3D by 8.
 
 Peak memory. The peak resident memory of a solve grows faster than the unknowns because the
-direct factorisation fills in: peak ≈ BASE + a · nnz^b per linear solver (MEMORY_MODEL), with
-nnz the stored entries of A (the matrix Newton factorises after condensing λ; like the
-unknowns, a polynomial of degree d in 2^level). nnz, not the unknowns N, is the predictor:
-fitted on N the measured peaks of the shipped scenes scatter by a factor 7 (a scalar obstacle
-problem with one multiplier per node needs 1.8 kB per unknown, the piezoelectric two-body
-scene 15 kB), fitted on nnz they lie within 0.87 … 1.53 of the model. The constants were
-measured on the shipped scenes (peak RSS of `mixvi solve SCENE --level L` in a fresh process);
-`mixvi bench` prints the measured peak beside the estimate. Re-measure them here when the
-memory per unknown changes.
+direct factorisation fills in: peak ≈ base + a · x^b per linear solver (MEMORY_MODEL), where
+x is whichever quantity predicts that solver's measured peaks better. SuperLU: x = nnz(A), the
+stored entries of the matrix Newton factorises (like the unknowns, a polynomial of degree d in
+2^level); fitted on the unknowns instead, the SuperLU peaks of the shipped scenes scatter by a
+factor 7 (a scalar obstacle problem with one multiplier per node needs 2 kB per unknown, the
+piezoelectric two-body scene 15 kB), fitted on nnz(A) they lie within ×0.86 … ×1.49 of the
+model. PARDISO: x = the unknowns n + m (within ×0.54 … ×1.73; on nnz(A) ×0.31 … ×2.34).
+The constants were measured on the shipped scenes, levels 0 … 7 up to 530k unknowns (peak
+RSS of `mixvi solve SCENE --level L` in a fresh process, `/usr/bin/time -f %M`), fitted to
+the peaks above 1.5 × base; `mixvi bench` prints its measured peak beside the estimate.
+Re-measure them here when the memory per unknown changes.
 
 Caps. A level whose estimate exceeds the machine's memory (physical or cgroup or RLIMIT_AS) is
 above the scene's cap; a level whose estimate exceeds the memory available now is refused. Both
@@ -39,7 +41,7 @@ from .options import MAX_LEVEL
 # (whichever predicts that solver's measured peaks better; see the module docstring)
 MEMORY_MODEL = {  # linear solver → (predictor, base [bytes], a, b)
     "splu": ("nnz", 115e6, 158.5, 1.0811),
-    "pardiso": ("unknowns", 175e6, 1.0e4, 0.95),
+    "pardiso": ("unknowns", 175e6, 5851.0, 1.0481),
 }
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ otherwise against the finest level solved by the same solver at the tightest tol
 level's own records then carry only the solver error of looser tolerances, and rates are fitted
 over the levels below it).
 
-Output (written atomically into DIR, default out/SCENE_study): `study.json`
+Output (committed into DIR, default out/SCENE_study, by problems.output.files): `study.json`
 
     {"scene", "reference": "exact" | "level N",
      "records": [{"level", "h", "unknowns", "solver", "tol", "time_s", "iterations",

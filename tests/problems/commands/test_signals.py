@@ -6,6 +6,9 @@ The slow tier measures the reaction time on the paper scene at level 5 during th
 factorisations (printed; no timed assert):
 
     .venv/bin/pytest -m slow -s tests/problems/commands/test_signals.py
+
+and, for the worst case, the time from a SIGINT sent 10 s into one SuperLU factorisation of
+the level-5 matrix to the exit (Python runs the handler only when the factorisation returns).
 """
 
 from __future__ import annotations
@@ -123,3 +126,39 @@ def test_reaction_time_on_the_paper_scene_at_level_5(tmp_path, delay):
     print(f"\nSIGINT {delay:.0f} s into the level-5 solve: exit after {dt:.2f} s")
     assert proc.returncode == 130 and "Traceback" not in err
     assert not out.exists()
+
+
+FACTORISE = """
+import sys
+from problems.output import signals
+from problems.plugins import registry
+from problems.scene import load_scene
+from vi_core.linalg import Factorization
+signals.install()
+scene = load_scene("paper_two_body")
+A = registry.for_scene(scene).build(scene, 5).vi.A
+print("factorising", flush=True)
+try:
+    Factorization(A, "splu")
+    print("factorised", flush=True)
+except signals.Interrupted as sig:
+    sys.exit(sig.exit_status)
+"""
+
+
+@pytest.mark.slow
+def test_reaction_time_during_one_level_5_factorisation():
+    """SIGINT 10 s into a SuperLU factorisation of the level-5 matrix (385,664 unknowns):
+    prints the time from the signal to the exit (≈ the rest of the factorisation)."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", FACTORISE], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+    assert proc.stdout.readline().strip() == "factorising"
+    time.sleep(10.0)
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=900)
+    dt = time.monotonic() - t0
+    print(f"\nSIGINT 10 s into one level-5 SuperLU factorisation: exit after {dt:.1f} s")
+    assert proc.returncode == 130 and "factorised" not in out and "Traceback" not in err
