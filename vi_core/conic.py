@@ -53,7 +53,9 @@ _INACCURATE = ("optimal_inaccurate",)
 
 
 def _normalisation(e: MixedVI) -> float:
-    """t = max(‖f‖_∞, ‖gap‖_∞, largest finite |bound| of Λ) of the equilibrated VI (1 if 0)."""
+    """t = max(‖f‖_∞, ‖gap‖_∞, largest finite |bound| of Λ) of the equilibrated VI (1 if all
+    vanish). Not rounded to a power of two: data × s then give the same normalised data up to
+    rounding for any s, hence the same Clarabel iterations."""
     sizes = [float(np.max(np.abs(e.f), initial=0.0)), float(np.max(np.abs(e.gap), initial=0.0))]
     for block in e.Lambda.blocks():
         if isinstance(block, Box):
