@@ -1,15 +1,17 @@
 """Physical checks of a piezo_contact solution computed by code independent of the contact
 assembly: the global force balance of every body and Lemma 4.2.
 
-Neither check reads the assembled constraint rows B, the trace weights D = ∫φ_i, the mortar
-matrices or the friction weights of the build. From the solution (u, φ, λ), the meshes, the
+Neither check reads the trace weights D = ∫φ_i, the mortar matrices or the friction weights of
+the build, nor the constraint rows B on the unknowns. From the solution (u, φ, λ), the meshes, the
 bodies' assembled stiffness A_b and loads f_b, and the scene's friction bound g they compute:
 
 - the contact force on the slave body −∫_Γ3 λ_h ds (on the master +∫_Γ3 λ_h ds) by 6-point Gauss
   quadrature of λ_h = Σ_i (γ_i n_i + α_i τ_i) ψ_i on the slave segments, with the dual functions
   ψ_1 = 2 − 3t, ψ_2 = 3t − 1 and nodal frames n_i, τ_i recomputed from the node coordinates;
-- per body the external load Σ f_b, the support reaction Σ (A_b x_b − f_b) over its Dirichlet
-  dofs, and `imbalance` = |external + contact + support| / max of their sizes, per component
+- per body the external load Σ f_b, the support reaction Σ (A_b x_b − f_b + Bᵀλ) over its
+  Dirichlet dofs (the assembled rows enter only there: where Γ3 meets a Dirichlet boundary the
+  support also takes the contact force of the clamped nodes), and
+  `imbalance` = |external + contact + support| / max of their sizes, per component
   (zero up to rounding: the rigid translations lie in the kernel of the elastic and coupling
   blocks, so the sum of the nodal equations is the balance of the forces on the body);
 - for a rigid foundation, Lemma 4.2: b(u_h, λ_h) = ∫_Γ3 λ_h·u_h ds by quadrature against
@@ -66,14 +68,16 @@ def force_balance(model: Any, sol: Any) -> dict:
     imbalance; `imbalance` is the largest over bodies (module docstring)."""
     x_full = model.full(sol.u)
     contact = np.zeros(2)
+    on_fixed = np.zeros(x_full.size)  # contact forces acting on Dirichlet dofs: part of support
     if model.contact is not None:
+        on_fixed = model.contact.B_full.T @ sol.lam  # (n_full,), read at fixed dofs only
         _, lam_q, w_q, *_ = _multiplier_at_gauss(model, sol.lam)
         contact = np.einsum("eq,eqi->i", w_q, lam_q)  # ∫ λ_h ds, (2,)
     out: dict = {"bodies": {}}
     worst = 0.0
     for b in model.bodies:
         xb = x_full[b.offset : b.offset + b.size]
-        r = b.A @ xb - b.f  # (n_b,)
+        r = b.A @ xb - b.f + on_fixed[b.offset : b.offset + b.size]  # (n_b,)
         N2 = 2 * b.n_nodes
         fixed_u = np.flatnonzero(b.fixed[:N2])
         support = np.array([r[fixed_u[fixed_u % 2 == c]].sum() for c in range(2)])

@@ -98,6 +98,10 @@ def mortar_patch_test_holds() -> bool:
     return True
 
 
+def curved_rates_hold() -> bool:
+    return not checks.rates_off(checks.curved_rates(), checks.CURVED_RATES)
+
+
 def balance_holds(name: str, level: int) -> bool:
     return checks.force_imbalance(name, level) <= checks.BALANCE_OK
 
@@ -110,6 +114,7 @@ FAULT_TABLE = [  # (fault, check name, check) — one row of the README table ea
     (coupling_sign, "manufactured rates", manufactured_rates_hold),
     (coupling_transpose, "manufactured rates", manufactured_rates_hold),
     (mortar_dropped_entry, "mortar patch test", mortar_patch_test_holds),
+    (mortar_dropped_entry, "curved two-body exact rates", curved_rates_hold),
     (
         mortar_dropped_entry,
         "force balance (two bodies)",
