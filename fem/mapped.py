@@ -26,12 +26,13 @@ SIDES = ("bottom", "right", "top", "left")
 
 
 def segment(p: Sequence[float], q: Sequence[float]) -> Curve:
-    """The straight segment from p to q, uniformly parametrised."""
+    """The straight segment from p to q, uniformly parametrised; exactly p at t = 0 and q at t = 1
+    (bit for bit, so blocks glued at a corner share the same coordinates)."""
     p_, q_ = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
 
     def curve(t: np.ndarray) -> np.ndarray:
-        t = np.asarray(t, dtype=float)
-        return p_ + t[:, None] * (q_ - p_)  # (n, 2)
+        t = np.asarray(t, dtype=float)[:, None]
+        return (1.0 - t) * p_ + t * q_  # (n, 2)
 
     return curve
 

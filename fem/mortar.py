@@ -1,20 +1,31 @@
-"""Dual mortar coupling of two non-matching boundary traces in 2D (segment-to-segment).
+"""Dual mortar coupling of two non-matching boundary traces in 2D (segment-based).
 
-The multiplier space lives on the SLAVE part: λ_h = Σ_i λ_i ψ_i with the dual basis ψ_i of
-`fem.boundary.dual_basis_on_segment`, so the slave block is (block) diagonal. For displacements
-u_s (slave trace nodes) and u_m (master trace nodes) the weak coupling ∫_Γ λ (u_s − u_m ∘ π) is
+The multiplier space lives on the SLAVE part, in the segment-local dual functions ψ_{e,a} of
+`fem.boundary` (a multiplier basis is Q·ψ, `fem.boundary.multiplier_basis`). The master block is
 
-    B u = Ds u_s − M[active] u_m,    Ds[i, j] = ∫_Γ ψ̃_i φ_j^s,   M[i, j] = ∫_Γ ψ̃_i (φ_j^m ∘ π),
+    M[2e + a, j] = ∫_e ψ_{e,a} (φ_j^m ∘ π) ds,
 
-integrated over the slave polyline Γ; π maps a slave point x(t) to the master polyline along the
-interpolated slave normal n(t) = (1 − t) n_a + t n_b (Puso/Popp). Master nodes are projected onto
-each slave segment the same way (a quadratic in t), which cuts every slave segment into pieces
-covered by one master segment each; each piece gets Gauss–Legendre quadrature.
+integrated over each slave segment e, where π maps a slave point x(t) = x_a + t (x_b − x_a) to
+the master polyline along the INTERPOLATED slave normal n(t) = (1 − t) n_a + t n_b (Puso, Popp):
+π(x(t)) = y_f(η) = y_f0 + η (y_f1 − y_f0) on the master segment f that the line x(t) + α n(t)
+meets, i.e. η(t) = cross(x(t) − y_f0, n(t)) / cross(y_f1 − y_f0, n(t)) ∈ [0, 1].
 
-ends="keep": ψ̃_i = ψ_i for all slave nodes, Ds = diag(D), D = trace weights ∫φ_i.
-ends="merge" (Wohlmuth; as in 4C/MOOSE): the two end nodes of the slave part carry no
-multiplier; on each end segment the end node's dual function is added to its neighbour's,
-ψ̃_nb = ψ_nb + ψ_end = 1 there. Then Ds is no longer diagonal: Ds[nb, end] = ∫_end-seg φ_end.
+Segments (no global root choice): each slave segment e is paired with the master segments f it
+can see — within `reach` of it (a k-d tree search on segment midpoints) and facing it (normals
+opposed). For one pair the set {t ∈ [0, 1] : 0 ≤ η(t) ≤ 1} is exact: its boundary points are
+roots of the two quadratics cross(x(t) − y, n(t)) = 0 (y a master node: the projection of that
+node onto e) and of the linear denominator; on each piece between consecutive roots the sign
+pattern is constant, so one midpoint test decides. Where several master segments are hit (a
+wide or folded interface: the normal line meets the master polyline more than once), each
+elementary interval keeps the NEAREST hit (smallest |x(t) − π(x(t))|), so every slave point is
+mapped at most once: the coverage of a segment is ≤ 1 by construction, and = 1 up to rounding
+where the master is behind the whole segment. Neighbouring master segments share the root of
+their common node bit for bit, so the pieces tile the covered part without gap or overlap.
+Each piece gets Gauss–Legendre quadrature (exact on straight interfaces, where the integrand
+is quadratic; π is rational in t on curved ones).
+
+Rigid-body patch test: for every multiplier row k, Σ_j D_kj = Σ_j M_kj when the support of ψ̃_k
+is covered (Σ_j φ_j^m = 1); `patch_defect` measures max_k |Σ_j D_kj − Σ_j M_kj| / Σ_j D_kj.
 """
 
 from __future__ import annotations
@@ -23,80 +34,131 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
-from .boundary import dual_basis_on_segment, trace
+from .boundary import Trace, dual_basis_on_segment, trace
 from .mesh import Mesh
 
 
 @dataclass(frozen=True, eq=False)
 class Mortar:
-    """The dual mortar coupling of a slave and a master boundary part.
+    """The segment-local dual mortar coupling of a slave and a master boundary part.
 
-    slave_nodes : (ns,) global slave node ids, ordered along the slave part.
+    slave : the slave trace (multiplier side); slave.nodes are global slave node ids.
     master_nodes : (nm,) global master node ids, ordered along the master part.
-    D : (ns,) diagonal entries ∫ψ̃_i φ_i^s (= trace weights ∫φ_i for active nodes, 0 for
-        inactive ones).
-    M : (ns, nm) csr, M[i, j] = ∫ψ̃_i φ_j^m ∘ π (zero rows for inactive nodes).
-    Ds : (n_active, ns) csr, the slave block of the constraint, Ds[k, j] = ∫ψ̃_{a_k} φ_j^s with
-        a = flatnonzero(active); diag(D[active]) for ends="keep".
-    normals, tangents : (ns, 2) slave nodal unit normals (outward from the slave body) and
-        tangents τ = (−n_y, n_x).
-    active : (ns,) bool, slave nodes that carry a multiplier.
-    coverage : (ns − 1,) or (ns,) fraction of each slave segment covered by projected master
-        segments (1 where fully covered; < 1 means part of the slave is left uncoupled).
+    M : (2·n_seg, nm) csr, M[2e + a, j] = ∫_e ψ_{e,a} (φ_j^m ∘ π) (module docstring).
+    coverage : (n_seg,) fraction of each slave segment mapped onto the master (0 … 1).
     """
 
-    slave_nodes: np.ndarray
+    slave: Trace
     master_nodes: np.ndarray
-    D: np.ndarray
     M: sp.csr_matrix
-    Ds: sp.csr_matrix
-    normals: np.ndarray
-    tangents: np.ndarray
-    active: np.ndarray
     coverage: np.ndarray
 
     @property
-    def M_active(self) -> sp.csr_matrix:
-        """(n_active, nm) the master block of the constraint, rows of M for active nodes."""
-        return self.M[np.flatnonzero(self.active)]
+    def slave_nodes(self) -> np.ndarray:
+        """(ns,) global slave node ids, ordered along the slave part."""
+        return self.slave.nodes
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
 
 
-def _project_nodes(
-    xa: np.ndarray, xb: np.ndarray, na: np.ndarray, nb: np.ndarray, y: np.ndarray
-) -> np.ndarray:
-    """Parameters t with y − x(t) ∥ n(t) on each slave segment: (n_seg, n_points).
+def _roots_in_unit(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Real roots in (0, 1) of a t² + b t + c, NaN elsewhere: (n, 2).
 
-    x(t) = xa + t (xb − xa), n(t) = na + t (nb − na); cross(x(t) − y, n(t)) = 0 is a quadratic
-    a t² + b t + c; the root nearest to the segment (t = 1/2) is returned, NaN if none is real.
+    Stable form: q = −(b + sign(b)√(b² − 4ac))/2, roots q/a and c/q; a = 0 gives the linear
+    root −c/b (q/a is ±inf then and dropped).
     """
-    d0 = xa[:, None, :] - y[None, :, :]  # (n_seg, n_pts, 2)
-    d1 = (xb - xa)[:, None, :]  # (n_seg, 1, 2)
-    n0, n1 = na[:, None, :], (nb - na)[:, None, :]  # (n_seg, 1, 2)
-    a = _cross(d1, n1)  # (n_seg, 1)
-    b = _cross(d0, n1) + _cross(d1, n0)  # (n_seg, n_pts)
-    c = _cross(d0, n0)  # (n_seg, n_pts)
-    disc = b * b - 4 * a * c
+    disc = b * b - 4.0 * a * c
     with np.errstate(divide="ignore", invalid="ignore"):
-        q = -0.5 * (b + np.where(b >= 0, 1.0, -1.0) * np.sqrt(disc))  # stable roots q/a, c/q
-        r1, r2 = q / a, c / q  # (n_seg, n_pts) each; a = 0 gives r1 = ±inf, r2 = −c/b
-    r1, r2 = np.where(np.isfinite(r1), r1, np.inf), np.where(np.isfinite(r2), r2, np.inf)
-    t = np.where(abs(r1 - 0.5) < abs(r2 - 0.5), r1, r2)
-    return np.where(np.isfinite(t) & (disc >= 0), t, np.nan)
+        q = -0.5 * (b + np.where(b >= 0, 1.0, -1.0) * np.sqrt(np.where(disc >= 0, disc, np.nan)))
+        r = np.stack([q / a, c / q], axis=-1)  # (n, 2)
+    return np.where(np.isfinite(r) & (r > 0.0) & (r < 1.0), r, np.nan)
 
 
-def _merge_ends(ns: int) -> sp.csr_matrix:
-    """(ns, ns) R with R[nb, end] = 1 and zero rows for the two ends of an open chain."""
-    R = sp.lil_matrix((ns, ns))
-    R.setdiag(1.0)
-    for end, nb in ((0, 1), (ns - 1, ns - 2)):
-        R[end, end] = 0.0
-        R[nb, end] = 1.0
-    return sp.csr_matrix(R)
+def _candidates(
+    xs: np.ndarray, ts: Trace, xm: np.ndarray, tm: Trace, reach: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Slave/master segment pairs (e, f) within reach of each other and facing each other."""
+    ms = 0.5 * (xs[ts.segments[:, 0]] + xs[ts.segments[:, 1]])  # (n_es, 2) midpoints
+    mm = 0.5 * (xm[tm.segments[:, 0]] + xm[tm.segments[:, 1]])  # (n_em, 2)
+    radius = 0.5 * ts.lengths + 0.5 * tm.lengths.max() + reach * ts.lengths  # (n_es,)
+    hits = cKDTree(mm).query_ball_point(ms, radius)  # (n_es,) lists of f
+    e = np.repeat(np.arange(len(hits)), [len(h) for h in hits]).astype(int)
+    f = np.concatenate([np.asarray(h, dtype=int) for h in hits]) if len(e) else e
+    ns = ts.normals[ts.segments[e, 0]] + ts.normals[ts.segments[e, 1]]  # (n_pair, 2)
+    dm = xm[tm.segments[f, 1]] - xm[tm.segments[f, 0]]  # (n_pair, 2)
+    facing = _cross(dm, ns) > 0  # master outward normal (dm_y, −dm_x) opposes n_s
+    return e[facing], f[facing]
+
+
+def _pair_geometry(xs, ts, xm, tm, e, f):
+    """Slave end points/normals and master end points of pairs: six (n, 2) arrays."""
+    a, b = ts.segments[e, 0], ts.segments[e, 1]
+    return xs[a], xs[b], ts.normals[a], ts.normals[b], xm[tm.segments[f, 0]], xm[tm.segments[f, 1]]
+
+
+def _hit(t, xa, xb, na, nb, ya, yb) -> tuple[np.ndarray, np.ndarray]:
+    """η(t) on the master segment and the distance |x(t) − y(η)| along the normal line."""
+    x = xa + t[:, None] * (xb - xa)  # (n, 2)
+    n = na + t[:, None] * (nb - na)  # (n, 2)
+    dm = yb - ya
+    with np.errstate(divide="ignore", invalid="ignore"):
+        eta = _cross(x - ya, n) / _cross(dm, n)  # (n,)
+    dist = np.linalg.norm(ya + eta[:, None] * dm - x, axis=1)
+    return eta, dist
+
+
+def _overlaps(xa, xb, na, nb, ya, yb) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pieces [lo, hi] ⊂ [0, 1] of each pair where 0 ≤ η(t) ≤ 1: (pair index, lo, hi)."""
+    d1, n1 = xb - xa, nb - na  # (n, 2)
+    roots = [np.zeros((len(xa), 1)), np.ones((len(xa), 1))]
+    for y in (ya, yb):  # cross(x(t) − y, n(t)) = 0: master node y projects to x(t)
+        d0 = xa - y
+        roots.append(
+            _roots_in_unit(_cross(d1, n1), _cross(d0, n1) + _cross(d1, na), _cross(d0, na))
+        )
+    dm = yb - ya
+    roots.append(_roots_in_unit(np.zeros(len(xa)), _cross(dm, n1), _cross(dm, na))[:, :1])
+    T = np.sort(np.concatenate(roots, axis=1), axis=1)  # (n, 7), NaN last
+    T = np.where(np.isnan(T), 1.0, T)
+    lo, hi = T[:, :-1], T[:, 1:]  # (n, 6) sub-intervals
+    p = np.repeat(np.arange(len(xa)), lo.shape[1])
+    lo, hi = lo.ravel(), hi.ravel()
+    keep = hi > lo
+    p, lo, hi = p[keep], lo[keep], hi[keep]
+    eta, _ = _hit(0.5 * (lo + hi), xa[p], xb[p], na[p], nb[p], ya[p], yb[p])
+    inside = (eta >= 0.0) & (eta <= 1.0)
+    return p[inside], lo[inside], hi[inside]
+
+
+def _nearest(e, f, lo, hi, geometry) -> tuple[np.ndarray, ...]:
+    """Split the pieces of each slave segment at every piece end; keep, on each elementary
+    interval, the piece whose master point is nearest. Returns (e, f, lo, hi) of the result."""
+    if e.size == 0:
+        return e, f, lo, hi
+    # elementary intervals: consecutive distinct break points per slave segment
+    be, bt = np.concatenate([e, e]), np.concatenate([lo, hi])
+    order = np.lexsort((bt, be))
+    be, bt = be[order], bt[order]
+    nxt = np.flatnonzero((be[1:] == be[:-1]) & (bt[1:] > bt[:-1]))
+    ee, elo, ehi = be[nxt], bt[nxt], bt[nxt + 1]  # (n_el,)
+    # join each elementary interval with the pieces of its slave segment (ragged expansion)
+    porder = np.argsort(e, kind="stable")
+    start = np.searchsorted(e[porder], ee, side="left")
+    count = np.searchsorted(e[porder], ee, side="right") - start
+    j = np.repeat(np.arange(ee.size), count)  # (n_join,) elementary interval
+    k = porder[np.repeat(start - count.cumsum() + count, count) + np.arange(count.sum())]
+    mid = 0.5 * (elo[j] + ehi[j])
+    inside = (lo[k] <= mid) & (mid <= hi[k])
+    j, k, mid = j[inside], k[inside], mid[inside]
+    _, dist = _hit(mid, *(g[k] for g in geometry))
+    best = np.lexsort((dist, j))  # by interval, nearest first
+    first = best[np.r_[True, j[best][1:] != j[best][:-1]]]
+    j, k = j[first], k[first]
+    return ee[j], f[k], elo[j], ehi[j]
 
 
 def mortar_coupling(
@@ -104,68 +166,45 @@ def mortar_coupling(
     slave_part: str,
     master: Mesh,
     master_part: str,
-    ends: str = "keep",
     quad_order: int = 5,
+    reach: float = 1.0,
 ) -> Mortar:
-    """The dual mortar matrices of `slave_part` (multiplier side) against `master_part`.
+    """The segment-local dual mortar matrices of `slave_part` against `master_part`.
 
-    quad_order is the number of Gauss–Legendre points per slave/master piece (exact for a
-    straight interface, where the integrand is quadratic; on curved interfaces π is rational in
-    t). ends: "keep" or "merge" (see module docstring). The two parts must face each other
-    (master segments whose normal does not oppose the slave segment's are ignored); the cost is
-    O(n_slave_segments · n_master_nodes).
+    quad_order : Gauss–Legendre points per piece (exact for a straight interface).
+    reach : a master segment is seen by a slave segment e if their midpoints are at most
+        |e|/2 + (longest master segment)/2 + reach·|e| apart (and they face each other);
+        the default admits interfaces that coincide up to about one slave segment length.
+    Cost: O(n_pairs) with n_pairs ≈ (segments) × (master segments per slave segment).
     """
-    if ends not in ("keep", "merge"):
-        raise ValueError(f"ends must be 'keep' or 'merge', got {ends!r}")
     ts, tm = trace(slave, slave_part), trace(master, master_part)
     xs, xm = slave.points[ts.nodes], master.points[tm.nodes]  # (ns, 2), (nm, 2)
-    ns, nm = ts.size, tm.size
-    ea, eb = ts.segments[:, 0], ts.segments[:, 1]  # (n_es,)
-    fa, fb = tm.segments[:, 0], tm.segments[:, 1]  # (n_em,)
-    xa, xb, na, nb = xs[ea], xs[eb], ts.normals[ea], ts.normals[eb]  # (n_es, 2) each
-
-    T = _project_nodes(xa, xb, na, nb, xm)  # (n_es, nm)
-    lo = np.clip(np.minimum(T[:, fa], T[:, fb]), 0.0, 1.0)  # (n_es, n_em)
-    hi = np.clip(np.maximum(T[:, fa], T[:, fb]), 0.0, 1.0)
-    dm = xm[fb] - xm[fa]  # (n_em, 2)
-    facing = (xb - xa) @ dm.T < 0  # opposite traversal ⇔ opposite outward normals
-    e, f = np.nonzero(facing & (hi - lo > 1e-14))  # (n_pair,) each
-    lo, hi = lo[e, f], hi[e, f]  # (n_pair,)
+    nm, n_es = tm.size, ts.segments.shape[0]
+    e, f = _candidates(xs, ts, xm, tm, reach)  # (n_pair,) each
+    p, lo, hi = _overlaps(*_pair_geometry(xs, ts, xm, tm, e, f))
+    e, f = e[p], f[p]
+    e, f, lo, hi = _nearest(e, f, lo, hi, _pair_geometry(xs, ts, xm, tm, e, f))
+    geo = _pair_geometry(xs, ts, xm, tm, e, f)  # six (n_piece, 2)
 
     g, w = np.polynomial.legendre.leggauss(quad_order)
     g, w = 0.5 * (g + 1.0), 0.5 * w  # (n_qp,) on [0, 1]
-    t = lo[:, None] + (hi - lo)[:, None] * g[None, :]  # (n_pair, n_qp)
-    psi = dual_basis_on_segment(t)  # (n_pair, n_qp, 2)
-    x = xa[e, None] + t[..., None] * (xb - xa)[e, None]  # (n_pair, n_qp, 2)
-    n = na[e, None] + t[..., None] * (nb - na)[e, None]  # (n_pair, n_qp, 2)
-    eta = _cross(x - xm[fa][f, None], n) / _cross(dm[f, None], n)  # (n_pair, n_qp)
-    phi = np.stack([1.0 - eta, eta], axis=-1)  # (n_pair, n_qp, 2)
-    jw = (ts.lengths[e] * (hi - lo))[:, None] * w[None, :]  # (n_pair, n_qp)
-    loc = np.einsum("pq,pqa,pqb->pab", jw, psi, phi)  # (n_pair, 2, 2)
-    rows = ts.segments[e][:, :, None].repeat(2, axis=2)  # (n_pair, 2, 2)
-    cols = tm.segments[f][:, None, :].repeat(2, axis=1)  # (n_pair, 2, 2)
-    M = sp.csr_matrix((loc.ravel(), (rows.ravel(), cols.ravel())), shape=(ns, nm))
-    coverage = np.bincount(e, weights=hi - lo, minlength=ts.segments.shape[0])
+    t = lo[:, None] + (hi - lo)[:, None] * g[None, :]  # (n_piece, n_qp)
+    eta, _ = _hit(t.ravel(), *(np.repeat(v, quad_order, axis=0) for v in geo))
+    eta = eta.reshape(t.shape)  # (n_piece, n_qp)
+    psi = dual_basis_on_segment(t)  # (n_piece, n_qp, 2)
+    phi = np.stack([1.0 - eta, eta], axis=-1)  # (n_piece, n_qp, 2)
+    jw = (ts.lengths[e] * (hi - lo))[:, None] * w[None, :]  # (n_piece, n_qp)
+    loc = np.einsum("pq,pqa,pqb->pab", jw, psi, phi)  # (n_piece, 2, 2)
+    rows = (2 * e[:, None] + np.arange(2)[None, :])[:, :, None].repeat(2, axis=2)  # (n_piece, 2, 2)
+    cols = tm.segments[f][:, None, :].repeat(2, axis=1)  # (n_piece, 2, 2)
+    M = sp.csr_matrix((loc.ravel(), (rows.ravel(), cols.ravel())), shape=(2 * n_es, nm))
+    coverage = np.bincount(e, weights=hi - lo, minlength=n_es)
+    return Mortar(slave=ts, master_nodes=tm.nodes, M=M, coverage=coverage)
 
-    active = np.ones(ns, dtype=bool)
-    D = ts.weights.copy()
-    Dfull = sp.diags(D).tocsr()  # (ns, ns)
-    if ends == "merge":
-        if ts.segments.shape[0] != ns - 1 or ns < 3:
-            raise ValueError('ends="merge" needs an open slave chain with at least 3 nodes')
-        R = _merge_ends(ns)
-        M, Dfull = sp.csr_matrix(R @ M), sp.csr_matrix(R @ Dfull)
-        active[[0, -1]] = False
-        D[[0, -1]] = 0.0
-    Ds = sp.csr_matrix(Dfull[np.flatnonzero(active)])
-    return Mortar(
-        slave_nodes=ts.nodes,
-        master_nodes=tm.nodes,
-        D=D,
-        M=M,
-        Ds=Ds,
-        normals=ts.normals,
-        tangents=ts.tangents,
-        active=active,
-        coverage=coverage,
-    )
+
+def patch_defect(Ds: sp.spmatrix, M: sp.spmatrix) -> np.ndarray:
+    """Per multiplier row k: |Σ_j Ds_kj − Σ_j M_kj| / Σ_j Ds_kj (0 ⇔ rigid translations are
+    transferred exactly by row k)."""
+    d = np.asarray(Ds.sum(axis=1)).ravel()
+    m = np.asarray(M.sum(axis=1)).ravel()
+    return np.abs(d - m) / d

@@ -42,7 +42,9 @@ def half_disc(
     Layout: an inner trapezoid under the flat top, surrounded by three ring blocks whose arc
     sides are exactly "free_left" (angles π … θl), "contact" (θl … θr) and "free_right"
     (θr … 2π), θl,r = 3π/2 ∓ angle/2; block corners on the arc are joined to the inner block by
-    radial spokes, so no cell has an angle near 180°. Parts: "top" (flat side y = center_y,
+    radial spokes, so no cell has an angle near 180° for moderate openings (≤ 150° up to about
+    2 rad; as the opening approaches π the free arcs vanish and the cells beside them flatten:
+    170° at 2.8 rad, still convex). Parts: "top" (flat side y = center_y,
     traversed from right to left), "free_left", "contact" (n_contact·2^level segments),
     "free_right". Element sizes are chosen close to the contact arc's r·angle/n.
     """
@@ -58,7 +60,7 @@ def half_disc(
     n_r = max(1, round((r - rho) / h)) * k  # cells along the spokes
     pol = lambda rad, th: c + rad * np.array([np.cos(th), np.sin(th)])  # noqa: E731
     A, E = pol(r, np.pi), pol(r, 0.0)  # ends of the flat top (left, right)
-    Bl, Br = pol(r, th_l), pol(r, th_r)  # C_l, C_r: ends of the contact arc
+    Bl, Br = contact_ends(c, r, angle)  # C_l, C_r: bit-identical to the cradle's
     Ql, Qr = pol(rho, th_l), pol(rho, th_r)  # lower corners of the inner block
     Ul, Ur = c + [-rho, 0.0], c + [rho, 0.0]  # upper corners (on the flat top)
     blocks = [

@@ -12,7 +12,9 @@ active-set cycling.
 
 **Condensation.** When B has a block-diagonal "slave" part — columns S, each used by one
 small group of rows only, as with dual mortar multipliers — λ = D^{-T}(f_S − A_S u) with
-D = B[:, S], and the step is a linear system in u alone of size n.
+D = B[:, S], and the step is a linear system in u alone of size n. A row group with more private
+columns than rows (a master node coupled to a single slave node, e.g. next to a crosspoint)
+keeps the best-conditioned ones.
 
 **Fixed sparsity pattern.** The Newton matrix (condensed or not) is stored on the pattern it has
 when every entry of J and W (block diagonal, blocks of Λ) is structurally present, explicit
@@ -26,6 +28,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 
 from .linalg import Refactorizer, condition_estimate, resolve_backend
@@ -60,7 +63,7 @@ class Condensation:
         S = -np.ones(m, dtype=int)
         inv_r, inv_c, inv_v = [], [], []  # D^{-T}, block by block, in row numbering
         for rows, cols in groups.items():
-            if len(cols) != len(rows) or (S[list(rows)] >= 0).any():
+            if len(cols) < len(rows) or (S[list(rows)] >= 0).any():
                 continue
             block = np.zeros((len(rows), len(cols)))  # B[rows, cols], read from the CSC arrays
             pos = {r: i for i, r in enumerate(rows)}
@@ -68,6 +71,11 @@ class Condensation:
                 lo, hi = Bc.indptr[j], Bc.indptr[j + 1]
                 for r, v in zip(Bc.indices[lo:hi], Bc.data[lo:hi], strict=True):
                     block[pos[r], c] = v
+            if len(cols) > len(rows):
+                # more private columns than rows (e.g. a master node coupled to one slave node
+                # only, next to a crosspoint): keep the best-conditioned ones (pivoted QR)
+                pick = np.sort(sla.qr(block, pivoting=True, mode="r")[1][: len(rows)])
+                block, cols = block[:, pick], [cols[i] for i in pick]
             if np.linalg.cond(block) > 1e8:
                 continue
             S[list(rows)] = cols

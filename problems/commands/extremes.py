@@ -89,13 +89,14 @@ def homogeneity(factor: float, overrides: tuple[str, ...]) -> Callable:
 
 
 def locking(row: Row, model: pc.Model, sol: vi_core.Solution) -> dict:
-    """Extra check: resultant normal contact force ∑ λ_n,i D_i on this and two finer levels."""
+    """Extra check: resultant normal contact force ∑ λ_n,k W_k on this and two finer levels
+    (W_k = ∫φ̃_k, the weight of normal multiplier row k)."""
     forces = []
     for lev in (row.level, row.level + 1, row.level + 2):
         m = model if lev == row.level else pc.build(row.load(), lev)
         s = sol if lev == row.level else vi_core.solve(m.vi, "ssn")
-        N = m.contact.tr.size
-        forces.append(float(np.sum(s.lam[:N] * m.contact.tr.weights)))
+        n_n, _ = m.contact.sizes
+        forces.append(float(np.sum(s.lam[:n_n] * m.contact.W_n)))
     return {
         "normal_force_levels": forces,
         "locking_overestimate": forces[0] / forces[-1] - 1.0,

@@ -13,6 +13,7 @@ import vi_core
 from problems.errors import SceneError
 from problems.output.files import atomic_output, jsonable
 from problems.plugins import registry
+from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 from problems.scene import load_scene
 
 from .options import DEFAULT_SCENE
@@ -38,7 +39,8 @@ def _scaling_summary(model) -> dict:
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
-    """Solve one scene; exit status 0 converged, 1 not converged."""
+    """Solve one scene; exit status 0 converged, 1 not converged or (without --allow-defect) a
+    contact interface whose mortar patch defect exceeds PATCH_DEFECT_LIMIT."""
     t0 = time.perf_counter()
     if args.accuracy is not None:  # a preset fills in what was not given explicitly
         level, tol = ACCURACY[args.accuracy]
@@ -112,11 +114,16 @@ def cmd_solve(args: argparse.Namespace) -> int:
     if nested:
         its = ", ".join(f"L{r['level']}: {r['iterations']}" for r in nested)
         print(f"  nested iteration (Newton steps per level, each warm-started): {its}")
+    defect = c.get("mortar_patch_defect")
     if c:
-        print(f"  contact nodes {c['nodes']}: stick {c['stick']}, slip {c['slip']}")
+        extra = f"; mortar patch defect {defect:.1e}" if defect is not None else ""
+        print(f"  contact nodes {c['nodes']}: stick {c['stick']}, slip {c['slip']}{extra}")
     print(f"  time {summary['time_s']['total']:.2f} s; wrote {out}/")
     for w in summary["warnings"]:
         print(f"  warning: {w}")
+    if defect is not None and defect > PATCH_DEFECT_LIMIT and not args.allow_defect:
+        print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
+        return 1
     return 0 if sol.converged else 1
 
 

@@ -23,9 +23,11 @@ and optionally
 
 `mixvi solve` calls exactly: build → `vi_core.solve(model.vi, method=options.get("method",
 "ssn"), tol=options.get("tol", 1e-10))` → postprocess, and merges the returned dict into
-summary.json; the keys "contact" ({"nodes", "stick", "slip"}) and "lemma_4_2" (a float) are also
-printed. `build` raises `SceneError` for bad input (read the scene through `Scene.root()`, whose
-`Table` methods name the key and value, and call `Table.finish()` to refuse unknown keys).
+summary.json; the keys "contact" ({"nodes", "stick", "slip"}, optionally
+"mortar_patch_defect": above 1e-8 `mixvi solve` exits 1 unless --allow-defect) and "lemma_4_2"
+(a float) are also printed. `build` raises `SceneError` for bad input (read the scene through
+`Scene.root()`, whose `Table` methods name the key and value, and call `Table.finish()` to
+refuse unknown keys).
 
 The helpers below are shared by the built-in scalar plug-ins and are free to use in your own.
 """

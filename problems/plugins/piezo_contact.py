@@ -1,9 +1,23 @@
 """Plug-in: elasto-piezoelectric bodies in bilateral contact with Tresca friction (Problem 4.1).
 
-Dual (biorthogonal) multipliers on the slave side Γ3: λ_h = Σ γ_i ψ_i n_i + α_i ψ_i τ_i, and
-Λ_h = product(Free(N), Box(−g_i, g_i)) with g_i = ∫gφ_i / ∫φ_i (DESIGN.md §5). With a rigid
-foundation the constraint rows are D_i n_iᵀu_i (normal) and D_i τ_iᵀu_i (tangential); with a
-master body they act on the mortar jump D u_s − M u_m.
+Dual (biorthogonal) multipliers on the slave side Γ3: λ_h = Σ_k γ_k ψ̃_k n_k + Σ_k α_k ψ̃_k τ_k,
+and Λ_h = product(Free(N_n), Box(−g_k, g_k)) with g_k = ∫g φ̃_k / ∫φ̃_k (DESIGN.md §5; φ̃_k = φ_k
+unless an end treatment merged a neighbour in). With a rigid foundation the constraint rows are
+Σ_j Ds_kj n_kᵀu_j (normal) and the same with τ_k (tangential); with a master body they act on
+the mortar jump Ds u_s − M u_m (`fem.mortar`).
+
+Contact rules (README "Contact interfaces"):
+
+- crosspoints: a slave node whose displacement is fully prescribed carries no multiplier; at a
+  node where one component is prescribed and that direction is the contact tangent (normal),
+  only the tangential (normal) multiplier is dropped; any other partially prescribed node is
+  refused, per node. `[contact] ends` = "merge" (default, Wohlmuth's end-node modification of
+  the dual basis) or "keep" (`fem.boundary.multiplier_basis`).
+- coverage: a slave node carries a multiplier only if the master lies behind its whole support;
+  the others are left free and listed (warning, summary `contact.uncovered_nodes`); if no node
+  is covered the scene is refused.
+- patch test: `contact.mortar_patch_defect` = max_k |Σ_j Ds_kj − Σ_j M_kj| / Σ_j Ds_kj over the
+  multiplier rows (0 by construction for the rigid foundation, which has no master side).
 """
 
 from __future__ import annotations
@@ -15,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from fem import assembly
-from fem.boundary import Trace, trace
+from fem.boundary import ENDS, Trace, dual_mass, multiplier_basis, segment_loads, trace
 from fem.dirichlet import expand, reduce_dirichlet
 from fem.mesh import Mesh
 from problems.errors import SceneError
@@ -36,21 +50,49 @@ LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 
 # h < 0.8 r) and refuses bodies that overlap or stand apart by more.
 SEPARATION_TOL = 0.1
 DESCRIPTION = "elasto-piezoelectric bodies in bilateral Tresca contact (dual mortar multipliers)"
+# A prescribed displacement component at a contact node counts as along the contact normal or
+# tangent if the sine of the angle between them is at most ALIGN_TOL (a roller on a side
+# perpendicular to a flat contact: exactly 0).
+ALIGN_TOL = 1e-10
+# A slave segment counts as covered by the master if at most COVER_TOL of it is not (rounding
+# where both end nodes coincide): a row whose support is covered transfers rigid translations
+# to ~1e-16 (`fem.mortar`).
+COVER_TOL = 1e-12
+PATCH_DEFECT_LIMIT = 1e-8  # above it `mixvi solve` warns and exits 1 (unless --allow-defect)
 
 
 @dataclass
 class Contact:
-    """The contact interface Γ3: slave trace, master (None = rigid), friction bounds."""
+    """The contact interface Γ3: slave trace, master (None = rigid), multiplier rows, bounds.
+
+    Multipliers: λ = (γ, α), γ on the normal rows `rows_n`, α on the tangential rows `rows_t`
+    (trace indices of the nodes carrying them; all nodes unless crosspoints or uncovered nodes
+    dropped some), with bases Q_n, Q_t in the segment-local dual functions.
+    """
 
     slave: Body
     slave_part: str
-    tr: Trace  # slave trace (multiplier nodes = tr.nodes)
+    tr: Trace  # slave trace
     master: Body | None
     master_part: str | None
-    g: np.ndarray  # (N,) g_i = ∫gφ_i / ∫φ_i
-    B_full: sp.csr_matrix  # (2N, n_full): normal rows then tangential rows
-    g_weights: np.ndarray  # (N,) ∫ g φ_i  (= g_i D_i)
-    master_proj: sp.csr_matrix | None = None  # (2N, n_full): u ↦ (D⁻¹M u_m) at slave nodes
+    ends: str  # "merge" or "keep" (fem.boundary.multiplier_basis)
+    rows_n: np.ndarray  # (N_n,) trace indices carrying a normal multiplier
+    rows_t: np.ndarray  # (N_t,) trace indices carrying a tangential multiplier
+    Q_n: sp.csr_matrix  # (N_n, 2·n_seg) normal multiplier basis
+    Q_t: sp.csr_matrix  # (N_t, 2·n_seg) tangential multiplier basis
+    W_n: np.ndarray  # (N_n,) row weights Σ_j Ds_kj = ∫φ̃_k of the normal rows
+    W_t: np.ndarray  # (N_t,) the same for the tangential rows
+    g: np.ndarray  # (N_t,) g_k = ∫gφ̃_k / ∫φ̃_k
+    B_full: sp.csr_matrix  # (N_n + N_t, n_full): normal rows then tangential rows
+    g_weights: np.ndarray  # (N_t,) ∫ g φ̃_k  (= g_k W_k)
+    patch_defect: float  # max_k |Σ_j Ds_kj − Σ_j M_kj| / Σ_j Ds_kj (0 for a rigid master)
+    uncovered: np.ndarray  # trace indices left without multiplier: no master behind them
+    master_proj: sp.csr_matrix | None = None  # (N_t, n_full): u ↦ mortar-mean u_m·τ_k
+
+    @property
+    def sizes(self) -> tuple[int, int]:
+        """(N_n, N_t): numbers of normal and tangential multipliers."""
+        return self.rows_n.size, self.rows_t.size
 
 
 @dataclass
@@ -83,18 +125,6 @@ class Model:
     def full(self, u: np.ndarray) -> np.ndarray:
         """Unknowns → full vector including Dirichlet values."""
         return expand(u, self.free, self.values)
-
-
-def friction_weights(mesh: Mesh, part: str, tr: Trace, gfun, key: str) -> np.ndarray:
-    """∫ g φ_i ds for each trace node (g ≥ 0 checked at every quadrature point)."""
-
-    def g_checked(x, y):
-        gv = gfun(x, y)
-        if (gv < 0).any():
-            raise SceneError(key, float(gv.min()), "a friction bound g ≥ 0 everywhere on Γ3")
-        return gv
-
-    return assembly.boundary_load(mesh, part, g_checked, 1)[tr.nodes]
 
 
 def _split_ref(t: Table, key: str, bodies: dict[str, Body]) -> tuple[Body, str]:
@@ -154,13 +184,10 @@ def _build(scene: Scene, level: int | None) -> Model:
             if master is slave:
                 raise SceneError(ct.key("master"), ct.raw("master"), "a body other than the slave")
         g_fun = ct.field("g", 1)
+        ends = ct.string("ends", ENDS[0], choices=ENDS)
         ct.finish()
-        if master is None:
-            contact = _rigid_contact(slave, slave_part, g_fun, ct.key("g"), n_full)
-        else:
-            contact = _mortar_contact(
-                slave, slave_part, master, master_part, g_fun, ct.key("g"), n_full
-            )
+        mpart = master_part if master is not None else None
+        contact = _contact(slave, slave_part, master, mpart, g_fun, ct.key("g"), ends, n_full)
 
     out = root.table("output", required=False)
     options = {"potential_along": None}
@@ -205,6 +232,8 @@ def _build(scene: Scene, level: int | None) -> Model:
         info={"scene": scene.name, "level": level},
     )
     model = Model(scene, level, list(bodies.values()), contact, vi, free, values, options)
+    if contact is not None:
+        model.warnings += interface_warnings(contact)
     for b in model.bodies:
         ev = np.linalg.eigvalsh(b.material.C)
         if ev[-1] / ev[0] > LOCKING_RATIO:
@@ -232,80 +261,171 @@ def _contact_rows(contact: Contact, free, fixed, values):
     """B restricted to the unknowns, the gap from Dirichlet data, Λ_h and the Y Gram matrix."""
     B = contact.B_full[:, free]
     gap = -(contact.B_full[:, fixed] @ values[fixed])
-    rowsum = np.asarray(abs(B).sum(axis=1)).ravel()
     tr = contact.tr
-    if (rowsum == 0).any():
-        node = tr.nodes[int(np.flatnonzero(rowsum == 0)[0]) % tr.size]
-        raise SceneError(
-            "contact.slave",
-            f"{contact.slave.name}.{contact.slave_part}",
-            f"a contact boundary whose nodes are not clamped (node {node} at "
-            f"{contact.slave.mesh.points[node].tolist()} has all displacement dofs prescribed)",
-        )
-    N = tr.size
-    Lam = product(Free(N), Box(-contact.g, contact.g))
-    h_i = np.zeros(N)
+    n_n, _ = contact.sizes
+    Lam = product(Free(n_n), Box(-contact.g, contact.g))
+    h_i = np.zeros(tr.size)
     np.maximum.at(h_i, tr.segments[:, 0], tr.lengths)
     np.maximum.at(h_i, tr.segments[:, 1], tr.lengths)
-    Y = sp.diags(np.tile(h_i * tr.weights, 2))  # mesh-dependent H^{-1/2} stand-in
+    rows = np.concatenate([contact.rows_n, contact.rows_t])
+    Y = sp.diags(h_i[rows] * tr.weights[rows])  # mesh-dependent H^{-1/2} stand-in
     return B, gap, Lam, Y
 
 
-def _rigid_contact(slave: Body, part: str, g_fun, gkey: str, n_full: int) -> Contact:
-    tr = trace(slave.mesh, part)
-    N = tr.size
-    gw = friction_weights(slave.mesh, part, tr, g_fun, gkey)
-    dofs = slave.u_dofs(tr.nodes)  # (N, 2)
-    rows = np.repeat(np.arange(2 * N), 2)
-    cols = np.concatenate([dofs, dofs]).ravel()
-    vals = np.concatenate(
-        [tr.weights[:, None] * tr.normals, tr.weights[:, None] * tr.tangents]
-    ).ravel()
-    B = sp.csr_matrix((vals, (rows, cols)), shape=(2 * N, n_full))
-    return Contact(slave, part, tr, None, None, gw / tr.weights, B, gw)
+def _where(body: Body, tr: Trace, i: int) -> str:
+    """'node 12 at [0.0, 1.0]' for trace index i."""
+    node = int(tr.nodes[i])
+    return f"node {node} at {body.mesh.points[node].tolist()}"
 
 
-def _mortar_contact(
-    slave: Body, part: str, master: Body, mpart: str, g_fun, gkey: str, n_full: int
+def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray]:
+    """(carry_n, carry_t) per slave trace node: which multiplier components it carries.
+
+    Crosspoint rules (module docstring); SceneError listing every unsupported node.
+    """
+    fixed = slave.fixed[slave.u_dofs(tr.nodes) - slave.offset]  # (N, 2); body-local dofs
+    carry_n, carry_t = ~fixed.all(axis=1), ~fixed.all(axis=1)  # (N,) each
+    bad = []
+    for i in np.flatnonzero(fixed.any(axis=1) & ~fixed.all(axis=1)):
+        c = int(np.flatnonzero(fixed[i])[0])
+        n = tr.normals[i]
+        if abs(n[c]) <= ALIGN_TOL:  # the prescribed direction e_c is the tangent
+            carry_t[i] = False
+        elif abs(n[1 - c]) <= ALIGN_TOL:  # e_c is the normal
+            carry_n[i] = False
+        else:
+            angle = np.degrees(np.arccos(min(abs(n[c]), 1.0)))
+            bad.append(
+                f"{_where(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
+                f"{angle:.3g}° off the contact normal n = [{n[0]:.6g}, {n[1]:.6g}]"
+            )
+    if bad:
+        raise SceneError(
+            "contact.slave",
+            f"{slave.name}.{part}",
+            "contact nodes whose prescribed displacement is complete (clamped) or one component "
+            "along the contact normal or tangent (a roller across or along Γ3); unsupported: "
+            + "; ".join(bad)
+            + ". A prescribed component at an angle to Γ3 would fight the contact multipliers:"
+            " clamp these nodes (prescribe both components), free them, or move the side's "
+            "roller so that its direction is the contact normal or tangent there",
+        )
+    return carry_n, carry_t
+
+
+def _contact(
+    slave: Body,
+    part: str,
+    master: Body | None,
+    mpart: str | None,
+    g_fun,
+    gkey: str,
+    ends: str,
+    n_full: int,
 ) -> Contact:
-    """Rows D_i n_iᵀu_s,i − Σ_k M_ik n_iᵀu_m,k (normal) and the same with τ_i (tangential)."""
-    from fem.mortar import mortar_coupling
+    """The contact rows: normal Σ_j Ds_kj n_kᵀu_s,j − Σ_j M_kj n_kᵀu_m,j (M = 0 for a rigid
+    foundation), then the same with τ_k, for the multiplier rows of each component."""
+    from fem.mortar import mortar_coupling, patch_defect
 
     tr = trace(slave.mesh, part)
-    _check_separation(slave, part, tr, tr.normals, master, mpart)
-    mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, ends="keep")
-    if (mort.coverage < 1 - 1e-12).any():
+    carry = _carrying(slave, part, tr)
+    if not (carry[0] | carry[1]).any():
+        raise SceneError(
+            "contact.slave",
+            f"{slave.name}.{part}",
+            "a contact boundary with nodes whose displacement is not fully prescribed: every "
+            "node of this one is clamped by a [[displacement]] part, so no contact remains; "
+            "remove the Dirichlet condition on it or the [contact] table",
+        )
+    n_seg = tr.segments.shape[0]
+    uncovered_local = np.zeros(2 * n_seg, dtype=bool)
+    if master is not None:
+        _check_separation(slave, part, tr, tr.normals, master, mpart)
+        mort = mortar_coupling(slave.mesh, part, master.mesh, mpart)
+        assert np.array_equal(tr.nodes, mort.slave_nodes)
+        uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,)
+        mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
+    Dloc = dual_mass(tr)  # (2 n_seg, N)
+    gloc = _friction_local(slave.mesh, tr, g_fun, gkey).ravel()  # (2 n_seg,)
+    sdofs = slave.u_dofs(tr.nodes)  # (N, 2)
+    uncovered = np.zeros(tr.size, dtype=bool)
+    blocks, rows_c, Q_c, defects, offset = [], [], [], [0.0], 0
+    for comp, vec in ((0, tr.normals), (1, tr.tangents)):
+        Q = multiplier_basis(tr, carry[comp], ends)
+        rows = np.flatnonzero(carry[comp])
+        bad = (Q @ uncovered_local) > 0  # some of the row's support has no master behind it
+        uncovered[rows[bad]] = True
+        Q, rows = Q[~bad], rows[~bad]
+        Ds = (Q @ Dloc).tocoo()
+        parts = [(Ds, sdofs, 1.0)]
+        if master is not None:
+            M = (Q @ mort.M).tocoo()
+            parts.append((M, mdofs, -1.0))
+            if rows.size:
+                defects.append(float(patch_defect(Q @ Dloc, Q @ mort.M).max()))
+        for mat, dofs, sign in parts:
+            for c in range(2):
+                r = offset + mat.row
+                blocks.append((r, dofs[mat.col, c], sign * mat.data * vec[rows[mat.row], c]))
+        rows_c.append(rows)
+        Q_c.append(Q)
+        offset += rows.size
+    if offset == 0:
         raise SceneError(
             "contact.master",
-            f"{master.name}.{mpart}",
-            f"a master boundary that covers the whole slave boundary {slave.name}.{part} "
-            f"(covered fraction of the worst slave segment: {mort.coverage.min():.3f})",
+            f"{master.name}.{mpart}" if master is not None else "rigid",
+            f"a master boundary behind the slave boundary {slave.name}.{part}: no slave node "
+            f"has the master behind its support (nodes {tr.nodes.tolist()}); make the two "
+            "boundaries face each other and overlap",
         )
-    assert np.array_equal(tr.nodes, mort.slave_nodes) and np.allclose(tr.weights, mort.D)
-    N = tr.size
-    gw = friction_weights(slave.mesh, part, tr, g_fun, gkey)
-    n, t = mort.normals, mort.tangents  # (N, 2)
-    sdofs = slave.u_dofs(mort.slave_nodes)  # (N, 2)
-    mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
-    Ds = mort.Ds.tocoo()
-    M = mort.M.tocoo()
-    rows, cols, vals, prow, pcols, pvals = [], [], [], [], [], []
-    for block, vec in ((0, n), (1, t)):
-        for c in range(2):
-            rows += [block * N + Ds.row, block * N + M.row]
-            cols += [sdofs[Ds.col, c], mdofs[M.col, c]]
-            vals += [Ds.data * vec[Ds.row, c], -M.data * vec[M.row, c]]
-            prow.append(block * N + M.row)
-            pcols.append(mdofs[M.col, c])
-            pvals.append(M.data * vec[M.row, c] / mort.D[M.row])
-    B = sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(2 * N, n_full)
+    r, c, v = (np.concatenate(x) for x in zip(*blocks, strict=True))
+    B = sp.csr_matrix((v, (r, c)), shape=(offset, n_full))
+    Q_t, rows_t = Q_c[1], rows_c[1]
+    W_n, W_t = (np.asarray((Q @ Dloc).sum(axis=1)).ravel() for Q in Q_c)  # ∫φ̃_k per row
+    gw = Q_t @ gloc  # (N_t,) ∫gφ̃_k
+    proj = None
+    if master is not None:  # mortar mean of u_m·τ_k over the row's support
+        M = (Q_t @ mort.M).tocoo()
+        pv = [M.data * tr.tangents[rows_t[M.row], c] / W_t[M.row] for c in range(2)]
+        proj = sp.csr_matrix(
+            (
+                np.concatenate(pv),
+                (np.tile(M.row, 2), np.concatenate([mdofs[M.col, c] for c in range(2)])),
+            ),
+            shape=(rows_t.size, n_full),
+        )
+    return Contact(
+        slave=slave,
+        slave_part=part,
+        tr=tr,
+        master=master,
+        master_part=mpart,
+        ends=ends,
+        rows_n=rows_c[0],
+        rows_t=rows_t,
+        Q_n=Q_c[0],
+        Q_t=Q_t,
+        W_n=W_n,
+        W_t=W_t,
+        g=gw / W_t,
+        B_full=B,
+        g_weights=gw,
+        patch_defect=max(defects),
+        uncovered=np.flatnonzero(uncovered),
+        master_proj=proj,
     )
-    proj = sp.csr_matrix(
-        (np.concatenate(pvals), (np.concatenate(prow), np.concatenate(pcols))),
-        shape=(2 * N, n_full),
-    )
-    return Contact(slave, part, tr, master, mpart, gw / tr.weights, B, gw, proj)
+
+
+def _friction_local(mesh: Mesh, tr: Trace, gfun, key: str) -> np.ndarray:
+    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point)."""
+
+    def g_checked(x, y):
+        gv = gfun(x, y)
+        if (gv < 0).any():
+            raise SceneError(key, float(gv.min()), "a friction bound g ≥ 0 everywhere on Γ3")
+        return gv
+
+    return segment_loads(mesh, tr, g_checked)
 
 
 def _normal_distances(
@@ -373,13 +493,13 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     """
     if coarse.contact is None or fine.contact is None:
         return {}
-    tc, tf = coarse.contact.tr, fine.contact.tr
-    sc, sf = tc.s / tc.s[-1], tf.s / tf.s[-1]
-    Nc = tc.size
-    gc, g = coarse.contact.g, fine.contact.g
-    lam_n = np.interp(sf, sc, coarse_sol.lam[:Nc])
-    ratio_c = np.divide(coarse_sol.lam[Nc:], gc, out=np.zeros(Nc), where=gc > 0)
-    ratio = np.clip(np.interp(sf, sc, ratio_c), -1.0, 1.0)
+    cc, fc = coarse.contact, fine.contact
+    sc, sf = cc.tr.s / cc.tr.s[-1], fc.tr.s / fc.tr.s[-1]
+    n_c, _ = cc.sizes
+    lam_n = np.interp(sf[fc.rows_n], sc[cc.rows_n], coarse_sol.lam[:n_c])
+    gc, g = cc.g, fc.g
+    ratio_c = np.divide(coarse_sol.lam[n_c:], gc, out=np.zeros(gc.size), where=gc > 0)
+    ratio = np.clip(np.interp(sf[fc.rows_t], sc[cc.rows_t], ratio_c), -1.0, 1.0)
     on_bound = np.abs(ratio) >= 1.0 - 1e-9
     ratio[on_bound] = np.sign(ratio[on_bound])
     return {"lam0": np.concatenate([lam_n, ratio * g])}
@@ -387,15 +507,20 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
 
 # ------------------------------------------------------------------ post-processing
 def contact_state(model: Model, sol: Solution) -> dict:
-    """Per-node contact quantities along Γ3 and the Lemma 4.2 check."""
+    """Per-node contact quantities along Γ3 and the Lemma 4.2 check.
+
+    The arrays "s", "points", "lam_t", "g", "jump_t", "ut_slave", "slip" (and "ut_master") are
+    per tangential multiplier row (`Contact.rows_t`), "s_n", "lam_n" per normal row.
+    """
     c = model.contact
-    N = c.tr.size
+    n_n, _ = c.sizes
     x_full = model.full(sol.u)
-    lam_n, lam_t = sol.lam[:N], sol.lam[N:]
-    Bu = c.B_full @ x_full  # (2N,) = D_i·[u]_n, D_i·[u]_τ
-    jump_t = Bu[N:] / c.tr.weights  # nodal tangential (mortar) jump
-    u_s = x_full[c.slave.u_dofs(c.tr.nodes)]  # (N, 2)
-    ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents)
+    lam_n, lam_t = sol.lam[:n_n], sol.lam[n_n:]
+    Bu = c.B_full @ x_full  # (N_n + N_t,) = W_k·[u]_n, W_k·[u]_τ
+    jump_t = Bu[n_n:] / c.W_t  # nodal tangential (mortar) jump
+    nodes = c.tr.nodes[c.rows_t]
+    u_s = x_full[c.slave.u_dofs(nodes)]  # (N_t, 2)
+    ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents[c.rows_t])
     gmax = float(c.g.max(initial=0.0))
     slip = np.abs(lam_t) >= c.g - 1e-9 * max(gmax, 1e-300)
     b_uh_lam = float(sol.lam @ Bu)
@@ -403,8 +528,9 @@ def contact_state(model: Model, sol: Solution) -> dict:
     tiny = np.finfo(float).eps * float(np.sum(c.g_weights)) * max(np.abs(x_full).max(), 1e-300)
     lemma = abs(b_uh_lam - g_abs) / max(g_abs, tiny, 1e-300)
     state = {
-        "s": c.tr.s,
-        "points": c.slave.mesh.points[c.tr.nodes],
+        "s": c.tr.s[c.rows_t],
+        "points": c.slave.mesh.points[nodes],
+        "s_n": c.tr.s[c.rows_n],
         "lam_n": lam_n,
         "lam_t": lam_t,
         "g": c.g,
@@ -416,8 +542,44 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "lemma_4_2": float(lemma),
     }
     if c.master_proj is not None:
-        state["ut_master"] = (c.master_proj @ x_full)[N:]
+        state["ut_master"] = c.master_proj @ x_full
     return state
+
+
+def interface_summary(contact: Contact) -> dict:
+    """The interface entries of summary.json["contact"]: patch defect, crosspoints, coverage."""
+    tr = contact.tr
+    dropped = np.setdiff1d(np.arange(tr.size), np.intersect1d(contact.rows_n, contact.rows_t))
+    dropped = np.setdiff1d(dropped, contact.uncovered)
+    return {
+        "master": "rigid" if contact.master is None else contact.master.name,
+        "mortar_patch_defect": contact.patch_defect,
+        "ends": contact.ends,
+        "multipliers": {"normal": int(contact.rows_n.size), "tangential": int(contact.rows_t.size)},
+        "crosspoint_nodes": tr.nodes[dropped].tolist(),
+        "uncovered_nodes": tr.nodes[contact.uncovered].tolist(),
+    }
+
+
+def interface_warnings(contact: Contact) -> list[str]:
+    """Console warnings about the interface: uncovered slave nodes and the patch defect."""
+    out = []
+    tr = contact.tr
+    if contact.uncovered.size:
+        where = ", ".join(_where(contact.slave, tr, int(i)) for i in contact.uncovered[:6])
+        more = f" and {contact.uncovered.size - 6} more" if contact.uncovered.size > 6 else ""
+        out.append(
+            f"contact: {contact.uncovered.size} slave node(s) of {contact.slave.name}."
+            f"{contact.slave_part} have no master behind their whole support and carry no "
+            f"multiplier (left free): {where}{more}"
+        )
+    if contact.patch_defect > PATCH_DEFECT_LIMIT:
+        out.append(
+            f"contact: mortar patch defect {contact.patch_defect:.3g} > {PATCH_DEFECT_LIMIT:g}: "
+            "a rigid translation of both bodies is not transferred across the interface — the "
+            "mortar projection is wrong for this geometry; results are not trustworthy"
+        )
+    return out
 
 
 def contact_warnings(state: dict) -> list[str]:
@@ -464,6 +626,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
             "nodes": int(state["slip"].size),
             "stick": int(state["slip"].size - n_slip),
             "slip": n_slip,
+            **interface_summary(model.contact),
         }
         summary["lemma_4_2"] = state["lemma_4_2"]
         summary["warnings"] = contact_warnings(state)

@@ -6,8 +6,9 @@ Norms (all absolute, SI units, lengths in m):
 - ``phi_H1``, ``phi_L2`` the same for φ (piezoelectric bodies only; 0 if there are none);
 - ``lam``   = (Σ_E h_E ‖λ − λ_h‖²_{L²(E)})^{1/2} over the segments E of Γ3 (slave side): the
   mesh-weighted h^{1/2}‖·‖_{L²(Γ3)} stand-in for H^{-1/2}(Γ3). λ_h is compared as a *function*,
-  λ_h = Σ_i (γ_i n_i + α_i τ_i) ψ_i with the dual basis ψ_i, component-wise in the nodal frame:
-  (Σγ_iψ_i − λ·n)² + (Σα_iψ_i − λ·τ)².
+  λ_h = Σ_k (γ_k n_k + α_k τ_k) ψ̃_k with the multiplier basis ψ̃_k (the dual basis, modified at
+  crosspoints by the end treatment), component-wise in the nodal frame:
+  (Σγ_kψ̃_k − λ·n)² + (Σα_kψ̃_k − λ·τ)².
 
 Against an exact solution the integrals use 4th-order cell quadrature (`fem.assembly`) and 4-point
 Gauss on segments. Against a finer reference level the coarse discrete solution is evaluated
@@ -43,17 +44,19 @@ def _fields(model: Model, u: np.ndarray):
 
 
 def _multiplier(model: Model, lam: np.ndarray):
-    """(trace, γ (N,), α (N,)) of the contact multiplier."""
-    tr = model.contact.tr
-    N = tr.size
-    return tr, lam[:N], lam[N:]
+    """(trace, γ, α) of the contact multiplier as segment-local dual coefficients (n_seg, 2):
+    λ·n = Σ_(e,a) γ[e, a] ψ_{e,a} (the multiplier basis, end treatment included)."""
+    c = model.contact
+    n_n, _ = c.sizes
+    gam = (c.Q_n.T @ lam[:n_n]).reshape(-1, 2)  # (n_seg, 2)
+    alp = (c.Q_t.T @ lam[n_n:]).reshape(-1, 2)  # (n_seg, 2)
+    return c.tr, gam, alp
 
 
-def _dual_values(tr, coef: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Σ_i coef_i ψ_i at points t ∈ [0, 1] of segments `seg` (both (k,)): (k,)."""
+def _dual_values(coef: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Σ_a coef[e, a] ψ_{e,a} at points t ∈ [0, 1] of segments e = `seg` (both (k,)): (k,)."""
     psi = dual_basis_on_segment(t)  # (k, 2)
-    ends = tr.segments[seg]  # (k, 2)
-    return np.einsum("ka,ka->k", psi, coef[ends])
+    return np.einsum("ka,ka->k", psi, coef[seg])
 
 
 def exact_errors(model: Model, u: np.ndarray, lam: np.ndarray, exact: Exact) -> dict[str, float]:
@@ -76,8 +79,8 @@ def exact_errors(model: Model, u: np.ndarray, lam: np.ndarray, exact: Exact) -> 
         A, B = P[tr.segments[seg, 0]], P[tr.segments[seg, 1]]  # (n_seg·n_q, 2)
         X = (1 - t)[:, None] * A + t[:, None] * B  # (n_seg·n_q, 2)
         ex = exact.lam(X[:, 0], X[:, 1])  # (n_seg·n_q, 2): (λ·n, λ·τ)
-        d2 = (_dual_values(tr, gam, seg, t) - ex[:, 0]) ** 2
-        d2 += (_dual_values(tr, alp, seg, t) - ex[:, 1]) ** 2  # (n_seg·n_q,)
+        d2 = (_dual_values(gam, seg, t) - ex[:, 0]) ** 2
+        d2 += (_dual_values(alp, seg, t) - ex[:, 1]) ** 2  # (n_seg·n_q,)
         w = np.tile(GAUSS_W, n_seg) * tr.lengths[seg] ** 2  # h_E · |E| · Gauss weight
         sq["lam"] = float(w @ d2)
     return {k: float(np.sqrt(v)) for k, v in sq.items()}
@@ -153,8 +156,8 @@ def reference_errors(
         t_f = np.tile(GAUSS_T, n_seg)
         s = np.concatenate([[0.0], np.cumsum(trf.lengths)])[seg_f] + t_f * trf.lengths[seg_f]
         seg, t = _locate_on_trace(tr, s / trf.lengths.sum())
-        d2 = (_dual_values(trf, gam_f, seg_f, t_f) - _dual_values(tr, gam, seg, t)) ** 2
-        d2 += (_dual_values(trf, alp_f, seg_f, t_f) - _dual_values(tr, alp, seg, t)) ** 2
+        d2 = (_dual_values(gam_f, seg_f, t_f) - _dual_values(gam, seg, t)) ** 2
+        d2 += (_dual_values(alp_f, seg_f, t_f) - _dual_values(alp, seg, t)) ** 2
         w = np.tile(GAUSS_W, n_seg) * trf.lengths[seg_f] * tr.lengths[seg]  # |E_f| w_q · h_E
         sq["lam"] = float(w @ d2)
     return {k: float(np.sqrt(v)) for k, v in sq.items()}

@@ -64,6 +64,23 @@ def test_contact_arcs_lie_on_the_circle_with_exact_ends(level):
         np.testing.assert_array_equal(P[-1], ends[1])
 
 
+@pytest.mark.parametrize("angle", [0.1, 0.5, 1.0, 1.5, 2.0, 2.5, 2.8, 3.0, 3.1])
+def test_any_opening_below_pi_gives_valid_meshes_with_shared_contact_ends(angle):
+    """Wide arcs (up to 3.1 rad) stay meshable: counterclockwise cells, convex (angles < 180°;
+    they approach 180° as the free arcs vanish: 170° at 2.8 rad), the disc's and the cradle's
+    contact ends bit for bit the same points (so the mortar coverage is exact at the ends)."""
+    levels = (0, 1) if angle >= 0.5 else (0,)  # small angles: the disc's cells follow the arc
+    Cl, Cr = contact_ends(CENTER, R, angle)
+    for level in levels:
+        d, c = half_disc(angle=angle, level=level), cradle(angle=angle, level=level)
+        for m in (d, c):
+            assert (cell_areas(m) > 0).all() and max_angle_deg(m) < 179.0
+        Pd = d.points[trace(d, "contact").nodes]
+        Pc = c.points[trace(c, "contact").nodes]
+        np.testing.assert_array_equal(Pd[[0, -1]], [Cl, Cr])
+        np.testing.assert_array_equal(Pc[[0, -1]], [Cr, Cl])
+
+
 def test_contact_normals_point_away_from_each_body():
     d, c = half_disc(level=1), cradle(level=1)
     td, tc = trace(d, "contact"), trace(c, "contact")

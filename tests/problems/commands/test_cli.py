@@ -27,7 +27,20 @@ def test_solve_writes_summary_fields_and_plots(tmp_path, capsys):
     ):
         assert key in s, key
     assert set(s["dofs"]) == {"displacement", "potential", "multiplier"}
-    assert set(s["contact"]) == {"nodes", "stick", "slip"}
+    assert set(s["contact"]) == {
+        "nodes",
+        "stick",
+        "slip",
+        "master",
+        "mortar_patch_defect",
+        "ends",
+        "multipliers",
+        "crosspoint_nodes",
+        "uncovered_nodes",
+    }
+    # the rigid foundation has no master side: the patch defect is 0 by construction
+    assert s["contact"]["mortar_patch_defect"] == 0.0 and s["contact"]["master"] == "rigid"
+    assert s["contact"]["uncovered_nodes"] == s["contact"]["crosspoint_nodes"] == []
     assert set(s["time_s"]) == {"build", "solve", "total"}
     assert s["converged"] and s["residual"] <= 1e-10
     # independent of the contact assembly (problems/plugins/piezo_balance.py)
