@@ -23,8 +23,8 @@ from . import checks
 # ------------------------------------------------------------------ the faults
 _coupling = fem.assembly.coupling_matrix
 _mortar = fem.mortar.mortar_coupling
-_friction = pc.friction_weights
-_trace = pc.trace
+_friction = pc._friction_local
+_dual_mass = pc.dual_mass
 
 
 def coupling_sign(mp):
@@ -68,19 +68,18 @@ def mortar_dropped_entry(mp):
 
 def friction_bound(mp):
     """∫gφ_i × 1.5: the friction bound of every node 50 % too high."""
-    mp.setattr(pc, "friction_weights", lambda *a, **k: 1.5 * _friction(*a, **k))
+    mp.setattr(pc, "_friction_local", lambda *a, **k: 1.5 * _friction(*a, **k))
 
 
 def dual_weight(mp):
-    """D_i of the two end nodes of Γ3 = the whole adjacent segment length (not half of it)."""
+    """∫ψ_{e,a}φ_a of the two end nodes of Γ3 = the whole end segment's length, not half."""
 
-    def faulty(mesh, part):
-        tr = _trace(mesh, part)
-        w = tr.weights.copy()
-        w[[0, -1]] *= 2.0
-        return dataclasses.replace(tr, weights=w)
+    def faulty(tr):
+        D = _dual_mass(tr).tocsr(copy=True)  # (2 n_seg, k), one entry per row
+        D.data[[0, -1]] *= 2.0
+        return D
 
-    mp.setattr(pc, "trace", faulty)
+    mp.setattr(pc, "dual_mass", faulty)
 
 
 # ------------------------------------------------------------------ the checks
