@@ -28,7 +28,7 @@ def _check(tmp_path, *args: str) -> tuple[int, list[dict]]:
 
 
 def test_json_reports_raw_methods_and_pairs(tmp_path, capsys):
-    rc, recs = _check(tmp_path, "rigid_foundation", "--levels", "0..1")
+    rc, recs = _check(tmp_path, "rigid_foundation", "--levels", "0..0")
     assert rc == 0
     text = capsys.readouterr().out
     assert "conic raw" in text and "conic+polish (labelled, not compared)" in text
@@ -102,7 +102,7 @@ def _wrong_homotopy_step(orig):
 
 def test_fault_ssn_update_sign_is_caught_by_check(tmp_path, monkeypatch):
     monkeypatch.setattr(ssn._Stepper, "step", _flip_complementarity_rhs(ssn._Stepper.step))
-    rc, recs = _check(tmp_path, "rigid_foundation", "--level", "0")
+    rc, recs = _check(tmp_path, "obstacle", "--level", "1")  # symmetric: ssn and conic only
     assert rc == 1
     assert any(f.startswith("ssn") for f in recs[0]["failures"])
 
