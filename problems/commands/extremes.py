@@ -204,7 +204,8 @@ def run_row(row: Row) -> dict:
         if meth == "homotopy":
             rec["rho"] = other.info.get("rho")
             rec["homotopy_levels"] = max(len(other.info.get("levels", [])) - 1, 0)
-        if not other.converged:
+        failed = other.info.get("status") != "optimal" if meth == "conic" else not other.converged
+        if failed:
             rec["notes"].append(f"{meth} did not converge (residual {other.residual:.1e})")
         du = _rel(model.full(other.u), model.full(sol.u))  # with Dirichlet values: data scale
         diff = max(du, _rel(other.lam, sol.lam) if vi.m else 0.0)
