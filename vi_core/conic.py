@@ -20,9 +20,17 @@ Its multiplier ψ of `P φ − G u == f_φ` satisfies P φ + P ψ = 0, so ψ = �
 row of its optimality system is K u + Gᵀφ + Bᵀλ = f_u: the full non-symmetric VI, no Schur
 complement. General non-symmetric A is refused (use method="homotopy").
 
-Everything runs on `vi.equilibrated` (Clarabel equilibrates matrices, not right-hand sides).
-The answer is judged by the VI residual: if the interior point result misses `tol`, at most
-`polish` semismooth-Newton steps warm-started from it are taken, reported in `info["polish"]`.
+Everything runs on `vi.equilibrated` (Clarabel equilibrates matrices, not right-hand sides),
+**normalised**: the VI is positively homogeneous of degree 1 in its data — (u, λ) solves
+(f, gap, Λ) iff (u/t, λ/t) solves (f/t, gap/t, Λ/t) — so the cone program is posed for the data
+divided by t = max(‖f'‖_∞, ‖gap'‖_∞) (`_normalisation`) and its answer multiplied by t.
+Clarabel's absolute tolerances then mean the same for loads × 1e-12 and × 1e12
+(`info["normalisation"]` = t; tests/vi_core/test_conic.py::test_scale_invariance).
+
+The answer is judged by the VI residual. **Polishing is a separate step**: if the interior point
+result misses `tol`, at most `polish` semismooth-Newton steps warm-started from it are taken,
+reported in `info["polish"]`; `info["conic_residual"]` is always the residual of Clarabel's raw
+answer. Cross-checks (`mixvi check`) use `polish=0`: a polished answer is an ssn answer.
 """
 
 from __future__ import annotations
@@ -37,11 +45,49 @@ from .problem import MixedVI, natural_residual
 from .sets import Ball, Box, Free, NonNegative
 from .solution import Solution
 
-CLARABEL_DEFAULTS = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10}
+# Clarabel's tolerances (its own scaling). At 1e-10 its raw answers had natural-map residuals up
+# to 2.4e-6 (antiplane_manufactured and signorini, level 2); at 1e-12 they are ≤ ~2e-9 for one
+# or two more interior-point iterations (measured on the shipped scenes, `mixvi check`).
+CLARABEL_DEFAULTS = {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12}
 _DUAL_SIGN = 1.0  # λ = _DUAL_SIGN · (dual value of `B @ u - gap == z`), see test_dual_sign
 
 _OK = ("optimal",)
 _INACCURATE = ("optimal_inaccurate",)
+
+
+def _normalisation(e: MixedVI) -> float:
+    """t = max(‖f‖_∞, ‖gap‖_∞) of the equilibrated VI; if both vanish, the largest finite
+    |bound| of Λ; 1 if that vanishes too. Bounds do not enter otherwise: loads scaled with the
+    bounds scale t alike, while a bound far above the loads (a nearly tied problem) must not
+    shrink the data Clarabel sees (measured: g varying 1e8 along Γ3 gave a raw residual 2.8e-6
+    with the bounds in t, 6e-12 without). Not rounded to a power of two: data × s then give the
+    same normalised data up to rounding for any s, hence the same Clarabel iterations."""
+    t = max(float(np.max(np.abs(e.f), initial=0.0)), float(np.max(np.abs(e.gap), initial=0.0)))
+    if t == 0.0:
+        for block in e.Lambda.blocks():
+            if isinstance(block, Box):
+                bounds = np.abs(np.concatenate([block.lo, block.hi]))
+                t = max(t, float(np.max(bounds[np.isfinite(bounds)], initial=0.0)))
+            elif isinstance(block, Ball):
+                t = max(t, float(np.max(block.radius, initial=0.0)))
+    return t if t > 0 and np.isfinite(t) else 1.0
+
+
+def _normalised(e: MixedVI, t: float) -> MixedVI:
+    """The same VI with data f/t, gap/t and Λ/t (A and B unchanged)."""
+    if t == 1.0:
+        return e
+    out = MixedVI(
+        A=e.A,
+        B=e.B,
+        f=e.f / t,
+        Lambda=e.Lambda.scaled(np.full(e.m, t)),
+        gap=e.gap / t,
+        info={"equilibrated": True, "normalised": t},
+    )
+    for name in ("A0", "C", "structure", "skew_split"):  # unchanged by the data: reuse
+        out.__dict__[name] = getattr(e, name)
+    return out
 
 
 def _support_terms(z, e: MixedVI) -> tuple[list, list]:
@@ -116,7 +162,7 @@ def solve_conic(
     """Solve a symmetric or skew-coupled `vi` with cvxpy + Clarabel (see module docstring).
 
     clarabel : Clarabel settings, passed to ``cvxpy.Problem.solve(solver="CLARABEL", ...)``
-        unchanged; they override `CLARABEL_DEFAULTS` (tolerances 1e-10).
+        unchanged; they override `CLARABEL_DEFAULTS` (tolerances 1e-12).
     polish : maximum semismooth-Newton steps from the conic point if its residual misses
         `tol` (0 disables polishing).
     """
@@ -128,9 +174,14 @@ def solve_conic(
     e = vi.equilibrated
     sc = vi.scaling
     history = [natural_residual(e, np.zeros(e.n), np.zeros(e.m)).relative]
-    prob, x_of, link = _program(cp, e)
+    t_norm = _normalisation(e)
+    prob, x_of, link = _program(cp, _normalised(e, t_norm))
     settings = {**CLARABEL_DEFAULTS, **(clarabel or {})}
-    info: dict[str, Any] = {"structure": e.structure, "clarabel": settings}
+    info: dict[str, Any] = {
+        "structure": e.structure,
+        "clarabel": settings,
+        "normalisation": t_norm,
+    }
     warnings: list[str] = []
     try:
         with warnings_module.catch_warnings():  # statuses are mapped below, not warned about
@@ -166,6 +217,7 @@ def solve_conic(
         u[x_of[2]] = x_of[0].value
         u[x_of[3]] = x_of[1].value
     lam = _DUAL_SIGN * np.asarray(link.dual_value, float).ravel() if e.m else np.zeros(0)
+    u, lam = u * t_norm, lam * t_norm  # undo the normalisation
     res = natural_residual(e, u, lam).relative
     history.append(res)
     info["conic_residual"] = res

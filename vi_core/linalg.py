@@ -4,6 +4,12 @@ Backends: "splu" (SciPy SuperLU, COLAMD ordering: 5.5 s on a 99k-unknown piezo s
 the MMD(AᵀA+A) ordering took far longer) and "pardiso" (MKL PARDISO through the optional
 `pypardiso`, ``pip install mixvi[fast]``: 1.05 s on the same system). "auto" takes PARDISO
 where it imports and the system is large enough to pay for it, else SuperLU.
+
+`Refactorizer` factorises a sequence of matrices (the Newton steps of ssn). With PARDISO, a
+matrix with the same sparsity pattern (indptr and indices) as the previous one reuses the
+previous symbolic analysis (ordering and symbolic factorisation: PARDISO phase 22, numerical
+factorisation only, instead of phase 12); `python -m problems.commands.bench_reuse` measures the
+gain. SuperLU (SciPy) offers no such reuse: every factorisation is a full one.
 """
 
 from __future__ import annotations
@@ -51,16 +57,31 @@ def resolve_backend(backend: str = "auto", n: int | None = None) -> str:
 
 
 class Factorization:
-    """x = F(b) solves A x = b with a stored LU factorisation (plus iterative refinement)."""
+    """x = F(b) solves A x = b with a stored LU factorisation (plus iterative refinement).
 
-    def __init__(self, A: sp.spmatrix, backend: str = "auto"):
+    pardiso_solver : (PARDISO only) a solver object whose symbolic analysis of a matrix with
+        A's sparsity pattern is reused: only the numerical factorisation is computed, and the
+        object stays owned by the caller (`Refactorizer`).
+    """
+
+    def __init__(self, A: sp.spmatrix, backend: str = "auto", pardiso_solver=None):
         self.A = sp.csr_matrix(A)
+        self.A.sort_indices()
         self.backend = resolve_backend(backend, self.A.shape[0])
+        self.stale = False  # set by a Refactorizer when its next factorisation replaces this
         if self.backend == "pardiso":
             import pypardiso
 
-            self._pardiso = pypardiso.PyPardisoSolver()  # real non-symmetric, METIS ordering
-            self._pardiso.factorize(self.A)
+            self._owner = pardiso_solver is None
+            if self._owner:
+                self._pardiso = pypardiso.PyPardisoSolver()  # real non-symmetric, METIS
+                self._pardiso.factorize(self.A)  # phase 12: analysis + numerical
+            else:
+                self._pardiso = pardiso_solver
+                self._pardiso._check_A(self.A)
+                self._pardiso.factorized_A = self.A.copy()
+                self._pardiso.set_phase(22)  # numerical factorisation, symbolic reused
+                self._pardiso._call_pardiso(self.A, np.zeros((self.A.shape[0], 1)))
             self._solve = lambda b: self._pardiso.solve(self.A, np.ascontiguousarray(b, float))
             self._solve_t = None  # a factorisation of Aᵀ, made on first use
         else:
@@ -69,6 +90,8 @@ class Factorization:
             self._solve_t = lambda b: lu.solve(np.asarray(b, dtype=float), trans="T")
 
     def __call__(self, b: np.ndarray) -> np.ndarray:
+        if self.stale:
+            raise RuntimeError("this factorisation was replaced by a later one (Refactorizer)")
         x = self._solve(b)
         return _refine(self.A, b, x, self._solve)
 
@@ -80,10 +103,64 @@ class Factorization:
         return self._solve_t(np.ravel(b))
 
     def free(self) -> None:
-        """Release the factor's memory now (PARDISO keeps it outside Python's heap)."""
-        if getattr(self, "_pardiso", None) is not None:
+        """Release the factor's memory now (PARDISO keeps it outside Python's heap); a shared
+        solver object is released by its Refactorizer."""
+        if getattr(self, "_pardiso", None) is not None and getattr(self, "_owner", True):
             self._pardiso.free_memory(everything=True)
-            self._pardiso = None
+        self._pardiso = None
+
+    def __del__(self):
+        self.free()
+
+
+class Refactorizer:
+    """Factorise a sequence of matrices, reusing PARDISO's symbolic analysis while the sparsity
+    pattern does not change (module docstring). Each returned Factorization is valid until the
+    next call (then `stale`). `analyses` and `factorizations` count what was done."""
+
+    def __init__(self, backend: str = "auto"):
+        self.backend = backend
+        self.analyses = 0  # symbolic analyses (PARDISO phase 12, or every SuperLU factorisation)
+        self.factorizations = 0
+        self._solver = None  # the PARDISO object holding the current analysis
+        self._pattern: tuple[np.ndarray, np.ndarray] | None = None
+        self._last: Factorization | None = None
+
+    def __call__(self, A: sp.spmatrix) -> Factorization:
+        """Factorise A (a new analysis only if the pattern changed or the backend is SuperLU)."""
+        A = sp.csr_matrix(A)
+        A.sort_indices()
+        backend = resolve_backend(self.backend, A.shape[0])
+        if self._last is not None:
+            self._last.stale = backend == "pardiso"
+        self.factorizations += 1
+        if backend != "pardiso":
+            self.analyses += 1
+            self._last = Factorization(A, backend)
+            return self._last
+        same = self._pattern is not None and (
+            np.array_equal(self._pattern[0], A.indptr)
+            and np.array_equal(self._pattern[1], A.indices)
+        )
+        if not same:
+            self.free()
+            import pypardiso
+
+            self._solver = pypardiso.PyPardisoSolver()
+            self._solver.set_phase(11)  # analysis only
+            self._solver._check_A(A)
+            self._solver._call_pardiso(A, np.zeros((A.shape[0], 1)))
+            self._pattern = (A.indptr.copy(), A.indices.copy())
+            self.analyses += 1
+        self._last = Factorization(A, "pardiso", pardiso_solver=self._solver)
+        return self._last
+
+    def free(self) -> None:
+        """Release the PARDISO analysis and factors."""
+        if self._solver is not None:
+            self._solver.free_memory(everything=True)
+            self._solver = None
+            self._pattern = None
 
     def __del__(self):
         self.free()

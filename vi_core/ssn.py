@@ -12,9 +12,14 @@ active-set cycling.
 
 **Condensation.** When B has a block-diagonal "slave" part — columns S, each used by one
 small group of rows only, as with dual mortar multipliers — λ = D^{-T}(f_S − A_S u) with
-D = B[:, S], and the step is a linear system in u alone of size n whose sparsity pattern does
-not depend on the active set. A row group with more private columns than rows (a master node
-coupled to a single slave node, e.g. next to a crosspoint) keeps the best-conditioned ones.
+D = B[:, S], and the step is a linear system in u alone of size n. A row group with more private
+columns than rows (a master node coupled to a single slave node, e.g. next to a crosspoint)
+keeps the best-conditioned ones.
+
+**Fixed sparsity pattern.** The Newton matrix (condensed or not) is stored on the pattern it has
+when every entry of J and W (block diagonal, blocks of Λ) is structurally present, explicit
+zeros kept: its pattern is the same at every step whatever the active set, so PARDISO analyses
+it once per solve (`linalg.Refactorizer`; `info["symbolic_analyses"]`).
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from .linalg import condition_estimate, factorize, resolve_backend
+from .linalg import Refactorizer, condition_estimate, resolve_backend
 from .problem import MixedVI, natural_residual
 from .solution import Solution
 
@@ -89,14 +94,46 @@ class Condensation:
         return Condensation(S=S, R=R, D=D, Dt_inv=Dt_inv)
 
 
+def _structure(M: sp.spmatrix) -> sp.csr_matrix:
+    """The sparsity structure of M as a csr matrix of ones (no cancellation possible)."""
+    S = sp.csr_matrix(M, copy=True)
+    S.data = np.ones_like(S.data)
+    return S
+
+
+def _block_structure(sizes: np.ndarray) -> sp.csr_matrix:
+    """Ones on the diagonal blocks of the given sizes (the structure of J and W)."""
+    return (
+        sp.block_diag([np.ones((k, k)) for k in sizes], format="csr")
+        if sizes.size
+        else (sp.csr_matrix((0, 0)))
+    )
+
+
+def _on_pattern(M: sp.spmatrix, pattern: sp.csr_matrix) -> sp.csr_matrix:
+    """M stored on `pattern` (sorted csr ⊇ the structure of M), explicit zeros kept."""
+    M = sp.csr_matrix(M)
+    ncol = np.int64(pattern.shape[1])
+    keys_p = np.repeat(np.arange(pattern.shape[0], dtype=np.int64), np.diff(pattern.indptr))
+    keys_p = keys_p * ncol + pattern.indices  # (nnz_p,) increasing (sorted csr)
+    rows = np.repeat(np.arange(M.shape[0], dtype=np.int64), np.diff(M.indptr))
+    pos = np.searchsorted(keys_p, rows * ncol + M.indices)  # (nnz_M,)
+    data = np.zeros(pattern.nnz)
+    np.add.at(data, pos, M.data)
+    return sp.csr_matrix((data, pattern.indices, pattern.indptr), shape=pattern.shape)
+
+
 class _Stepper:
     """Computes Newton iterates (u⁺, λ⁺) for the equilibrated VI `e`."""
 
     def __init__(self, e: MixedVI, condense: bool, linear_solver: str):
         self.e = e
         self.linear_solver = linear_solver
+        self.factorize = Refactorizer(linear_solver)
         self.last = None  # factorisation of the last Newton matrix
+        self.nnz: list[int] = []  # nonzeros stored in each Newton matrix (constant)
         self.cond = Condensation.detect(e.B) if condense else None
+        G = _block_structure(e.Lambda.block_sizes())  # (m, m) structure of J and W
         if self.cond is not None:
             c = self.cond
             A = e.A.tocsr()
@@ -110,13 +147,22 @@ class _Stepper:
             n = e.n
             rows = np.concatenate([c.R, c.S])
             self.P = sp.csr_matrix((np.ones(n), (rows, np.arange(n))), shape=(n, n))
+            XB = _structure(c.Dt_inv @ self.A_S) + _structure(e.B)
+            KS = _structure(c.D.T) @ (G @ XB)
+            self.pattern = _structure(self.P @ sp.vstack([_structure(self.K_R), KS]))
+        else:
+            self.pattern = _structure(
+                sp.bmat([[_structure(e.A), _structure(e.B.T)], [G @ _structure(e.B), G]])
+            )
+        self.pattern.sort_indices()
 
     def step(self, J, W, rhs_c):
         """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c."""
         e = self.e
         if self.cond is None:
-            K = sp.bmat([[e.A, e.B.T], [-J @ e.B, W]], format="csr")
-            self.last = factorize(K, self.linear_solver)
+            K = _on_pattern(sp.bmat([[e.A, e.B.T], [-J @ e.B, W]], format="csr"), self.pattern)
+            self.nnz.append(K.nnz)
+            self.last = self.factorize(K)
             x = self.last(np.concatenate([e.f, rhs_c]))
             return x[: e.n], x[e.n :]
         c = self.cond
@@ -124,9 +170,10 @@ class _Stepper:
         # Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)   (rhs_c = p − Jy − J gap)
         K_S = (Dt @ (W @ (c.Dt_inv @ self.A_S)) + Dt @ (J @ e.B)).tocsr()
         rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
-        K = (self.P @ sp.vstack([self.K_R, K_S], format="csr")).tocsr()
+        K = _on_pattern(self.P @ sp.vstack([self.K_R, K_S], format="csr"), self.pattern)
+        self.nnz.append(K.nnz)
         rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])
-        self.last = factorize(K, self.linear_solver)
+        self.last = self.factorize(K)
         u_new = self.last(rhs)
         lam_new = c.Dt_inv @ (self.f_S - self.A_S @ u_new)
         return u_new, lam_new
@@ -211,6 +258,8 @@ def solve_ssn(
             "damped_steps": damped,
             "inside": inner,  # coordinates with λ + Bu − gap strictly inside Λ
             "linear_solver": resolve_backend(linear_solver, e.n),
+            "newton_nnz": sorted(set(stepper.nnz)),  # one value: the pattern is fixed
+            "symbolic_analyses": stepper.factorize.analyses,
         },
     )
     if estimate_condition and stepper.last is not None:

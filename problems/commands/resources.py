@@ -44,6 +44,7 @@ MEMORY_MODEL = {  # linear solver → (predictor, base [bytes], a, b)
     "pardiso": ("unknowns", 175e6, 5851.0, 1.0481),
 }
 
+
 @dataclass(frozen=True)
 class Estimate:
     """The size of one level of a scene before it is built."""

@@ -12,7 +12,7 @@ so λ_i = −μ∂ₙw is the friction traction: |λ_i| < g_i forces w_i = 0 (st
 
 Scene tables: [domain] geometry, shear_modulus μ > 0, load f₀ (field); [[dirichlet]] boundary,
 value; [[traction]] boundary, value (field f₂); [friction] boundary, g (field ≥ 0);
-optional [solver].
+optional [solver] and [exact] (u = w, grad = [∂x w, ∂y w]: errors in summary.json).
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ from .contract import (
     complementarity_defect,
     read_boundaries,
     read_dirichlet,
+    read_exact,
     read_head,
     read_solver,
 )
@@ -57,6 +58,7 @@ class Model:
     tr: Trace  # the friction boundary Γ3
     rows: np.ndarray  # (m,) indices into tr.nodes that carry a multiplier
     g_weights: np.ndarray  # (m,) ∫gφ_i
+    exact: tuple | None = None  # (w, grad) fields of the exact solution, if the scene has one
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
@@ -69,6 +71,18 @@ class Model:
         x = self.values.copy()
         x[self.free] = w
         return x
+
+    def errors(self, sol: Solution) -> dict[str, float]:
+        """|w − w_h|_H1 and ‖w − w_h‖_L2 against the scene's [exact] solution, and h."""
+        if self.exact is None:
+            raise ValueError(f"scene {self.scene.name!r} has no [exact] table")
+        w, grad = self.exact
+        x = self.full(sol.u)
+        return {
+            "h1": assembly.h1_seminorm_error(self.mesh, x, grad, 1),
+            "l2": assembly.l2_error(self.mesh, x, w, 1),
+            "h": self.mesh.h,
+        }
 
     def complementarity(self, sol: Solution) -> float:
         """Relative defect of Lemma 4.2: λᵀBw = ∫g|w_h|_h."""
@@ -96,6 +110,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     g_fun = ft.field("g", 1)
     ft.finish()
     options = read_solver(root)
+    exact = read_exact(root)
     root.finish()
 
     tr = trace(mesh, part)
@@ -122,7 +137,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
         X=(assembly.mass_matrix(mesh) + assembly.stiffness_matrix(mesh))[free][:, free],
         info={"scene": scene.name, "level": level},
     )
-    return Model(scene, level, mesh, vi, free, values, tr, rows, gw[rows], options)
+    return Model(scene, level, mesh, vi, free, values, tr, rows, gw[rows], exact, options)
 
 
 def contact_state(model: Model, sol: Solution) -> dict:
@@ -150,9 +165,12 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     files = plots.contact_plots(state, outdir, title=f"{model.scene.name} (antiplane: w)")
     n, n_slip = state["slip"].size, int(state["slip"].sum())
     lemma = model.complementarity(sol)
-    return {
+    summary = {
         "contact": {"nodes": n, "stick": n - n_slip, "slip": n_slip},
         "lemma_4_2": lemma,
         "complementarity": lemma,
         "files": sorted([*files, "antiplane.vtu"]),
     }
+    if model.exact is not None:
+        summary["errors"] = model.errors(sol)
+    return summary

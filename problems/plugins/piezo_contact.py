@@ -37,6 +37,7 @@ from problems.output import plots
 from problems.scene import Scene, Table
 from vi_core import METHODS, Box, Free, MixedVI, Solution, product
 
+from . import piezo_balance
 from .bodies import Body, build_body
 
 NAME = "piezo_contact"
@@ -613,8 +614,11 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         fn = f"{b.name}.vtu"
         write_vtu(outdir / fn, b.mesh, point, cell)
         files.append(fn)
-    summary: dict = {}
+    summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
     if model.contact is not None:
+        quad = piezo_balance.lemma_4_2(model, sol)
+        if quad is not None:
+            summary["lemma_4_2_quadrature"] = quad
         state = contact_state(model, sol)
         files += plots.contact_plots(state, outdir, title=model.scene.name)
         n_slip = int(state["slip"].sum())

@@ -91,3 +91,45 @@ def test_every_set_type_in_one_problem():
     assert a.converged and b.converged
     du, dlam = agree(vi, a, b)
     assert du <= AGREE and dlam <= AGREE
+
+
+def _scaled(vi: MixedVI, factor: float) -> MixedVI:
+    """The same VI with f, gap and the bounds of Λ multiplied by `factor`."""
+    return MixedVI(
+        A=vi.A,
+        B=vi.B,
+        f=vi.f * factor,
+        Lambda=vi.Lambda.scaled(np.full(vi.m, 1.0 / factor)),
+        gap=vi.gap * factor,
+    )
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_scale_invariance(seed):
+    """Data and bounds × 1e-12 … 1e12: the raw conic answer has the same relative residual and
+    scales with the data (the VI is positively homogeneous of degree 1). On a scene:
+    tests/problems/commands/test_check.py::test_conic_scale_invariance_on_a_scene."""
+    mf = manufactured_vi(
+        seed, n=24, m=10, structure="skew-coupled", rho=0.8, spread=1.0, degenerate=0.0
+    )
+    base = solve(mf.vi, "conic", tol=TOL, polish=0)
+    assert base.info["status"] == "optimal"
+    for factor in (1e-12, 1e-6, 1e6, 1e12):
+        sol = solve(_scaled(mf.vi, factor), "conic", tol=TOL, polish=0)
+        assert sol.info["status"] == "optimal", factor
+        assert sol.residual == pytest.approx(base.residual, rel=1e-2), factor
+        np.testing.assert_allclose(sol.u / factor, base.u, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(sol.lam / factor, base.lam, rtol=1e-6, atol=1e-9)
+
+
+def test_scale_invariance_fails_without_normalisation(monkeypatch):
+    """Mutation: without the normalisation, data × 1e-12 break the raw conic answer."""
+    import vi_core.conic as conic
+
+    mf = manufactured_vi(
+        0, n=24, m=10, structure="skew-coupled", rho=0.8, spread=1.0, degenerate=0.0
+    )
+    vi = _scaled(mf.vi, 1e-12)
+    assert solve(vi, "conic", tol=TOL, polish=0).residual <= 1e-9
+    monkeypatch.setattr(conic, "_normalisation", lambda e: 1.0)
+    assert solve(vi, "conic", tol=TOL, polish=0).residual > 1e-3

@@ -21,6 +21,8 @@ def test_solve_writes_summary_fields_and_plots(tmp_path, capsys):
         "residual",
         "contact",
         "lemma_4_2",
+        "lemma_4_2_quadrature",
+        "force_balance",
         "time_s",
     ):
         assert key in s, key
@@ -40,7 +42,9 @@ def test_solve_writes_summary_fields_and_plots(tmp_path, capsys):
     assert s["contact"]["mortar_patch_defect"] == 0.0 and s["contact"]["master"] == "rigid"
     assert s["contact"]["uncovered_nodes"] == s["contact"]["crosspoint_nodes"] == []
     assert set(s["time_s"]) == {"build", "solve", "total"}
-    assert s["converged"] and s["residual"] <= 1e-10 and s["lemma_4_2"] <= 1e-10
+    assert s["converged"] and s["residual"] <= 1e-10
+    # independent of the contact assembly (problems/plugins/piezo_balance.py)
+    assert s["lemma_4_2_quadrature"]["gap"] <= 1e-10 and s["force_balance"]["imbalance"] <= 1e-10
     assert s["contact"]["stick"] > 0 and s["contact"]["slip"] > 0
     for f in ("block.vtu", "contact_multiplier.png", "contact_displacement.png", "potential.png"):
         assert (out / f).stat().st_size > 0, f

@@ -1,8 +1,9 @@
 """The `mixvi extremes` rows at level 0: residual, cross-method agreement and physical checks.
 
-Documented limitation (asserted, so a fix shows up as a failing test to update): with loads and
-g scaled by 1e-12 the conic method (Clarabel, absolute tolerances) does not converge; ssn and
-the homotopy still agree and the solution is homogeneous of degree 1 in the data.
+The conic answers are Clarabel's raw ones (no polishing). With loads and g scaled by 1e-12 the
+conic method used to fail (absolute tolerances); it now normalises the data (vi_core.conic) and
+agrees like the other rows (tests/problems/commands/test_check.py::
+test_conic_scale_invariance_on_a_scene: the same relative residual from 1e-12 to 1e12).
 The Lemma 4.2 gap is held to 1e-9, not the 1e-10 of the shipped scenes: g = 1e-6 σ_ref and the
 10:1 mortar interface give 4.6e-10 (relative to ∫g|[u_τ]|, which is tiny there).
 """
@@ -15,7 +16,6 @@ import pytest
 
 from problems.commands.extremes import AGREE_OK, RESIDUAL_OK, extremes_main, rows, run_row
 
-CONIC_FAILS = {"loads, g × 1e-12"}
 ROWS = [dataclasses.replace(r, level=0) for r in rows() if not r.huge]
 
 
@@ -24,8 +24,6 @@ def test_extreme_row(row):
     rec = run_row(row)
     assert rec["converged"] and rec["residual"] <= RESIDUAL_OK, rec
     agree = dict(rec["agreement"])
-    if row.name in CONIC_FAILS:
-        assert agree.pop("conic") > AGREE_OK  # the documented limitation
     assert agree and max(agree.values()) <= AGREE_OK, rec
     assert rec["friction_excess"] <= 1e-9, rec
     # with no slipping node (4.3) reads 0 = 0 and the ratio is rounding over a "tiny"
