@@ -190,7 +190,8 @@ def cmd_check(args: argparse.Namespace) -> int:
         a, b = options.level_range(args.levels)
     else:
         lev = args.level if args.level is not None else resources.default_level(plugin, scene)
-        option, text, (a, b) = "--level", str(lev), (lev, lev)
+        option = "--level" if args.level is not None else "scene.level"
+        text, (a, b) = str(lev), (lev, lev)
     resources.check_levels(plugin, scene, (a, b), option, text, args.force)
     if args.json is None:
         return _check(scene, plugin, range(a, b + 1), args.tol, None)

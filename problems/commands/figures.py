@@ -30,7 +30,8 @@ def cmd_figures(args: argparse.Namespace) -> int:
             "bounds); this scene's plug-in has none",
         )
     level = args.level if args.level is not None else resources.default_level(plugin, probe)
-    resources.check_levels(plugin, probe, (level, level), "--level", str(level), args.force)
+    option = "--level" if args.level is not None else "scene.level"  # where the level came from
+    resources.check_levels(plugin, probe, (level, level), option, str(level), args.force)
     out = Path(args.out) if args.out else Path("out") / f"{probe.name}_figures"
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
         states = []

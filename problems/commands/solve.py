@@ -52,7 +52,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
     if method is not None and method not in vi_core.METHODS:
         raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
     level = args.level if args.level is not None else resources.default_level(plugin, scene)
-    resources.check_levels(plugin, scene, (level, level), "--level", str(level), args.force)
+    option = "--level" if args.level is not None else "scene.level"  # where the level came from
+    resources.check_levels(plugin, scene, (level, level), option, str(level), args.force)
     out = Path(args.out) if args.out else Path("out") / scene.name
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
         return _solve(args, t0, scene, plugin, level, folder)

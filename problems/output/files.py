@@ -100,7 +100,13 @@ def _reason(err: OSError) -> str:
         errno.EPERM: "operation not permitted",
         errno.ENOSPC: "no space left on device",
         errno.ENOTDIR: "a parent is not a folder",
+        errno.ENAMETOOLONG: "a name too long for the file system",
+        errno.ELOOP: "too many symbolic links",
     }.get(err.errno, err.strerror or type(err).__name__)
+
+
+def _why(err: Exception) -> str:
+    return _reason(err) if isinstance(err, OSError) else str(err)
 
 
 def _remove_empty(created: list[Path]) -> None:
@@ -309,7 +315,10 @@ def output_folder(
     path: str | Path, option: str = "--out", command: str | None = None, overwrite: bool = False
 ) -> Iterator[OutputFolder]:
     """Claim `path` for the whole `with` block (see the module rules); release at the end."""
-    folder = OutputFolder(Path(path), option, command or _command_line(), overwrite)
+    try:
+        folder = OutputFolder(Path(path), option, command or _command_line(), overwrite)
+    except (OSError, ValueError) as err:  # a path the OS cannot even look at
+        raise _refuse(option, Path(path), f"a usable folder path ({_why(err)})") from None
     try:
         yield folder
     finally:
@@ -362,7 +371,10 @@ class OutputFile:
 @contextmanager
 def output_file(path: str | Path, option: str) -> Iterator[OutputFile]:
     """Claim the file `path` for the `with` block (parents created, writability checked)."""
-    f = OutputFile(Path(path), option)
+    try:
+        f = OutputFile(Path(path), option)
+    except (OSError, ValueError) as err:  # a path the OS cannot even look at
+        raise _refuse(option, Path(path), f"a usable file path ({_why(err)})") from None
     try:
         yield f
     finally:

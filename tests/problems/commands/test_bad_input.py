@@ -107,6 +107,7 @@ CASES = [
     S("unknown key", "contact.nosuch=1", "contact.nosuch"),
     S("negative level", "scene.level=-1", "scene.level"),
     S("level a word", "scene.level='two'", "scene.level"),
+    S("level above the cap", "scene.level=12", "scene.level"),
     S("unknown plug-in", "scene.plugin='nosuch'", "scene.plugin"),
     S("solver tol zero", "solver.tol=0", "solver"),
     S("--set without =", "contact.g", "--set"),
@@ -169,6 +170,12 @@ CASES = [
     ),
     Case("--out is a file", ["solve", "{d}/scene.toml", "--out", "{d}/afile"], "--out", a_file),
     Case("--out in /proc", ["solve", "{d}/scene.toml", "--out", "/proc/mixvi-out"], "--out"),
+    Case("--out name too long", ["solve", "{d}/scene.toml", "--out", "{d}/" + "a" * 300], "--out"),
+    Case("scene name too long", ["solve", "{d}/" + "b" * 300 + ".toml"], "scene"),
+    Case(
+        "--json name too long", ["check", "{d}/scene.toml", "--json", "{d}/" + "c" * 300], "--json"
+    ),
+    Case("--json empty", ["check", "{d}/scene.toml", "--json", ""], "--json"),
     Case("--out in /sys", ["solve", "{d}/scene.toml", "--out", "/sys/mixvi-out"], "--out"),
     Case("--out /proc itself", ["solve", "{d}/scene.toml", "--out", "/proc"], "--out"),
     Case(
