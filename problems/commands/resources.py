@@ -19,9 +19,11 @@ RSS of `mixvi solve SCENE --level L` in a fresh process, `/usr/bin/time -f %M`),
 the peaks above 1.5 × base; `mixvi bench` prints its measured peak beside the estimate.
 Re-measure them here when the memory per unknown changes.
 
-Caps. A level whose estimate exceeds the machine's memory (physical or cgroup or RLIMIT_AS) is
-above the scene's cap; a level whose estimate exceeds the memory available now is refused. Both
-are SceneErrors naming the option, printing the estimate (exit 2); `--force` skips them.
+Caps. A level whose upper estimate (the estimate divided by the smallest estimate / measured
+ratio seen for that solver, WORST_RATIO) exceeds the machine's memory (physical, cgroup or
+RLIMIT_AS) is above the scene's cap; a level whose upper estimate exceeds the memory available
+now is refused. Both are SceneErrors naming the option and printing the estimate (exit 2);
+`--force` skips them.
 """
 
 from __future__ import annotations
@@ -43,6 +45,9 @@ MEMORY_MODEL = {  # linear solver → (predictor, base [bytes], a, b)
     "splu": ("nnz", 115e6, 158.5, 1.0811),
     "pardiso": ("unknowns", 175e6, 5851.0, 1.0481),
 }
+# the smallest estimate / measured peak seen per solver: refusals and caps use the estimate
+# divided by it (the most a level can need as far as the measurements go)
+WORST_RATIO = {"splu": 0.86, "pardiso": 0.54}
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,11 @@ class Estimate:
     unknowns: int
     solver: str  # the linear solver the estimate is for ("splu" or "pardiso")
     peak_bytes: float
+
+    @property
+    def upper_bytes(self) -> float:
+        """The most this level may need: the estimate over the worst ratio measured."""
+        return self.peak_bytes / WORST_RATIO[self.solver]
 
 
 def peak_bytes(unknowns: float, nnz: float, solver: str) -> float:
@@ -138,10 +148,11 @@ class Sizes:
         return Estimate(self.scene.name, level, N, solver, peak_bytes(N, nnz, solver))
 
     def cap(self, total: float) -> int:
-        """The largest level (≤ MAX_LEVEL) whose estimate fits in `total` bytes (0 at least)."""
+        """The largest level (≤ MAX_LEVEL) whose upper estimate fits in `total` bytes (0 at
+        least)."""
         cap = 0
         for lev in range(MAX_LEVEL + 1):
-            if self.estimate(lev).peak_bytes > total:
+            if self.estimate(lev).upper_bytes > total:
                 break
             cap = lev
         return cap
@@ -151,7 +162,7 @@ def describe(e: Estimate) -> str:
     """'level 5 of paper_two_body: about 386,178 unknowns, peak memory about 5.8 GB (splu)'."""
     return (
         f"level {e.level} of {e.scene}: about {e.unknowns:,} unknowns, "
-        f"peak memory about {gb(e.peak_bytes)} ({e.solver})"
+        f"peak memory about {gb(e.peak_bytes)}, up to {gb(e.upper_bytes)} ({e.solver})"
     )
 
 
@@ -179,7 +190,7 @@ def check_levels(
         )
         raise SceneError(option, text, f"expected A..B with 0 ≤ A ≤ B ≤ {cap}{why}")
     e = sizes.estimate(b)
-    if not force and e.peak_bytes > available:
+    if not force and e.upper_bytes > available:
         raise SceneError(
             option,
             text,
