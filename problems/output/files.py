@@ -140,7 +140,7 @@ def first_foreign(folder: Path) -> str | None:
     Stops at the first foreign file (a hostile target such as / is not walked through).
     """
     marker = read_marker(folder)
-    listed = {str(f) for f in marker["files"]} if marker else None
+    listed = {str(f) for f in [*marker["files"], *marker.get("earlier", [])]} if marker else None
     first, legacy_name = None, False
     for f in _iter_files(folder):
         if listed is not None:
@@ -174,7 +174,11 @@ class OutputFolder:
             raise _refuse(option, path, "a folder (this path is a file)")
         previous = read_marker(path) if path.is_dir() else None
         self.previous = [str(f) for f in previous["files"]] if previous else []
+        # files of an earlier mixvi version (no marker): kept, listed as "earlier", never removed
+        self.earlier = [str(f) for f in previous.get("earlier", [])] if previous else []
         foreign = first_foreign(path) if path.is_dir() else None
+        if previous is None and foreign is None and path.is_dir():
+            self.earlier = _files(path)
         if foreign is not None and not overwrite:
             raise _refuse(
                 option,
@@ -280,6 +284,7 @@ class OutputFolder:
                 if p.is_file() or p.is_symlink():
                     with suppress(OSError):
                         p.unlink()
+            self.earlier = [f for f in self.earlier if f not in new and (self.path / f).exists()]
             self._write_marker(new, complete=True)
         except OSError as err:
             raise _refuse(
@@ -296,6 +301,8 @@ class OutputFolder:
             "complete": complete,
             "files": files,
         }
+        if self.earlier:
+            marker["earlier"] = self.earlier  # an earlier version's files, kept
         write_file(self.path / MARKER, json.dumps(marker, indent=2) + "\n")
 
     def release(self) -> None:

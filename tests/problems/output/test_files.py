@@ -101,7 +101,10 @@ def test_unmarked_folder_of_an_earlier_version_counts_as_mixvis(tmp_path):
         (out / f).write_text("old")
     run(out, {"summary.json": "new"})
     assert (out / "summary.json").read_text() == "new"
-    assert (out / "block.vtu").read_text() == "old"  # not listed anywhere: never deleted
+    assert (out / "block.vtu").read_text() == "old"  # an earlier version's: kept, never deleted
+    assert json.loads((out / MARKER).read_text())["earlier"] == ["block.vtu", "potential.png"]
+    run(out, {"summary.json": "newer"})  # and still counts as mixvi's on the next run
+    assert (out / "block.vtu").read_text() == "old" and (out / "potential.png").exists()
 
 
 def test_an_error_while_writing_leaves_the_previous_run_untouched(tmp_path):
