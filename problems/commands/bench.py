@@ -7,8 +7,14 @@ For each (scene, level) a child process builds the model and times
 - one linear solve of the same matrix size: the stick limit (every multiplier Free, i.e. the
   tied problem), by the same machinery (ssn on a linear problem = one condensed factorisation
   and solve);
-and reports their ratio and the child's peak resident memory (ru_maxrss, which — unlike
-tracemalloc — includes the sparse factorisations' C allocations).
+and reports their ratio, the child's peak resident memory (ru_maxrss, which — unlike
+tracemalloc — includes the sparse factorisations' C allocations) and the memory estimate of
+`resources` for the same level (made before the child starts), so the model can be checked.
+
+A case whose child raises, is killed (e.g. by the out-of-memory killer) or exceeds `--timeout`
+seconds becomes a failed row with its cause; the parent polls the child's liveness and never
+waits without a time limit. The table (failed rows included) is written in every case; exit
+status 1 if any case failed or did not converge.
 """
 
 from __future__ import annotations
@@ -17,29 +23,34 @@ import argparse
 import json
 import multiprocessing as mp
 import platform
+import queue
 import resource
-import sys
+import signal
 import time
-from pathlib import Path
 
 import numpy as np
 
 import vi_core
 from problems.errors import SceneError
+from problems.output import signals
+from problems.output.files import output_file
 from vi_core import Free, MixedVI
 from vi_core.linalg import resolve_backend
 
-from .options import level_range
+from . import options, resources
 
 DEFAULT = {"paper_two_body": (2, 5), "rigid_foundation": (3, 6)}
+DEFAULT_TIMEOUT = 3600.0  # seconds per (scene, level): the paper scene at level 5 takes ~5 min
+POLL = 0.2  # seconds between liveness checks of a child
 
 
 def _nested_ssn(plugin, scene, level: int, tol: float):
     prev, iters, total = None, [], 0.0
+    warm = hasattr(plugin, "warm_start")  # without one: levels solved from cold starts
     for lev in range(level + 1):
         model = plugin.build(scene, lev)
         t = time.perf_counter()
-        kw = plugin.warm_start(*prev, model) if prev else {}
+        kw = plugin.warm_start(*prev, model) if prev and warm else {}
         sol = vi_core.solve(model.vi, "ssn", tol=tol, **kw)
         total += time.perf_counter() - t
         iters.append(sol.iterations)
@@ -47,7 +58,7 @@ def _nested_ssn(plugin, scene, level: int, tol: float):
     return prev[0], prev[1], total, iters
 
 
-def _record(scene_name: str, level: int, solvers: list[str], tol: float, queue) -> None:
+def _record(scene_name: str, level: int, solvers: list[str], tol: float) -> list[dict]:
     from problems.plugins import registry
     from problems.scene import load_scene
 
@@ -63,7 +74,8 @@ def _record(scene_name: str, level: int, solvers: list[str], tol: float, queue) 
     t = time.perf_counter()
     lin = vi_core.solve(tied, "ssn", tol=tol)
     t_lin = time.perf_counter() - t
-    assert lin.iterations == 1 and lin.converged
+    if not lin.converged:
+        raise RuntimeError(f"the tied linear solve did not converge ({lin.residual:.1e})")
     base = {"scene": scene_name, "level": level, "unknowns": vi.n + vi.m}
     out.append(
         {
@@ -98,64 +110,179 @@ def _record(scene_name: str, level: int, solvers: list[str], tol: float, queue) 
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux → MiB
     for r in out:
         r["peak_mem_mb"] = peak
-    queue.put(out)
+    return out
+
+
+def _die_with_parent() -> None:
+    """Linux: the kernel kills this process when its parent dies (no orphaned solves)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+def _child(scene_name: str, level: int, solvers: list[str], tol: float, q) -> None:
+    """Run one case in a worker process and put ("ok", rows) or ("error", cause) on `q`."""
+    signals.ignore_in_child()
+    _die_with_parent()
+    try:
+        q.put(("ok", _record(scene_name, level, solvers, tol)))
+    except MemoryError:
+        q.put(("error", "out of memory (MemoryError in the child)"))
+    except SceneError as err:
+        q.put(("error", f"bad input: {err}"))
+    except BaseException as err:  # the cause goes into the table; the parent decides the exit
+        q.put(("error", f"{type(err).__name__}: {err}".splitlines()[0][:300]))
+
+
+def death_cause(exitcode: int | None) -> str:
+    """Why a child ended without a result, from its exit code."""
+    if exitcode is None:
+        return "still running"
+    if exitcode < 0:
+        name = signal.Signals(-exitcode).name
+        hint = " (out of memory? the kernel's OOM killer sends SIGKILL)" if exitcode == -9 else ""
+        return f"the child process was killed by {name}{hint}"
+    return f"the child process exited with status {exitcode} without a result"
+
+
+def run_case(ctx, name: str, level: int, solvers: list[str], tol: float, timeout: float):
+    """("ok", rows) or ("error", cause) of one case run in a fresh child process; the child is
+    polled every POLL seconds and killed after `timeout` seconds or on any exception here."""
+    q = ctx.Queue()
+    proc = ctx.Process(target=_child, args=(name, level, solvers, tol, q), daemon=True)
+    proc.start()
+    deadline = time.monotonic() + timeout
+    try:
+        while True:
+            try:
+                return q.get(timeout=POLL)
+            except queue.Empty:
+                pass
+            if not proc.is_alive():
+                try:  # a result put just before the child ended
+                    return q.get(timeout=1.0)
+                except queue.Empty:
+                    return "error", death_cause(proc.exitcode)
+            if time.monotonic() > deadline:
+                return "error", f"timed out after {timeout:g} s (--timeout)"
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        proc.join(10)
+        q.close()
+        q.cancel_join_thread()
+
+
+def _scenes(text: str) -> list[str]:
+    from problems.scene import SCENES_DIR
+
+    items = [x.strip() for x in text.split(",")]
+    if not text.strip() or any(not x for x in items):
+        shipped = ", ".join(sorted(q.stem for q in SCENES_DIR.glob("*.toml")))
+        raise SceneError(
+            "--scenes", text, f"a non-empty comma-separated list of scene files or of: {shipped}"
+        )
+    return items
+
+
+def _timeout(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = -1.0
+    if not 0 < v < float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r}: a time in seconds, > 0")
+    return v
+
+
+HEAD = (
+    f"{'scene':<18}{'level':>6}{'unknowns':>10}{'solver':>10}{'iter':>6}"
+    f"{'nonlinear [s]':>15}{'linear [s]':>12}{'ratio':>8}{'peak [MB]':>11}{'est. [MB]':>11}"
+)
+
+
+def _line(r: dict) -> str:
+    if r.get("error"):
+        return f"{r['scene']:<18}{r['level']:>6}{r['unknowns']:>10}  FAILED: {r['error']}"
+    return (
+        f"{r['scene']:<18}{r['level']:>6}{r['unknowns']:>10}{r['solver']:>10}"
+        f"{r['iterations']:>6}{r['time_nonlinear_s']:>15.2f}{r['time_linear_s']:>12.2f}"
+        f"{r['ratio']:>8.2f}{r['peak_mem_mb']:>11.0f}{r['estimate_mem_mb']:>11.0f}"
+    )
 
 
 def bench_main(argv: list[str] | None = None) -> int:
-    """Entry point of `mixvi bench` (prints a table, writes bench.json)."""
+    """Entry point of `mixvi bench` (prints a table, writes bench.json); 0 if every case ran
+    and converged, 1 if one failed (its row says why), 2 on bad input."""
     p = argparse.ArgumentParser(prog="mixvi bench", description=__doc__.splitlines()[0])
     p.add_argument("--scenes", default=",".join(DEFAULT), help="comma-separated scene names")
     p.add_argument("--levels", default=None, help="A..B for every scene (default per scene)")
     p.add_argument("--solvers", default="ssn", help="comma-separated: ssn,conic,homotopy")
-    p.add_argument("--tol", type=float, default=1e-10)
-    p.add_argument("--out", default="bench.json")
-    args = p.parse_args(argv)
-    try:
-        solvers = [s for s in args.solvers.split(",") if s]
-        bad = [s for s in solvers if s not in ("ssn", "conic", "homotopy")]
-        if bad:
-            raise SceneError("--solvers", bad[0], "a comma-separated subset of ssn,conic,homotopy")
-        jobs = []
-        for name in [s for s in args.scenes.split(",") if s]:
-            if args.levels:
-                levels = level_range(args.levels)
-            else:
-                a, b = DEFAULT.get(name, (0, 3))
-                levels = list(range(a, b + 1))
-            jobs += [(name, lev) for lev in levels]
-        from problems.scene import find_scene
-
-        for name, _ in jobs:
-            find_scene(name)
-    except SceneError as err:
-        print(f"mixvi: error: {err}", file=sys.stderr)
-        return 2
-    records = []
-    print(
-        f"{'scene':<18}{'level':>6}{'unknowns':>10}{'solver':>10}{'iter':>6}"
-        f"{'nonlinear [s]':>15}{'linear [s]':>12}{'ratio':>8}{'peak [MB]':>11}"
+    p.add_argument("--tol", type=options.tol, default=1e-10)
+    p.add_argument(
+        "--timeout",
+        type=_timeout,
+        default=DEFAULT_TIMEOUT,
+        help=f"seconds per case before its child is killed (default {DEFAULT_TIMEOUT:g})",
     )
-    ctx = mp.get_context("spawn")
-    for name, lev in jobs:
-        q = ctx.Queue()
-        proc = ctx.Process(target=_record, args=(name, lev, solvers, args.tol, q))
-        proc.start()
-        recs = q.get()
-        proc.join()
-        for r in recs:
-            print(
-                f"{r['scene']:<18}{r['level']:>6}{r['unknowns']:>10}{r['solver']:>10}"
-                f"{r['iterations']:>6}{r['time_nonlinear_s']:>15.2f}{r['time_linear_s']:>12.2f}"
-                f"{r['ratio']:>8.2f}{r['peak_mem_mb']:>11.0f}",
-                flush=True,
-            )
-        records += recs
-    machine = {
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "cpus": mp.cpu_count(),
-        "linear_solver": resolve_backend("auto"),
-    }
-    Path(args.out).write_text(json.dumps({"machine": machine, "records": records}, indent=2))
+    p.add_argument("--out", default="bench.json")
+    p.add_argument("--force", action="store_true", help="skip the memory estimate's refusal")
+    args = p.parse_args(argv)
+    solvers = options.names(args.solvers, "--solvers", ("ssn", "conic", "homotopy"))
+    from problems.plugins import registry
+    from problems.scene import load_scene
+
+    jobs = []
+    for name in _scenes(args.scenes):
+        scene = load_scene(name)
+        plugin = registry.for_scene(scene)
+        if args.levels:
+            a, b = options.level_range(args.levels)
+            text = args.levels
+        else:
+            a, b = DEFAULT.get(name, (0, 3))
+            text = f"{a}..{b}"
+        sizes = resources.check_levels(plugin, scene, (a, b), "--levels", text, args.force)
+        jobs += [(name, lev, sizes.estimate(lev)) for lev in range(a, b + 1)]
+    with output_file(args.out, "--out") as target:
+        records = _run(jobs, solvers, args)
+        machine = {
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+            "cpus": mp.cpu_count(),
+            "linear_solver": resolve_backend("auto"),
+        }
+        target.write(json.dumps({"machine": machine, "records": records}, indent=2))
     print(f"wrote {args.out}")
-    return 0
+    ok = all(not r.get("error") and r.get("converged") for r in records)
+    return 0 if ok else 1
+
+
+def _run(jobs, solvers: list[str], args) -> list[dict]:
+    print(HEAD)
+    ctx = mp.get_context("spawn")
+    records = []
+    for name, lev, est in jobs:
+        kind, payload = run_case(ctx, name, lev, solvers, args.tol, args.timeout)
+        extra = {"estimate_unknowns": est.unknowns, "estimate_mem_mb": est.peak_bytes / 2**20}
+        if kind == "ok":
+            recs = [{**r, **extra} for r in payload]
+        else:
+            recs = [
+                {
+                    "scene": name,
+                    "level": lev,
+                    "unknowns": est.unknowns,
+                    "solver": "ssn",
+                    "converged": False,
+                    "error": payload,
+                    **extra,
+                }
+            ]
+        for r in recs:
+            print(_line(r), flush=True)
+        records += recs
+    return records

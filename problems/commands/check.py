@@ -23,17 +23,16 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 import numpy as np
 
 import vi_core
-from problems.output.files import jsonable
+from problems.output.files import jsonable, output_file
 from problems.plugins import registry
 from problems.scene import load_scene
 from vi_core.kkt import Checker
 
-from . import options
+from . import options, resources
 from .options import DEFAULT_SCENE
 
 CONIC_RAW_ACCEPT = 1e-6  # Clarabel's raw answer must reach this independent residual
@@ -186,9 +185,24 @@ def cmd_check(args: argparse.Namespace) -> int:
     fails or a pair differs beyond `allowed` (module docstring)."""
     scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
     plugin = registry.for_scene(scene)
+    if args.levels is not None:
+        option, text = "--levels", args.levels
+        a, b = options.level_range(args.levels)
+    else:
+        lev = args.level if args.level is not None else resources.default_level(plugin, scene)
+        option = "--level" if args.level is not None else "scene.level"
+        text, (a, b) = str(lev), (lev, lev)
+    resources.check_levels(plugin, scene, (a, b), option, text, args.force)
+    if args.json is None:
+        return _check(scene, plugin, range(a, b + 1), args.tol, None)
+    with output_file(args.json, "--json") as target:
+        return _check(scene, plugin, range(a, b + 1), args.tol, target)
+
+
+def _check(scene, plugin, levels, tol, target) -> int:
     records, ok = [], True
-    for level in options.levels(args.levels, args.level):
-        good, rec = _check_level(scene, plugin, level, args.tol)
+    for level in levels:
+        good, rec = _check_level(scene, plugin, level, tol)
         ok = ok and good
         records.append(rec)
         if good:
@@ -197,8 +211,6 @@ def cmd_check(args: argparse.Namespace) -> int:
             )
         else:
             print("DISAGREE: " + "; ".join(rec["failures"]))
-    if args.json:
-        Path(args.json).write_text(
-            json.dumps(jsonable({"scene": scene.name, "records": records}), indent=2)
-        )
+    if target is not None:
+        target.write(json.dumps(jsonable({"scene": scene.name, "records": records}), indent=2))
     return 0 if ok else 1

@@ -27,8 +27,12 @@ from pathlib import Path
 import numpy as np
 
 import vi_core
+from problems.errors import SceneError
+from problems.output.files import output_folder
 from problems.plugins import piezo_contact as pc
 from problems.scene import Scene, load_scene
+
+from . import resources
 
 RESIDUAL_OK = 1e-8
 AGREE_OK = 1e-6
@@ -272,21 +276,36 @@ def extremes_main(argv: list[str]) -> int:
     p.add_argument("--huge", action="store_true", help="include the ~1.6M-unknown row")
     p.add_argument("--only", default=None, help="run only rows whose name contains TEXT")
     p.add_argument("--out", default="out/extremes", help="directory for extremes.json")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="write into a folder that holds other files (nothing is deleted)",
+    )
+    p.add_argument(
+        "--force", action="store_true", help="run rows whose memory estimate does not fit"
+    )
     args = p.parse_args(argv)
-    selected = [
-        r
-        for r in rows()
-        if (args.huge or not r.huge) and (args.only is None or args.only in r.name)
-    ]
-    print("iters = ssn/conic/homotopy; agree = largest relative difference to ssn")
-    print(HEADER)
-    records = []
-    for row in selected:
-        rec = run_row(row)
-        records.append(rec)
-        print(format_row(rec), flush=True)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "extremes.json").write_text(json.dumps(records, indent=2, default=float) + "\n")
-    print(f"wrote {out / 'extremes.json'}")
+    candidates = [r for r in rows() if args.huge or not r.huge]
+    selected = [r for r in candidates if args.only is None or args.only in r.name]
+    if not selected:
+        raise SceneError(
+            "--only",
+            args.only,
+            "text contained in a row name: " + "; ".join(r.name for r in candidates),
+        )
+    for row in selected:  # every row's level must fit in memory before anything runs
+        option = "--huge" if row.huge else "--only"
+        resources.check_levels(pc, row.load(), (row.level, row.level), option, row.name, args.force)
+    with output_folder(args.out, "--out", overwrite=args.overwrite) as folder:
+        print("iters = ssn/conic/homotopy; agree = largest relative difference to ssn")
+        print(HEADER)
+        records = []
+        for row in selected:
+            rec = run_row(row)
+            records.append(rec)
+            print(format_row(rec), flush=True)
+        with folder.staging() as tmp:
+            text = json.dumps(records, indent=2, default=float) + "\n"
+            (tmp / "extremes.json").write_text(text)
+    print(f"wrote {Path(args.out) / 'extremes.json'}")
     return 0 if all(r["ok"] for r in records) else 1

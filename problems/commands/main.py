@@ -2,14 +2,21 @@
 
 mixvi solve [SCENE] [--level N] [--solver NAME] [--tol T] [--set key=value ...] [--out DIR]
 mixvi scenes | check | figures | study | bench | extremes
+
+Exit status (every command): 0 all good, 1 ran but a case failed or did not converge, 2 bad
+input (one line naming the option or scene key, the value and what is allowed), 3 internal
+error (one line; `--debug` anywhere on the command line prints the traceback), 130 / 143
+interrupted by SIGINT / SIGTERM (one line; output folders as they were before the run).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import traceback
 
 from problems.errors import SceneError
+from problems.output import signals
 
 from . import options
 from .check import cmd_check
@@ -17,6 +24,26 @@ from .figures import cmd_figures
 from .options import DEFAULT_SCENE
 from .scenes import cmd_scenes
 from .solve import ACCURACY, cmd_solve
+
+
+def add_force(p: argparse.ArgumentParser) -> None:
+    """--force: skip the memory estimate's refusal and the scene's level cap."""
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="try levels above the scene's memory cap or the memory available now",
+    )
+
+
+def add_output_options(p: argparse.ArgumentParser) -> None:
+    """--overwrite and --force, shared by every command that writes an output folder."""
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="write into a folder that holds other files (only mixvi's files are replaced; "
+        "nothing is deleted)",
+    )
+    add_force(p)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -41,6 +68,7 @@ def parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
     s.add_argument("--out", default=None, help="output directory (default out/SCENE)")
+    add_output_options(s)
     s.add_argument(
         "--cold",
         action="store_true",
@@ -68,13 +96,37 @@ def parser() -> argparse.ArgumentParser:
             c.add_argument("--json", default=None, help="also write the table as JSON")
         else:
             c.add_argument("--out", default=None)
+            add_output_options(c)
+        if name == "check":
+            add_force(c)
         c.set_defaults(func=fn)
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `mixvi` command; exit status 2 on bad input."""
-    argv = sys.argv[1:] if argv is None else argv
+# options whose value may start with '-' ("--levels -1..2", "--tol -1"): argparse would take
+# the value for an option and print its own message; glued as "--levels=-1..2" the value
+# reaches the option's own check, which names the option and what is allowed
+VALUE_OPTIONS = {"--level", "--levels", "--tol", "--tols", "--timeout", "--only", "--scenes"}
+VALUE_OPTIONS |= {"--solvers", "--solver", "--json", "--out", "--accuracy"}
+
+
+def _glue_values(argv: list[str]) -> list[str]:
+    out, i = [], 0
+    while i < len(argv):
+        a = argv[i]
+        if a in VALUE_OPTIONS and i + 1 < len(argv) and argv[i + 1].startswith("-"):
+            nxt = argv[i + 1]
+            if nxt not in VALUE_OPTIONS and not nxt.startswith("--"):
+                out.append(f"{a}={nxt}")
+                i += 2
+                continue
+        out.append(a)
+        i += 1
+    return out
+
+
+def _dispatch(argv: list[str]) -> int:
+    argv = _glue_values(argv)
     if argv[:1] == ["bench"]:  # its own argument parser (benchmark options)
         from .bench import bench_main
 
@@ -88,11 +140,34 @@ def main(argv: list[str] | None = None) -> int:
 
         return study_main(argv[1:])
     args = parser().parse_args(argv)
+    return args.func(args)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `mixvi` command: the one place that maps failures to exit statuses
+    (SceneError → 2, SIGINT/SIGTERM → 130/143, anything else → 3 with a hint at --debug)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
+    signals.install()
     try:
-        return args.func(args)
+        return _dispatch(argv)
     except SceneError as err:
         print(f"mixvi: error: {err}", file=sys.stderr)
         return 2
+    except signals.Interrupted as sig:
+        print(f"mixvi: interrupted by {sig}", file=sys.stderr)
+        return sig.exit_status
+    except KeyboardInterrupt:  # raised before the handler was installed
+        print("mixvi: interrupted by SIGINT", file=sys.stderr)
+        return 130
+    except Exception as err:
+        if debug:
+            traceback.print_exc()
+        what = f"{type(err).__name__}: {err}".splitlines()[0][:300]
+        hint = "" if debug else "; run again with --debug for the traceback"
+        print(f"mixvi: internal error: {what}{hint}", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

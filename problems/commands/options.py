@@ -14,7 +14,8 @@ DEFAULT_SCENE = "paper_two_body"
 
 
 def level(text: str) -> int:
-    """argparse type: a refinement level 0 … MAX_LEVEL (exit 2 with a message otherwise)."""
+    """argparse type: a refinement level, an integer 0 … MAX_LEVEL (the scene's own cap, from
+    its memory estimate, is checked once the scene is read: `resources.check_levels`)."""
     try:
         v = int(text)
     except ValueError:
@@ -35,19 +36,30 @@ def tol(text: str) -> float:
     return v
 
 
-def level_range(text: str, option: str = "--levels", cap: int = MAX_LEVEL) -> list[int]:
-    """'A..B' or 'N' → the levels A … B; SceneError naming `option` unless 0 ≤ A ≤ B ≤ cap."""
-    allowed = f"A..B with 0 ≤ A ≤ B ≤ {cap}, or one level N, e.g. 0..2"
-    lo, sep, hi = text.partition("..")
+def level_range(text: str, option: str = "--levels") -> tuple[int, int]:
+    """'A..B' or 'N' → (A, B) as written (SceneError naming `option` unless both are
+    integers); whether 0 ≤ A ≤ B ≤ the scene's cap is checked once the scene is read
+    (`resources.check_levels`, which knows the cap)."""
+    lo, sep, hi = text.strip().partition("..")
     try:
-        a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))
+        return (int(lo), int(hi)) if sep else (int(lo), int(lo))
     except ValueError:
-        raise SceneError(option, text, allowed) from None
-    if not 0 <= a <= b <= cap:
-        raise SceneError(option, text, allowed)
-    return list(range(a, b + 1))
+        raise SceneError(
+            option,
+            text,
+            "expected A..B with integers 0 ≤ A ≤ B ≤ N (N: the scene's largest level that "
+            "fits in memory), or one level, e.g. 0..2",
+        ) from None
 
 
-def levels(text: str | None, default: int | None) -> list[int | None]:
-    """`--levels` if given (see `level_range`), else the single `--level` (None: the scene's)."""
-    return [default] if text is None else list(level_range(text))
+def names(text: str, option: str, allowed: list[str] | tuple[str, ...]) -> list[str]:
+    """'a,b' → ['a', 'b']: a non-empty comma-separated list of distinct names from `allowed`
+    (SceneError naming `option`, the value and the allowed names otherwise)."""
+    items = [s.strip() for s in text.split(",")]
+    what = "a non-empty comma-separated list of distinct names from: " + ", ".join(allowed)
+    if not text.strip() or any(not s for s in items) or len(set(items)) != len(items):
+        raise SceneError(option, text, what)
+    bad = [s for s in items if s not in allowed]
+    if bad:
+        raise SceneError(option, bad[0], what)
+    return items

@@ -11,11 +11,12 @@ import numpy as np
 
 import vi_core
 from problems.errors import SceneError
-from problems.output.files import atomic_output, jsonable
+from problems.output.files import jsonable, output_folder
 from problems.plugins import registry
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 from problems.scene import load_scene
 
+from . import resources
 from .options import DEFAULT_SCENE
 
 # --accuracy presets: (level, tol); measured time and error on the paper scene in the README
@@ -46,7 +47,20 @@ def cmd_solve(args: argparse.Namespace) -> int:
         level, tol = ACCURACY[args.accuracy]
         args.level = level if args.level is None else args.level
         args.tol = tol if args.tol is None else args.tol
-    scene, plugin, model = build(args)
+    scene, plugin = load(args)
+    method = args.solver
+    if method is not None and method not in vi_core.METHODS:
+        raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
+    level = args.level if args.level is not None else resources.default_level(plugin, scene)
+    option = "--level" if args.level is not None else "scene.level"  # where the level came from
+    resources.check_levels(plugin, scene, (level, level), option, str(level), args.force)
+    out = Path(args.out) if args.out else Path("out") / scene.name
+    with output_folder(out, "--out", overwrite=args.overwrite) as folder:
+        return _solve(args, t0, scene, plugin, level, folder)
+
+
+def _solve(args, t0, scene, plugin, level, folder) -> int:
+    model = plugin.build(scene, level)
     t_build = time.perf_counter() - t0
     method = args.solver or model.options.get("method", "ssn")
     if method not in vi_core.METHODS:
@@ -69,8 +83,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
     sol = vi_core.solve(model.vi, method=method, tol=tol, **warm)
     if nested:
         nested.append({"level": model.level, "iterations": sol.iterations, "time_s": sol.time})
-    out = Path(args.out) if args.out else Path("out") / scene.name
-    with atomic_output(out) as tmp:
+    out = folder.path
+    with folder.staging() as tmp:
         extras = plugin.postprocess(model, sol, tmp)
         summary = {
             "scene": scene.name,
@@ -127,7 +141,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
     return 0 if sol.converged else 1
 
 
-def build(args: argparse.Namespace):
+def load(args: argparse.Namespace):
+    """The scene (with its --set overrides) and its plug-in."""
     scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
-    plugin = registry.for_scene(scene)
-    return scene, plugin, plugin.build(scene, args.level)
+    return scene, registry.for_scene(scene)

@@ -13,7 +13,7 @@ otherwise against the finest level solved by the same solver at the tightest tol
 level's own records then carry only the solver error of looser tolerances, and rates are fitted
 over the levels below it).
 
-Output (written atomically into DIR, default out/SCENE_study): `study.json`
+Output (committed into DIR, default out/SCENE_study, by problems.output.files): `study.json`
 
     {"scene", "reference": "exact" | "level N",
      "records": [{"level", "h", "unknowns", "solver", "tol", "time_s", "iterations",
@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import tracemalloc
 from pathlib import Path
 
@@ -40,11 +39,13 @@ from tqdm import tqdm
 
 import vi_core
 from problems.errors import SceneError
-from problems.plugins import piezo_contact
+from problems.output.files import output_folder
+from problems.plugins import piezo_contact, registry
 from problems.plugins.piezo_errors import NORMS, exact_errors, reference_errors
 from problems.scene import Scene, load_scene
 from problems.scene.exact import Exact, split_exact
 
+from . import options, resources
 from .options import level_range
 
 SOLVERS = ("ssn", "conic", "homotopy")
@@ -55,11 +56,7 @@ RATE_LEVELS = 3
 # ------------------------------------------------------------------ argument parsing
 def parse_solvers(text: str) -> list[str]:
     """'ssn,conic' → ['ssn', 'conic'] (each one of SOLVERS, no repeats)."""
-    names = [s.strip() for s in text.split(",")]
-    bad = [s for s in names if s not in SOLVERS]
-    if bad or len(set(names)) != len(names):
-        raise SceneError("--solvers", text, "a comma-separated list of " + ", ".join(SOLVERS))
-    return names
+    return options.names(text, "--solvers", SOLVERS)
 
 
 def parse_tols(text: str) -> list[float]:
@@ -207,12 +204,11 @@ def table(result: dict) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(result: dict, out: Path) -> None:
-    """study.json and the two figures, written atomically into `out`."""
-    from problems.output.files import atomic_output
+def write_outputs(result: dict, folder) -> None:
+    """study.json and the two figures, committed into the claimed output folder."""
     from problems.output.study_plots import plot_errors_vs_h, plot_errors_vs_time
 
-    with atomic_output(out) as tmp:
+    with folder.staging() as tmp:
         (tmp / "study.json").write_text(json.dumps(result, indent=2) + "\n")
         plot_errors_vs_h(result, tmp / "errors_vs_h.png")
         plot_errors_vs_time(result, tmp / "errors_vs_time.png")
@@ -227,23 +223,32 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
     p.add_argument("--out", default=None, help="output directory (default out/SCENE_study)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="write into a folder that holds other files (nothing is deleted)",
+    )
+    p.add_argument("--force", action="store_true", help="try levels above the scene's memory cap")
     return p
 
 
 def study_main(argv: list[str] | None = None) -> int:
     """Entry point of `mixvi study`: 0 if every solve converged, 1 if not, 2 on bad input."""
     args = parser().parse_args(argv)
-    try:
-        levels = level_range(args.levels)
-        solvers = parse_solvers(args.solvers)
-        tols = parse_tols(args.tols)
-        scene = load_scene(args.scene, args.set or [])
-        result = run_study(scene, levels, solvers, tols, progress=not args.no_progress)
-    except SceneError as err:
-        print(f"mixvi: error: {err}", file=sys.stderr)
-        return 2
+    a, b = level_range(args.levels)
+    solvers = parse_solvers(args.solvers)
+    tols = parse_tols(args.tols)
+    scene = load_scene(args.scene, args.set or [])
+    plugin = registry.for_scene(scene)
+    if plugin is not piezo_contact:
+        raise SceneError(
+            "scene.plugin", plugin.NAME, "piezo_contact (the study measures Theorem 4.1's errors)"
+        )
+    resources.check_levels(plugin, scene, (a, b), "--levels", args.levels, args.force)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_study"
-    write_outputs(result, out)
+    with output_folder(out, "--out", overwrite=args.overwrite) as folder:
+        result = run_study(scene, list(range(a, b + 1)), solvers, tols, not args.no_progress)
+        write_outputs(result, folder)
     print(table(result))
     print(f"wrote {out}/")
     return 0 if all(r["converged"] for r in result["records"]) else 1

@@ -16,6 +16,9 @@ and the `Model` it returns carries
     warnings: list[str]                        anything the user should read
 
 and optionally
+    dimension: int                             the geometry's dimension (default 2): each
+                                               level multiplies the unknowns by 2**dimension
+                                               in the memory estimate before a level is built
     errors(sol) -> dict[str, float]            errors against a known exact solution
                                                (e.g. {"h1": ..., "l2": ...}, plus "h")
     complementarity(sol) -> float              relative defect of a Lemma-4.2-type identity

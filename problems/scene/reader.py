@@ -41,11 +41,14 @@ class Scene:
 def find_scene(name_or_path: str) -> Path:
     """A scene file by path, or by the name of a shipped scene (`mixvi scenes`)."""
     p = Path(name_or_path)
-    if p.is_file():
-        return p
-    shipped = SCENES_DIR / f"{name_or_path}.toml"
-    if shipped.is_file():
-        return shipped
+    try:  # a name too long for the file system, or otherwise unusable: not found
+        if p.is_file():
+            return p
+        shipped = SCENES_DIR / f"{name_or_path}.toml"
+        if shipped.is_file():
+            return shipped
+    except (OSError, ValueError):
+        pass
     names = sorted(q.stem for q in SCENES_DIR.glob("*.toml"))
     hint = difflib.get_close_matches(name_or_path, names, n=1)
     extra = f" (did you mean {hint[0]!r}?)" if hint else ""

@@ -8,6 +8,7 @@ import pytest
 from fem.meshing import rectangle
 from fem.shapes import half_disc
 from problems.commands import study
+from problems.commands.main import main
 from problems.plugins.piezo_errors import evaluate
 
 RECORD_KEYS = {"level", "h", "unknowns", "solver", "tol", "time_s", "iterations", "err"}
@@ -26,6 +27,7 @@ def test_manufactured_study_writes_the_contract(manufactured_run):
     code, out = manufactured_run
     assert code == 0
     assert sorted(p.name for p in out.iterdir()) == [
+        ".mixvi-run.json",
         "errors_vs_h.png",
         "errors_vs_time.png",
         "study.json",
@@ -65,18 +67,18 @@ def test_reference_mode_measures_against_the_finest_level(tmp_path):
 
 def test_output_is_replaced_atomically_and_never_half_written(tmp_path, monkeypatch):
     out = tmp_path / "o"
-    out.mkdir()
-    (out / "old.txt").write_text("previous run")
+    argv = ["manufactured", "--levels", "0", "--solvers", "ssn", "--tols", "1e-8"]
+    assert study.study_main([*argv, "--out", str(out), "--no-progress"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
 
     def boom(result, path):
         raise RuntimeError("figure failed")
 
     monkeypatch.setattr("problems.output.study_plots.plot_errors_vs_time", boom)
-    argv = ["manufactured", "--levels", "0", "--solvers", "ssn", "--tols", "1e-8"]
     with pytest.raises(RuntimeError):
         study.study_main([*argv, "--out", str(out), "--no-progress"])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]  # no temporary left behind
-    assert sorted(p.name for p in out.iterdir()) == ["old.txt"]  # old output untouched
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # old output untouched
 
 
 @pytest.mark.parametrize(
@@ -91,7 +93,7 @@ def test_output_is_replaced_atomically_and_never_half_written(tmp_path, monkeypa
 )
 def test_bad_input_exits_2_with_one_message(args, word, tmp_path, capsys):
     out = tmp_path / "never"
-    code = study.study_main(["manufactured", *args, "--out", str(out), "--no-progress"])
+    code = main(["study", "manufactured", *args, "--out", str(out), "--no-progress"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and err[0].startswith("mixvi: error: ") and word in err[0]
     assert not out.exists()

@@ -1,0 +1,25 @@
+"""The `mixvi` console script: SIGINT/SIGTERM are handled before the command line's heavy
+imports (NumPy, SciPy, cvxpy, matplotlib take a second or more), so a Ctrl-C at any moment
+ends with one line and exit status 130, never a traceback."""
+
+from __future__ import annotations
+
+import sys
+
+from problems.output import signals
+
+
+def run() -> int:
+    """Install the signal handlers, then import and run `main`."""
+    signals.install()
+    try:
+        from .main import main
+    except KeyboardInterrupt as sig:
+        name = str(sig) if isinstance(sig, signals.Interrupted) else "SIGINT"
+        print(f"mixvi: interrupted by {name}", file=sys.stderr)
+        return sig.exit_status if isinstance(sig, signals.Interrupted) else 130
+    return main()
+
+
+if __name__ == "__main__":
+    sys.exit(run())

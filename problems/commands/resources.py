@@ -1,0 +1,209 @@
+"""Resource bounds: unknowns and peak memory of a refinement level, known before it is built.
+
+Unknowns. A level refines every cell into 2^d (d = the geometry's dimension: the model's
+optional `dimension`, 2 if absent), so with s = 2^level the number of unknowns is a polynomial
+of degree d in s (cells ~ s^d, boundary and contact nodes ~ s^(d-1), corners ~ 1). It is
+fitted exactly through the levels 0 … d, which are cheap to build; in 2D a level multiplies
+the unknowns by about 4, in 3D by 8.
+
+Peak memory. The peak resident memory of a solve grows faster than the unknowns because the
+direct factorisation fills in: peak ≈ base + a · x^b per linear solver (MEMORY_MODEL), where
+x is whichever quantity predicts that solver's measured peaks better. SuperLU: x = nnz(A), the
+stored entries of the matrix Newton factorises (like the unknowns, a polynomial of degree d in
+2^level); fitted on the unknowns instead, the SuperLU peaks of the shipped scenes scatter by a
+factor 7 (a scalar obstacle problem with one multiplier per node needs 2 kB per unknown, the
+piezoelectric two-body scene 15 kB), fitted on nnz(A) they lie within ×0.86 … ×1.49 of the
+model. PARDISO: x = the unknowns n + m (within ×0.54 … ×1.73; on nnz(A) ×0.31 … ×2.34).
+The constants were measured on the shipped scenes, levels 0 … 7 up to 530k unknowns (peak
+RSS of `mixvi solve SCENE --level L` in a fresh process, `/usr/bin/time -f %M`), fitted to
+the peaks above 1.5 × base; `mixvi bench` prints its measured peak beside the estimate.
+Re-measure them here when the memory per unknown changes.
+
+Caps. A level whose upper estimate (the estimate divided by the smallest estimate / measured
+ratio seen for that solver, WORST_RATIO) exceeds the machine's memory (physical, cgroup or
+RLIMIT_AS) is above the scene's cap; a level whose upper estimate exceeds the memory available
+now is refused. Both are SceneErrors naming the option and printing the estimate (exit 2);
+`--force` skips them.
+"""
+
+from __future__ import annotations
+
+import resource
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from problems.errors import SceneError
+from vi_core.linalg import resolve_backend
+
+from .options import MAX_LEVEL
+
+# peak RSS [bytes] ≈ base + a · x^b per linear solver, x = nnz(A) or the unknowns n + m
+# (whichever predicts that solver's measured peaks better; see the module docstring)
+MEMORY_MODEL = {  # linear solver → (predictor, base [bytes], a, b)
+    "splu": ("nnz", 115e6, 158.5, 1.0811),
+    "pardiso": ("unknowns", 175e6, 5851.0, 1.0481),
+}
+# the smallest estimate / measured peak seen per solver: refusals and caps use the estimate
+# divided by it (the most a level can need as far as the measurements go)
+WORST_RATIO = {"splu": 0.86, "pardiso": 0.54}
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The size of one level of a scene before it is built."""
+
+    scene: str
+    level: int
+    unknowns: int
+    solver: str  # the linear solver the estimate is for ("splu" or "pardiso")
+    peak_bytes: float
+
+    @property
+    def upper_bytes(self) -> float:
+        """The most this level may need: the estimate over the worst ratio measured."""
+        return self.peak_bytes / WORST_RATIO[self.solver]
+
+
+def peak_bytes(unknowns: float, nnz: float, solver: str) -> float:
+    """The modelled peak resident memory of a solve with `unknowns` unknowns whose matrix A
+    has `nnz` entries, with the linear solver `solver`."""
+    predictor, base, a, b = MEMORY_MODEL[solver]
+    x = float(nnz if predictor == "nnz" else unknowns)
+    return base + a * x**b
+
+
+def gb(x: float) -> str:
+    """Bytes as '1.2 GB' (decimal units, as `free -g` and the README use)."""
+    return f"{x / 1e9:.1f} GB" if x >= 1e8 else f"{x / 1e6:.0f} MB"
+
+
+def _read_int(path: str) -> int | None:
+    try:
+        text = Path(path).read_text().strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None
+
+
+def memory() -> tuple[float, float]:
+    """(total, available) bytes for this process: physical memory (MemTotal/MemAvailable),
+    bounded by a cgroup v2 limit and by RLIMIT_AS where set."""
+    total = available = None
+    try:
+        info = dict(line.split(":", 1) for line in Path("/proc/meminfo").read_text().splitlines())
+        total = int(info["MemTotal"].split()[0]) * 1024
+        available = int(info["MemAvailable"].split()[0]) * 1024
+    except (OSError, KeyError, ValueError):
+        import os
+
+        total = available = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    limit = _read_int("/sys/fs/cgroup/memory.max")
+    if limit is not None:
+        used = _read_int("/sys/fs/cgroup/memory.current") or 0
+        total, available = min(total, limit), min(available, max(limit - used, 0))
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY:
+        total, available = min(total, soft), min(available, soft)
+    return float(total), float(available)
+
+
+class Sizes:
+    """Unknowns and nonzeros of every level of one scene, fitted through the levels 0 … d."""
+
+    def __init__(self, plugin, scene):
+        self.scene = scene
+        counts, dim = [], 2
+        for lev in range(4):  # levels 0 … d (d read from the level-0 model)
+            model = plugin.build(scene, lev)
+            dim = int(getattr(model, "dimension", 2))
+            counts.append((model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n))
+            if lev >= dim:
+                break
+        self.dimension = dim
+        s = 2.0 ** np.arange(len(counts))  # (d+1,)
+        v = np.array(counts, float)  # (d+1, 3): unknowns, nnz(A), n
+        self._coef = np.linalg.solve(np.vander(s, len(counts)), v)  # (d+1, 3)
+        self._exact = counts
+
+    def _at(self, level: int) -> tuple[int, int, int]:
+        if level < len(self._exact):
+            return self._exact[level]
+        v = np.vander([2.0**level], len(self._exact))[0] @ self._coef  # (3,)
+        return tuple(int(round(float(x))) for x in v)
+
+    def unknowns(self, level: int) -> int:
+        """Unknowns n + m at `level` (exact for the levels built, the polynomial above)."""
+        return self._at(level)[0]
+
+    def nonzeros(self, level: int) -> int:
+        """Stored entries of A at `level` (exact for the levels built, the polynomial above)."""
+        return self._at(level)[1]
+
+    def estimate(self, level: int) -> Estimate:
+        """Unknowns and peak memory of `level` with the linear solver `auto` would choose."""
+        N, nnz, n = self._at(level)
+        solver = resolve_backend("auto", n)
+        return Estimate(self.scene.name, level, N, solver, peak_bytes(N, nnz, solver))
+
+    def cap(self, total: float) -> int:
+        """The largest level (≤ MAX_LEVEL) whose upper estimate fits in `total` bytes (0 at
+        least)."""
+        cap = 0
+        for lev in range(MAX_LEVEL + 1):
+            if self.estimate(lev).upper_bytes > total:
+                break
+            cap = lev
+        return cap
+
+
+def describe(e: Estimate) -> str:
+    """'level 5 of paper_two_body: about 386,178 unknowns, peak memory about 5.8 GB (splu)'."""
+    return (
+        f"level {e.level} of {e.scene}: about {e.unknowns:,} unknowns, "
+        f"peak memory about {gb(e.peak_bytes)}, up to {gb(e.upper_bytes)} ({e.solver})"
+    )
+
+
+def check_levels(
+    plugin,
+    scene,
+    levels: tuple[int, int],
+    option: str,
+    text: str,
+    force: bool = False,
+) -> Sizes:
+    """Refuse (SceneError naming `option` and its value `text`) a level range A..B outside
+    0 ≤ A ≤ B ≤ the scene's cap, or whose largest level does not fit in the memory available
+    now; `force` skips the memory checks (the range must still be ordered, ≤ MAX_LEVEL)."""
+    a, b = levels
+    total, available = memory()
+    sizes = Sizes(plugin, scene)
+    cap = MAX_LEVEL if force else sizes.cap(total)
+    if not 0 <= a <= b <= cap:
+        why = (
+            ""
+            if force or cap == MAX_LEVEL
+            else f" ({describe(sizes.estimate(cap + 1))}; this machine has {gb(total)}; "
+            "--force to try anyway)"
+        )
+        raise SceneError(option, text, f"expected A..B with 0 ≤ A ≤ B ≤ {cap}{why}")
+    e = sizes.estimate(b)
+    if not force and e.upper_bytes > available:
+        raise SceneError(
+            option,
+            text,
+            f"a level that fits in the memory available now: {describe(e)}, "
+            f"{gb(available)} available (--force to try anyway)",
+        )
+    return sizes
+
+
+def default_level(plugin, scene) -> int:
+    """The scene's own level (`[scene] level`, else the plug-in's default)."""
+    head = scene.data.get("scene", {})
+    lev = head.get("level") if isinstance(head, dict) else None
+    if isinstance(lev, int) and not isinstance(lev, bool) and 0 <= lev <= MAX_LEVEL:
+        return lev
+    return plugin.build(scene, None).level  # the plug-in's default, or its SceneError

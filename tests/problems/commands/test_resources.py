@@ -1,0 +1,97 @@
+"""The size of a level before it is built: unknowns and nnz(A) from the levels 0 … d, the
+growth factor from the geometry's dimension, the memory estimate, caps and refusals."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from problems.commands import resources
+from problems.commands.resources import Sizes, check_levels
+from problems.errors import SceneError
+from problems.plugins import registry
+from problems.scene import SCENES_DIR, load_scene
+
+SHIPPED = sorted(p.stem for p in SCENES_DIR.glob("*.toml"))  # every shipped scene
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_unknowns_and_nonzeros_above_the_built_levels_are_exact(name):
+    scene = load_scene(name)
+    plugin = registry.for_scene(scene)
+    sizes = Sizes(plugin, scene)
+    assert sizes.dimension == 2
+    for level in (3, 4):  # not built by Sizes: predicted by the polynomial in 2^level
+        vi = plugin.build(scene, level).vi
+        assert sizes.unknowns(level) == vi.n + vi.m
+        assert sizes.nonzeros(level) == vi.A.nnz
+
+
+class Cubes:
+    """A fake 3D plug-in: n = (4·2^L + 1)^3 nodes, one unknown each, 27 entries a row."""
+
+    NAME = "cubes"
+
+    def __init__(self, dimension):
+        self.dimension = dimension
+
+    def build(self, scene, level):
+        n = (4 * 2**level + 1) ** 3
+        vi = SimpleNamespace(n=n, m=0, A=SimpleNamespace(nnz=27 * n))
+        return SimpleNamespace(vi=vi, dimension=self.dimension, level=level)
+
+
+def test_in_3d_a_level_multiplies_the_unknowns_by_about_8():
+    sizes = Sizes(Cubes(3), SimpleNamespace(name="cubes", data={}))
+    assert sizes.dimension == 3
+    for level in (4, 5, 6):
+        assert sizes.unknowns(level) == (4 * 2**level + 1) ** 3
+    assert 7.9 < sizes.unknowns(6) / sizes.unknowns(5) < 8.1
+
+
+def test_mutation_ignoring_the_dimension_is_caught():
+    sizes = Sizes(Cubes(2), SimpleNamespace(name="cubes", data={}))  # claims 2D: wrong growth
+    with pytest.raises(AssertionError):
+        assert sizes.unknowns(6) == (4 * 2**6 + 1) ** 3
+
+
+def test_superlu_estimate_grows_faster_than_the_unknowns():
+    scene = load_scene("paper_two_body")
+    sizes = Sizes(registry.for_scene(scene), scene)
+    base = resources.MEMORY_MODEL["splu"][1]
+    n4, n5 = sizes.unknowns(4), sizes.unknowns(5)
+    p4 = resources.peak_bytes(n4, sizes.nonzeros(4), "splu") - base
+    p5 = resources.peak_bytes(n5, sizes.nonzeros(5), "splu") - base
+    assert p5 / p4 > n5 / n4 > 3.9
+
+
+def test_caps_and_refusals_name_the_option_and_print_the_estimate(monkeypatch):
+    scene = load_scene("paper_two_body")
+    plugin = registry.for_scene(scene)
+    monkeypatch.setattr(resources, "memory", lambda: (24e9, 24e9))
+    cap = Sizes(plugin, scene).cap(24e9)
+    assert 3 <= cap < 12
+    with pytest.raises(SceneError) as err:
+        check_levels(plugin, scene, (0, cap + 1), "--levels", f"0..{cap + 1}")
+    msg = str(err.value)
+    assert "--levels" in msg and f"≤ {cap}" in msg and "GB" in msg and "--force" in msg
+    with pytest.raises(SceneError, match="--levels"):
+        check_levels(plugin, scene, (-1, 2), "--levels", "-1..2")
+    with pytest.raises(SceneError, match="--levels"):
+        check_levels(plugin, scene, (2, 1), "--levels", "2..1")
+    check_levels(plugin, scene, (0, cap + 1), "--levels", "x", force=True)  # --force: tries
+    monkeypatch.setattr(resources, "memory", lambda: (24e9, 0.5e9))  # little available now
+    with pytest.raises(SceneError) as err:
+        check_levels(plugin, scene, (4, 4), "--level", "4")
+    assert "--level" in str(err.value) and "available" in str(err.value)
+    check_levels(plugin, scene, (4, 4), "--level", "4", force=True)
+
+
+def test_memory_reads_the_process_limit(monkeypatch):
+    import resource
+
+    total, available = resources.memory()
+    assert 0 < available <= total
+    monkeypatch.setattr(resource, "getrlimit", lambda which: (10**9, resource.RLIM_INFINITY))
+    assert resources.memory() == (1e9, min(available, 1e9))

@@ -1,0 +1,164 @@
+"""SIGINT and SIGTERM sent to a running `mixvi` (the installed command, as a subprocess):
+one line, exit status 130 / 143, no traceback, no temporary file or lock left, and the
+previous run's files in the output folder byte-identical with their marker.
+
+The slow tier measures the reaction time on the paper scene at level 5 during the long
+factorisations (printed; no timed assert):
+
+    .venv/bin/pytest -m slow -s tests/problems/commands/test_signals.py
+
+and, for the worst case, the time from a SIGINT sent 10 s into one SuperLU factorisation of
+the level-5 matrix to the exit (Python runs the handler only when the factorisation returns).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+MIXVI = str(Path(sys.executable).with_name("mixvi"))
+ENV = {**os.environ, "MPLBACKEND": "Agg"}
+NAMES = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
+
+
+def snapshot(folder: Path) -> dict:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+def previous_run(out: Path) -> dict:
+    """A finished run in `out` (the paper scene at level 0) and its files."""
+    r = subprocess.run(
+        [MIXVI, "solve", "--level", "0", "--out", str(out)], env=ENV, capture_output=True
+    )
+    assert r.returncode == 0, r.stderr
+    return snapshot(out)
+
+
+def start(argv: list[str]) -> subprocess.Popen:
+    return subprocess.Popen(
+        [MIXVI, *argv], env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+
+
+def wait_for(cond, proc: subprocess.Popen, timeout: float = 120.0, step: float = 0.002) -> None:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert proc.poll() is None, f"finished before the signal: {proc.communicate()}"
+        assert time.monotonic() < deadline, "the condition never held"
+        time.sleep(step)
+
+
+def staging(out: Path) -> bool:
+    return any(p.name.startswith(".mixvi-tmp-") for p in out.iterdir())
+
+
+def check_clean_interrupt(proc, sig, out: Path, before: dict) -> None:
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + sig, err
+    assert err.strip().splitlines() == [f"mixvi: interrupted by {NAMES[sig]}"], err
+    assert snapshot(out) == before  # files, marker and nothing else (no .tmp, no lock)
+    marker = json.loads(before[".mixvi-run.json"])
+    assert sorted(f for f in before if f != ".mixvi-run.json") == marker["files"]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_during_the_solve(tmp_path, sig):
+    out = tmp_path / "o"
+    before = previous_run(out)
+    proc = start(["solve", "--level", "3", "--out", str(out)])
+    wait_for(lambda: (out / ".mixvi-lock").exists(), proc)  # claimed: building and solving
+    time.sleep(0.5)
+    proc.send_signal(sig)
+    check_clean_interrupt(proc, sig, out, before)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_while_writing(tmp_path, sig):
+    out = tmp_path / "o"
+    before = previous_run(out)
+    proc = start(["solve", "--level", "2", "--out", str(out)])
+    wait_for(lambda: staging(out), proc)  # the staging folder exists: files being written
+    proc.send_signal(sig)
+    check_clean_interrupt(proc, sig, out, before)
+
+
+def test_signal_during_study_with_progress_bar(tmp_path):
+    out = tmp_path / "s"
+    proc = start(["study", "paper_two_body", "--levels", "0..3", "--out", str(out)])
+    wait_for(lambda: out.exists() and (out / ".mixvi-lock").exists(), proc)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and "Traceback" not in err
+    assert err.strip().splitlines()[-1] == "mixvi: interrupted by SIGINT"
+    assert not out.exists()  # the folder this run created is gone again
+
+
+def test_signal_during_start_up_imports():
+    proc = start(["scenes"])
+    time.sleep(0.3)  # Python is importing NumPy/SciPy/matplotlib
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert "Traceback" not in err
+    assert proc.returncode == 130 or (proc.returncode == 0 and "scenes:" in out)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [25.0, 45.0, 65.0])
+def test_reaction_time_on_the_paper_scene_at_level_5(tmp_path, delay):
+    """SIGINT `delay` seconds into `mixvi solve --level 5` (~386k unknowns; the level-5
+    factorisations start after ~20 s): prints the time from the signal to the exit."""
+    out = tmp_path / "o"
+    proc = start(["solve", "--level", "5", "--out", str(out)])
+    wait_for(lambda: (out / ".mixvi-lock").exists(), proc)
+    time.sleep(delay)
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=600)
+    dt = time.monotonic() - t0
+    print(f"\nSIGINT {delay:.0f} s into the level-5 solve: exit after {dt:.2f} s")
+    assert proc.returncode == 130 and "Traceback" not in err
+    assert not out.exists()
+
+
+FACTORISE = """
+import sys
+from problems.output import signals
+from problems.plugins import registry
+from problems.scene import load_scene
+from vi_core.linalg import Factorization
+signals.install()
+scene = load_scene("paper_two_body")
+A = registry.for_scene(scene).build(scene, 5).vi.A
+print("factorising", flush=True)
+try:
+    Factorization(A, "splu")
+    print("factorised", flush=True)
+except signals.Interrupted as sig:
+    sys.exit(sig.exit_status)
+"""
+
+
+@pytest.mark.slow
+def test_reaction_time_during_one_level_5_factorisation():
+    """SIGINT 10 s into a SuperLU factorisation of the level-5 matrix (385,664 unknowns):
+    prints the time from the signal to the exit (≈ the rest of the factorisation)."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", FACTORISE], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+    assert proc.stdout.readline().strip() == "factorising"
+    time.sleep(10.0)
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=900)
+    dt = time.monotonic() - t0
+    print(f"\nSIGINT 10 s into one level-5 SuperLU factorisation: exit after {dt:.1f} s")
+    assert proc.returncode == 130 and "factorised" not in out and "Traceback" not in err
