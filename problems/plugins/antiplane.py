@@ -96,7 +96,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     default_level = read_head(root, NAME, 1)
     level = default_level if level is None else level
     dom = root.table("domain")
-    mesh = make_mesh(dom.table("geometry"), level)
+    mesh = make_mesh(dom.table("geometry"), level, Path(scene.path).parent)
     mu = dom.number("shear_modulus", lo=0.0, lo_open=True)
     F = assembly.volume_load(mesh, dom.field("load", 1, 0.0), 1)  # (n_nodes,)
     dom.finish()

@@ -8,6 +8,7 @@ then potential (N).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -76,9 +77,10 @@ def _boundary(t: Table, mesh: Mesh, body: str) -> str:
     return name
 
 
-def build_body(name: str, t: Table, level: int, offset: int) -> Body:
-    """Read one `[bodies.NAME]` table and assemble the body's blocks."""
-    mesh = make_mesh(t.table("geometry"), level)
+def build_body(name: str, t: Table, level: int, offset: int, scene_dir: Path | None = None) -> Body:
+    """Read one `[bodies.NAME]` table and assemble the body's blocks (`scene_dir`: the
+    folder mesh files are relative to)."""
+    mesh = make_mesh(t.table("geometry"), level, scene_dir)
     material = material_from_scene(t.key("material"), t.raw("material", allowed="a material"))
     body = Body(name, mesh, material, offset)
     N = mesh.n_nodes

@@ -87,7 +87,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     default_level = read_head(root, NAME, 2)
     level = default_level if level is None else level
     dom = root.table("domain")
-    mesh = make_mesh(dom.table("geometry"), level)
+    mesh = make_mesh(dom.table("geometry"), level, Path(scene.path).parent)
     f_fun = dom.field("load", 1, 0.0)
     psi_fun = dom.field("obstacle", 1)
     dom.finish()

@@ -35,6 +35,7 @@ from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots
 from problems.scene import Scene, Table
+from problems.scene.imported import require_curve
 from vi_core import METHODS, Box, Free, MixedVI, Solution, product
 
 from . import piezo_balance
@@ -45,9 +46,12 @@ LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 
 # Two-body interfaces must coincide in the reference configuration (bilateral contact has no
 # initial gap). A slave node may sit off the master polyline (distance along its normal) by at
 # most SEPARATION_TOL × h, h the longest of its adjacent slave segments and the master segment
-# it faces: this admits the chord-versus-arc discrepancy of a discretised curved interface
-# (the sagitta h²/(8r), i.e. h/(8r) relative to h: 0.02 for the paper's mesh, < 0.1 while
-# h < 0.8 r) and refuses bodies that overlap or stand apart by more.
+# it faces, measured on the level-0 mesh (h · 2^level: uniform refinement does not change the
+# geometry of a mesh read from a file, whose new boundary nodes stay on its polylines): this
+# admits the chord-versus-arc discrepancy of a discretised curved interface (the sagitta
+# h²/(8r), i.e. h/(8r) relative to h: 0.02 for the paper's mesh, < 0.1 while h < 0.8 r), e.g.
+# two bodies meshed separately in gmsh along one curve, and refuses bodies that overlap or
+# stand apart by more (docs/design.md, "Meshes from files").
 SEPARATION_TOL = 0.1
 DESCRIPTION = "elasto-piezoelectric bodies in bilateral Tresca contact (dual mortar multipliers)"
 # A prescribed displacement component at a contact node counts as along the contact normal or
@@ -139,6 +143,7 @@ def _split_ref(t: Table, key: str, bodies: dict[str, Body]) -> tuple[Body, str]:
         raise SceneError(
             t.key(key), ref, f"a boundary of {bname!r}: {', '.join(sorted(body.mesh.boundaries))}"
         )
+    require_curve(body.mesh, part, t.key(key), ref)
     return body, part
 
 
@@ -170,7 +175,7 @@ def _build(scene: Scene, level: int | None) -> Model:
     offset = 0
     for name in list(bt.data):
         tb = bt.table(name)
-        body = build_body(name, tb, level, offset)
+        body = build_body(name, tb, level, offset, Path(scene.path).parent)
         bodies[name] = body
         offset += body.size
     n_full = offset
@@ -187,7 +192,9 @@ def _build(scene: Scene, level: int | None) -> Model:
         ends = ct.string("ends", ENDS[0], choices=ENDS)
         ct.finish()
         mpart = master_part if master is not None else None
-        contact = _contact(slave, slave_part, master, mpart, g_fun, ct.key("g"), ends, n_full)
+        contact = _contact(
+            slave, slave_part, master, mpart, g_fun, ct.key("g"), ends, n_full, level
+        )
 
     out = root.table("output", required=False)
     options = {"potential_along": None}
@@ -322,6 +329,7 @@ def _contact(
     gkey: str,
     ends: str,
     n_full: int,
+    level: int = 0,
 ) -> Contact:
     """The contact rows: normal Σ_j Ds_kj n_kᵀu_s,j − Σ_j M_kj n_kᵀu_m,j (M = 0 for a rigid
     foundation), then the same with τ_k, for the multiplier rows of each component."""
@@ -340,7 +348,7 @@ def _contact(
     n_seg = tr.segments.shape[0]
     uncovered_local = np.zeros(2 * n_seg, dtype=bool)
     if master is not None:
-        _check_separation(slave, part, tr, tr.normals, master, mpart)
+        _check_separation(slave, part, tr, tr.normals, master, mpart, level)
         mort = mortar_coupling(slave.mesh, part, master.mesh, mpart)
         assert np.array_equal(tr.nodes, mort.slave_nodes)
         uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,)
@@ -456,9 +464,12 @@ def _normal_distances(
     return out, seg
 
 
-def _check_separation(slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str) -> None:
+def _check_separation(
+    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
+) -> None:
     """SceneError if the interfaces overlap or stand apart by more than SEPARATION_TOL·h
-    (h: the longer of the slave node's adjacent segments and the master segment hit)."""
+    (h: the longer of the slave node's adjacent segments and the master segment hit, times
+    2^level: the level-0 mesh size)."""
     mtr = trace(master.mesh, mpart)
     P = master.mesh.points[mtr.nodes]
     t, k = _normal_distances(
@@ -467,6 +478,7 @@ def _check_separation(slave: Body, part: str, tr: Trace, normals, master: Body, 
     h = mtr.lengths[k]
     np.maximum.at(h, tr.segments[:, 0], tr.lengths)
     np.maximum.at(h, tr.segments[:, 1], tr.lengths)
+    h = h * 2.0**level  # the size at level 0, where the interface geometry was given
     rel = t / h
     bad = np.flatnonzero(np.abs(np.nan_to_num(rel)) > SEPARATION_TOL)
     if bad.size:
@@ -477,7 +489,7 @@ def _check_separation(slave: Body, part: str, tr: Trace, normals, master: Body, 
             f"{master.name}.{mpart}",
             f"a master boundary that coincides with {slave.name}.{part} in the "
             f"reference configuration: it would {what} by {abs(t[i]):.3g} "
-            f"({abs(rel[i]):.2f} × the local mesh size {h[i]:.3g}; allowed "
+            f"({abs(rel[i]):.2f} × the local level-0 mesh size {h[i]:.3g}; allowed "
             f"{SEPARATION_TOL:g}) at slave node {slave.mesh.points[tr.nodes[i]].tolist()}",
         )
 

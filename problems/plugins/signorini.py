@@ -78,7 +78,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
         raise SceneError(
             "body.material", bt.raw("material"), "an elastic (not piezoelectric) material"
         )
-    body = build_body("body", bt, level, 0)
+    body = build_body("body", bt, level, 0, Path(scene.path).parent)
     ct = root.table("contact")
     part = ct.string("boundary", choices=sorted(body.mesh.boundaries))
     gap_fun = ct.field("gap", 1)

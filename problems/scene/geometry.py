@@ -1,11 +1,13 @@
 """Geometry tables of a scene → meshes: the built-in shapes at a refinement level.
 
 Kinds: "rectangle" (structured P1/Q1), "half_disc" and "cradle" (the paper's two bodies as mapped
-Q1 blocks with boundary nodes on the true arc). A mesh that would exceed MAX_CELLS cells, or
+Q1 blocks with boundary nodes on the true arc); or a mesh file (`mesh = "FILE"`, `imported`). A mesh that would exceed MAX_CELLS cells, or
 that the mesher refuses (inverted or degenerate cells), is a SceneError naming the key.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -14,18 +16,23 @@ from fem.mesh import Mesh
 from fem.meshing import rectangle
 from problems.errors import SceneError
 
+from .imported import imported_mesh, resolve
 from .reader import Table
 
 GEOMETRIES = ("rectangle", "half_disc", "cradle")
 MAX_CELLS = 4_000_000  # cells of one body at the requested level (≈ 12M piezo unknowns)
 
 
-def make_mesh(t: Table, level: int) -> Mesh:
+def make_mesh(t: Table, level: int, scene_dir: Path | None = None) -> Mesh:
     """The mesh of a `geometry` table at refinement `level`.
 
     SceneError (naming the geometry key) for a mesh too large to build (more than MAX_CELLS
     cells) or one the mesher refuses: inverted or degenerate cells, zero-length edges.
+    `geometry = { mesh = "FILE", body = "GROUP" }` reads a mesh file instead (`imported`;
+    FILE relative to `scene_dir`, the scene file's folder).
     """
+    if t.has("mesh"):
+        return _from_file(t, level, scene_dir)
     kind = t.string("kind", choices=GEOMETRIES)
     scale = 2**level
     if kind == "rectangle":
@@ -67,6 +74,16 @@ def make_mesh(t: Table, level: int) -> Mesh:
     n_y = max(1, round(height / (radius * angle / n_contact)))
     _check_size(t, "n_contact", n_contact, n_contact * n_y * scale**2)
     return _meshed(t, shapes.cradle, p2, p3, center, radius, angle, n_contact, level)
+
+
+def _from_file(t: Table, level: int, scene_dir: Path | None) -> Mesh:
+    """`geometry = { mesh = "FILE", body = "GROUP" }`: the named body of a mesh file."""
+    name = t.string("mesh")
+    body = t.raw("body", None)
+    if body is not None and not isinstance(body, str):
+        raise SceneError(t.key("body"), body, "the name of a physical surface group (a string)")
+    t.finish()
+    return imported_mesh(resolve(scene_dir, name), body, level, t.key("mesh"), MAX_CELLS)
 
 
 def _check_size(t: Table, key: str, value, cells: float) -> None:
