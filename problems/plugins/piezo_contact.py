@@ -28,18 +28,19 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from fem import assembly
 from fem.boundary import ENDS, Trace, dual_mass, multiplier_basis, segment_loads, trace
 from fem.dirichlet import expand, reduce_dirichlet
 from fem.mesh import Mesh
 from problems.errors import SceneError
-from problems.output import plots
+from problems.output import plots, results
+from problems.output.results import ContactTable
 from problems.scene import Scene, Table
 from problems.scene.imported import require_curve
 from vi_core import METHODS, Box, Free, MixedVI, Solution, product
 
 from . import piezo_balance
 from .bodies import Body, build_body
+from .body_output import body_fields
 
 NAME = "piezo_contact"
 LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
@@ -608,24 +609,46 @@ def contact_warnings(state: dict) -> list[str]:
     return []
 
 
+def contact_table(model: Model, sol: Solution) -> ContactTable:
+    """One row per slave node of Γ3 (problems.output.results): λ_n, λ_t, the tangential
+    mortar jump and stick/slip; NaN and state 'no_multiplier' where a node carries none."""
+    c = model.contact
+    tr = c.tr
+    st = contact_state(model, sol)
+    k = tr.size
+    lam_n, lam_t, jump_t = np.full(k, np.nan), np.full(k, np.nan), np.full(k, np.nan)
+    lam_n[c.rows_n] = st["lam_n"]
+    lam_t[c.rows_t] = st["lam_t"]
+    jump_t[c.rows_t] = st["jump_t"]
+    state = np.full(k, "no_multiplier", dtype=object)
+    state[c.rows_t] = np.where(st["slip"], "slip", "stick")
+    return ContactTable(
+        points=c.slave.mesh.points[tr.nodes],
+        normals=tr.normals,
+        weights=tr.weights,
+        segments=tr.segments,
+        lambda_n=lam_n,
+        lambda_t=lam_t,
+        jump_t=jump_t,
+        state=state.astype(str),
+    )
+
+
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """Write VTU fields and PNG plots into `outdir`; return the summary entries."""
+    """Write VTU fields (one per body, the contact line, a .pvd), contact.csv and PNG plots
+    into `outdir`; return the summary entries."""
     from fem.io import write_vtu
 
     x_full = model.full(sol.u)
-    files = []
+    files, notes, datasets = [], [], []
     for b in model.bodies:
-        u, phi = b.split(x_full[b.offset : b.offset + b.size])
-        m = b.material
-        sigma, D = assembly.cell_fields(b.mesh, u.ravel(), phi, m.C, m.e, m.kappa)
-        point = {"displacement": u}
-        cell = {"stress": sigma}
-        if phi is not None:
-            point["potential"] = phi
-            cell["electric_displacement"] = D
+        point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
         fn = f"{b.name}.vtu"
         write_vtu(outdir / fn, b.mesh, point, cell)
         files.append(fn)
+        datasets.append((model.level, len(datasets), fn))
+        if note:
+            notes.append(note)
     summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
     if model.contact is not None:
         quad = piezo_balance.lemma_4_2(model, sol)
@@ -633,15 +656,26 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
             summary["lemma_4_2_quadrature"] = quad
         state = contact_state(model, sol)
         files += plots.contact_plots(state, outdir, title=model.scene.name)
+        table = contact_table(model, sol)
+        results.write_contact_csv(outdir / "contact.csv", table)
+        results.write_contact_vtu(outdir / "contact.vtu", table)
+        files += ["contact.csv", "contact.vtu"]
+        datasets.append((model.level, len(datasets), "contact.vtu"))
         n_slip = int(state["slip"].sum())
         summary["contact"] = {
             "nodes": int(state["slip"].size),
             "stick": int(state["slip"].size - n_slip),
             "slip": n_slip,
+            **table.totals(),
             **interface_summary(model.contact),
+            "table": table.records(),
         }
         summary["lemma_4_2"] = state["lemma_4_2"]
         summary["warnings"] = contact_warnings(state)
+    results.write_pvd(outdir / "results.pvd", datasets)
+    files.append("results.pvd")
+    if notes:
+        summary["notes"] = notes
     along = model.options.get("potential_along")
     if along is not None:
         b = next(bb for bb in model.bodies if bb.name == along[0])

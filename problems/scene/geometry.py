@@ -1,8 +1,9 @@
 """Geometry tables of a scene → meshes: the built-in shapes at a refinement level.
 
 Kinds: "rectangle" (structured P1/Q1), "half_disc" and "cradle" (the paper's two bodies as mapped
-Q1 blocks with boundary nodes on the true arc); or a mesh file (`mesh = "FILE"`, `imported`). A mesh that would exceed MAX_CELLS cells, or
-that the mesher refuses (inverted or degenerate cells), is a SceneError naming the key.
+Q1 blocks with boundary nodes on the true arc); or a mesh file (`mesh = "FILE"`, `imported`).
+A mesh that would exceed MAX_CELLS cells, or that the mesher refuses (inverted or degenerate
+cells), is a SceneError naming the key.
 """
 
 from __future__ import annotations
