@@ -75,14 +75,14 @@ def _solve(args, t0, scene, plugin, level, folder) -> int:
             coarse = plugin.build(scene, lev)
             kw = plugin.warm_start(*prev, coarse) if prev else {}
             csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **kw)
-            nested.append({"level": lev, "iterations": csol.iterations, "time_s": csol.time})
+            nested.append(_level_record(lev, coarse, csol))
             prev = (coarse, csol)
         warm = plugin.warm_start(*prev, model)
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
         warm["estimate_condition"] = True
     sol = vi_core.solve(model.vi, method=method, tol=tol, **warm)
     if nested:
-        nested.append({"level": model.level, "iterations": sol.iterations, "time_s": sol.time})
+        nested.append(_level_record(model.level, model, sol))
     out = folder.path
     with folder.staging() as tmp:
         extras = plugin.postprocess(model, sol, tmp)
@@ -111,34 +111,83 @@ def _solve(args, t0, scene, plugin, level, folder) -> int:
             },
         }
         (tmp / "summary.json").write_text(json.dumps(jsonable(summary), indent=2) + "\n")
-    c = summary.get("contact", {})
-    print(
-        f"{scene.name} level {model.level}: {sum(model.dofs.values())} unknowns "
-        f"{model.dofs}, solver {method}"
-    )
-    identity = ""
-    if "lemma_4_2" in summary:
-        identity = f", lemma 4.2 gap {summary['lemma_4_2']:.1e}"
-    elif "complementarity" in summary:
-        identity = f", complementarity defect {summary['complementarity']:.1e}"
-    print(
-        f"  converged {sol.converged} in {sol.iterations} iterations, "
-        f"residual {sol.residual:.2e}{identity}"
-    )
-    if nested:
-        its = ", ".join(f"L{r['level']}: {r['iterations']}" for r in nested)
-        print(f"  nested iteration (Newton steps per level, each warm-started): {its}")
-    defect = c.get("mortar_patch_defect")
-    if c:
-        extra = f"; mortar patch defect {defect:.1e}" if defect is not None else ""
-        print(f"  contact nodes {c['nodes']}: stick {c['stick']}, slip {c['slip']}{extra}")
-    print(f"  time {summary['time_s']['total']:.2f} s; wrote {out}/")
-    for w in summary["warnings"]:
-        print(f"  warning: {w}")
+    for line in console_summary(summary, nested or [_level_record(model.level, model, sol)]):
+        print(line)
+    files = ["summary.json", *summary.get("files", [])]
+    print(f"  wrote {out}/: {', '.join(files)}")
+    defect = summary.get("contact", {}).get("mortar_patch_defect")
     if defect is not None and defect > PATCH_DEFECT_LIMIT and not args.allow_defect:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
         return 1
     return 0 if sol.converged else 1
+
+
+def _level_record(level: int, model, sol) -> dict:
+    """One row of the per-level table: unknowns, Newton steps, time, residual."""
+    return {
+        "level": level,
+        "unknowns": int(model.vi.n + model.vi.m),
+        "iterations": sol.iterations,
+        "time_s": sol.time,
+        "residual": sol.residual,
+        "converged": sol.converged,
+    }
+
+
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+
+
+def console_summary(summary: dict, levels: list[dict]) -> list[str]:
+    """What `mixvi solve` prints: a header, one row per level solved (unknowns, Newton steps,
+    time, residual), the outcome, the contact line (stick/slip counts and lengths, total
+    force on the slave body), the time and the warnings — no raw dicts."""
+    dofs = summary["dofs"]
+    out = [
+        f"{summary['scene']} (plug-in {summary['plugin']}, solver {summary['solver']}, "
+        f"tol {summary['tol']:g}), level {summary['level']}: "
+        + " + ".join(f"{n:,} {k}" for k, n in dofs.items())
+        + f" = {sum(dofs.values()):,} unknowns"
+    ]
+    out.append(
+        f"  {'level':>5} {'unknowns':>10} {'Newton steps':>12} {'time [s]':>9} {'residual':>9}"
+    )
+    for r in levels:
+        out.append(
+            f"  {r['level']:>5} {r['unknowns']:>10,} {r['iterations']:>12} "
+            f"{r['time_s']:>9.2f} {r['residual']:>9.1e}"
+        )
+    if len(levels) > 1:
+        out.append("  (nested iteration: each level starts from the one below)")
+    identity = ""
+    if summary.get("lemma_4_2") is not None:
+        identity = f"; Lemma 4.2 identity defect {summary['lemma_4_2']:.1e}"
+    elif summary.get("complementarity") is not None:
+        identity = f"; complementarity defect {summary['complementarity']:.1e}"
+    verdict = "converged" if summary["converged"] else "NOT converged"
+    out.append(
+        f"  {verdict} in {summary['iterations']} Newton steps, residual "
+        f"{summary['residual']:.2e}{identity}"
+    )
+    c = summary.get("contact")
+    if c:
+        parts = [f"{c['nodes']} nodes", f"stick {c['stick']}", f"slip {c['slip']}"]
+        if c.get("open"):
+            parts.append(f"open {c['open']}")
+        if "stick_length" in c:
+            parts[1] += f" ({c['stick_length']:.4g} m)"
+            parts[2] += f" ({c['slip_length']:.4g} m)"
+        line = "  contact: " + ", ".join(parts)
+        if "force_on_slave" in c:
+            line += f"; force on the slave {_vec(c['force_on_slave'])} N/m"
+        if c.get("mortar_patch_defect") is not None:
+            line += f"; mortar patch defect {c['mortar_patch_defect']:.1e}"
+        out.append(line)
+    t = summary["time_s"]
+    out.append(f"  time {t['total']:.2f} s (build {t['build']:.2f} s, solve {t['solve']:.2f} s)")
+    out += [f"  warning: {w}" for w in summary["warnings"]]
+    out += [f"  note: {n}" for n in summary.get("notes", [])]
+    return out
 
 
 def load(args: argparse.Namespace):

@@ -129,7 +129,7 @@ def test_too_many_cells_after_refinement_are_refused(tmp_path, monkeypatch):
 def test_the_shipped_gmsh_scenes_solve_with_one_command(tmp_path, name, capsys):
     assert main(["solve", name, "--level", "0", "--out", str(tmp_path / name)]) == 0
     out = capsys.readouterr().out
-    assert "converged True" in out
+    assert "converged in" in out
 
 
 def test_a_separately_meshed_interface_stays_accepted_under_refinement():
