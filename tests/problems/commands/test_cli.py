@@ -37,6 +37,14 @@ def test_solve_writes_summary_fields_and_plots(tmp_path, capsys):
         "multipliers",
         "crosspoint_nodes",
         "uncovered_nodes",
+        "force_on_slave",
+        "force_units",
+        "stick_length",
+        "slip_length",
+        "open_length",
+        "no_multiplier_length",
+        "counts",
+        "table",
     }
     # the rigid foundation has no master side: the patch defect is 0 by construction
     assert s["contact"]["mortar_patch_defect"] == 0.0 and s["contact"]["master"] == "rigid"
