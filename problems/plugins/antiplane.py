@@ -2,7 +2,7 @@
 
 The out-of-plane displacement w solves −μΔw = f₀ in Ω, w = w_D on Γ1, μ∂ₙw = f₂ on Γ2 and on
 Γ3 the friction law |μ∂ₙw| ≤ g, with −μ∂ₙw = g w/|w| where w ≠ 0 (slip). Dual multipliers on
-Γ3 (DESIGN.md §5): λ_h = Σ λ_i ψ_i, the rows of B are D_i e_iᵀ at the Γ3 nodes (D_i = ∫φ_i) and
+Γ3 (docs/design.md §3): λ_h = Σ λ_i ψ_i, the rows of B are D_i e_iᵀ at the Γ3 nodes (D_i = ∫φ_i) and
 
     μK w + Bᵀλ = F,   Λ = Box(−g_i, g_i),   g_i = ∫gφ_i / D_i,
 

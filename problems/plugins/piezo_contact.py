@@ -1,7 +1,7 @@
 """Plug-in: elasto-piezoelectric bodies in bilateral contact with Tresca friction (Problem 4.1).
 
 Dual (biorthogonal) multipliers on the slave side Γ3: λ_h = Σ_k γ_k ψ̃_k n_k + Σ_k α_k ψ̃_k τ_k,
-and Λ_h = product(Free(N_n), Box(−g_k, g_k)) with g_k = ∫g φ̃_k / ∫φ̃_k (DESIGN.md §5; φ̃_k = φ_k
+and Λ_h = product(Free(N_n), Box(−g_k, g_k)) with g_k = ∫g φ̃_k / ∫φ̃_k (docs/design.md §3; φ̃_k = φ_k
 unless an end treatment merged a neighbour in). With a rigid foundation the constraint rows are
 Σ_j Ds_kj n_kᵀu_j (normal) and the same with τ_k (tangential); with a master body they act on
 the mortar jump Ds u_s − M u_m (`fem.mortar`).
