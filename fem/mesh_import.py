@@ -25,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import difflib
 import io
+import tempfile
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
@@ -118,6 +119,47 @@ def read_mesh(path: str | PathLike) -> MeshFile:
         blocks.append((block.type, np.asarray(block.data, dtype=np.int64), phys))
     groups = {str(k): (int(v[1]), int(v[0])) for k, v in (m.field_data or {}).items()}
     return MeshFile(path, pts[:, :2].copy(), blocks, groups)
+
+
+def mesh_geo(path: str | PathLike, level: int = 0) -> MeshFile:
+    """Mesh a gmsh geometry file (.geo) with the optional gmsh package and refine it `level`
+    times with gmsh: new boundary nodes are put on the geometry's curves (not on the level-0
+    polyline), interior ones at edge midpoints. The mesh options are the .geo file's own."""
+    path = str(path)
+    try:
+        import gmsh
+    except ImportError:
+        raise MeshImportError(
+            path,
+            "a .geo geometry",
+            "the optional gmsh package (pip install gmsh) to mesh it; or a mesh file made from "
+            "it (gmsh -2 FILE.geo), whose refinement keeps new boundary nodes on its polyline",
+        ) from None
+    own = not gmsh.isInitialized()
+    if own:
+        gmsh.initialize(["-noenv"], readConfigFiles=False, interruptible=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        with tempfile.TemporaryDirectory(prefix="mixvi-geo-") as tmp:
+            try:
+                gmsh.open(path)
+                gmsh.model.mesh.generate(2)
+                for _ in range(level):
+                    gmsh.model.mesh.refine()
+                gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+                out = str(Path(tmp) / "mesh.msh")
+                gmsh.write(out)
+            except Exception as err:  # gmsh raises plain Exceptions with its log line
+                first = str(err).splitlines()[0][:200] if str(err) else type(err).__name__
+                raise MeshImportError(
+                    path, "gmsh failed", f"a .geo file gmsh meshes ({first})"
+                ) from None
+            mf = read_mesh(out)
+    finally:
+        gmsh.clear()
+        if own:
+            gmsh.finalize()
+    return MeshFile(path, mf.points, mf.blocks, mf.groups)
 
 
 def _dim(cell_type: str) -> int:

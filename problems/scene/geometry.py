@@ -1,7 +1,8 @@
 """Geometry tables of a scene → meshes: the built-in shapes at a refinement level.
 
 Kinds: "rectangle" (structured P1/Q1), "half_disc" and "cradle" (the paper's two bodies as mapped
-Q1 blocks with boundary nodes on the true arc); or a mesh file (`mesh = "FILE"`, `imported`).
+Q1 blocks with boundary nodes on the true arc); or a file (`mesh = "FILE"` or `geo = "FILE.geo"`,
+`imported`).
 A mesh that would exceed MAX_CELLS cells, or that the mesher refuses (inverted or degenerate
 cells), is a SceneError naming the key.
 """
@@ -17,7 +18,7 @@ from fem.mesh import Mesh
 from fem.meshing import rectangle
 from problems.errors import SceneError
 
-from .imported import imported_mesh, resolve
+from .imported import geo_mesh, imported_mesh, resolve
 from .reader import Table
 
 GEOMETRIES = ("rectangle", "half_disc", "cradle")
@@ -32,7 +33,7 @@ def make_mesh(t: Table, level: int, scene_dir: Path | None = None) -> Mesh:
     `geometry = { mesh = "FILE", body = "GROUP" }` reads a mesh file instead (`imported`;
     FILE relative to `scene_dir`, the scene file's folder).
     """
-    if t.has("mesh"):
+    if t.has("mesh") or t.has("geo"):
         return _from_file(t, level, scene_dir)
     kind = t.string("kind", choices=GEOMETRIES)
     scale = 2**level
@@ -78,13 +79,22 @@ def make_mesh(t: Table, level: int, scene_dir: Path | None = None) -> Mesh:
 
 
 def _from_file(t: Table, level: int, scene_dir: Path | None) -> Mesh:
-    """`geometry = { mesh = "FILE", body = "GROUP" }`: the named body of a mesh file."""
-    name = t.string("mesh")
+    """`geometry = { mesh = "FILE", body = "GROUP" }` (a mesh file, refined on its polylines) or
+    `{ geo = "FILE.geo", body = "GROUP" }` (meshed and refined by gmsh onto the geometry)."""
+    if t.has("mesh") and t.has("geo"):
+        raise SceneError(
+            t.key("geo"),
+            t.raw("geo"),
+            "either mesh (a mesh file) or geo (a gmsh geometry, needs gmsh), not both",
+        )
+    key = "mesh" if t.has("mesh") else "geo"
+    name = t.string(key)
     body = t.raw("body", None)
     if body is not None and not isinstance(body, str):
         raise SceneError(t.key("body"), body, "the name of a physical surface group (a string)")
     t.finish()
-    return imported_mesh(resolve(scene_dir, name), body, level, t.key("mesh"), MAX_CELLS)
+    make = imported_mesh if key == "mesh" else geo_mesh
+    return make(resolve(scene_dir, name), body, level, t.key(key), MAX_CELLS)
 
 
 def _check_size(t: Table, key: str, value, cells: float) -> None:

@@ -144,3 +144,66 @@ def test_mutation_a_tolerance_on_the_refined_mesh_size_refuses_it(monkeypatch):
     monkeypatch.setattr(pc, "_check_separation", lambda *a: real(*a[:-1], 0))
     with pytest.raises(SceneError, match="overlap"):
         pc.build(load_scene("wavy_two_body"), 3)
+
+
+def _plate_geometry(kind: str, level: int):
+    """Area error and largest distance of the hole's nodes from the circle, plate mesh from
+    the shipped .msh (refined on its polylines) or the shipped .geo (refined by gmsh)."""
+    from pathlib import Path
+
+    from problems.scene.imported import geo_mesh, imported_mesh
+
+    path = Path(__file__).parents[3] / "problems" / "scenes" / "meshes" / f"plate_with_hole.{kind}"
+    make = geo_mesh if kind == "geo" else imported_mesh
+    m = make(path, "plate", level, "bodies.plate.geometry." + kind)
+    P = m.points[m.cells]  # (n_cells, 4, 2)
+    x, y = P[..., 0], P[..., 1]
+    area = 0.5 * np.sum(x * np.roll(y, -1, 1) - np.roll(x, -1, 1) * y)
+    hole = np.unique(m.boundaries["hole"])
+    r = np.hypot(*(m.points[hole] - [1.0, 0.5]).T)
+    return abs(area - (2.0 - np.pi / 16)), float(np.abs(r - 0.25).max())
+
+
+def test_a_geo_file_refined_by_gmsh_keeps_the_hole_round():
+    """From the .geo the area error falls ~4× per level and the hole's nodes stay on the
+    circle; from the .msh the error stalls at the level-0 polygon's (the README's caveat)."""
+    pytest.importorskip("gmsh")
+    geo = [_plate_geometry("geo", lv) for lv in range(3)]
+    msh = [_plate_geometry("msh", lv) for lv in range(3)]
+    assert geo[0][0] == pytest.approx(msh[0][0], rel=1e-12)  # the same level-0 mesh
+    for lv in (1, 2):
+        assert 3.5 < geo[lv - 1][0] / geo[lv][0] < 4.5
+        assert geo[lv][1] < 1e-12
+        assert msh[lv][0] == pytest.approx(msh[0][0], rel=1e-9)  # stalls
+        assert msh[lv][1] > 1e-4  # new hole nodes on the chords
+
+
+def test_a_geo_file_without_gmsh_is_refused_with_what_to_do(tmp_path, monkeypatch):
+    import sys
+
+    from problems.scene import imported
+
+    monkeypatch.setitem(sys.modules, "gmsh", None)  # import gmsh raises ImportError
+    imported._geo.cache_clear()
+    block = rectangle((0.0, 2.0), (0.0, 1.0), (4, 2), "quad")
+    scene = _imported("rigid_foundation", {"block": block}, tmp_path)
+    (tmp_path / "block.geo").write_text("// a geometry\n")
+    scene.data["bodies"]["block"]["geometry"] = {"geo": "block.geo", "body": "block"}
+    with pytest.raises(SceneError, match="geometry.geo.*pip install gmsh"):
+        pc.build(scene, 0)
+
+
+def test_mesh_and_geo_together_are_refused(tmp_path):
+    msg = _bad(tmp_path, geo="block.geo")
+    assert "either mesh" in msg and "not both" in msg
+
+
+def test_mutation_gmsh_not_refining_is_caught(monkeypatch):
+    gmsh = pytest.importorskip("gmsh")
+    from problems.scene import imported
+
+    imported._geo.cache_clear()
+    monkeypatch.setattr(gmsh.model.mesh, "refine", lambda: None)
+    with pytest.raises(AssertionError):
+        test_a_geo_file_refined_by_gmsh_keeps_the_hole_round()
+    imported._geo.cache_clear()
