@@ -10,6 +10,18 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+# the sign convention of every tangential quantity, printed under the contact plots
+TAU_NOTE = (
+    r"$\tau = (-n_y, n_x)$: the slave's outward normal $n$ turned 90° counterclockwise; "
+    r"arc length runs along $\tau$ (the slave body on the left)"
+)
+
+
+def _note(fig) -> None:
+    """The τ sign convention at the foot of a figure."""
+    fig.text(0.5, 0.01, TAU_NOTE, ha="center", va="bottom", fontsize=7, color="0.3")
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
+
 
 def _shade_slip(ax, s: np.ndarray, slip: np.ndarray) -> None:
     """Shade the slip zones (nodes with |λ·τ| = g) in light red."""
@@ -39,7 +51,7 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
     ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=8)
     n_slip = int(slip.sum())
     ax.set_title(f"{title}: stick {slip.size - n_slip}, slip {n_slip} nodes")
-    fig.tight_layout()
+    _note(fig)
     fig.savefig(outdir / "contact_multiplier.png", dpi=120)
     plt.close(fig)
 
@@ -52,7 +64,7 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
     ax.set_ylabel(r"tangential displacement $u\cdot\tau$ [m]")
     ax.legend(loc="best", fontsize=8)
     ax.set_title(title)
-    fig.tight_layout()
+    _note(fig)
     fig.savefig(outdir / "contact_displacement.png", dpi=120)
     plt.close(fig)
     return ["contact_multiplier.png", "contact_displacement.png"]
@@ -77,6 +89,9 @@ def potential_plot(
 def friction_comparison(states: list[tuple[float, dict]], path: Path, title: str = "") -> None:
     """Fig. 5.4: λ·τ and the tangential jump along Γ3, one panel per friction bound g."""
     fig, axes = plt.subplots(1, len(states), figsize=(5 * len(states), 4), sharey=True)
+    jumps = np.concatenate([st["jump_t"] for _, st in states])
+    pad = 0.05 * max(float(np.ptp(jumps)), 1e-300)
+    jump_lim = (float(jumps.min()) - pad, float(jumps.max()) + pad)  # one scale for all panels
     for ax, (g, st) in zip(np.atleast_1d(axes), states, strict=True):
         _shade_slip(ax, st["s"], st["slip"])
         ax.plot(st["s"], st["lam_t"], "o-", ms=2, label=r"$\lambda\cdot\tau$")
@@ -86,11 +101,12 @@ def friction_comparison(states: list[tuple[float, dict]], path: Path, title: str
         ax2 = ax.twinx()
         ax2.plot(st["s"], st["jump_t"], "s-", ms=2, color="tab:orange", label=r"$[u]\cdot\tau$")
         ax2.set_ylabel(r"$[u]\cdot\tau$ [m]", color="tab:orange")
+        ax2.set_ylim(*jump_lim)
         n_slip = int(st["slip"].sum())
         ax.set_title(f"g = {g:.2g} Pa: stick {st['slip'].size - n_slip}, slip {n_slip}")
     np.atleast_1d(axes)[0].set_ylabel(r"$\lambda\cdot\tau$ [Pa]")
     np.atleast_1d(axes)[0].legend(loc="best", fontsize=8)
     fig.suptitle(title)
-    fig.tight_layout()
+    _note(fig)
     fig.savefig(path, dpi=110)
     plt.close(fig)
