@@ -21,7 +21,7 @@ import scipy.sparse as sp
 from .assembly import _assemble, _check_matrix, _scatter
 from .elements import reference_element
 from .elements3d import FACE_TYPE, reference_element3d
-from .mesh3d import Mesh3D, check_cells
+from .mesh3d import Mesh3D, check_cells, cofactors
 from .tensors import VOIGT_PAIRS
 
 Func3 = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | float | Sequence[float]
@@ -48,9 +48,12 @@ def _geometry(mesh: Mesh3D, pts: np.ndarray, wts: np.ndarray) -> Geometry3D:
     X = mesh.points[mesh.cells]  # (n_cells, n_loc, 3)
     phi = ref.values(pts)  # (n_qp, n_loc)
     dphi = ref.gradients(pts)  # (n_qp, n_loc, 3)
-    J = np.einsum("cai,qaj->cqij", X, dphi, optimize=True)  # (n_cells, n_qp, 3, 3) ∂x_i/∂ξ_j
-    detJ = np.linalg.det(J)  # (n_cells, n_qp)
-    invJ = np.linalg.inv(J)  # (n_cells, n_qp, 3, 3)
+    # J is constant on a tetrahedron: compute it once per cell
+    at = dphi[:1] if mesh.cell_type == "tetra" else dphi  # (n_J, n_loc, 3), n_J = 1 or n_qp
+    J = np.einsum("cai,qaj->cqij", X, at, optimize=True)  # (n_cells, n_J, 3, 3) ∂x_i/∂ξ_j
+    cof = cofactors(J)  # (n_cells, n_J, 3, 3)
+    detJ = np.einsum("...j,...j->...", J[..., 0, :], cof[..., 0, :])  # (n_cells, n_J) row 0
+    invJ = cof.transpose(0, 1, 3, 2) / detJ[..., None, None]  # (n_cells, n_J, 3, 3)
     grad = dphi @ invJ  # (n_cells, n_qp, n_loc, 3) ∇φ = J⁻ᵀ ∇_ξ φ (as rows: ∇_ξφᵀ J⁻¹)
     x = phi @ X  # (n_cells, n_qp, 3)
     w = wts[None, :] * detJ  # (n_cells, n_qp)

@@ -64,12 +64,21 @@ class Mesh3D:
         return float(d.max())
 
 
+def cofactors(J: np.ndarray) -> np.ndarray:
+    """Cofactor matrices of a stack of 3×3 matrices (..., 3, 3): cof = det(J) J⁻ᵀ."""
+    a, b = np.roll(J, -1, axis=-1), np.roll(J, -2, axis=-1)  # columns j+1, j+2 (cyclic)
+    # cof_ij = J_{i+1, j+1} J_{i+2, j+2} − J_{i+1, j+2} J_{i+2, j+1} (indices cyclic)
+    return np.roll(a, -1, axis=-2) * np.roll(b, -2, axis=-2) - np.roll(b, -1, axis=-2) * np.roll(
+        a, -2, axis=-2
+    )
+
+
 def jacobian_determinants(mesh: Mesh3D, pts: np.ndarray) -> np.ndarray:
     """det ∂x/∂ξ of every cell at reference points `pts` (n_pts, 3): (n_cells, n_pts)."""
     ref = reference_element3d(mesh.cell_type)
     X = mesh.points[mesh.cells]  # (n_cells, n_loc, 3)
     J = np.einsum("cai,qaj->cqij", X, ref.gradients(pts), optimize=True)  # (n_c, n_pts, 3, 3)
-    return np.linalg.det(J)
+    return np.einsum("...j,...j->...", J[..., 0, :], cofactors(J)[..., 0, :])  # along row 0
 
 
 def check_cells(mesh: Mesh3D) -> None:
@@ -85,7 +94,10 @@ def check_cells(mesh: Mesh3D) -> None:
             f"{mesh.cells.shape}"
         )
     ref = reference_element3d(mesh.cell_type)
-    pts = np.concatenate([ref.vertices, ref.quadrature(4)[0]])  # (n_pts, 3)
+    if mesh.cell_type == "tetra":
+        pts = ref.centroid[None, :]  # (1, 3)
+    else:
+        pts = np.concatenate([ref.vertices, ref.quadrature(4)[0]])  # (35, 3)
     det = jacobian_determinants(mesh, pts)  # (n_cells, n_pts)
     scale = np.ptp(mesh.points, axis=0).max() ** 3 if mesh.n_nodes else 1.0
     bad = np.flatnonzero((det <= 1e-14 * scale).any(axis=1))  # (n_bad,)

@@ -9,6 +9,7 @@ from fem.mesh3d import (
     Mesh3D,
     box,
     check_cells,
+    cofactors,
     exterior_faces,
     jacobian_determinants,
     transform,
@@ -148,3 +149,17 @@ def test_bad_arguments():
         box((1, 0), (0, 1), (0, 1), (1, 1, 1))
     with pytest.raises(ValueError, match="shape"):
         transform(box(*BOUNDS, (1, 1, 1)), lambda p: p[:, :2])
+
+
+def test_cofactors_and_determinants_against_numpy():
+    J = np.random.default_rng(0).normal(size=(4, 5, 3, 3))
+    cof = cofactors(J)
+    det = np.linalg.det(J)
+    assert np.allclose(cof, det[..., None, None] * np.linalg.inv(J).transpose(0, 1, 3, 2))
+    mesh = transform(box(*BOUNDS, (1, 1, 1)), wavy)
+    pts = np.random.default_rng(1).uniform(-1, 1, (6, 3))
+    from fem.elements3d import reference_element3d
+
+    G = reference_element3d("hexahedron").gradients(pts)  # (6, 8, 3)
+    Jm = np.einsum("cai,qaj->cqij", mesh.points[mesh.cells], G)
+    assert np.allclose(jacobian_determinants(mesh, pts), np.linalg.det(Jm), rtol=1e-13)
