@@ -191,3 +191,149 @@ def transform(mesh: Mesh3D, func: Callable[[np.ndarray], np.ndarray]) -> Mesh3D:
     out = Mesh3D(pts, mesh.cells, mesh.boundaries)
     check_cells(out)
     return out
+
+
+# Local edges (pairs of local nodes) of each cell type.
+EDGES: dict[str, np.ndarray] = {
+    "tetra": np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]]),
+    "hexahedron": np.array(
+        [
+            [0, 1],
+            [1, 2],
+            [3, 2],
+            [0, 3],
+            [4, 5],
+            [5, 6],
+            [7, 6],
+            [4, 7],
+            [0, 4],
+            [1, 5],
+            [2, 6],
+            [3, 7],
+        ]
+    ),
+}
+# The eight children of a tetrahedron [x0, x1, x2, x3] in terms of its 10 nodes (0–3 the
+# vertices, 4 + e the midpoint of local edge e of EDGES["tetra"]): the four corner tetrahedra
+# and the inner octahedron split into 4 along one of its 3 diagonals x01–x23, x02–x13, x03–x12
+# (the shortest is chosen per cell, which keeps repeated refinement from degrading the cells).
+_X01, _X02, _X03, _X12, _X13, _X23 = range(4, 10)
+_CORNERS = [
+    [0, _X01, _X02, _X03],
+    [_X01, 1, _X12, _X13],
+    [_X02, _X12, 2, _X23],
+    [_X03, _X13, _X23, 3],
+]
+_DIAGONALS = [(_X01, _X23), (_X02, _X13), (_X03, _X12)]
+
+
+def _octahedron(d: int) -> list[list[int]]:
+    """The 4 tetrahedra of the inner octahedron around diagonal `d` of `_DIAGONALS`."""
+    p, q = _DIAGONALS[d]
+    (r1, r2), (s1, s2) = [_DIAGONALS[k] for k in range(3) if k != d]
+    return [[p, q, r1, s1], [p, q, s1, r2], [p, q, r2, s2], [p, q, s2, r1]]
+
+
+def _oriented(children: np.ndarray, ref_points: np.ndarray) -> np.ndarray:
+    """Swap the 2nd and 3rd node of the children (k, 4) that are negative on the reference."""
+    P = ref_points[children]  # (k, 4, 3)
+    neg = np.linalg.det(P[:, 1:] - P[:, :1]) < 0  # (k,)
+    out = children.copy()
+    out[neg, 1], out[neg, 2] = children[neg, 2], children[neg, 1]
+    return out
+
+
+def _sorted_keys(items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unique rows of the sorted node tuples `items` (n, k): (unique (m, k), inverse (n,))."""
+    u, inv = np.unique(np.sort(items, axis=1), axis=0, return_inverse=True)
+    return u, inv.ravel()
+
+
+def _find(keys: np.ndarray, items: np.ndarray) -> np.ndarray:
+    """Row index in the sorted unique `keys` (m, k) of each sorted row of `items` (n, k)."""
+    s = np.sort(items, axis=1)
+    kv = keys.view([("", keys.dtype)] * keys.shape[1]).ravel()
+    sv = np.ascontiguousarray(s).view([("", s.dtype)] * s.shape[1]).ravel()
+    pos = np.minimum(np.searchsorted(kv, sv), kv.size - 1)
+    if (kv[pos] != sv).any():
+        raise ValueError("a boundary face is not a face of the mesh's cells")
+    return pos
+
+
+def _refine_once(mesh: Mesh3D) -> Mesh3D:
+    n, ctype = mesh.n_nodes, mesh.cell_type
+    cells = mesh.cells  # (n_cells, k)
+    local_edges = EDGES[ctype]  # (n_e, 2)
+    edges = cells[:, local_edges]  # (n_cells, n_e, 2)
+    ukeys, einv = _sorted_keys(edges.reshape(-1, 2))  # (n_edges, 2), (n_cells n_e,)
+    mid = n + einv.reshape(cells.shape[0], -1)  # (n_cells, n_e) midpoint node of each edge
+    points = [mesh.points, mesh.points[ukeys].mean(axis=1)]  # (n, 3), (n_edges, 3)
+    fkeys = None
+    if ctype == "tetra":
+        ref10 = np.concatenate(
+            [
+                reference_element3d("tetra").vertices,
+                reference_element3d("tetra").vertices[local_edges].mean(axis=1),
+            ]
+        )  # (10, 3)
+        nodes = np.concatenate([cells, mid], axis=1)  # (n_cells, 10)
+        patterns = np.stack(
+            [_oriented(np.array(_CORNERS + _octahedron(d)), ref10) for d in range(3)]
+        )  # (3, 8, 4)
+        P = np.concatenate(points)[nodes]  # (n_cells, 10, 3)
+        diag = np.array(_DIAGONALS)  # (3, 2)
+        length = np.linalg.norm(P[:, diag[:, 0]] - P[:, diag[:, 1]], axis=2)  # (n_cells, 3)
+        choice = np.argmin(length, axis=1)  # (n_cells,)
+        children = np.take_along_axis(
+            nodes[:, None, :], patterns[choice].reshape(len(nodes), -1)[:, None, :], axis=2
+        ).reshape(len(nodes), 8, 4)  # (n_cells, 8, 4)
+    else:
+        local_faces = FACES["hexahedron"]  # (6, 4)
+        fkeys, finv = _sorted_keys(cells[:, local_faces].reshape(-1, 4))  # (n_faces, 4)
+        fc = n + ukeys.shape[0] + finv.reshape(cells.shape[0], 6)  # (n_cells, 6) face centres
+        cc = n + ukeys.shape[0] + fkeys.shape[0] + np.arange(cells.shape[0])  # (n_cells,)
+        points += [mesh.points[fkeys].mean(axis=1), mesh.points[cells].mean(axis=1)]
+        V = reference_element3d("hexahedron").vertices.astype(int)  # (8, 3) in {−1, 1}
+        grid = np.empty((cells.shape[0], 3, 3, 3), dtype=cells.dtype)  # node at ref point − 1
+        grid[(slice(None), *(V + 1).T)] = cells
+        e_pos = (V[local_edges[:, 0]] + V[local_edges[:, 1]]) // 2 + 1  # (12, 3)
+        grid[(slice(None), *e_pos.T)] = mid
+        f_pos = V[local_faces].sum(axis=1) // 4 + 1  # (6, 3)
+        grid[(slice(None), *f_pos.T)] = fc
+        grid[:, 1, 1, 1] = cc
+        offsets = (V + 1) // 2  # (8, 3) lower corner of each octant in index space
+        idx = offsets[:, None, :] + (V[None, :, :] + 1) // 2  # (8 children, 8 nodes, 3)
+        children = grid[:, idx[..., 0], idx[..., 1], idx[..., 2]]  # (n_cells, 8, 8)
+    boundaries = {}
+    for name, faces in mesh.boundaries.items():
+        k = faces.shape[1]
+        fe = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2)  # (n_b, k, 2) face edges
+        m = n + _find(ukeys, fe.reshape(-1, 2)).reshape(-1, k)  # (n_b, k) m_i on (f_i, f_i+1)
+        if k == 3:
+            a, b, c = faces.T
+            mab, mbc, mca = m.T
+            sub = [[a, mab, mca], [mab, b, mbc], [mca, mbc, c], [mab, mbc, mca]]
+        else:
+            f = n + ukeys.shape[0] + _find(fkeys, faces)  # (n_b,) face centres
+            a, b, c, d = faces.T
+            mab, mbc, mcd, mda = m.T
+            sub = [[a, mab, f, mda], [mab, b, mbc, f], [f, mbc, c, mcd], [mda, f, mcd, d]]
+        boundaries[name] = np.stack([np.stack(s, axis=1) for s in sub], axis=1).reshape(-1, k)
+    return Mesh3D(np.concatenate(points), children.reshape(-1, cells.shape[1]), boundaries)
+
+
+def refine(mesh: Mesh3D, times: int = 1) -> Mesh3D:
+    """Uniform refinement, `times` times: each cell into 8, each boundary face into 4.
+
+    Nested: the parent nodes keep their indices, then come the edge midpoints (and for
+    hexahedra the face and cell centres, the points of the trilinear map); so a parent nodal
+    vector is the restriction of the child's to its first n_nodes entries. Tetrahedra are split
+    into 4 corner tetrahedra and the inner octahedron along its shortest diagonal, children
+    oriented to det J > 0; parts keep their names and outward orientation.
+    """
+    if int(times) != times or times < 0:
+        raise ValueError(f"times must be a non-negative integer, got {times!r}")
+    for _ in range(int(times)):
+        mesh = _refine_once(mesh)
+        check_cells(mesh)
+    return mesh

@@ -5,6 +5,7 @@ import pytest
 
 from fem.elements3d import FACES
 from fem.mesh3d import (
+    EDGES,
     SIDES,
     Mesh3D,
     box,
@@ -12,6 +13,7 @@ from fem.mesh3d import (
     cofactors,
     exterior_faces,
     jacobian_determinants,
+    refine,
     transform,
 )
 
@@ -163,3 +165,75 @@ def test_cofactors_and_determinants_against_numpy():
     G = reference_element3d("hexahedron").gradients(pts)  # (6, 8, 3)
     Jm = np.einsum("cai,qaj->cqij", mesh.points[mesh.cells], G)
     assert np.allclose(jacobian_determinants(mesh, pts), np.linalg.det(Jm), rtol=1e-13)
+
+
+def tet_quality(mesh: Mesh3D) -> float:
+    """min over cells of 6√2 V / L_max³ (1 for the regular tetrahedron)."""
+    P = mesh.points[mesh.cells]  # (n_cells, 4, 3)
+    V = np.abs(np.linalg.det(P[:, 1:] - P[:, :1])) / 6
+    L = np.max([np.linalg.norm(P[:, a] - P[:, b], axis=1) for a, b in EDGES["tetra"]], axis=0)
+    return float((6 * np.sqrt(2) * V / L**3).min())
+
+
+@pytest.mark.parametrize("element", ELEMENTS)
+def test_refine_matches_the_box_of_the_next_levels(element):
+    coarse = box(*BOUNDS, (2, 1, 3), element)
+    for times in (1, 2):
+        fine, ref = refine(coarse, times), box(*BOUNDS, (2, 1, 3), element, level=times)
+        assert (fine.n_nodes, fine.n_cells) == (ref.n_nodes, ref.n_cells)
+        key = lambda p: np.lexsort(p.round(12).T)  # noqa: E731
+        assert np.array_equal(fine.points[key(fine.points)], ref.points[key(ref.points)])
+        assert np.isclose(cell_volumes(fine).sum(), 3.0, rtol=1e-13)
+        assert np.isclose(fine.h, ref.h)  # the shortest octahedron diagonal keeps Kuhn's cells
+        for name in SIDES:
+            assert fine.boundaries[name].shape == ref.boundaries[name].shape
+        all_faces = np.concatenate(list(fine.boundaries.values()))
+        assert np.array_equal(
+            np.unique(np.sort(all_faces, axis=1), axis=0),
+            np.unique(np.sort(exterior_faces(fine.cells, element), axis=1), axis=0),
+        )  # the refined parts are exactly the exterior faces: conforming, nothing lost
+
+
+@pytest.mark.parametrize("element", ELEMENTS)
+def test_refine_is_nested_and_keeps_the_geometry(element):
+    """Parent nodes first; new nodes on the parent's (trilinear) map: a linear function's
+    nodal values on the fine mesh are its parent interpolant's values; outward faces."""
+    coarse = transform(box(*BOUNDS, (2, 1, 2), element), wavy)
+    fine = refine(coarse)
+    assert np.array_equal(fine.points[: coarse.n_nodes], coarse.points)
+    assert np.isclose(cell_volumes(fine).sum(), cell_volumes(coarse).sum(), rtol=1e-12)
+    from fem.assembly3d import face_geometry
+
+    for name in ("left", "top"):
+        _, w_c, _, _ = face_geometry(coarse, name)
+        _, w_f, _, n_f = face_geometry(fine, name)
+        assert np.isclose(w_f.sum(), w_c.sum(), rtol=1e-12)  # plane faces: same area
+        axis, end = divmod(SIDES.index(name), 2)
+        assert np.allclose(n_f[..., axis], 1.0 if end else -1.0)
+    if element == "tetra":  # shape regularity does not decay under repeated refinement
+        q = [tet_quality(refine(coarse, t)) for t in range(4)]
+        assert min(q) > 0.95 * q[0], q
+
+
+def test_refine_a_single_tetrahedron_keeps_its_quality():
+    p = np.array([[0, 0, 0], [1, 0, 0], [0.3, 0.9, 0], [0.2, 0.3, 0.8]], dtype=float)
+    tet = Mesh3D(
+        p, np.array([[0, 1, 2, 3]]), {"all": np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])}
+    )
+    q = [tet_quality(refine(tet, t)) for t in range(5)]
+    # the first split loses some quality (0.63 -> 0.42 here); after it, none is lost
+    assert q[1] > 0.5 * q[0] and min(q[1:]) > 0.99 * q[1], q
+    fine = refine(tet, 2)
+    assert fine.n_cells == 64 and fine.boundaries["all"].shape == (64, 3)
+    with pytest.raises(ValueError, match="times"):
+        refine(tet, -1)
+
+
+def test_refine_check_catches_a_fixed_octahedron_diagonal(monkeypatch):
+    """Fault: the octahedron always split along x02–x13: Kuhn's cells get long edges."""
+    import fem.mesh3d as mesh3d
+
+    good = mesh3d._octahedron
+    monkeypatch.setattr(mesh3d, "_octahedron", lambda d: good(1))
+    fine = refine(box(*BOUNDS, (2, 1, 3), "tetra"))
+    assert fine.h > 1.5 * box(*BOUNDS, (2, 1, 3), "tetra", level=1).h
