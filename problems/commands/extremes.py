@@ -38,7 +38,7 @@ from . import options, resources
 RESIDUAL_OK = 1e-8
 AGREE_OK = 1e-6
 ADMISSIBLE_OK = 1e-9
-INACTIVE = 1e-12  # ‖λ'‖ / ‖(u', λ')‖ below this: no multiplier active (see _lam_difference)
+INACTIVE = 1e-12  # a part of (u', λ') below this × its size: rounding zero (`_difference`)
 CONIC_MAX = 20_000  # unknowns: above this the conic method is skipped (time)
 HOMOTOPY_MAX = 3_000  # unknowns: above this the homotopy method is skipped (time)
 
@@ -47,20 +47,28 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
 
 
-def _lam_difference(vi, sol: vi_core.Solution, other: vi_core.Solution) -> float:
-    """‖λ_other − λ_ssn‖ / ‖λ_ssn‖; where ssn's λ is (rounding) zero — below INACTIVE of the
-    answer's size in equilibrated variables, nothing is active — relative to that size,
-    ‖λ'_other − λ'_ssn‖ / ‖(u', λ')_ssn‖ (a 0/0 would call an interior-point λ of 1e-12 a
-    disagreement)."""
-    if not vi.m:
-        return 0.0
+def _difference(model: Any, sol: vi_core.Solution, other: vi_core.Solution) -> float:
+    """The larger relative difference of u (with its Dirichlet values, `Model.full` where the
+    model has it: the data's scale) and of λ between `other` and ssn's `sol`. A part that is
+    (rounding) zero in ssn's answer — below INACTIVE of the answer's size ‖(u', λ')‖ in
+    equilibrated variables — is measured relative to that size instead (a 0/0 would call the
+    1e-12 of an interior-point λ, or of a glued u, a disagreement)."""
+    vi = model.vi
     checker = Checker.of(vi)
     u_s, lam_s = checker.scaled(sol.u, sol.lam)
-    size = float(np.linalg.norm(np.concatenate([u_s, lam_s])))
-    if np.linalg.norm(lam_s) > INACTIVE * size:
-        return _rel(other.lam, sol.lam)
-    _, lam_o = checker.scaled(other.u, other.lam)
-    return float(np.linalg.norm(lam_o - lam_s)) / max(size, 1e-300)
+    u_o, lam_o = checker.scaled(other.u, other.lam)
+    size = max(float(np.linalg.norm(np.concatenate([u_s, lam_s]))), 1e-300)
+    full = getattr(model, "full", lambda u: u)
+    diffs = []
+    for s_, o_, a, b in (
+        (u_s, u_o, full(other.u), full(sol.u)),
+        (lam_s, lam_o, other.lam, sol.lam),
+    ):
+        if s_.size == 0:
+            continue
+        active = np.linalg.norm(s_) > INACTIVE * size
+        diffs.append(_rel(a, b) if active else float(np.linalg.norm(o_ - s_)) / size)
+    return max(diffs, default=0.0)
 
 
 def rows(plugins: dict[str, Any] | None = None) -> list[ExtremeRow]:
@@ -111,9 +119,7 @@ def run_row(row: ExtremeRow) -> dict:
         failed = other.info.get("status") != "optimal" if meth == "conic" else not other.converged
         if failed:
             rec["notes"].append(f"{meth} did not converge (residual {other.residual:.1e})")
-        full = getattr(model, "full", lambda u: u)  # with Dirichlet values: the data's scale
-        du = _rel(full(other.u), full(sol.u))
-        rec["agreement"][meth] = max(du, _lam_difference(vi, sol, other))
+        rec["agreement"][meth] = _difference(model, sol, other)
     lam = sol.lam
     rec["admissibility"] = _rel(vi.Lambda.project(lam), lam) if vi.m and lam.any() else 0.0
     if hasattr(model, "complementarity"):

@@ -101,3 +101,27 @@ def test_plugins_option_selects_and_refuses(tmp_path, capsys):
     assert "g × 1e6 (tied)" in out and "BaTiO3" not in out
     with pytest.raises(Exception, match="--plugins"):
         extremes_main(["--plugins", "nosuch", "--out", str(tmp_path / "b")])
+
+
+@pytest.mark.parametrize("part", ["u", "lam"])
+def test_a_disagreement_is_caught_where_ssn_answer_is_zero(part, monkeypatch):
+    """The obstacle far below: ssn's λ is rounding zero. A conic answer off by 1e-3 (u scaled,
+    or λ given a force of 1e-3 of the largest elastic one) still fails the row."""
+    import numpy as np
+
+    import vi_core
+
+    real = vi_core.solve
+
+    def off(vi, method, **kw):
+        sol = real(vi, method, **kw)
+        if method == "conic":
+            if part == "u":
+                sol.u = sol.u * (1 + 1e-3)
+            else:
+                sol.lam = sol.lam + 1e-3 * np.abs(vi.A @ sol.u).max()
+        return sol
+
+    monkeypatch.setattr(vi_core, "solve", off)
+    rec = run_row(next(r for r in ROWS if r.name == "obstacle far below (no contact)"))
+    assert rec["agreement"]["conic"] > AGREE_OK and not rec["ok"], rec
