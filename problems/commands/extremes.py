@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -189,7 +190,14 @@ def extremes_main(argv: list[str]) -> int:
     args = p.parse_args(argv)
     names = registry.names()
     chosen = names if args.plugins is None else options.names(args.plugins, "--plugins", names)
-    plugins = {n: registry.get(n) for n in chosen}
+    plugins = {}
+    for n in chosen:  # a broken third-party plug-in is skipped, unless asked for by name
+        try:
+            plugins[n] = registry.get(n)
+        except SceneError as err:
+            if args.plugins is not None:
+                raise
+            print(f"mixvi: skipping plug-in {n!r}: {err}", file=sys.stderr)
     if args.plugins is not None:
         for plugin in plugins.values():
             needs(plugin, "mixvi extremes", "extremes")

@@ -125,3 +125,16 @@ def test_a_disagreement_is_caught_where_ssn_answer_is_zero(part, monkeypatch):
     monkeypatch.setattr(vi_core, "solve", off)
     rec = run_row(next(r for r in ROWS if r.name == "obstacle far below (no contact)"))
     assert rec["agreement"]["conic"] > AGREE_OK and not rec["ok"], rec
+
+
+def test_a_broken_third_party_plugin_is_skipped_unless_named(tmp_path, capsys, monkeypatch):
+    from importlib.metadata import EntryPoint
+
+    from problems.errors import SceneError
+
+    broken = EntryPoint("broken", "no_such_module_for_mixvi", registry.GROUP)
+    monkeypatch.setattr(registry, "_third_party", lambda: {"broken": broken})
+    assert extremes_main(["--only", "g × 1e6 (tied)", "--out", str(tmp_path / "a")]) == 0
+    assert "skipping plug-in 'broken'" in capsys.readouterr().err
+    with pytest.raises(SceneError, match="failed to load"):
+        extremes_main(["--plugins", "broken", "--out", str(tmp_path / "b")])
