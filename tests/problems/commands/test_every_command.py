@@ -83,6 +83,17 @@ def test_the_third_party_plugin_is_found_only_by_its_entry_point(installed):
     assert registry.get("sticky_floor").CONTRACT == 2
 
 
+def test_scenes_lists_every_plugin(installed, capsys):
+    assert cli.main(["scenes"]) == 0
+    out = capsys.readouterr().out
+    listed = out.split("plug-ins:")[1]
+    for name in PLUGINS:
+        assert f"\n  {name} " in listed, name
+    assert "BROKEN" not in out
+    for scene in SHIPPED.values():
+        assert f"\n  {scene} " in out.split("plug-ins:")[0]
+
+
 @pytest.mark.parametrize("scene", PLUGINS, indirect=True)
 def test_solve(scene, tmp_path, capsys):
     out = tmp_path / "solve"
@@ -185,3 +196,23 @@ def _load(scene: str):
     from problems.scene import load_scene
 
     return load_scene(scene)
+
+
+def test_the_output_checks_can_fail(tmp_path, monkeypatch, installed):
+    """A NaN deep in a summary, a file that is not a PNG, and a plug-in whose postprocess
+    returns a non-finite entry are each caught by the checks above."""
+    with pytest.raises(AssertionError, match=r"\.a\[1\]\.b"):
+        _finite({"a": [1.0, {"b": float("nan")}]})
+    (tmp_path / "x.png").write_bytes(b"not a png" * 200)
+    with pytest.raises(AssertionError):
+        _png(tmp_path / "x.png")
+    plugin = registry.get("sticky_floor")
+    real = plugin.postprocess
+    monkeypatch.setattr(plugin, "postprocess", lambda *a: {**real(*a), "bad": float("inf")})
+    with pytest.raises(AssertionError, match=r"\.bad"):
+        test_solve(plugin.SCENE, tmp_path, _NoCapture())
+
+
+class _NoCapture:
+    def readouterr(self):
+        return type("R", (), {"out": "converged True"})()
