@@ -109,8 +109,8 @@ def parser() -> argparse.ArgumentParser:
     sc = sub.add_parser("scenes", help="list the shipped scenes with their plug-in and title")
     sc.set_defaults(func=cmd_scenes)
     for name, fn, helptext in (
-        ("check", cmd_check, "solve with every applicable method and compare the answers"),
-        ("figures", cmd_figures, "the paper's Fig. 5.4: λ·τ and the jump for three g"),
+        ("check", cmd_check, "solve with every applicable method and compare"),
+        ("figures", cmd_figures, "the scene for each value of its plug-in's SWEEP, one panel each"),
     ):
         c = sub.add_parser(name, help=helptext, description=helptext[0].upper() + helptext[1:])
         c.add_argument("scene", nargs="?", help=f"scene (default {DEFAULT_SCENE})")
