@@ -7,6 +7,7 @@ The gallery of test problems and hypothesis strategies live in `vi_core.testing`
 """
 
 from .constants import Constants, constants, skew_ratio
+from .coulomb import ContactSet, Coulomb, UnilateralTresca
 from .problem import MixedVI, Residual, Scaling, natural_residual
 from .sets import Ball, Box, ConvexSet, Free, NonNegative, Product, product
 from .solution import Solution
@@ -17,6 +18,8 @@ __all__ = [
     "Ball",
     "Box",
     "Constants",
+    "ContactSet",
+    "Coulomb",
     "ConvexSet",
     "Free",
     "MixedVI",
@@ -25,6 +28,7 @@ __all__ = [
     "Residual",
     "Scaling",
     "Solution",
+    "UnilateralTresca",
     "constants",
     "natural_residual",
     "product",

@@ -13,6 +13,10 @@ Every generator is deterministic in its integer `seed` (``np.random.default_rng(
   B u* − gap = 0: strict complementarity fails); f = A u* + Bᵀλ*, gap = B u* − z* with
   z* ∈ N_Λ(λ*).
 
+* `random_contact_vi`: the same operators with a product of `Free` rows and one contact block
+  (`Coulomb` or `UnilateralTresca`) of k nodes in R^dim, gaps drawn so that about two thirds
+  of the nodes are pressed into contact by the load and the rest lift off.
+
 Structures: "symmetric" (C = 0), "skew-coupled" (A = [[K, Gᵀ], [−G, P]], B on the first block)
 and "general" (a dense random skew C).
 """
@@ -26,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .constants import skew_ratio
+from .coulomb import Coulomb, UnilateralTresca
 from .problem import MixedVI
 from .sets import Ball, Box, ConvexSet, Free, NonNegative, product
 
@@ -269,6 +274,57 @@ def manufactured_vi(
         u=u / scale,
         lam=lam,
         kind=kind.astype(str),
+    )
+
+
+def random_contact_vi(
+    seed: int,
+    n: int = 20,
+    k: int = 4,
+    dim: int = 2,
+    F: float | np.ndarray = 0.3,
+    law: str = "coulomb",
+    structure: str = "symmetric",
+    rho: float = 0.5,
+    cond: float = 10.0,
+    free: int = 0,
+    spread: float = 0.0,
+) -> MixedVI:
+    """A random contact problem: Λ = Free(free) × Coulomb(F, dim) (k nodes) or
+    Free(free) × UnilateralTresca(g = F, dim, contact_only=True) (law="tresca").
+
+    The normal gaps are set from the unconstrained solution u_0 = A⁻¹f: about two thirds of the
+    nodes get (B u_0)_n − gap_n > 0 (the load presses them into contact), the others lift off;
+    tangential gaps are 0. F scales with the typical normal pressure: the friction radius F λ_n
+    and the tangential loads are of one size for F ≈ 1.
+    """
+    if law not in ("coulomb", "tresca"):
+        raise ValueError(f"law {law!r} unknown; allowed: coulomb, tresca")
+    rng = np.random.default_rng(seed)
+    A, n_first = _operator(rng, n, structure, rho, cond)
+    m = free + k * dim
+    if m > n_first:
+        raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
+    B = np.zeros((m, n))
+    B[:, :n_first] = rng.standard_normal((m, n_first))
+    f = rng.standard_normal(n)
+    z0 = B @ np.linalg.solve(A, f)  # (m,) constraint values of the unconstrained solution
+    gap = np.zeros(m)
+    gap[:free] = 0.5 * rng.standard_normal(free)
+    normal = free + dim * np.arange(k)  # (k,) rows of the normal multipliers
+    size = np.median(np.abs(z0[normal])) + 1e-3
+    pressed = rng.random(k) < 2.0 / 3.0
+    offset = size * rng.uniform(0.3, 1.0, k)
+    gap[normal] = z0[normal] + np.where(pressed, -offset, offset)
+    contact = Coulomb(F, dim, k=k) if law == "coulomb" else UnilateralTresca(F, dim, k=k)
+    A, B, f, _ = _variables(rng, A, B, f, spread)
+    return MixedVI(
+        A=sp.csr_matrix(A),
+        B=sp.csr_matrix(B),
+        f=f,
+        Lambda=product(Free(free), contact),
+        gap=gap,
+        info={"gallery": "random_contact_vi", "seed": seed, "structure": structure, "rho": rho},
     )
 
 
