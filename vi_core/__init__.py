@@ -11,9 +11,10 @@ from .coulomb import ContactSet, Coulomb, UnilateralTresca
 from .problem import MixedVI, Residual, Scaling, natural_residual
 from .sets import Ball, Box, ConvexSet, Free, NonNegative, Product, product
 from .solution import Solution
-from .solve import METHODS, solve
+from .solve import CONTACT_METHODS, METHODS, solve
 
 __all__ = [
+    "CONTACT_METHODS",
     "METHODS",
     "Ball",
     "Box",
