@@ -314,8 +314,8 @@ def random_contact_vi(
     normal = free + dim * np.arange(k)  # (k,) rows of the normal multipliers
     size = np.median(np.abs(z0[normal])) + 1e-3
     pressed = rng.random(k) < 2.0 / 3.0
-    offset = size * rng.uniform(0.3, 1.0, k)
-    gap[normal] = z0[normal] + np.where(pressed, -offset, offset)
+    push = size * np.where(pressed, -rng.uniform(1.0, 3.0, k), rng.uniform(0.1, 0.5, k))
+    gap[normal] = z0[normal] + push
     contact = Coulomb(F, dim, k=k) if law == "coulomb" else UnilateralTresca(F, dim, k=k)
     A, B, f, _ = _variables(rng, A, B, f, spread)
     return MixedVI(
