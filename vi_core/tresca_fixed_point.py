@@ -154,6 +154,14 @@ def solve_tresca_fixed_point(
         if not converged and grew >= patience:
             warnings.append(f"fixed_point: the step did not shrink {grew} times in a row")
             break
+    # as ssn: return a multiplier in Λ(λ) exactly (the last Tresca answer satisfies the bound of
+    # the previous λ_n); keep it only if the residual does not grow beyond tol
+    lam_feasible = vi.Lambda.project(lam)
+    res_feasible = vi.residual(u, lam_feasible).relative
+    if res_feasible <= max(res, tol):
+        lam, res = lam_feasible, res_feasible
+        history[-1] = res
+        converged = res <= tol
     tail = rates[len(rates) // 2 :]
     if not converged:
         warnings.append(
