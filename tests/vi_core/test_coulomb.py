@@ -74,10 +74,29 @@ def test_jacobian_is_the_derivative_of_the_combined_map(seed, kind, dim):
     assert _derivative_error(S, _smooth_point(S, rng), rng) <= 1e-6
 
 
+NEWTON_STEPS = 10  # measured 2–6 Newton steps on these gallery problems (F = 0.5); 16–51 with
+# the slip row's sign flipped (the answers stay right: only the Jacobian is wrong)
+
+
+def _newton_steps() -> list[int]:
+    steps = []
+    for seed in range(3):
+        for dim in (2, 3):
+            vi = random_contact_vi(seed, n=40, k=8, dim=dim, F=0.5, structure="general",
+                                   free=2, rho=1.0)  # fmt: skip
+            sol = solve(vi, "ssn", tol=TOL, **FAST)
+            assert sol.converged
+            steps.append(sol.iterations)
+    return steps
+
+
+def test_newton_converges_fast():
+    assert max(_newton_steps()) <= NEWTON_STEPS
+
+
 def test_mutation_sign_of_the_tangential_derivative_is_caught(monkeypatch):
     """Mutation: dρ/dy_n with the wrong sign (the slip row −F ŷ instead of F ŷ). The derivative
-    check catches it; semismooth Newton then needs more steps (measured, not asserted: a wrong
-    Jacobian slows Newton but its answers are still judged by the residual)."""
+    check catches it, and so does the Newton step count (superlinear convergence is lost)."""
     rng = np.random.default_rng(7)
     S = Coulomb(rng.uniform(0.5, 2.0, 6), 2)
     y = _smooth_point(S, rng)
@@ -88,6 +107,7 @@ def test_mutation_sign_of_the_tangential_derivative_is_caught(monkeypatch):
     orig = Coulomb.radius
     monkeypatch.setattr(Coulomb, "radius", lambda self, yn: (orig(self, yn)[0], -orig(self, yn)[1]))
     assert _derivative_error(S, y, rng) > 0.1
+    assert max(_newton_steps()) > NEWTON_STEPS
 
 
 def test_combined_map_is_the_identity_on_the_set_and_lands_in_it():
