@@ -3,6 +3,9 @@
     from vi_core import MixedVI, Box, Ball, Free, NonNegative, product, solve, constants
     sol = solve(vi, method="ssn" | "conic" | "homotopy" | "auto", tol=1e-10)
 
+Unilateral contact with friction (`Coulomb`, `UnilateralTresca`: quasi-variational sets,
+docs/coulomb.md) takes method="ssn" | "fixed_point" | "auto".
+
 The gallery of test problems and hypothesis strategies live in `vi_core.testing`.
 """
 
