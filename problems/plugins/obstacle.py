@@ -16,27 +16,32 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import scipy.sparse as sp
+from pydantic import BeforeValidator, Field, model_validator
 
 from fem import assembly
 from fem.mesh import Mesh
-from problems.scene import Scene
-from problems.scene.geometry import make_mesh
+from problems.scene import Scene, SceneModel, Section
+from problems.scene.fields import Expression
+from problems.scene.geometry import Geometry
+from problems.scene.model import head, one_or_many
 from vi_core import MixedVI, NonNegative, Solution
 
 from .contract import (
+    DirichletPart,
+    ScalarExact,
+    check_boundaries,
     complementarity_defect,
-    read_dirichlet,
-    read_exact,
-    read_head,
-    read_solver,
+    dirichlet,
     triangles,
 )
 
 NAME = "obstacle"
 DESCRIPTION = "membrane above an obstacle: −Δu = f, u ≥ ψ (nodal contact forces λ ≥ 0)"
+Head = head(NAME, 2)
 
 
 @dataclass
@@ -81,20 +86,42 @@ class Model:
         return complementarity_defect(sol.lam, self.vi.B @ sol.u - self.vi.gap, 0.0)
 
 
+class Domain(Section):
+    """[domain]: geometry, load f (a field), obstacle ψ (a field)."""
+
+    geometry: Geometry
+    load: Expression = Expression(0.0)
+    obstacle: Expression
+
+
+class ObstacleScene(SceneModel):
+    """An obstacle scene: [domain], [[dirichlet]] (at least one), optional [exact]."""
+
+    scene: Head
+    domain: Domain
+    dirichlet: Annotated[list[DirichletPart], BeforeValidator(one_or_many), Field(min_length=1)]
+    exact: ScalarExact | None = None
+
+    @model_validator(mode="after")
+    def _references(self) -> ObstacleScene:
+        names = self.domain.geometry.BOUNDARIES
+        for i, d in enumerate(self.dirichlet):
+            check_boundaries(["dirichlet", i, "boundary"], d.boundary, names)
+        return self
+
+
+SCENE_MODEL = ObstacleScene
+
+
 def build(scene: Scene, level: int | None = None) -> Model:
     """Scene → Model: mesh, stiffness, load, Dirichlet reduction, one constraint per free node."""
-    root = scene.root()
-    default_level = read_head(root, NAME, 2)
-    level = default_level if level is None else level
-    dom = root.table("domain")
-    mesh = make_mesh(dom.table("geometry"), level)
-    f_fun = dom.field("load", 1, 0.0)
-    psi_fun = dom.field("obstacle", 1)
-    dom.finish()
-    fixed, values = read_dirichlet(root, mesh)
-    exact = read_exact(root)
-    options = read_solver(root)
-    root.finish()
+    spec = scene.validated(SCENE_MODEL)
+    level = spec.scene.level if level is None else level
+    mesh = spec.domain.geometry.mesh(level)
+    f_fun, psi_fun = spec.domain.load, spec.domain.obstacle
+    fixed, values = dirichlet(spec.dirichlet, mesh)
+    exact = None if spec.exact is None else spec.exact.compiled()
+    options = spec.options()
 
     x, y = mesh.points.T  # (n_nodes,) each
     psi = psi_fun(x, y)  # (n_nodes,)
