@@ -16,7 +16,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from problems import pipeline
+import problems.pipeline as pipeline
 from problems.scene import Scene, SceneModel
 from problems.scene import load_scene as _read
 

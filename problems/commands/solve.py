@@ -8,8 +8,8 @@ import sys
 import time
 from pathlib import Path
 
+import problems.pipeline as pipeline
 import vi_core
-from problems import pipeline
 from problems.errors import SceneError
 from problems.output.files import jsonable, output_folder
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT

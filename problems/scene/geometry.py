@@ -9,7 +9,7 @@ degenerate cells), is a SceneError naming the key.
 
 from __future__ import annotations
 
-from typing import Annotated, ClassVar, Literal
+from typing import Annotated, ClassVar, Literal, get_args
 
 import numpy as np
 from pydantic import Field
@@ -96,8 +96,10 @@ class Cradle(_Arc):
 # The geometry kinds, told apart by `kind`: add a kind by adding a Section with a `kind`
 # literal, BOUNDARIES (None: known only once meshed) and mesh(level) to this union.
 Geometry = Annotated[Rectangle | HalfDisc | Cradle, Field(discriminator="kind")]
-GEOMETRIES = ("rectangle", "half_disc", "cradle")
-UNION_TAGS.update(GEOMETRIES)
+GEOMETRIES = tuple(
+    get_args(c.model_fields["kind"].annotation)[0] for c in get_args(get_args(Geometry)[0])
+)
+UNION_TAGS.update(("geometry", k) for k in GEOMETRIES)
 
 
 def _check_size(t: Section, key: str, value, cells: float) -> None:

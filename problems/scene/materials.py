@@ -187,4 +187,4 @@ MaterialSpec = Annotated[
     ),
     BeforeValidator(_named),
 ]
-UNION_TAGS.update({"named", *KINDS})
+UNION_TAGS.update(("material", k) for k in ("named", *KINDS))

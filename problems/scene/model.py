@@ -57,7 +57,7 @@ class Section(BaseModel):
                 if k not in known:
                     raise PydanticCustomError(
                         "unknown_key",
-                        "unknown key{hint}; known here: {known}",
+                        "unknown key{hint}; allowed keys here: {known}",
                         {"key": k, "hint": did_you_mean(k, known), "known": ", ".join(known)},
                     )
         return data
@@ -160,14 +160,18 @@ def _at(data: Any, loc: Sequence[str | int]) -> Any:
     return data
 
 
-UNION_TAGS: set[str] = set()  # tags of tagged unions (geometry and material kinds): not keys
+# (field, tag) of tagged unions (geometry and material kinds): pydantic puts the tag into an
+# error's loc after the field; it is not a key of the scene
+UNION_TAGS: set[tuple[str, str]] = set()
 
 
 def _clean(loc: Sequence[str | int]) -> list[str | int]:
     """Pydantic's loc without the tags it inserts for tagged unions and function validators."""
     out: list[str | int] = []
-    for i, p in enumerate(loc):
-        if isinstance(p, str) and (p in UNION_TAGS and i > 0 or p.startswith("function-")):
+    for p in loc:
+        if isinstance(p, str) and p.startswith("function-"):
+            continue
+        if out and isinstance(p, str) and (out[-1], p) in UNION_TAGS:
             continue
         out.append(p)
     return out
@@ -187,8 +191,8 @@ def _allowed(e: dict) -> str:
         "model_attributes_type": "a table",
         "dict_type": "a table",
         "list_type": "a list",
-        "too_short": f"a list of at least {ctx.get('min_length')} entries",
-        "too_long": f"a list of at most {ctx.get('max_length')} entries",
+        "too_short": f"a list of {ctx.get('min_length')} or more entries",
+        "too_long": f"a list of {ctx.get('max_length')} or fewer entries",
     }
     if t in simple:
         return simple[t]
