@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
-from pydantic import model_validator
+from pydantic import field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from fem import assembly
 from fem.boundary import Trace, trace
@@ -31,7 +32,7 @@ from problems.errors import SceneError
 from problems.output import plots
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import NonNegativeExpr, Text
-from problems.scene.model import head, refuse
+from problems.scene.model import head
 from vi_core import Box, MixedVI, NonNegative, Solution, product
 
 from .bodies import Body, BodySection, build_body
@@ -80,18 +81,26 @@ class ContactSection(Section):
     g: NonNegativeExpr
 
 
+class ElasticBody(BodySection):
+    """The [body] table: a body of an elastic (not piezoelectric) material."""
+
+    @field_validator("material")
+    @classmethod
+    def _elastic(cls, v):
+        if v.material().piezoelectric:
+            raise PydanticCustomError("material", "an elastic (not piezoelectric) material")
+        return v
+
+
 class SignoriniScene(SceneModel):
     """A signorini scene: one elastic [body] and its [contact] with a rigid obstacle."""
 
     scene: Head
-    body: BodySection
+    body: ElasticBody
     contact: ContactSection
 
     @model_validator(mode="after")
     def _references(self) -> SignoriniScene:
-        m = self.body.material.material()
-        if m.piezoelectric:
-            raise refuse(["body", "material"], m.name, "an elastic (not piezoelectric) material")
         names = self.body.geometry.BOUNDARIES
         check_boundaries(["contact", "boundary"], [self.contact.boundary], names)
         return self
