@@ -197,6 +197,11 @@ def contact_state(model: Model, sol: Solution) -> dict:
     }
 
 
+def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields: "w" (n_nodes,), the out-of-plane displacement."""
+    return {"w": model.full(sol.u)}
+
+
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """antiplane.vtu (w) and the friction plots along Γ3 (multiplier with ±g, w)."""
     from fem.io import write_vtu

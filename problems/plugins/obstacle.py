@@ -151,6 +151,13 @@ def build(scene: Scene, level: int | None = None) -> Model:
     return Model(scene, level, mesh, vi, free, values, psi, exact, options, warnings)
 
 
+def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields: "u", "obstacle" and "contact_force" (n_nodes,) each."""
+    lam = np.zeros(model.mesh.n_nodes)
+    lam[model.free] = sol.lam
+    return {"u": model.full(sol.u), "obstacle": model.psi, "contact_force": lam}
+
+
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """obstacle.vtu (u, ψ, λ, contact) and obstacle.png (u and contact set; mid-line profile)."""
     from fem.io import write_vtu

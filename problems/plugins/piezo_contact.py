@@ -618,6 +618,19 @@ def contact_warnings(state: dict) -> list[str]:
     return []
 
 
+def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields by name: "BODY.displacement" (N, 2) and, for piezoelectric bodies,
+    "BODY.potential" (N,)."""
+    x_full = model.full(sol.u)
+    out = {}
+    for b in model.bodies:
+        u, phi = b.split(x_full[b.offset : b.offset + b.size])
+        out[f"{b.name}.displacement"] = u
+        if phi is not None:
+            out[f"{b.name}.potential"] = phi
+    return out
+
+
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """Write VTU fields and PNG plots into `outdir`; return the summary entries."""
     from fem.io import write_vtu

@@ -182,6 +182,12 @@ def contact_state(model: Model, sol: Solution) -> dict:
     }
 
 
+def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields: "displacement" (n_nodes, 2)."""
+    u, _ = model.body.split(expand(sol.u, model.free, model.values))
+    return {"displacement": u}
+
+
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """signorini.vtu (displacement, stress), friction plots and contact_normal.png."""
     from fem.io import write_vtu

@@ -124,7 +124,7 @@ class Expression:
                 e = cls(v)
             except ExpressionError as err:
                 raise PydanticCustomError(
-                    "expression", "{allowed}; {why}", {"allowed": ALLOWED, "why": str(err)}
+                    "expression", "{why}; allowed: {allowed}", {"allowed": ALLOWED, "why": str(err)}
                 ) from None
             if not ({"x", "y"} & _names(v)):  # a constant expression: evaluate it now
                 val = e._fn(np.zeros(1), np.zeros(1))
