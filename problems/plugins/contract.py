@@ -106,7 +106,11 @@ def conforms(obj: Any) -> list[str]:
 
 # ------------------------------------------------------------------ helpers for plug-ins
 Boundaries = Annotated[
-    list[Text], BeforeValidator(lambda v: [v] if isinstance(v, str) else v), Field(min_length=1)
+    list[Text],
+    BeforeValidator(
+        lambda v: [v] if isinstance(v, str) else v, json_schema_input_type=str | list[str]
+    ),
+    Field(min_length=1),
 ]
 
 

@@ -185,6 +185,13 @@ MaterialSpec = Annotated[
         custom_error_message="a material name (" + ", ".join(sorted(NAMED)) + ") or a table "
         "with kind = " + " | ".join(KINDS),
     ),
-    BeforeValidator(_named),
+    BeforeValidator(
+        _named,
+        json_schema_input_type=Literal[MATERIAL_NAMES]
+        | NamedMaterial
+        | Isotropic
+        | Anisotropic
+        | Piezoelectric,
+    ),
 ]
 UNION_TAGS.update(("material", k) for k in ("named", *KINDS))

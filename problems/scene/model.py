@@ -285,6 +285,7 @@ def json_schema(models: dict[str, type[SceneModel]]) -> dict:
     from pydantic.json_schema import models_json_schema
 
     refs, defs = models_json_schema([(m, "validation") for m in models.values()])
+    defs = _standard_bounds(defs)
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "mixvi scene",
@@ -293,3 +294,20 @@ def json_schema(models: dict[str, type[SceneModel]]) -> dict:
         "oneOf": [refs[(m, "validation")] for m in models.values()],
         **defs,
     }
+
+
+_BOUNDS = {"ge": "minimum", "gt": "exclusiveMinimum", "le": "maximum", "lt": "exclusiveMaximum"}
+
+
+def _standard_bounds(node: Any) -> Any:
+    """Pydantic writes a bound it could not fold into the type (our numbers are checked by a
+    validator first) as "ge"/"gt"/"le"/"lt": the JSON Schema keywords are minimum etc."""
+    if isinstance(node, dict):
+        typed = node.get("type") in ("number", "integer")
+        return {
+            (_BOUNDS[k] if typed and k in _BOUNDS else k): _standard_bounds(v)
+            for k, v in node.items()
+        }
+    if isinstance(node, list):
+        return [_standard_bounds(v) for v in node]
+    return node
