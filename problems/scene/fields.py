@@ -5,9 +5,10 @@ turns the first one into a SceneError naming the field path, the value and what 
 
 - `Number`: an int or float (never a bool or a string), finite, of size ≤ MAX_MAGNITUDE;
   ranges are added per field with `Field(gt=..., le=...)`.
-- `Expr`: a number or an expression string (`problems.scene.expressions`), compiled once into
-  an `Expression`, which is called as f(x, y) and refuses a non-finite or oversized result
-  with its field path and text. `Vector` is a pair of them.
+- `Expression`: a number or an expression string (`problems.scene.expressions`), compiled
+  once; called as f(x, y) it refuses a non-finite or oversized result
+  with its field path and text (`NonNegativeExpr`: constants also checked ≥ 0 when read).
+  `Vector` is a pair of them.
 - `Interval`, `IntPair`, `Point`: [a, b] pairs.
 """
 
@@ -175,7 +176,6 @@ def _nonnegative(e: Expression) -> Expression:
     return e
 
 
-Expr = Expression
 NonNegativeExpr = Annotated[Expression, AfterValidator(_nonnegative)]  # constants checked now,
 # expressions where they are evaluated
 Vector = Annotated[list[Expression], Field(min_length=2, max_length=2)]
