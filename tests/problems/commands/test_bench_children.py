@@ -32,6 +32,7 @@ from problems.scene import Scene, Section
 from problems.scene.fields import Text
 from problems.scene.model import head
 
+CONTRACT = 2
 NAME = "wobbly"
 DESCRIPTION = "test plug-in: crashes, raises, hangs or runs out of memory in a child"
 
