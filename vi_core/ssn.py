@@ -155,6 +155,7 @@ class _Stepper:
                 sp.bmat([[_structure(e.A), _structure(e.B.T)], [G @ _structure(e.B), G]])
             )
         self.pattern.sort_indices()
+        self.pattern.data = np.ones(self.pattern.nnz, dtype=np.int8)  # only its structure is used
 
     def step(self, J, W, rhs_c):
         """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c."""
@@ -162,6 +163,7 @@ class _Stepper:
         if self.cond is None:
             K = _on_pattern(sp.bmat([[e.A, e.B.T], [-J @ e.B, W]], format="csr"), self.pattern)
             self.nnz.append(K.nnz)
+            self.last = None  # the Refactorizer frees it; no reference keeps it alive here
             self.last = self.factorize(K)
             x = self.last(np.concatenate([e.f, rhs_c]))
             return x[: e.n], x[e.n :]
@@ -171,8 +173,10 @@ class _Stepper:
         K_S = (Dt @ (W @ (c.Dt_inv @ self.A_S)) + Dt @ (J @ e.B)).tocsr()
         rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
         K = _on_pattern(self.P @ sp.vstack([self.K_R, K_S], format="csr"), self.pattern)
+        del K_S  # what the factorisation does not need is freed before it runs
         self.nnz.append(K.nnz)
         rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])
+        self.last = None
         self.last = self.factorize(K)
         u_new = self.last(rhs)
         lam_new = c.Dt_inv @ (self.f_S - self.A_S @ u_new)
