@@ -52,9 +52,7 @@ def _det(J: np.ndarray) -> np.ndarray:
 CHUNK = 16384  # cells per assembly chunk
 
 
-def _geometry(
-    mesh: Mesh, pts: np.ndarray, wts: np.ndarray, cells: slice = slice(None)
-) -> Geometry:
+def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray, cells: slice = slice(None)) -> Geometry:
     """Quadrature data of the cells mesh.cells[cells] (a slice: first cell = its start)."""
     ref = reference_element(mesh.cell_type)
     X = mesh.points[mesh.cells[cells]]  # (n_cells, n_loc, 2)
