@@ -154,11 +154,7 @@ class Refactorizer:
         A = sp.csr_matrix(A)
         A.sort_indices()
         backend = resolve_backend(self.backend, A.shape[0])
-        if self._last is not None:  # never two factors at once: free the old one first
-            self._last.stale = True
-            if backend != "pardiso":
-                self._last.free()
-            self._last = None
+        self.release()  # never two factors at once: the old one goes first
         self.factorizations += 1
         if backend != "pardiso":
             self.analyses += 1
@@ -180,6 +176,15 @@ class Refactorizer:
             self.analyses += 1
         self._last = Factorization(A, "pardiso", pardiso_solver=self._solver)
         return self._last
+
+    def release(self) -> None:
+        """Free the last factorisation now (it goes `stale`); a PARDISO analysis is kept (its
+        numerical factor is overwritten in place by the next call)."""
+        if self._last is not None:
+            self._last.stale = True
+            if self._last.backend != "pardiso":
+                self._last.free()
+            self._last = None
 
     def free(self) -> None:
         """Release the PARDISO analysis and factors."""
