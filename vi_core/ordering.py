@@ -4,13 +4,17 @@
 pivots) fill in little: the graph of A + Aᵀ is split recursively by a vertex separator, and
 every part is numbered before the separator that cuts it off from the other part, so the
 elimination of one part creates no fill in the other. Separators are level sets of a
-breadth-first search from a pseudo-peripheral vertex (the level where half the vertices have
-been reached), thinned by moving separator vertices without a neighbour on the far side to the
-near part. On the graph of a 2D mesh such a level set is a line across the mesh, the separator
-has O(√N) vertices and the factor O(N log N) entries, where a minimum-degree ordering ends at
-O(N^1.25) on these systems (measured in `problems/commands/bench_ordering.py`).
+breadth-first search from a pseudo-peripheral vertex (the smallest level set leaving at least
+a third of the vertices on each side), thinned by moving separator vertices without a
+neighbour on the far side to the near part. Parts with at most `leaf` vertices keep their
+order.
 
-Parts with at most `leaf` vertices keep their breadth-first order (a local band).
+Measured against SuperLU's own orderings on the condensed Newton matrices of the paper scene
+(`python -m problems.commands.bench_ordering --level L`), these level-set separators are not
+good enough: the factors fill more than with minimum degree on Aᵀ + A (which
+`vi_core.linalg` therefore uses), though far less than with COLAMD. This ordering is kept as
+that measured alternative; a graph partitioner's separators (METIS, as PARDISO uses) would be
+the next step.
 """
 
 from __future__ import annotations
