@@ -5,9 +5,9 @@ Backends: "splu" (SciPy SuperLU) and "pardiso" (MKL PARDISO through the optional
 and the system is large enough to pay for it, else SuperLU.
 
 SuperLU's column ordering is ORDERING = minimum degree on the graph of Aᵀ + A: on the condensed
-Newton matrix of the paper scene at level 4 (96,576 unknowns) its factors hold 8.3 × nnz(A)
+Newton matrix of the paper scene at level 4 (96,576 unknowns) its factors hold 8.4 × nnz(A)
 where COLAMD's hold 19.7 × and a nested dissection from level-set separators
-(`vi_core.ordering`) 9.6 ×; it also factorises 3 × faster
+(`vi_core.ordering`) 10.3 ×; it also factorises 3.6 × faster than COLAMD
 (`python -m problems.commands.bench_ordering --level 4`).
 
 Memory: a factorisation's factors are released by `Factorization.free` (SuperLU: the SuperLU
