@@ -109,7 +109,32 @@ def _pattern(rows: np.ndarray, cols: np.ndarray, shape, chunk: int) -> sp.csr_ma
     return P
 
 
-def _assemble(
+def _assemble_chunks(
+    local_of: Callable[[slice], np.ndarray],
+    rows: np.ndarray,
+    cols: np.ndarray,
+    shape: tuple[int, int],
+    chunk: int = CHUNK,
+) -> sp.csr_matrix:
+    """Σ over cells of the local matrices local_of(cells) (k, r, c) of each chunk `cells` of k
+    cells, at the dofs rows (n_cells, r) × cols (n_cells, c), summed into the final pattern."""
+    if chunk < 1:
+        raise ValueError(f"chunk must be ≥ 1 cell, got {chunk}")
+    P = _pattern(rows, cols, shape, chunk)
+    keys = np.repeat(np.arange(shape[0], dtype=np.int64), np.diff(P.indptr))  # (nnz,)
+    keys *= shape[1]
+    keys += P.indices  # (nnz,) increasing (sorted csr)
+    data = np.zeros(P.nnz)  # (nnz,)
+    for lo in range(0, rows.shape[0], chunk):
+        cells = slice(lo, lo + chunk)
+        local = local_of(cells)  # (k, r, c)
+        pos = np.searchsorted(keys, _keys(rows[cells], cols[cells], shape[1]))  # (k, r, c)
+        np.add.at(data, pos.ravel(), local.ravel())
+    del keys
+    return sp.csr_matrix((data, P.indices, P.indptr), shape=shape)
+
+
+def _assemble_forms(
     mesh: Mesh,
     kernel: Callable[[Geometry], np.ndarray],
     rows: np.ndarray,
@@ -117,22 +142,18 @@ def _assemble(
     shape: tuple[int, int],
     chunk: int = CHUNK,
 ) -> sp.csr_matrix:
-    """Σ over cells of the local matrices kernel(g) (k, r, c) of each chunk of k cells, at the
-    dofs rows (n_cells, r) × cols (n_cells, c); quadrature of order 2."""
-    if chunk < 1:
-        raise ValueError(f"chunk must be ≥ 1 cell, got {chunk}")
+    """Σ over cells of kernel(g) (k, r, c), g the order-2 quadrature data of a chunk of k
+    cells, computed chunk by chunk."""
     pts, wts = reference_element(mesh.cell_type).quadrature(2)
-    P = _pattern(rows, cols, shape, chunk)
-    keys = np.repeat(np.arange(shape[0], dtype=np.int64), np.diff(P.indptr))  # (nnz,)
-    keys = keys * shape[1] + P.indices  # (nnz,) increasing (sorted csr)
-    data = np.zeros(P.nnz)  # (nnz,)
-    for lo in range(0, mesh.n_cells, chunk):
-        cells = slice(lo, lo + chunk)
-        local = kernel(_geometry(mesh, pts, wts, cells))  # (k, r, c)
-        pos = np.searchsorted(keys, _keys(rows[cells], cols[cells], shape[1]))  # (k, r, c)
-        np.add.at(data, pos.ravel(), local.ravel())
-    del keys
-    return sp.csr_matrix((data, P.indices, P.indptr), shape=shape)
+    return _assemble_chunks(
+        lambda cells: kernel(_geometry(mesh, pts, wts, cells)), rows, cols, shape, chunk
+    )
+
+
+def _assemble(local: np.ndarray, rows: np.ndarray, cols: np.ndarray, shape) -> sp.csr_matrix:
+    """Sum local matrices already computed for all cells (n_cells, r, c) into a sparse matrix
+    (duplicates added; the same pattern-and-scatter path as the chunked 2D forms)."""
+    return _assemble_chunks(lambda cells: local[cells], rows, cols, shape)
 
 
 def _strain_operator(grad: np.ndarray) -> np.ndarray:
@@ -165,7 +186,7 @@ def elasticity_matrix(mesh: Mesh, C: np.ndarray, chunk: int = CHUNK) -> sp.csr_m
 
     dofs = _vector_dofs(mesh)  # (n_cells, 2 n_loc)
     n = 2 * mesh.n_nodes
-    return _assemble(mesh, kernel, dofs, dofs, (n, n), chunk)
+    return _assemble_forms(mesh, kernel, dofs, dofs, (n, n), chunk)
 
 
 def coupling_matrix(mesh: Mesh, e: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
@@ -178,7 +199,7 @@ def coupling_matrix(mesh: Mesh, e: np.ndarray, chunk: int = CHUNK) -> sp.csr_mat
         return (wgrad @ (e @ B)).sum(axis=1)  # (k, n_loc, 2 n_loc)
 
     shape = (mesh.n_nodes, 2 * mesh.n_nodes)
-    return _assemble(mesh, kernel, mesh.cells, _vector_dofs(mesh), shape, chunk)
+    return _assemble_forms(mesh, kernel, mesh.cells, _vector_dofs(mesh), shape, chunk)
 
 
 def permittivity_matrix(mesh: Mesh, kappa: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
@@ -190,7 +211,7 @@ def permittivity_matrix(mesh: Mesh, kappa: np.ndarray, chunk: int = CHUNK) -> sp
         return (wgrad @ kappa @ g.grad.transpose(0, 1, 3, 2)).sum(axis=1)  # (k, n_loc, n_loc)
 
     shape = (mesh.n_nodes, mesh.n_nodes)
-    return _assemble(mesh, kernel, mesh.cells, mesh.cells, shape, chunk)
+    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk)
 
 
 def stiffness_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
@@ -205,7 +226,7 @@ def mass_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
         return np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (k, n_loc, n_loc)
 
     shape = (mesh.n_nodes, mesh.n_nodes)
-    return _assemble(mesh, kernel, mesh.cells, mesh.cells, shape, chunk)
+    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk)
 
 
 def _evaluate(func: Func, x: np.ndarray, y: np.ndarray, ncomp: int) -> np.ndarray:
