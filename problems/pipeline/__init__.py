@@ -85,14 +85,7 @@ def solve(
     nested: list[dict] = []
     warm: dict = {}
     if method == "ssn" and hasattr(plugin, "warm_start") and model.level > 0 and not cold:
-        prev = None
-        for lev in range(model.level):
-            coarse = plugin.build(scene, lev)
-            kw = plugin.warm_start(*prev, coarse) if prev else {}
-            csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **kw)
-            nested.append({"level": lev, "iterations": csol.iterations, "time_s": csol.time})
-            prev = (coarse, csol)
-        warm = plugin.warm_start(*prev, model)
+        nested, warm = _nested(plugin, scene, model, tol)
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
         warm["estimate_condition"] = True
     sol = vi_core.solve(model.vi, method=method, tol=tol, **warm)
@@ -100,6 +93,21 @@ def solve(
         nested.append({"level": model.level, "iterations": sol.iterations, "time_s": sol.time})
     t_solve = sum(r["time_s"] for r in nested) if nested else sol.time
     return Run(model, sol, method, tol, nested, t_build, t_solve)
+
+
+def _nested(plugin: Any, scene: Scene, model: Any, tol: float) -> tuple[list[dict], dict]:
+    """Nested iteration: levels 0 … L−1 solved first, each warm-starting the next; returns
+    their records and the warm start of `model`. The coarse models are gone when it returns
+    (none of them is alive while the fine level is factorised)."""
+    nested, prev = [], None
+    for lev in range(model.level):
+        coarse = plugin.build(scene, lev)
+        kw = plugin.warm_start(*prev, coarse) if prev else {}
+        prev = None  # the level before is no longer needed
+        csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **kw)
+        nested.append({"level": lev, "iterations": csol.iterations, "time_s": csol.time})
+        prev = (coarse, csol)
+    return nested, plugin.warm_start(*prev, model)
 
 
 def scaling_summary(model: Any) -> dict:
