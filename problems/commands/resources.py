@@ -202,9 +202,6 @@ def check_levels(
 
 
 def default_level(plugin, scene) -> int:
-    """The scene's own level (`[scene] level`, else the plug-in's default)."""
-    head = scene.data.get("scene", {})
-    lev = head.get("level") if isinstance(head, dict) else None
-    if isinstance(lev, int) and not isinstance(lev, bool) and 0 <= lev <= MAX_LEVEL:
-        return lev
-    return plugin.build(scene, None).level  # the plug-in's default, or its SceneError
+    """The scene's own level (`[scene] level`, else the plug-in's default; SceneError if the
+    scene is not valid). Nothing is built."""
+    return scene.validated(plugin.SCENE_MODEL).scene.level

@@ -113,7 +113,27 @@ CASES = [
     S("--set without =", "contact.g", "--set"),
     S("--set into a missing table", "nosuch.key=1", "nosuch"),
     S("--set empty key part", "contact..g=1", "--set"),
+    S("g wrong arity", "contact.g='sin(x, y)'", "contact.g"),
+    S("g keyword argument", "contact.g='maximum(x, 0, out=y)'", "contact.g"),
+    S("g nested too deep", "contact.g='" + "sin(" * 40 + "x" + ")" * 40 + "'", "contact.g"),
+    S("g expression too long", "contact.g='" + "x+" * 1100 + "1'", "contact.g"),
+    S("g overflows on the domain", "contact.g='exp(1000*(x + 1))'", "contact.g"),
+    S("g constant division by zero", "contact.g='1/0'", "contact.g"),
+    S("master is the slave", "contact.master='block.top'", "contact.master"),
+    S("potential along no boundary", "output.potential_along='block.middle'", "potential_along"),
+    S("body force of one component", "bodies.block.body_force=[1.0]", "bodies.block.body_force"),
+    S("format 3", "format=3", "format"),
+    Case(
+        "validate a bad override",
+        ["validate", "{d}/scene.toml", "--set", "contact.g='where(x, y)'"],
+        "contact.g",
+    ),
+    Case(
+        "validate an unknown key", ["validate", "{d}/scene.toml", "--set", "solver.x=1"], "solver.x"
+    ),
+    Case("validate a missing scene", ["validate", "{d}/nosuch.toml"], "scene"),
     # ---------------------------------------------------------------- scene files
+    F("format 2 without plugin", "format = 2\n[scene]\nlevel = 0\n", "scene.plugin"),
     F("invalid TOML", "[scene\n", "bad.toml"),
     F("binary file", b"\x89PNG\x00\xff\xfe garbage", "bad.toml"),
     F("missing geometry", f"{HEAD}[bodies.b]\nmaterial = 'BaTiO3'\n", "bodies.b.geometry"),
