@@ -8,6 +8,7 @@ Layers, lowest first (a module may import its own layer and the layers below it)
     problems.scene               scene files, expressions, materials, geometry
     problems.output              writers: files, JSON, plots
     problems.plugins             the contract, the registry, one module per plug-in
+    problems.pipeline            scene → validated model → build → solve → results
     problems.commands            the command line, study, bench, extremes
     problems (top-level modules) the Python API
 
@@ -38,11 +39,20 @@ ALLOWED = {
         "fem",
         "vi_core",
     },
+    "problems.pipeline": {
+        "problems.errors",
+        "problems.scene",
+        "problems.output",
+        "problems.plugins",
+        "fem",
+        "vi_core",
+    },
     "problems.commands": {
         "problems.errors",
         "problems.scene",
         "problems.output",
         "problems.plugins",
+        "problems.pipeline",
         "fem",
         "vi_core",
     },
@@ -51,6 +61,7 @@ ALLOWED = {
         "problems.scene",
         "problems.output",
         "problems.plugins",
+        "problems.pipeline",
         "problems.commands",
         "fem",
         "vi_core",

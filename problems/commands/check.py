@@ -28,12 +28,10 @@ import numpy as np
 
 import vi_core
 from problems.output.files import jsonable, output_file
-from problems.plugins import registry
-from problems.scene import load_scene
 from vi_core.kkt import Checker
 
 from . import options, resources
-from .options import DEFAULT_SCENE
+from .solve import load
 
 CONIC_RAW_ACCEPT = 1e-6  # Clarabel's raw answer must reach this independent residual
 ITERATE_ACCEPT = 10.0  # ssn/homotopy: independent residual ≤ ITERATE_ACCEPT · tol
@@ -183,8 +181,8 @@ def _homotopy_report(h: dict) -> dict:
 def cmd_check(args: argparse.Namespace) -> int:
     """Compare the raw answers of ssn, homotopy and conic per level; exit status 1 if a method
     fails or a pair differs beyond `allowed` (module docstring)."""
-    scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
-    plugin = registry.for_scene(scene)
+    loaded = load(args)
+    scene, plugin = loaded.scene, loaded.plugin
     if args.levels is not None:
         option, text = "--levels", args.levels
         a, b = options.level_range(args.levels)

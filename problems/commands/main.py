@@ -1,7 +1,9 @@
 """The `mixvi` command line.
 
 mixvi solve [SCENE] [--level N] [--solver NAME] [--tol T] [--set key=value ...] [--out DIR]
-mixvi scenes | check | figures | study | bench | extremes    (`mixvi --help`: one line each)
+mixvi validate SCENE [--set key=value ...]    check a scene without solving
+mixvi schema | scenes | check | figures | study | bench | extremes    (`mixvi --help`: one line
+each)
 
 Exit status (every command): 0 all good, 1 ran but a case failed or did not converge, 2 bad
 input (one line naming the option or scene key, the value and what is allowed), 3 internal
@@ -23,6 +25,7 @@ from .check import cmd_check
 from .figures import cmd_figures
 from .options import DEFAULT_SCENE
 from .scenes import cmd_scenes
+from .schema import cmd_schema, cmd_validate
 from .solve import ACCURACY, cmd_solve
 
 SET_HELP = "override a scene value, e.g. contact.g=5e7 (repeatable)"
@@ -108,6 +111,12 @@ def parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_solve)
     sc = sub.add_parser("scenes", help="list the shipped scenes with their plug-in and title")
     sc.set_defaults(func=cmd_scenes)
+    sh = sub.add_parser("schema", help="print the JSON Schema of scenes (every plug-in's section)")
+    sh.set_defaults(func=cmd_schema)
+    v = sub.add_parser("validate", help="check a scene and its --set overrides without solving")
+    v.add_argument("scene", help="scene file or shipped name")
+    v.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
+    v.set_defaults(func=cmd_validate)
     for name, fn, helptext in (
         ("check", cmd_check, "solve with every applicable method and compare"),
         ("figures", cmd_figures, "the scene for each value of its plug-in's SWEEP, one panel each"),

@@ -4,39 +4,21 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
+import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
 from problems.output.files import jsonable, output_folder
-from problems.plugins import registry
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
-from problems.scene import load_scene
 
 from . import resources
 from .options import DEFAULT_SCENE
 
 # --accuracy presets: (level, tol); measured time and error on the paper scene in the README
 ACCURACY = {"fast": (1, 1e-6), "balanced": (2, 1e-8), "fine": (3, 1e-10)}
-CONDITION_LIMIT = 200_000  # estimate the Newton matrix's condition up to this many unknowns
-
-
-def _scaling_summary(model) -> dict:
-    """The equilibration scales per field (geometric means): u = s_u·u', λ = s_λ·λ'."""
-    sc = model.vi.scaling
-
-    def gmean(v):
-        return float(np.exp(np.mean(np.log(v)))) if v.size else None
-
-    out = {"note": "u = s_u u', lambda = s_lam lambda' (Jacobi equilibration, geometric means)"}
-    fields = model.unknown_fields() if hasattr(model, "unknown_fields") else {"u": slice(None)}
-    for name, mask in fields.items():
-        out[f"s_{name}"] = gmean(sc.s_u[mask])
-    out["s_multiplier"] = gmean(sc.s_lam)
-    return out
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
@@ -47,7 +29,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
         level, tol = ACCURACY[args.accuracy]
         args.level = level if args.level is None else args.level
         args.tol = tol if args.tol is None else args.tol
-    scene, plugin = load(args)
+    loaded = load(args)
+    scene, plugin = loaded.scene, loaded.plugin
     method = args.solver
     if method is not None and method not in vi_core.METHODS:
         raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
@@ -56,62 +39,34 @@ def cmd_solve(args: argparse.Namespace) -> int:
     resources.check_levels(plugin, scene, (level, level), option, str(level), args.force)
     out = Path(args.out) if args.out else Path("out") / scene.name
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
-        return _solve(args, t0, scene, plugin, level, folder)
+        return _solve(args, t0, loaded, level, folder)
 
 
-def _solve(args, t0, scene, plugin, level, folder) -> int:
-    model = plugin.build(scene, level)
-    t_build = time.perf_counter() - t0
-    method = args.solver or model.options.get("method", "ssn")
-    if method not in vi_core.METHODS:
-        raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
-    tol = args.tol if args.tol is not None else model.options.get("tol", 1e-10)
-    nested = []
-    warm = {}
-    if method == "ssn" and hasattr(plugin, "warm_start") and model.level > 0 and not args.cold:
-        # nested iteration: solve levels 0 … L−1 first, each warm-starting the next
-        prev = None
-        for lev in range(model.level):
-            coarse = plugin.build(scene, lev)
-            kw = plugin.warm_start(*prev, coarse) if prev else {}
-            csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **kw)
-            nested.append(_level_record(lev, coarse, csol))
-            prev = (coarse, csol)
-        warm = plugin.warm_start(*prev, model)
-    if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
-        warm["estimate_condition"] = True
-    sol = vi_core.solve(model.vi, method=method, tol=tol, **warm)
-    if nested:
-        nested.append(_level_record(model.level, model, sol))
+def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
+    plugin = loaded.plugin
+    run = pipeline.solve(loaded, level, args.solver, args.tol, args.cold)
+    model, sol, nested = run.model, run.solution, run.nested
     out = folder.path
     with folder.staging() as tmp:
         extras = plugin.postprocess(model, sol, tmp)
         summary = {
-            "scene": scene.name,
-            "scene_file": scene.path,
-            "plugin": plugin.NAME,
-            "level": model.level,
-            "solver": method,
-            "tol": tol,
-            "dofs": model.dofs,
-            "converged": sol.converged,
-            "iterations": sol.iterations,
-            "residual": sol.residual,
-            "residual_history": sol.history,
+            **pipeline.info(loaded, run),
             **extras,
-            "scaling": _scaling_summary(model),
+            "scaling": pipeline.scaling_summary(model),
             "condition_estimate": sol.info.get("condition_estimate"),
             "solver_info": sol.info,
             "warnings": model.warnings + sol.warnings + extras.get("warnings", []),
             "nested": nested,
             "time_s": {
-                "build": t_build,
-                "solve": sum(r["time_s"] for r in nested) if nested else sol.time,
+                "build": run.time_build,
+                "solve": run.time_solve,
                 "total": time.perf_counter() - t0,
             },
         }
         (tmp / "summary.json").write_text(json.dumps(jsonable(summary), indent=2) + "\n")
-    for line in console_summary(summary, nested or [_level_record(model.level, model, sol)]):
+    for line in console_summary(
+        summary, nested or [pipeline.level_record(model.level, model, sol)]
+    ):
         print(line)
     files = ["summary.json", *summary.get("files", [])]
     print(f"  wrote {out}/: {', '.join(files)}")
@@ -120,18 +75,6 @@ def _solve(args, t0, scene, plugin, level, folder) -> int:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
         return 1
     return 0 if sol.converged else 1
-
-
-def _level_record(level: int, model, sol) -> dict:
-    """One row of the per-level table: unknowns, Newton steps, time, residual."""
-    return {
-        "level": level,
-        "unknowns": int(model.vi.n + model.vi.m),
-        "iterations": sol.iterations,
-        "time_s": sol.time,
-        "residual": sol.residual,
-        "converged": sol.converged,
-    }
 
 
 def _vec(v) -> str:
@@ -190,7 +133,10 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
     return out
 
 
-def load(args: argparse.Namespace):
-    """The scene (with its --set overrides) and its plug-in."""
-    scene = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
-    return scene, registry.for_scene(scene)
+def load(args: argparse.Namespace) -> pipeline.Loaded:
+    """The scene (with its --set overrides), validated by its plug-in's scene model before
+    anything is built; migration notices go to stderr (one line each)."""
+    loaded = pipeline.load(args.scene or DEFAULT_SCENE, args.set or [])
+    for notice in loaded.notices:
+        print(f"mixvi: note: {notice}", file=sys.stderr)
+    return loaded

@@ -19,34 +19,40 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import scipy.sparse as sp
+from pydantic import BeforeValidator, Field, model_validator
 
 from fem import assembly
 from fem.boundary import Trace, trace
 from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots
-from problems.scene import Scene
-from problems.scene.geometry import make_mesh
+from problems.scene import Scene, SceneModel, Section
+from problems.scene.fields import Expression, NonNegativeExpr, Number, Text
+from problems.scene.geometry import Geometry
+from problems.scene.model import head, one_or_many
 from vi_core import Box, MixedVI, Solution
 
 from .contract import (
+    Boundaries,
+    DirichletPart,
     ExtremeRow,
+    ScalarExact,
     Sweep,
+    check_boundaries,
+    check_meshed,
     complementarity_defect,
+    dirichlet,
     expect,
-    read_boundaries,
-    read_dirichlet,
-    read_exact,
-    read_head,
-    read_solver,
 )
 from .transfer import nodal_reference_errors
 
 NAME = "antiplane"
 DESCRIPTION = "antiplane shear −μΔw = f with Tresca friction on a rigid foundation (scalar)"
+Head = head(NAME, 1)
 
 
 @dataclass
@@ -94,33 +100,78 @@ class Model:
         return complementarity_defect(sol.lam, self.vi.B @ sol.u, float(self.g_weights @ abs(w3)))
 
 
+class Domain(Section):
+    """[domain]: geometry, shear modulus μ > 0 (Pa), load f₀ (a field)."""
+
+    geometry: Geometry
+    shear_modulus: Annotated[Number, Field(gt=0.0)]
+    load: Expression = Expression(0.0)
+
+
+class TractionPart(Section):
+    """A [[traction]] table: boundary part(s) and the traction f₂ there (a field)."""
+
+    boundary: Boundaries
+    value: Expression
+
+
+class Friction(Section):
+    """[friction]: the boundary Γ3 and the friction bound g (a field ≥ 0)."""
+
+    boundary: Text
+    g: NonNegativeExpr
+
+
+class AntiplaneScene(SceneModel):
+    """An antiplane scene: [domain], [[dirichlet]], [[traction]], [friction], [exact]."""
+
+    scene: Head
+    domain: Domain
+    dirichlet: Annotated[list[DirichletPart], BeforeValidator(one_or_many), Field(min_length=1)]
+    traction: Annotated[list[TractionPart], BeforeValidator(one_or_many)] = []
+    friction: Friction
+    exact: ScalarExact | None = None
+
+    @model_validator(mode="after")
+    def _references(self) -> AntiplaneScene:
+        names = self.domain.geometry.BOUNDARIES
+        for key in ("dirichlet", "traction"):
+            for i, d in enumerate(getattr(self, key)):
+                check_boundaries([key, i, "boundary"], d.boundary, names)
+        check_boundaries(["friction", "boundary"], [self.friction.boundary], names)
+        return self
+
+
+SCENE_MODEL = AntiplaneScene
+
+
 def build(scene: Scene, level: int | None = None) -> Model:
     """Scene → Model: mesh, μK, loads, Dirichlet reduction, friction rows on Γ3."""
-    root = scene.root()
-    default_level = read_head(root, NAME, 1)
-    level = default_level if level is None else level
-    dom = root.table("domain")
-    mesh = make_mesh(dom.table("geometry"), level, Path(scene.path).parent)
-    mu = dom.number("shear_modulus", lo=0.0, lo_open=True)
-    F = assembly.volume_load(mesh, dom.field("load", 1, 0.0), 1)  # (n_nodes,)
-    dom.finish()
-    fixed, values = read_dirichlet(root, mesh)
-    for t in root.tables("traction"):
-        for part in read_boundaries(t, "boundary", mesh.boundaries):
-            F += assembly.boundary_load(mesh, part, t.field("value", 1), 1)
-        t.finish()
-    ft = root.table("friction")
-    part = ft.string("boundary", choices=sorted(mesh.boundaries))
-    g_fun = ft.field("g", 1)
-    ft.finish()
-    options = read_solver(root)
-    exact = read_exact(root)
-    root.finish()
+    spec = scene.validated(SCENE_MODEL)
+    level = spec.scene.level if level is None else level
+    mesh = spec.domain.geometry.mesh(level)
+    if spec.domain.geometry.BOUNDARIES is None:
+        refs = [
+            (d.key("boundary"), b)
+            for k in ("dirichlet", "traction")
+            for d in getattr(spec, k)
+            for b in d.boundary
+        ]
+        check_meshed(mesh, [*refs, (spec.friction.key("boundary"), spec.friction.boundary)])
+    mu = spec.domain.shear_modulus
+    F = assembly.volume_load(mesh, spec.domain.load, 1)  # (n_nodes,)
+    fixed, values = dirichlet(spec.dirichlet, mesh)
+    for t in spec.traction:
+        for part in t.boundary:
+            F += assembly.boundary_load(mesh, part, t.value, 1)
+    part, g_fun = spec.friction.boundary, spec.friction.g
+    options = spec.options()
+    exact = None if spec.exact is None else spec.exact.compiled()
 
     tr = trace(mesh, part)
     gw = assembly.boundary_load(mesh, part, g_fun, 1)[tr.nodes]  # (N,) ∫gφ_i
     if (g_fun(*mesh.points[tr.nodes].T) < 0).any() or (gw < 0).any():
-        raise SceneError("friction.g", ft.raw("g"), "a friction bound g ≥ 0 everywhere on Γ3")
+        raise SceneError(g_fun.path, g_fun.source, "a friction bound g ≥ 0 everywhere on Γ3")
     rows = np.flatnonzero(~fixed[tr.nodes])  # (m,) Γ3 nodes with unknown w
     if rows.size == 0:
         raise SceneError("friction.boundary", part, "a boundary not entirely under [[dirichlet]]")
@@ -157,6 +208,11 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "ut_slave": w3,
         "slip": slip,
     }
+
+
+def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields: "w" (n_nodes,), the out-of-plane displacement."""
+    return {"w": model.full(sol.u)}
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:

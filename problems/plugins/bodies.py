@@ -1,4 +1,5 @@
-"""Bodies of a contact scene: geometry → mesh, material, loads, Dirichlet data, assembly.
+"""Bodies of a contact scene: the [bodies.NAME] section model, and its assembly
+(geometry → mesh, material, loads, Dirichlet data).
 
 A body owns its displacement unknowns and, only if its material is piezoelectric, its
 potential unknowns. Global (full) numbering: body after body, displacement (2·N, node-major)
@@ -8,19 +9,28 @@ then potential (N).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
+from typing import Annotated, Literal
 
 import numpy as np
 import scipy.sparse as sp
+from pydantic import BeforeValidator, model_validator
 
 from fem import assembly
 from fem.mesh import Mesh
-from problems.errors import SceneError
-from problems.scene import Table
-from problems.scene.geometry import make_mesh
-from problems.scene.materials import Material, material_from_scene
+from problems.scene import Section
+from problems.scene.fields import Expression, Text, Vector, evaluate
+from problems.scene.geometry import Geometry
+from problems.scene.materials import Material, MaterialSpec
+from problems.scene.model import one_or_many, refuse
+
+from .contract import check_boundaries, check_meshed
 
 COMPONENTS = {"x": (0,), "y": (1,), "xy": (0, 1)}
+
+
+def vector(components: list[Expression]):
+    """A vector field as one function (x, y) → (..., 2)."""
+    return lambda x, y: evaluate(components, x, y)
 
 
 @dataclass
@@ -66,22 +76,91 @@ class Body:
         return u, phi
 
 
-def _boundary(t: Table, mesh: Mesh, body: str) -> str:
-    name = t.string("boundary")
-    if name not in mesh.boundaries:
-        raise SceneError(
-            t.key("boundary"),
-            name,
-            f"a boundary of body {body!r}: {', '.join(sorted(mesh.boundaries))}",
-        )
-    return name
+Parts = BeforeValidator(one_or_many)
 
 
-def build_body(name: str, t: Table, level: int, offset: int, scene_dir: Path | None = None) -> Body:
-    """Read one `[bodies.NAME]` table and assemble the body's blocks (`scene_dir`: the
-    folder mesh files are relative to)."""
-    mesh = make_mesh(t.table("geometry"), level, scene_dir)
-    material = material_from_scene(t.key("material"), t.raw("material", allowed="a material"))
+class DisplacementPart(Section):
+    """A [[displacement]] part: prescribed components of u on a boundary part."""
+
+    boundary: Text
+    components: Literal["x", "y", "xy"] = "xy"
+    value: Vector
+
+
+class TractionPart(Section):
+    """A [[traction]] part: the surface force density on a boundary part (Pa)."""
+
+    boundary: Text
+    value: Vector
+
+
+class ScalarPart(Section):
+    """A [[potential]] or [[charge]] part: a scalar field on a boundary part."""
+
+    boundary: Text
+    value: Expression
+
+
+class BodySection(Section):
+    """One [bodies.NAME] table (and signorini's [body]): geometry, material, loads, data."""
+
+    material: MaterialSpec
+    geometry: Geometry
+    body_force: Vector | None = None
+    free_charge: Expression | None = None
+    displacement: Annotated[list[DisplacementPart], Parts] = []
+    traction: Annotated[list[TractionPart], Parts] = []
+    potential: Annotated[list[ScalarPart], Parts] = []
+    charge: Annotated[list[ScalarPart], Parts] = []
+
+    def boundary_refs(self) -> list[tuple[str, str]]:
+        """(field path, boundary name) of every boundary this table names."""
+        return [
+            (part.key("boundary"), part.boundary)
+            for key in ("displacement", "traction", "potential", "charge")
+            for part in getattr(self, key)
+        ]
+
+    @model_validator(mode="after")
+    def _consistent(self) -> BodySection:
+        names = self.geometry.BOUNDARIES
+        for key in ("displacement", "traction", "potential", "charge"):
+            for i, part in enumerate(getattr(self, key)):
+                check_boundaries([key, i, "boundary"], [part.boundary], names)
+        if not self.displacement:
+            raise refuse(
+                ["displacement"],
+                [],
+                "at least one [[displacement]] part (otherwise a rigid motion is left free)",
+            )
+        material = self.material.material()
+        if material.piezoelectric and not self.potential:
+            raise refuse(
+                ["potential"],
+                None,
+                "at least one [[potential]] part (Γ_a, where φ is prescribed): the material "
+                f"{material.name!r} is piezoelectric",
+            )
+        if not material.piezoelectric:
+            for key in ("potential", "charge", "free_charge"):
+                v = getattr(self, key)
+                if v:
+                    raise refuse(
+                        [key],
+                        v.source if isinstance(v, Expression) else [p.boundary for p in v],
+                        f"not allowed: the material {material.name!r} is not piezoelectric, so "
+                        "the body has no electric potential",
+                    )
+        return self
+
+
+def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
+    """Mesh one validated `[bodies.NAME]` table and assemble the body's blocks (the boundary
+    references checked now if the geometry's parts are known only once meshed)."""
+    mesh = t.geometry.mesh(level)
+    if t.geometry.BOUNDARIES is None:
+        check_meshed(mesh, t.boundary_refs())
+    material = t.material.material()
     body = Body(name, mesh, material, offset)
     N = mesh.n_nodes
     n_b = body.size
@@ -89,28 +168,17 @@ def build_body(name: str, t: Table, level: int, offset: int, scene_dir: Path | N
     f = np.zeros(n_b)
     fixed = np.zeros(n_b, dtype=bool)
     values = np.zeros(n_b)
-    if t.has("body_force"):
-        f[: 2 * N] += assembly.volume_load(mesh, t.field("body_force", 2), 2)
-    for tt in t.tables("traction"):
-        part = _boundary(tt, mesh, name)
-        f[: 2 * N] += assembly.boundary_load(mesh, part, tt.field("value", 2), 2)
-        tt.finish()
-    for tt in t.tables("displacement"):
-        part = _boundary(tt, mesh, name)
-        comps = COMPONENTS[tt.string("components", "xy", choices=COMPONENTS)]
-        nodes = mesh.boundary_nodes(part)
-        val = tt.field("value", 2)(mesh.points[nodes, 0], mesh.points[nodes, 1])  # (k, 2)
+    if t.body_force is not None:
+        f[: 2 * N] += assembly.volume_load(mesh, vector(t.body_force), 2)
+    for tt in t.traction:
+        f[: 2 * N] += assembly.boundary_load(mesh, tt.boundary, vector(tt.value), 2)
+    for tt in t.displacement:
+        comps = COMPONENTS[tt.components]
+        nodes = mesh.boundary_nodes(tt.boundary)
+        val = evaluate(tt.value, mesh.points[nodes, 0], mesh.points[nodes, 1])  # (k, 2)
         for c in comps:
             fixed[2 * nodes + c] = True
             values[2 * nodes + c] = val[:, c]
-        tt.finish()
-    if not fixed[: 2 * N].any():
-        raise SceneError(
-            t.key("displacement"),
-            None,
-            f"body {name!r} needs at least one [[bodies.{name}.displacement]] part "
-            "(otherwise a rigid motion is left free)",
-        )
     Mu = assembly.mass_matrix(mesh)
     Su = assembly.stiffness_matrix(mesh)
     H1 = (Mu + Su).tocsr()
@@ -120,40 +188,18 @@ def build_body(name: str, t: Table, level: int, offset: int, scene_dir: Path | N
         P = assembly.permittivity_matrix(mesh, material.kappa)
         A = sp.bmat([[K, G.T], [-G, P]], format="csr")
         fphi = np.zeros(N)
-        if t.has("free_charge"):
-            fphi += assembly.volume_load(mesh, t.field("free_charge", 1), 1)
-        for tt in t.tables("charge"):
-            part = _boundary(tt, mesh, name)
-            fphi -= assembly.boundary_load(mesh, part, tt.field("value", 1), 1)
-            tt.finish()
+        if t.free_charge is not None:
+            fphi += assembly.volume_load(mesh, t.free_charge, 1)
+        for tt in t.charge:
+            fphi -= assembly.boundary_load(mesh, tt.boundary, tt.value, 1)
         f[2 * N :] = fphi
-        for tt in t.tables("potential"):
-            part = _boundary(tt, mesh, name)
-            nodes = mesh.boundary_nodes(part)
+        for tt in t.potential:
+            nodes = mesh.boundary_nodes(tt.boundary)
             fixed[2 * N + nodes] = True
-            values[2 * N + nodes] = tt.field("value", 1)(
-                mesh.points[nodes, 0], mesh.points[nodes, 1]
-            )
-            tt.finish()
-        if not fixed[2 * N :].any():
-            raise SceneError(
-                t.key("potential"),
-                None,
-                f"body {name!r} is piezoelectric and needs at least one "
-                f"[[bodies.{name}.potential]] part (Γ_a, where φ is prescribed)",
-            )
+            values[2 * N + nodes] = tt.value(mesh.points[nodes, 0], mesh.points[nodes, 1])
         X_blocks.append(H1)
     else:
         A = K.tocsr()
-        for key in ("potential", "charge", "free_charge"):
-            if t.has(key):
-                raise SceneError(
-                    t.key(key),
-                    t.raw(key),
-                    f"not allowed: body {name!r} is not piezoelectric (material "
-                    f"{material.name!r}), so it has no electric potential",
-                )
-    t.finish()
     body.A, body.f, body.fixed, body.values = A, f, fixed, values
     body.X = sp.block_diag(X_blocks, format="csr")
     return body

@@ -1,14 +1,16 @@
 """The plug-in contract (version CONTRACT = 2): what `mixvi` expects from a problem module and
 from the model it builds.
 
-A plug-in is one module (or any object) with
+Contract version CONTRACT = 2. A plug-in is one module (or any object) with
 
     CONTRACT: int = 2                          the contract version it is written against
                                                (checked at registration: 1 or missing → refused
                                                with the list of what changed, docs/plugins.md)
     NAME: str                                  the name scenes use: [scene] plugin = NAME
     DESCRIPTION: str                           one line for listings
-    build(scene, level) -> Model               scene (TOML) → assembled mixed VI
+    SCENE_MODEL: type[SceneModel]              its scene model (pydantic): every key, type,
+                                               range and cross-reference of its scenes
+    build(scene, level) -> Model               validated scene → assembled mixed VI
     postprocess(model, sol, outdir) -> dict    solution → files in outdir + summary entries
 
 and, optionally, what the other commands need (a command refuses a plug-in without the
@@ -52,9 +54,14 @@ and optionally
 "ssn"), tol=options.get("tol", 1e-10))` → postprocess, and merges the returned dict into
 summary.json; the keys "contact" ({"nodes", "stick", "slip"}, optionally
 "mortar_patch_defect": above 1e-8 `mixvi solve` exits 1 unless --allow-defect) and "lemma_4_2"
-(a float) are also printed. `build` raises `SceneError` for bad input (read the scene through
-`Scene.root()`, whose `Table` methods name the key and value, and call `Table.finish()` to
-refuse unknown keys).
+(a float) are also printed. Before anything is built the scene is validated by SCENE_MODEL
+(`mixvi validate`, `mixvi schema` shows the JSON Schema); `build` reads the scene only through
+`scene.validated(SCENE_MODEL)` (cached) and raises `SceneError(field, value, allowed)` for
+what only the built mesh can tell (an expression's value, a mesh too large), naming the field
+with the sections' `key(name)` and the expressions' own `path`.
+
+Optionally a plug-in also provides `fields(model, sol) -> dict[str, np.ndarray]` (nodal fields
+by name) and `contact_state(model, sol) -> dict` for the Python API (`problems.solve_scene`).
 
 The helpers below are shared by the built-in scalar plug-ins and are free to use in your own.
 """
@@ -64,13 +71,16 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Annotated, Any, Protocol, runtime_checkable
 
 import numpy as np
+from pydantic import BeforeValidator, Field
 
 from fem.mesh import Mesh
 from problems.errors import SceneError
-from problems.scene import Scene, Table, load_scene
+from problems.scene import Scene, SceneModel, Section, load_scene
+from problems.scene.fields import Expression, Text, Vector, evaluate
+from problems.scene.model import refuse
 from vi_core import MixedVI, Solution
 
 
@@ -90,10 +100,11 @@ class Model(Protocol):
 
 @runtime_checkable
 class Plugin(Protocol):
-    """A problem module: `registry` accepts any object with these four attributes."""
+    """A problem module: `registry` accepts any object with these five attributes."""
 
     NAME: str
     DESCRIPTION: str
+    SCENE_MODEL: type[SceneModel]
 
     def build(self, scene: Scene, level: int | None) -> Model:
         """Scene → Model; `level` None means the scene's default level."""
@@ -106,7 +117,9 @@ CONTRACT = 2
 """The contract version this mixvi implements; a plug-in declares the one it is written for."""
 
 V1_TO_V2 = (
-    "declare CONTRACT = 2; optionally SWEEP (mixvi figures), NORMS, mesh_size, exact_errors, "
+    "declare CONTRACT = 2 and SCENE_MODEL, the scene model read by build through "
+    "scene.validated(SCENE_MODEL) (Scene.root() and Table are gone); optionally SWEEP "
+    "(mixvi figures), NORMS, mesh_size, exact_errors, "
     "reference_errors (mixvi study), extremes() (mixvi extremes) — see docs/plugins.md, "
     "'From contract v1 to v2'"
 )
@@ -192,6 +205,9 @@ def conforms(obj: Any) -> list[str]:
     for attr in ("build", "postprocess"):
         if not callable(getattr(obj, attr, None)):
             missing.append(f"{attr}() (a function)")
+    sm = getattr(obj, "SCENE_MODEL", None)
+    if not (isinstance(sm, type) and issubclass(sm, SceneModel)):
+        missing.append("SCENE_MODEL (a subclass of problems.scene.SceneModel; contract 2)")
     optional = ("draw", "mesh_size", "exact_errors", "reference_errors", "extremes", "warm_start")
     for attr in optional:
         if hasattr(obj, attr) and not callable(getattr(obj, attr)):
@@ -232,46 +248,67 @@ def needs(plugin: Any, option: str, *attrs: str) -> None:
 
 
 # ------------------------------------------------------------------ helpers for plug-ins
-def read_head(root: Table, name: str, default_level: int = 1) -> int:
-    """Check the [scene] table of a plug-in `name` and return its default level."""
-    head = root.table("scene")
-    head.string("title", "")
-    head.string("description", "")
-    head.string("plugin", choices=(name,))
-    level = head.integer("level", default_level, lo=0, hi=12)
-    head.finish()
-    return level
+Boundaries = Annotated[
+    list[Text],
+    BeforeValidator(
+        lambda v: [v] if isinstance(v, str) else v, json_schema_input_type=str | list[str]
+    ),
+    Field(min_length=1),
+]
 
 
-def read_solver(root: Table) -> dict:
-    """The optional [solver] table: {"method": ..., "tol": ...} (only the keys given)."""
-    t = root.table("solver", required=False)
-    options: dict = {}
-    if t is not None:
-        if t.has("method"):
-            options["method"] = t.string("method", choices=("auto", "ssn", "conic", "homotopy"))
-        if t.has("tol"):
-            options["tol"] = t.number("tol", lo=0.0, lo_open=True)
-        t.finish()
-    return options
+def check_boundaries(field: list, names: list[str], available) -> None:
+    """Refuse (a pydantic error at `field`) any of `names` not among `available` (a geometry's
+    BOUNDARIES; None: known only once meshed, checked then)."""
+    if available is None:
+        return
+    for n in names:
+        if n not in available:
+            raise refuse(field, n, f"a boundary of this geometry: {', '.join(available)}")
+
+
+def check_meshed(mesh: Mesh, refs: Sequence[tuple[str, str]]) -> None:
+    """After meshing a geometry whose BOUNDARIES are None (a mesh file): SceneError naming the
+    field for the first (field path, boundary name) of `refs` the mesh does not have, listing
+    the ones it has."""
+    for key, name in refs:
+        if name not in mesh.boundaries:
+            have = ", ".join(sorted(mesh.boundaries)) or "(none)"
+            raise SceneError(key, name, f"a boundary group of this mesh: {have}")
+
+
+class ScalarExact(Section):
+    """The optional [exact] table of a scalar plug-in: u and grad = [∂x u, ∂y u]."""
+
+    source: Text = ""  # where the exact solution comes from (documentation only)
+    u: Expression
+    grad: Vector
+
+    def compiled(self) -> tuple[Callable, Grad]:
+        """(u(x, y), grad(x, y) → x.shape + (2,))."""
+        g = self.grad
+        return self.u, lambda x, y: evaluate(g, x, y)
+
+
+class DirichletPart(Section):
+    """One [[dirichlet]] table of a scalar plug-in: boundary part(s) and the value there."""
+
+    boundary: Boundaries
+    value: Expression
+
+
+def dirichlet(parts: list[DirichletPart], mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Scalar Dirichlet data: fixed (n_nodes,) bool and values (n_nodes,) (0 where free)."""
+    fixed = np.zeros(mesh.n_nodes, dtype=bool)
+    values = np.zeros(mesh.n_nodes)
+    for t in parts:
+        nodes = np.unique(np.concatenate([mesh.boundaries[p] for p in t.boundary]))  # (k,)
+        fixed[nodes] = True
+        values[nodes] = t.value(mesh.points[nodes, 0], mesh.points[nodes, 1])
+    return fixed, values
 
 
 Grad = Callable[[np.ndarray, np.ndarray], np.ndarray]
-
-
-def read_exact(root: Table, ncomp: int = 1) -> tuple[Callable, Grad] | None:
-    """The optional [exact] table: u = field, grad = [∂x u, ∂y u] (scalar: ncomp = 1).
-
-    Returns (u(x, y), grad(x, y) → x.shape + (2,)) or None if the table is absent.
-    """
-    t = root.table("exact", required=False)
-    if t is None:
-        return None
-    t.string("source", "")  # where the exact solution comes from (documentation only)
-    u = t.field("u", ncomp)
-    g = t.field("grad", 2)
-    t.finish()
-    return u, g
 
 
 def complementarity_defect(lam: np.ndarray, slack: np.ndarray, support: float) -> float:
@@ -285,43 +322,9 @@ def complementarity_defect(lam: np.ndarray, slack: np.ndarray, support: float) -
     return abs(lhs - support) / scale
 
 
-def read_boundaries(t: Table, name: str, available: dict) -> list[str]:
-    """A boundary part name or a list of them, each checked against `available`."""
-    v = t.raw(name, allowed="a boundary name or a list of them")
-    parts = [v] if isinstance(v, str) else v
-    known = ", ".join(sorted(available))
-    if not isinstance(parts, list) or not parts or not all(isinstance(p, str) for p in parts):
-        raise SceneError(t.key(name), v, f"a boundary name or a list of them: {known}")
-    for p in parts:
-        if p not in available:
-            raise SceneError(t.key(name), p, f"a boundary of this mesh: {known}")
-    return parts
-
-
 def triangles(mesh: Mesh) -> np.ndarray:
     """(n_tri, 3) triangles of `mesh` for plotting (each quad split along a diagonal)."""
     if mesh.cell_type == "triangle":
         return mesh.cells
     c = mesh.cells  # (n_cells, 4)
     return np.concatenate([c[:, [0, 1, 2]], c[:, [0, 2, 3]]])
-
-
-def read_dirichlet(
-    root: Table, mesh: Mesh, name: str = "dirichlet"
-) -> tuple[np.ndarray, np.ndarray]:
-    """Scalar Dirichlet data from [[name]] tables (boundary = part(s), value = field).
-
-    Returns fixed (n_nodes,) bool and values (n_nodes,) (zero where not fixed); SceneError if
-    there is no such table (the scalar problem would have no unique solution).
-    """
-    fixed = np.zeros(mesh.n_nodes, dtype=bool)
-    values = np.zeros(mesh.n_nodes)
-    for t in root.tables(name):
-        parts = read_boundaries(t, "boundary", mesh.boundaries)
-        nodes = np.unique(np.concatenate([mesh.boundaries[p] for p in parts]))  # (k,)
-        fixed[nodes] = True
-        values[nodes] = t.field("value", 1)(mesh.points[nodes, 0], mesh.points[nodes, 1])
-        t.finish()
-    if not fixed.any():
-        raise SceneError(name, None, f"at least one [[{name}]] table (boundary = ..., value = ...)")
-    return fixed, values

@@ -16,31 +16,37 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import scipy.sparse as sp
+from pydantic import BeforeValidator, Field, model_validator
 
 from fem import assembly
 from fem.mesh import Mesh
-from problems.scene import Scene
-from problems.scene.geometry import make_mesh
+from problems.scene import Scene, SceneModel, Section
+from problems.scene.fields import Expression
+from problems.scene.geometry import Geometry
+from problems.scene.model import head, one_or_many
 from vi_core import MixedVI, NonNegative, Solution
 
 from .contract import (
+    DirichletPart,
     ExtremeRow,
+    ScalarExact,
     Sweep,
+    check_boundaries,
+    check_meshed,
     complementarity_defect,
+    dirichlet,
     expect,
-    read_dirichlet,
-    read_exact,
-    read_head,
-    read_solver,
     triangles,
 )
 from .transfer import nodal_reference_errors
 
 NAME = "obstacle"
 DESCRIPTION = "membrane above an obstacle: −Δu = f, u ≥ ψ (nodal contact forces λ ≥ 0)"
+Head = head(NAME, 2)
 
 
 @dataclass
@@ -85,20 +91,44 @@ class Model:
         return complementarity_defect(sol.lam, self.vi.B @ sol.u - self.vi.gap, 0.0)
 
 
+class Domain(Section):
+    """[domain]: geometry, load f (a field), obstacle ψ (a field)."""
+
+    geometry: Geometry
+    load: Expression = Expression(0.0)
+    obstacle: Expression
+
+
+class ObstacleScene(SceneModel):
+    """An obstacle scene: [domain], [[dirichlet]] (at least one), optional [exact]."""
+
+    scene: Head
+    domain: Domain
+    dirichlet: Annotated[list[DirichletPart], BeforeValidator(one_or_many), Field(min_length=1)]
+    exact: ScalarExact | None = None
+
+    @model_validator(mode="after")
+    def _references(self) -> ObstacleScene:
+        names = self.domain.geometry.BOUNDARIES
+        for i, d in enumerate(self.dirichlet):
+            check_boundaries(["dirichlet", i, "boundary"], d.boundary, names)
+        return self
+
+
+SCENE_MODEL = ObstacleScene
+
+
 def build(scene: Scene, level: int | None = None) -> Model:
     """Scene → Model: mesh, stiffness, load, Dirichlet reduction, one constraint per free node."""
-    root = scene.root()
-    default_level = read_head(root, NAME, 2)
-    level = default_level if level is None else level
-    dom = root.table("domain")
-    mesh = make_mesh(dom.table("geometry"), level, Path(scene.path).parent)
-    f_fun = dom.field("load", 1, 0.0)
-    psi_fun = dom.field("obstacle", 1)
-    dom.finish()
-    fixed, values = read_dirichlet(root, mesh)
-    exact = read_exact(root)
-    options = read_solver(root)
-    root.finish()
+    spec = scene.validated(SCENE_MODEL)
+    level = spec.scene.level if level is None else level
+    mesh = spec.domain.geometry.mesh(level)
+    if spec.domain.geometry.BOUNDARIES is None:
+        check_meshed(mesh, [(d.key("boundary"), b) for d in spec.dirichlet for b in d.boundary])
+    f_fun, psi_fun = spec.domain.load, spec.domain.obstacle
+    fixed, values = dirichlet(spec.dirichlet, mesh)
+    exact = None if spec.exact is None else spec.exact.compiled()
+    options = spec.options()
 
     x, y = mesh.points.T  # (n_nodes,) each
     psi = psi_fun(x, y)  # (n_nodes,)
@@ -126,6 +156,13 @@ def build(scene: Scene, level: int | None = None) -> Model:
             f"{mesh.points[below[0]].tolist()}: u ≥ ψ cannot hold there"
         )
     return Model(scene, level, mesh, vi, free, values, psi, exact, options, warnings)
+
+
+def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields: "u", "obstacle" and "contact_force" (n_nodes,) each."""
+    lam = np.zeros(model.mesh.n_nodes)
+    lam[model.free] = sol.lam
+    return {"u": model.full(sol.u), "obstacle": model.psi, "contact_force": lam}
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:

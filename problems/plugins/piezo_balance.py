@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from problems.scene import Table
+from problems.scene.fields import Expression
 
 _T, _W = np.polynomial.legendre.leggauss(6)
 _T, _W = 0.5 * (_T + 1.0), 0.5 * _W  # (6,) on [0, 1], weights sum 1
@@ -114,8 +114,9 @@ def force_balance(model: Any, sol: Any) -> dict:
 
 
 def _friction_bound(model: Any):
-    """The scene's friction bound g(x, y) (read again from the scene, not from the build)."""
-    return Table(model.scene.data["contact"], "contact").field("g", 1)
+    """The scene's friction bound g(x, y) (compiled again from the scene's text, not taken
+    from the build)."""
+    return Expression.parse(model.scene.data["contact"]["g"])
 
 
 def lemma_4_2(model: Any, sol: Any) -> dict | None:

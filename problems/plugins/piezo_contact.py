@@ -24,9 +24,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated, Literal
 
 import numpy as np
 import scipy.sparse as sp
+from pydantic import Field, model_validator
 
 from fem.boundary import ENDS, Trace, dual_mass, multiplier_basis, segment_loads, trace
 from fem.dirichlet import expand, reduce_dirichlet
@@ -34,15 +36,17 @@ from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots, results
 from problems.output.results import ContactTable
-from problems.scene import Scene, Table
-from problems.scene.exact import split_exact
+from problems.scene import Scene, SceneModel, Section
+from problems.scene.exact import ExactSection, split_exact
+from problems.scene.fields import NonNegativeExpr, Text
 from problems.scene.imported import require_curve
-from vi_core import METHODS, Box, Free, MixedVI, Solution, product
+from problems.scene.model import head, refuse
+from vi_core import Box, Free, MixedVI, Solution, product
 
 from . import piezo_balance, piezo_errors, piezo_extremes
-from .bodies import Body, build_body
+from .bodies import Body, BodySection, build_body
 from .body_output import body_fields
-from .contract import Sweep
+from .contract import Sweep, check_meshed
 
 NAME = "piezo_contact"
 LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
@@ -134,20 +138,69 @@ class Model:
         return expand(u, self.free, self.values)
 
 
-def _split_ref(t: Table, key: str, bodies: dict[str, Body]) -> tuple[Body, str]:
-    ref = t.string(key)
-    if "." not in ref:
-        raise SceneError(t.key(key), ref, "BODY.BOUNDARY, e.g. block.bottom")
-    bname, part = ref.split(".", 1)
-    if bname not in bodies:
-        raise SceneError(t.key(key), ref, f"a body of this scene: {', '.join(bodies)}")
-    body = bodies[bname]
-    if part not in body.mesh.boundaries:
-        raise SceneError(
-            t.key(key), ref, f"a boundary of {bname!r}: {', '.join(sorted(body.mesh.boundaries))}"
+class ContactSection(Section):
+    """[contact]: slave and master boundaries (BODY.BOUNDARY, master "rigid" for a rigid
+    foundation), the friction bound g (Pa, a field ≥ 0 on Γ3) and the multiplier end rule."""
+
+    slave: Text
+    master: Text = "rigid"
+    g: NonNegativeExpr
+    ends: Literal[ENDS] = ENDS[0]
+
+
+class OutputSection(Section):
+    """[output]: potential_along = BODY.BOUNDARY (a plot of φ along it)."""
+
+    potential_along: Text | None = None
+
+
+Head = head(NAME, 1)
+
+
+class PiezoScene(SceneModel):
+    """A piezo_contact scene: bodies, optional contact interface, output and exact solution."""
+
+    scene: Head
+    bodies: Annotated[dict[str, BodySection], Field(min_length=1)]
+    contact: ContactSection | None = None
+    output: OutputSection | None = None
+    exact: ExactSection | None = None  # read by `mixvi study`
+
+    @model_validator(mode="after")
+    def _references(self) -> PiezoScene:
+        c = self.contact
+        if c is not None:
+            slave = _ref(self, ["contact", "slave"], c.slave)
+            if c.master != "rigid":
+                master = _ref(self, ["contact", "master"], c.master)
+                if master[0] == slave[0]:
+                    raise refuse(["contact", "master"], c.master, "a body other than the slave")
+        if self.output is not None and self.output.potential_along is not None:
+            field = ["output", "potential_along"]
+            body, _ = _ref(self, field, self.output.potential_along)
+            if not self.bodies[body].material.material().piezoelectric:
+                raise refuse(
+                    field, self.output.potential_along, "a boundary of a piezoelectric body"
+                )
+        return self
+
+
+def _ref(scene: PiezoScene, field: list[str], ref: str) -> tuple[str, str]:
+    """BODY.BOUNDARY → (body, boundary), checked against the scene's bodies and geometries."""
+    bname, dot, part = ref.partition(".")
+    if not dot:
+        raise refuse(field, ref, "BODY.BOUNDARY, e.g. block.bottom")
+    if bname not in scene.bodies:
+        raise refuse(
+            field, ref, f"BODY.BOUNDARY with a body of this scene: {', '.join(scene.bodies)}"
         )
-    require_curve(body.mesh, part, t.key(key), ref)
-    return body, part
+    names = scene.bodies[bname].geometry.BOUNDARIES
+    if names is not None and part not in names:
+        raise refuse(field, ref, f"BODY.BOUNDARY with a boundary of {bname!r}: {', '.join(names)}")
+    return bname, part
+
+
+SCENE_MODEL = PiezoScene
 
 
 def build(scene: Scene, level: int | None = None) -> Model:
@@ -163,68 +216,46 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
 
 def _build(scene: Scene, level: int | None) -> Model:
-    root = scene.root()
-    head = root.table("scene")
-    head.string("title", "")
-    head.string("description", "")
-    head.string("plugin", NAME, choices=(NAME,))
-    default_level = head.integer("level", 1, lo=0, hi=12)
-    head.finish()
-    level = default_level if level is None else level
-    bt = root.table("bodies")
-    if not bt.data:
-        raise SceneError("bodies", {}, "at least one [bodies.NAME] table")
+    spec = scene.validated(SCENE_MODEL)
+    level = spec.scene.level if level is None else level
     bodies: dict[str, Body] = {}
     offset = 0
-    for name in list(bt.data):
-        tb = bt.table(name)
-        body = build_body(name, tb, level, offset, Path(scene.path).parent)
+    for name, tb in spec.bodies.items():
+        body = build_body(name, tb, level, offset)
         bodies[name] = body
         offset += body.size
     n_full = offset
-    ct = root.table("contact", required=False)
     contact = None
+    ct = spec.contact
     if ct is not None:
-        slave, slave_part = _split_ref(ct, "slave", bodies)
-        master = None
-        if ct.raw("master", "rigid") != "rigid":
-            master, master_part = _split_ref(ct, "master", bodies)
-            if master is slave:
-                raise SceneError(ct.key("master"), ct.raw("master"), "a body other than the slave")
-        g_fun = ct.field("g", 1)
-        ends = ct.string("ends", ENDS[0], choices=ENDS)
-        ct.finish()
-        mpart = master_part if master is not None else None
+        sname, slave_part = ct.slave.split(".", 1)
+        slave, master, mpart = bodies[sname], None, None
+        refs = [(ct.key("slave"), slave, slave_part)]
+        if ct.master != "rigid":
+            mname, mpart = ct.master.split(".", 1)
+            master = bodies[mname]
+            refs.append((ct.key("master"), master, mpart))
+        for key, b, part in refs:
+            check_meshed(b.mesh, [(key, part)])
+            require_curve(b.mesh, part, key, f"{b.name}.{part}")
         contact = _contact(
-            slave, slave_part, master, mpart, g_fun, ct.key("g"), ends, n_full, level
+            slave, slave_part, master, mpart, ct.g, ct.g.path, ct.ends, n_full, level
         )
-
-    out = root.table("output", required=False)
-    options = {"potential_along": None}
-    if out is not None:
-        if out.has("potential_along"):
-            b, part = _split_ref(out, "potential_along", bodies)
-            if not b.has_potential:
-                raise SceneError(
-                    out.key("potential_along"),
-                    f"{b.name}.{part}",
-                    "a boundary of a piezoelectric body",
-                )
-            options["potential_along"] = (b.name, part)
-        out.finish()
-    solver = root.table("solver", required=False)
-    if solver is not None:
-        options["method"] = solver.string("method", "ssn", choices=METHODS)
-        options["tol"] = solver.number("tol", 1e-10, lo=0.0, lo_open=True)
-        solver.finish()
-    root.raw("exact", None)  # optional exact solution, read by `mixvi study`
-    root.finish()
+    options = {"potential_along": None, **spec.options()}
+    if spec.output is not None and spec.output.potential_along is not None:
+        bname, part = spec.output.potential_along.split(".", 1)
+        key = spec.output.key("potential_along")
+        check_meshed(bodies[bname].mesh, [(key, part)])
+        require_curve(bodies[bname].mesh, part, key, spec.output.potential_along)
+        options["potential_along"] = (bname, part)
 
     A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
     f_full = np.concatenate([b.f for b in bodies.values()])
     fixed = np.concatenate([b.fixed for b in bodies.values()])
     values = np.concatenate([b.values for b in bodies.values()])
     X_full = sp.block_diag([b.X for b in bodies.values()], format="csr")
+    for b in bodies.values():  # vi.X below is the one copy kept (memory)
+        b.X = None
     _check_finite(A_full, f_full, values, contact)
     A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
     if contact is None:  # no contact: no multipliers
@@ -237,7 +268,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         f=f,
         Lambda=Lam,
         gap=gap,
-        X=X_full[free][:, free],
+        X=sp.csr_matrix(X_full[free][:, free]),
         Y=Y,
         info={"scene": scene.name, "level": level},
     )
@@ -634,6 +665,19 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
         jump_t=jump_t,
         state=state.astype(str),
     )
+
+
+def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields by name: "BODY.displacement" (N, 2) and, for piezoelectric bodies,
+    "BODY.potential" (N,)."""
+    x_full = model.full(sol.u)
+    out = {}
+    for b in model.bodies:
+        u, phi = b.split(x_full[b.offset : b.offset + b.size])
+        out[f"{b.name}.displacement"] = u
+        if phi is not None:
+            out[f"{b.name}.potential"] = phi
+    return out
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:

@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
+from pydantic import field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from fem import assembly
 from fem.boundary import Trace, trace
@@ -29,17 +31,26 @@ from fem.dirichlet import expand, reduce_dirichlet
 from problems.errors import SceneError
 from problems.output import plots, results
 from problems.output.results import ContactTable
-from problems.scene import Scene
-from problems.scene.materials import material_from_scene
+from problems.scene import Scene, SceneModel, Section
+from problems.scene.fields import NonNegativeExpr, Text
+from problems.scene.model import head
 from vi_core import Box, MixedVI, NonNegative, Solution, product
 
-from .bodies import Body, build_body
+from .bodies import Body, BodySection, build_body
 from .body_output import body_fields
-from .contract import ExtremeRow, Sweep, complementarity_defect, expect, read_head, read_solver
+from .contract import (
+    ExtremeRow,
+    Sweep,
+    check_boundaries,
+    check_meshed,
+    complementarity_defect,
+    expect,
+)
 from .transfer import nodal_reference_errors
 
 NAME = "signorini"
 DESCRIPTION = "elastic body in unilateral contact with a rigid obstacle, Tresca friction"
+Head = head(NAME, 1)
 
 
 @dataclass
@@ -71,24 +82,52 @@ class Model:
         return complementarity_defect(sol.lam, slack, float(self.g_weights @ np.abs(u_t)))
 
 
+class ContactSection(Section):
+    """[contact]: the boundary Γ3, the normal gap to the obstacle (a field ≥ 0, m) and the
+    friction bound g (a field ≥ 0, Pa)."""
+
+    boundary: Text
+    gap: NonNegativeExpr
+    g: NonNegativeExpr
+
+
+class ElasticBody(BodySection):
+    """The [body] table: a body of an elastic (not piezoelectric) material."""
+
+    @field_validator("material")
+    @classmethod
+    def _elastic(cls, v):
+        if v.material().piezoelectric:
+            raise PydanticCustomError("material", "an elastic (not piezoelectric) material")
+        return v
+
+
+class SignoriniScene(SceneModel):
+    """A signorini scene: one elastic [body] and its [contact] with a rigid obstacle."""
+
+    scene: Head
+    body: ElasticBody
+    contact: ContactSection
+
+    @model_validator(mode="after")
+    def _references(self) -> SignoriniScene:
+        names = self.body.geometry.BOUNDARIES
+        check_boundaries(["contact", "boundary"], [self.contact.boundary], names)
+        return self
+
+
+SCENE_MODEL = SignoriniScene
+
+
 def build(scene: Scene, level: int | None = None) -> Model:
     """Scene → Model: elastic body, Dirichlet reduction, normal and tangential rows on Γ3."""
-    root = scene.root()
-    default_level = read_head(root, NAME, 1)
-    level = default_level if level is None else level
-    bt = root.table("body")
-    if material_from_scene(bt.key("material"), bt.raw("material")).piezoelectric:
-        raise SceneError(
-            "body.material", bt.raw("material"), "an elastic (not piezoelectric) material"
-        )
-    body = build_body("body", bt, level, 0, Path(scene.path).parent)
-    ct = root.table("contact")
-    part = ct.string("boundary", choices=sorted(body.mesh.boundaries))
-    gap_fun = ct.field("gap", 1)
-    g_fun = ct.field("g", 1)
-    ct.finish()
-    options = read_solver(root)
-    root.finish()
+    spec = scene.validated(SCENE_MODEL)
+    level = spec.scene.level if level is None else level
+    body = build_body("body", spec.body, level, 0)
+    ct = spec.contact
+    part, gap_fun, g_fun = ct.boundary, ct.gap, ct.g
+    check_meshed(body.mesh, [(ct.key("boundary"), part)])
+    options = spec.options()
 
     mesh = body.mesh
     tr = trace(mesh, part)
@@ -96,10 +135,10 @@ def build(scene: Scene, level: int | None = None) -> Model:
     x3, y3 = mesh.points[tr.nodes].T  # (N,) each
     gap_n = gap_fun(x3, y3)  # (N,)
     if (gap_n < 0).any():
-        raise SceneError("contact.gap", ct.raw("gap"), "a distance ≥ 0 at every node of Γ3")
+        raise SceneError(gap_fun.path, gap_fun.source, "a distance ≥ 0 at every node of Γ3")
     gw = assembly.boundary_load(mesh, part, g_fun, 1)[tr.nodes]  # (N,) ∫gφ_i
     if (g_fun(x3, y3) < 0).any() or (gw < 0).any():
-        raise SceneError("contact.g", ct.raw("g"), "a friction bound g ≥ 0 everywhere on Γ3")
+        raise SceneError(g_fun.path, g_fun.source, "a friction bound g ≥ 0 everywhere on Γ3")
     dofs = body.u_dofs(tr.nodes)  # (N, 2)
     rows = np.repeat(np.arange(2 * N), 2)  # (4N,)
     cols = np.concatenate([dofs, dofs]).ravel()  # (4N,)
@@ -172,6 +211,12 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
         state=state,
         gap=np.maximum(st["gap"] - st["u_n"], 0.0),
     )
+
+
+def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields: "displacement" (n_nodes, 2)."""
+    u, _ = model.body.split(expand(sol.u, model.free, model.values))
+    return {"displacement": u}
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:

@@ -1,16 +1,23 @@
-"""The scene language: files and overrides, expressions, materials, geometry, exact solutions.
+"""The scene language: files, format migration and overrides, the typed scene model,
+expressions, materials, geometry, exact solutions.
 
-Nothing here imports plug-ins or commands: a scene is read and checked before anything is built.
+Nothing here imports plug-ins or commands: a scene is read and validated before anything is
+built (each plug-in's own scene model subclasses `SceneModel`).
 """
 
-from .reader import MAX_MAGNITUDE, SCENES_DIR, Scene, Table, find_scene, load_scene, parse_override
+from .expressions import MAX_MAGNITUDE
+from .model import FORMAT, SceneModel, Section, validate
+from .reader import SCENES_DIR, Scene, find_scene, load_scene, parse_override
 
 __all__ = [
+    "FORMAT",
     "MAX_MAGNITUDE",
     "SCENES_DIR",
     "Scene",
-    "Table",
+    "SceneModel",
+    "Section",
     "find_scene",
     "load_scene",
     "parse_override",
+    "validate",
 ]

@@ -1,4 +1,4 @@
-"""Exact solutions of scenes: the `[exact]` table.
+"""Exact solutions of contact scenes: the `[exact]` table of piezo_contact scenes.
 
 A scene may carry an `[exact]` table of expression fields (same safe expressions as every scene
 value) giving the exact solution:
@@ -10,8 +10,8 @@ value) giving the exact solution:
     grad_phi = [phi_x, phi_y]
     lam = [lam_n, lam_t]                  # λ = −σn on Γ3: λ·n and λ·τ (Pa), fields of (x, y)
 
-`split_exact` removes the table from the scene (the plug-in does not know the key) and compiles
-it. The study engine (`problems.commands.study`) measures errors against it.
+`ExactSection` is its scene model (validated with the rest of the scene); `split_exact` removes
+the table from a scene and compiles it. The study engine measures errors against it.
 
 The generator of the shipped manufactured scene is `problems.scene.manufactured`.
 """
@@ -20,39 +20,59 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field, model_validator
 
-from problems.errors import SceneError
+from .fields import Expression, Text, Vector, evaluate
+from .model import Section, refuse, validate
+from .reader import Scene
 
-from .reader import Scene, Table
-
-# ------------------------------------------------------------------ the [exact] table
-Field = Callable[[np.ndarray, np.ndarray], np.ndarray]
+Field2 = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
 class Exact:
     """Compiled exact fields; each maps (x, y) arrays to x.shape + (components...)."""
 
-    u: Field  # → (..., 2)
-    grad_u: Field  # → (..., 2, 2), [k, i] = ∂u_k/∂x_i
-    phi: Field | None  # → (...)
-    grad_phi: Field | None  # → (..., 2)
-    lam: Field  # → (..., 2): (λ·n, λ·τ) on Γ3
+    u: Field2  # → (..., 2)
+    grad_u: Field2  # → (..., 2, 2), [k, i] = ∂u_k/∂x_i
+    phi: Field2 | None  # → (...)
+    grad_phi: Field2 | None  # → (..., 2)
+    lam: Field2  # → (..., 2): (λ·n, λ·τ) on Γ3
 
 
-def _matrix_field(t: Table, name: str) -> Field:
-    """A 2×2 list of expression fields as one function → (..., 2, 2)."""
-    raw = t.raw(name)
-    if not (isinstance(raw, list) and len(raw) == 2 and all(isinstance(r, list) for r in raw)):
-        raise SceneError(t.key(name), raw, "a 2×2 list [[a, b], [c, d]] of numbers or expressions")
-    rows = [Table({"row": r}, t.key(name)).field("row", 2) for r in raw]
+class ExactSection(Section):
+    """The [exact] table of a contact scene."""
 
-    def fn(x, y):
-        return np.stack([r(x, y) for r in rows], axis=-2)  # (..., 2, 2)
+    source: Text = ""
+    u: Vector
+    grad_u: Annotated[list[Vector], Field(min_length=2, max_length=2)]
+    phi: Expression | None = None
+    grad_phi: Vector | None = None
+    lam: Vector
 
-    return fn
+    @model_validator(mode="after")
+    def _phi_pair(self) -> ExactSection:
+        if (self.phi is None) != (self.grad_phi is None):
+            raise refuse(["phi"], self.phi and self.phi.source, "both phi and grad_phi, or neither")
+        return self
+
+    def compiled(self) -> Exact:
+        """The fields as functions of (x, y)."""
+        u, rows, lam, gp = self.u, self.grad_u, self.lam, self.grad_phi
+
+        def grad_u(x, y):
+            return np.stack([evaluate(r, x, y) for r in rows], axis=-2)  # (..., 2, 2)
+
+        return Exact(
+            u=lambda x, y: evaluate(u, x, y),
+            grad_u=grad_u,
+            phi=self.phi,
+            grad_phi=None if gp is None else (lambda x, y: evaluate(gp, x, y)),
+            lam=lambda x, y: evaluate(lam, x, y),
+        )
 
 
 def split_exact(scene: Scene) -> tuple[Scene, Exact | None]:
@@ -61,17 +81,6 @@ def split_exact(scene: Scene) -> tuple[Scene, Exact | None]:
         return scene, None
     data = dict(scene.data)
     raw = data.pop("exact")
-    if not isinstance(raw, dict):
-        raise SceneError("exact", raw, "a table [exact] with u, grad_u, lam (and phi, grad_phi)")
-    t = Table(raw, "exact")
-    exact = Exact(
-        u=t.field("u", 2),
-        grad_u=_matrix_field(t, "grad_u"),
-        phi=t.field("phi", 1) if t.has("phi") else None,
-        grad_phi=t.field("grad_phi", 2) if t.has("grad_phi") else None,
-        lam=t.field("lam", 2),
-    )
-    if (exact.phi is None) != (exact.grad_phi is None):
-        raise SceneError("exact", sorted(raw), "both phi and grad_phi, or neither")
-    t.finish()
-    return Scene(data=data, path=scene.path, name=scene.name), exact
+    section = validate(ExactSection, raw, scene.path, scene.overrides, ("exact",))
+    rest = Scene(data, scene.path, scene.name, scene.overrides, scene.notices)
+    return rest, section.compiled()

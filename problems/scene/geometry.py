@@ -1,8 +1,11 @@
-"""Geometry tables of a scene → meshes: the built-in shapes at a refinement level.
+"""Geometry tables of a scene (pydantic sections) → meshes at a refinement level.
 
-Kinds: "rectangle" (structured P1/Q1), "half_disc" and "cradle" (the paper's two bodies as mapped
-Q1 blocks with boundary nodes on the true arc); or a file (`mesh = "FILE"` or `geo = "FILE.geo"`,
-`imported`).
+Kinds, a union told apart by `kind`: "rectangle" (structured P1/Q1), "half_disc" and "cradle"
+(the paper's two bodies as mapped Q1 blocks with boundary nodes on the true arc); or a file,
+`{ mesh = "FILE", body = "GROUP" }` or `{ geo = "FILE.geo", body = "GROUP" }` (`imported`; the
+path relative to the scene file). The built-in kinds name their boundary parts (BOUNDARIES,
+checked against the scene's references before anything is built); a file's parts are known
+only once it is read (BOUNDARIES None: the plug-ins check them after meshing, `check_meshed`).
 A mesh that would exceed MAX_CELLS cells, or that the mesher refuses (inverted or degenerate
 cells), is a SceneError naming the key.
 """
@@ -10,94 +13,182 @@ cells), is a SceneError naming the key.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
+from pydantic import Discriminator, Field, Tag, ValidationInfo, model_validator
 
 from fem.boundary import trace
 from fem.mesh import Mesh
 from fem.meshing import rectangle
 from problems.errors import SceneError
 
+from .fields import Cells, Integer, Interval, Number, Point, Text
 from .imported import geo_mesh, imported_mesh, resolve
-from .reader import Table
+from .model import UNION_TAGS, Section, refuse
 
-GEOMETRIES = ("rectangle", "half_disc", "cradle")
 MAX_CELLS = 4_000_000  # cells of one body at the requested level (≈ 12M piezo unknowns)
 
 
-def make_mesh(t: Table, level: int, scene_dir: Path | None = None) -> Mesh:
-    """The mesh of a `geometry` table at refinement `level`.
+class Rectangle(Section):
+    """[x0, x1] × [y0, y1] in nx × ny cells (quads, or each split into two triangles)."""
 
-    SceneError (naming the geometry key) for a mesh too large to build (more than MAX_CELLS
-    cells) or one the mesher refuses: inverted or degenerate cells, zero-length edges.
-    `geometry = { mesh = "FILE", body = "GROUP" }` reads a mesh file instead (`imported`;
-    FILE relative to `scene_dir`, the scene file's folder).
-    """
-    if t.has("mesh") or t.has("geo"):
-        return _from_file(t, level, scene_dir)
-    kind = t.string("kind", choices=GEOMETRIES)
-    scale = 2**level
-    if kind == "rectangle":
-        x0, x1 = t.pair("x")
-        y0, y1 = t.pair("y")
-        if not x0 < x1:
-            raise SceneError(t.key("x"), [x0, x1], "an interval [x0, x1] with x0 < x1")
-        if not y0 < y1:
-            raise SceneError(t.key("y"), [y0, y1], "an interval [y0, y1] with y0 < y1")
-        nx, ny = t.pair("cells", kind=int)
-        if nx < 1 or ny < 1:
-            raise SceneError(t.key("cells"), [nx, ny], "two positive integers [nx, ny]")
-        element = t.string("element", "quad", choices=("quad", "triangle"))
-        t.finish()
-        _check_size(t, "cells", [nx, ny], nx * ny * scale**2)
-        return _meshed(t, rectangle, (x0, x1), (y0, y1), (nx * scale, ny * scale), element)
-    from fem import shapes
+    BOUNDARIES: ClassVar[tuple[str, ...]] = ("bottom", "right", "top", "left")
+    kind: Literal["rectangle"]
+    x: Interval
+    y: Interval
+    cells: Cells
+    element: Literal["quad", "triangle"] = "quad"
 
-    center = t.pair("center", [0.0, 1.5])
-    radius = t.number("radius", 1.0, lo=0.0, lo_open=True)
-    angle = t.number("angle", np.pi / 2, lo=0.0, hi=np.pi, lo_open=True)
-    if angle >= np.pi:
-        raise SceneError(t.key("angle"), angle, "an opening angle in (0, π)")
-    n_contact = t.integer("n_contact", 8 if kind == "half_disc" else 12, lo=1)
-    if kind == "half_disc":
-        t.finish()
-        # shapes.half_disc: n_f cells along each free arc, n_r along the spokes (level 0)
-        h = angle / n_contact
-        n_f = max(1, round((np.pi / 2 - angle / 2) / h))
-        n_r = max(1, round(0.5 / h))
-        cells = (n_contact + 2 * n_f) * n_r + n_contact * n_f
-        _check_size(t, "n_contact", n_contact, cells * scale**2)
-        return _meshed(t, shapes.half_disc, center, radius, angle, n_contact, level)
-    p2 = t.pair("p2", [-1.0, 0.0])
-    p3 = t.pair("p3", [1.0, 0.0])
-    t.finish()
-    Cl, Cr = shapes.contact_ends(center, radius, angle)
-    height = 0.5 * (np.hypot(*(Cl - p2)) + np.hypot(*(Cr - p3)))
-    n_y = max(1, round(height / (radius * angle / n_contact)))
-    _check_size(t, "n_contact", n_contact, n_contact * n_y * scale**2)
-    return _meshed(t, shapes.cradle, p2, p3, center, radius, angle, n_contact, level)
-
-
-def _from_file(t: Table, level: int, scene_dir: Path | None) -> Mesh:
-    """`geometry = { mesh = "FILE", body = "GROUP" }` (a mesh file, refined on its polylines) or
-    `{ geo = "FILE.geo", body = "GROUP" }` (meshed and refined by gmsh onto the geometry)."""
-    if t.has("mesh") and t.has("geo"):
-        raise SceneError(
-            t.key("geo"),
-            t.raw("geo"),
-            "either mesh (a mesh file) or geo (a gmsh geometry, needs gmsh), not both",
+    def mesh(self, level: int) -> Mesh:
+        """The structured mesh at refinement `level` (each level halves the cells' size)."""
+        s = 2**level
+        nx, ny = self.cells
+        _check_size(self, "cells", self.cells, nx * ny * s**2)
+        return _meshed(
+            self, rectangle, tuple(self.x), tuple(self.y), (nx * s, ny * s), self.element
         )
-    key = "mesh" if t.has("mesh") else "geo"
-    name = t.string(key)
-    body = t.raw("body", None)
-    if body is not None and not isinstance(body, str):
-        raise SceneError(t.key("body"), body, "the name of a physical surface group (a string)")
-    t.finish()
-    make = imported_mesh if key == "mesh" else geo_mesh
-    return make(resolve(scene_dir, name), body, level, t.key(key), MAX_CELLS)
 
 
-def _check_size(t: Table, key: str, value, cells: float) -> None:
+class _Arc(Section):
+    center: Point = [0.0, 1.5]
+    radius: Annotated[Number, Field(gt=0.0)] = 1.0
+    angle: Annotated[Number, Field(gt=0.0, lt=np.pi)] = np.pi / 2
+
+
+class HalfDisc(_Arc):
+    """The paper's half disc (mapped Q1 blocks, boundary nodes on the true arc)."""
+
+    BOUNDARIES: ClassVar[tuple[str, ...]] = ("contact", "free_left", "free_right", "top")
+    kind: Literal["half_disc"]
+    n_contact: Annotated[Integer, Field(ge=1)] = 8
+
+    def mesh(self, level: int) -> Mesh:
+        """The mesh at refinement `level`."""
+        from fem import shapes
+
+        # shapes.half_disc: n_f cells along each free arc, n_r along the spokes (level 0)
+        h = self.angle / self.n_contact
+        n_f = max(1, round((np.pi / 2 - self.angle / 2) / h))
+        n_r = max(1, round(0.5 / h))
+        cells = (self.n_contact + 2 * n_f) * n_r + self.n_contact * n_f
+        _check_size(self, "n_contact", self.n_contact, cells * 4**level)
+        args = (self.center, self.radius, self.angle, self.n_contact, level)
+        return _meshed(self, shapes.half_disc, *args)
+
+
+class Cradle(_Arc):
+    """The paper's cradle under the half disc (mapped Q1 blocks)."""
+
+    BOUNDARIES: ClassVar[tuple[str, ...]] = ("bottom", "contact", "left", "right")
+    kind: Literal["cradle"]
+    n_contact: Annotated[Integer, Field(ge=1)] = 12
+    p2: Point = [-1.0, 0.0]
+    p3: Point = [1.0, 0.0]
+
+    def mesh(self, level: int) -> Mesh:
+        """The mesh at refinement `level`."""
+        from fem import shapes
+
+        Cl, Cr = shapes.contact_ends(self.center, self.radius, self.angle)
+        height = 0.5 * (np.hypot(*(Cl - self.p2)) + np.hypot(*(Cr - self.p3)))
+        n_y = max(1, round(height / (self.radius * self.angle / self.n_contact)))
+        _check_size(self, "n_contact", self.n_contact, self.n_contact * n_y * 4**level)
+        args = (self.p2, self.p3, self.center, self.radius, self.angle, self.n_contact, level)
+        return _meshed(self, shapes.cradle, *args)
+
+
+class _File(Section):
+    BOUNDARIES: ClassVar[None] = None  # the file's physical curve groups, known once read
+    FILE_KEY: ClassVar[str]  # the scene key naming the file
+    FILE_ATTR: ClassVar[str]  # the field holding it
+    body: Text | None = Field(
+        None, description="a physical surface group (omitted: every surface cell of the file)"
+    )
+    _dir: Path | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _one_file(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "mesh" in data and "geo" in data:
+            raise refuse(
+                ["geo"],
+                data["geo"],
+                "either mesh (a mesh file) or geo (a gmsh geometry, needs gmsh), not both",
+            )
+        return data
+
+    @model_validator(mode="after")
+    def _scene_dir(self, info: ValidationInfo) -> _File:
+        scene_file = (info.context or {}).get("file")
+        if scene_file and not scene_file.startswith("<"):
+            self._dir = Path(scene_file).parent
+        return self
+
+    def resolved(self) -> Path:
+        """The file, resolved against the scene file's folder."""
+        return resolve(self._dir, getattr(self, self.FILE_ATTR))
+
+
+class MeshFile(_File):
+    """`{ mesh = "FILE", body = "GROUP" }`: a mesh file (gmsh .msh or any meshio format), the
+    group's cells refined `level` times with new boundary nodes on the file's polyline."""
+
+    FILE_KEY: ClassVar[str] = "mesh"
+    FILE_ATTR: ClassVar[str] = "mesh_file"  # `mesh` is the method
+    mesh_file: Text = Field(alias="mesh", description="the file, relative to the scene file")
+
+    def mesh(self, level: int) -> Mesh:
+        """The body's mesh at refinement `level`."""
+        return imported_mesh(self.resolved(), self.body, level, self.key("mesh"), MAX_CELLS)
+
+
+class GeoFile(_File):
+    """`{ geo = "FILE.geo", body = "GROUP" }`: a gmsh geometry (needs the optional gmsh
+    package), meshed and refined by gmsh with new boundary nodes on the geometry's curves."""
+
+    FILE_KEY: ClassVar[str] = "geo"
+    FILE_ATTR: ClassVar[str] = "geo"
+    geo: Text = Field(description="the .geo file, relative to the scene file")
+
+    def mesh(self, level: int) -> Mesh:
+        """The body's mesh at refinement `level`."""
+        return geo_mesh(self.resolved(), self.body, level, self.key("geo"), MAX_CELLS)
+
+
+def _tag(v: Any) -> str | None:
+    """The union member of a geometry table: its `kind`, or "mesh"/"geo" for a file."""
+    if isinstance(v, dict):
+        if "kind" in v:
+            return v["kind"] if isinstance(v["kind"], str) else None
+        return "mesh" if "mesh" in v else "geo" if "geo" in v else None
+    if isinstance(v, _File):
+        return v.FILE_KEY
+    return getattr(v, "kind", None)
+
+
+# The geometry kinds, told apart by `kind` (a file by its `mesh` or `geo` key): add a kind by
+# adding a Section with a `kind` literal, BOUNDARIES (None: known only once meshed) and
+# mesh(level) to this union.
+KINDS = ("rectangle", "half_disc", "cradle")
+Geometry = Annotated[
+    Annotated[Rectangle, Tag("rectangle")]
+    | Annotated[HalfDisc, Tag("half_disc")]
+    | Annotated[Cradle, Tag("cradle")]
+    | Annotated[MeshFile, Tag("mesh")]
+    | Annotated[GeoFile, Tag("geo")],
+    Discriminator(
+        _tag,
+        custom_error_type="geometry",
+        custom_error_message="a table with kind = " + " | ".join(KINDS) + ", or with mesh = "
+        "FILE or geo = FILE.geo (and body = GROUP)",
+    ),
+]
+GEOMETRIES = (*KINDS, "mesh", "geo")
+UNION_TAGS.update(("geometry", k) for k in GEOMETRIES)
+
+
+def _check_size(t: Section, key: str, value, cells: float) -> None:
     if cells > MAX_CELLS:
         raise SceneError(
             t.key(key),
@@ -107,7 +198,7 @@ def _check_size(t: Table, key: str, value, cells: float) -> None:
         )
 
 
-def _meshed(t: Table, mesher, *args) -> Mesh:
+def _meshed(t: Section, mesher, *args) -> Mesh:
     """Call a mesher and trace every boundary part; a ValueError (inverted or degenerate
     cells, zero-length boundary segments) becomes a SceneError naming the geometry."""
     with np.errstate(all="ignore"):
@@ -118,5 +209,5 @@ def _meshed(t: Table, mesher, *args) -> Mesh:
             return mesh
         except ValueError as err:
             raise SceneError(
-                t.path, t.data, f"a geometry that meshes into valid cells ({err})"
+                t._path, t.model_dump(), f"a geometry that meshes into valid cells ({err})"
             ) from None

@@ -1,18 +1,23 @@
 """Materials in 2D plane strain: Voigt C on (xx, yy, xy), piezoelectric e (2×3), permittivity κ.
 
 Paper's signs: σ = C ε(u) + eᵀ∇φ, D = e ε(u) − κ∇φ. Poling axis 3 = y.
+
+A scene's `material` is a name from NAMED ("BaTiO3") or a table with `kind` = isotropic,
+anisotropic or piezoelectric (`MaterialSpec`, a union told apart by name/kind); its
+`.material()` is the constitutive data.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import AfterValidator, BeforeValidator, Discriminator, Field, Tag
+from pydantic_core import PydanticCustomError
 
-from problems.errors import SceneError
-
-from .reader import MAX_MAGNITUDE
+from .fields import Number, Text
+from .model import UNION_TAGS, Section
 
 EPS0 = 8.8541878128e-12  # vacuum permittivity, F/m
 
@@ -66,6 +71,7 @@ NAMED: dict[str, dict] = {
         12.6e10, 7.95e10, 8.41e10, 11.7e10, 2.30e10, -6.5, 23.3, 17.0, 1700 * EPS0, 1470 * EPS0
     ),
 }
+MATERIAL_NAMES = tuple(NAMED)
 KINDS = ("isotropic", "anisotropic", "piezoelectric")
 MAX_COUPLING = 1e3  # coupling_scale: e·1e3 already makes e²/(κ·C) ~ 1e6 (ρ far above 1)
 
@@ -77,99 +83,129 @@ def isotropic_plane_strain(E: float, nu: float) -> np.ndarray:
     return np.array([[lam + 2 * mu, lam, 0.0], [lam, lam + 2 * mu, 0.0], [0.0, 0.0, mu]])
 
 
-def _matrix(key: str, value: Any, shape: tuple[int, int]) -> np.ndarray:
-    rows = value if isinstance(value, list) else []
-    if any(isinstance(x, bool | str) for r in rows if isinstance(r, list) for x in r):
-        raise SceneError(key, value, f"a {shape[0]}×{shape[1]} matrix of numbers")
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SceneError(key, value, f"a {shape[0]}×{shape[1]} matrix of numbers") from None
-    if arr.shape != shape:
-        raise SceneError(key, value, f"a {shape[0]}×{shape[1]} matrix of numbers")
-    if not (np.isfinite(arr).all() and (np.abs(arr) <= MAX_MAGNITUDE).all()):
-        raise SceneError(key, value, f"finite numbers of size ≤ {MAX_MAGNITUDE:g}")
-    return arr
+Matrix = list[list[Number]]
 
 
-def _spd(key: str, M: np.ndarray, what: str) -> None:
-    if not np.allclose(M, M.T, rtol=1e-12, atol=0):
-        raise SceneError(key, M.tolist(), f"a symmetric {what}")
-    ev = np.linalg.eigvalsh(M)
-    if ev.min() <= 1e-12 * max(abs(ev).max(), 1e-300):
-        raise SceneError(
-            key, M.tolist(), f"a positive definite {what} (smallest eigenvalue {ev.min():.3g})"
-        )
+def _shaped(rows: int, cols: int):
+    def check(v: list) -> list:
+        if len(v) != rows or any(len(r) != cols for r in v):
+            raise PydanticCustomError(
+                "matrix", "a {rows}×{cols} matrix of numbers", {"rows": rows, "cols": cols}
+            )
+        return v
+
+    return AfterValidator(check)
 
 
-def _number(key: str, value: Any, lo: float | None = None, hi: float | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise SceneError(key, value, "a number")
-    v = float(value)
-    if not (np.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
-        raise SceneError(key, value, f"a finite number of size ≤ {MAX_MAGNITUDE:g}")
-    if (lo is not None and v <= lo) or (hi is not None and v >= hi):
-        lo_s = "-inf" if lo is None else f"{lo:g}"
-        hi_s = "inf" if hi is None else f"{hi:g}"
-        raise SceneError(key, value, f"a number in the open interval ({lo_s}, {hi_s})")
-    return v
+def _spd(what: str):
+    def check(v: list) -> list:
+        M = np.array(v, dtype=float)
+        if not np.allclose(M, M.T, rtol=1e-12, atol=0):
+            raise PydanticCustomError("matrix", "a symmetric {what}", {"what": what})
+        ev = np.linalg.eigvalsh(M)
+        if ev.min() <= 1e-12 * max(abs(ev).max(), 1e-300):
+            raise PydanticCustomError(
+                "matrix",
+                "a positive definite {what} (smallest eigenvalue {ev})",
+                {"what": what, "ev": f"{ev.min():.3g}"},
+            )
+        return v
+
+    return AfterValidator(check)
 
 
-def material_from_scene(key: str, spec: Any) -> Material:
-    """Build a Material from a scene value: a name ("BaTiO3") or a table (see README)."""
-    if isinstance(spec, str):
-        spec = {"name": spec}
-    if not isinstance(spec, dict):
-        raise SceneError(key, spec, "a material name or a table")
-    if "name" in spec:
-        name = spec["name"]
-        if name not in NAMED:
-            raise SceneError(f"{key}.name", name, "one of " + ", ".join(sorted(NAMED)))
-        extra = set(spec) - {"name", "coupling_scale"}
-        if extra:
-            k = sorted(extra)[0]
-            raise SceneError(f"{key}.{k}", spec[k], "allowed keys: name, coupling_scale")
-        data = NAMED[name]
-        scale = _number(
-            f"{key}.coupling_scale", spec.get("coupling_scale", 1.0), lo=0.0, hi=MAX_COUPLING
-        )
-        label = name if scale == 1.0 else f"{name} (coupling ×{scale:g})"
-        return Material(
-            label,
-            np.array(data["C"]),
-            scale * np.array(data["e"]),
-            np.array(data["kappa"]),
-            np.array(data["C_zz"]),
-            scale * np.array(data["e_zz"]),
-        )
-    kind = spec.get("kind")
-    if kind not in KINDS:
-        raise SceneError(f"{key}.kind", kind, "one of " + ", ".join(KINDS) + " (or give a name)")
-    allowed = {
-        "isotropic": {"kind", "E", "nu", "label"},
-        "anisotropic": {"kind", "C", "label"},
-        "piezoelectric": {"kind", "C", "e", "kappa", "label"},
-    }[kind]
-    extra = set(spec) - allowed
-    if extra:
-        k = sorted(extra)[0]
-        raise SceneError(f"{key}.{k}", spec[k], f"allowed keys: {', '.join(sorted(allowed))}")
-    for req in sorted(allowed - {"label"}):
-        if req not in spec:
-            raise SceneError(f"{key}.{req}", None, f"required for a {kind} material")
-    label = spec.get("label", kind)
-    if not isinstance(label, str):
-        raise SceneError(f"{key}.label", label, "a string (the material's name in outputs)")
-    if kind == "isotropic":
-        E = _number(f"{key}.E", spec["E"], lo=0.0)
-        nu = _number(f"{key}.nu", spec["nu"], lo=-1.0, hi=0.5)
-        C = isotropic_plane_strain(E, nu)
-        return Material(label, C, C_zz=np.array([C[0, 1], C[0, 1], 0.0]))
-    C = _matrix(f"{key}.C", spec["C"], (3, 3))
-    _spd(f"{key}.C", C, "elasticity matrix C (3×3 Voigt)")
-    if kind == "anisotropic":
-        return Material(label, C)
-    e = _matrix(f"{key}.e", spec["e"], (2, 3))
-    kappa = _matrix(f"{key}.kappa", spec["kappa"], (2, 2))
-    _spd(f"{key}.kappa", kappa, "permittivity κ (2×2)")
-    return Material(label, C, e, kappa)
+ElasticityMatrix = Annotated[Matrix, _shaped(3, 3), _spd("elasticity matrix C (3×3 Voigt)")]
+CouplingMatrix = Annotated[Matrix, _shaped(2, 3)]
+Permittivity = Annotated[Matrix, _shaped(2, 2), _spd("permittivity κ (2×2)")]
+
+
+class NamedMaterial(Section):
+    """A material from the table NAMED, its piezoelectric coupling optionally scaled."""
+
+    name: Literal[MATERIAL_NAMES]
+    coupling_scale: Annotated[Number, Field(gt=0.0, lt=MAX_COUPLING)] = 1.0
+
+    def material(self) -> Material:
+        """The constitutive data."""
+        data, scale = NAMED[self.name], self.coupling_scale
+        label = self.name if scale == 1.0 else f"{self.name} (coupling ×{scale:g})"
+        C, e, kappa, C_zz, e_zz = (np.array(data[k]) for k in ("C", "e", "kappa", "C_zz", "e_zz"))
+        return Material(label, C, scale * e, kappa, C_zz, scale * e_zz)
+
+
+class Isotropic(Section):
+    """Linear isotropic elasticity (plane strain) from Young's modulus E and Poisson's ν."""
+
+    kind: Literal["isotropic"]
+    E: Annotated[Number, Field(gt=0.0)]
+    nu: Annotated[Number, Field(gt=-1.0, lt=0.5)]
+    label: Text = "isotropic"
+
+    def material(self) -> Material:
+        """The constitutive data."""
+        C = isotropic_plane_strain(self.E, self.nu)
+        return Material(self.label, C, C_zz=np.array([C[0, 1], C[0, 1], 0.0]))
+
+
+class Anisotropic(Section):
+    """A general elastic material: the 3×3 Voigt matrix C (symmetric positive definite)."""
+
+    kind: Literal["anisotropic"]
+    C: ElasticityMatrix
+    label: Text = "anisotropic"
+
+    def material(self) -> Material:
+        """The constitutive data."""
+        return Material(self.label, np.array(self.C, dtype=float))
+
+
+class Piezoelectric(Section):
+    """A piezoelectric material: C, the coupling e (2×3) and the permittivity κ (2×2)."""
+
+    kind: Literal["piezoelectric"]
+    C: ElasticityMatrix
+    e: CouplingMatrix
+    kappa: Permittivity
+    label: Text = "piezoelectric"
+
+    def material(self) -> Material:
+        """The constitutive data."""
+        C, e, k = (np.array(m, dtype=float) for m in (self.C, self.e, self.kappa))
+        return Material(self.label, C, e, k)
+
+
+def _tag(v: Any) -> str | None:
+    if isinstance(v, str):
+        return "named"
+    if isinstance(v, dict):
+        return "named" if "name" in v else v.get("kind") if isinstance(v.get("kind"), str) else None
+    if isinstance(v, Section):
+        return "named" if isinstance(v, NamedMaterial) else v.kind
+    return None
+
+
+def _named(v: Any) -> Any:
+    return {"name": v} if isinstance(v, str) else v
+
+
+MaterialSpec = Annotated[
+    Annotated[NamedMaterial, Tag("named")]
+    | Annotated[Isotropic, Tag("isotropic")]
+    | Annotated[Anisotropic, Tag("anisotropic")]
+    | Annotated[Piezoelectric, Tag("piezoelectric")],
+    Discriminator(
+        _tag,
+        custom_error_type="material",
+        custom_error_message="a material name (" + ", ".join(sorted(NAMED)) + ") or a table "
+        "with kind = " + " | ".join(KINDS),
+    ),
+    BeforeValidator(
+        _named,
+        json_schema_input_type=Literal[MATERIAL_NAMES]
+        | NamedMaterial
+        | Isotropic
+        | Anisotropic
+        | Piezoelectric,
+    ),
+]
+UNION_TAGS.update(("material", k) for k in ("named", *KINDS))

@@ -31,7 +31,7 @@ import pytest
 from problems.scene import SCENES_DIR
 
 MIXVI = str(Path(sys.executable).with_name("mixvi"))
-SMALL_MEMORY = 3 * 10**9  # RLIMIT_AS for the memory cases: paper_two_body level 5 needs ~6 GB
+SMALL_MEMORY = 3 * 10**9  # RLIMIT_AS for the memory cases: paper_two_body level 6 needs ~8 GB
 
 
 @dataclass
@@ -113,7 +113,27 @@ CASES = [
     S("--set without =", "contact.g", "--set"),
     S("--set into a missing table", "nosuch.key=1", "nosuch"),
     S("--set empty key part", "contact..g=1", "--set"),
+    S("g wrong arity", "contact.g='sin(x, y)'", "contact.g"),
+    S("g keyword argument", "contact.g='maximum(x, 0, out=y)'", "contact.g"),
+    S("g nested too deep", "contact.g='" + "sin(" * 40 + "x" + ")" * 40 + "'", "contact.g"),
+    S("g expression too long", "contact.g='" + "x+" * 1100 + "1'", "contact.g"),
+    S("g overflows on the domain", "contact.g='exp(1000*(x + 1))'", "contact.g"),
+    S("g constant division by zero", "contact.g='1/0'", "contact.g"),
+    S("master is the slave", "contact.master='block.top'", "contact.master"),
+    S("potential along no boundary", "output.potential_along='block.middle'", "potential_along"),
+    S("body force of one component", "bodies.block.body_force=[1.0]", "bodies.block.body_force"),
+    S("format 3", "format=3", "format"),
+    Case(
+        "validate a bad override",
+        ["validate", "{d}/scene.toml", "--set", "contact.g='where(x, y)'"],
+        "contact.g",
+    ),
+    Case(
+        "validate an unknown key", ["validate", "{d}/scene.toml", "--set", "solver.x=1"], "solver.x"
+    ),
+    Case("validate a missing scene", ["validate", "{d}/nosuch.toml"], "scene"),
     # ---------------------------------------------------------------- scene files
+    F("format 2 without plugin", "format = 2\n[scene]\nlevel = 0\n", "scene.plugin"),
     F("invalid TOML", "[scene\n", "bad.toml"),
     F("binary file", b"\x89PNG\x00\xff\xfe garbage", "bad.toml"),
     F("missing geometry", f"{HEAD}[bodies.b]\nmaterial = 'BaTiO3'\n", "bodies.b.geometry"),
@@ -247,26 +267,26 @@ CASES = [
     ),
     # ---------------------------------------------------------------- memory
     Case(
-        "level 5 in 3 GB",
-        ["solve", "paper_two_body", "--level", "5", "--out", "{d}/o"],
+        "level 6 in 3 GB",
+        ["solve", "paper_two_body", "--level", "6", "--out", "{d}/o"],
         "--level",
         rlimit_as=SMALL_MEMORY,
     ),
     Case(
-        "check level 5 in 3 GB",
-        ["check", "paper_two_body", "--levels", "0..5"],
+        "check level 6 in 3 GB",
+        ["check", "paper_two_body", "--levels", "0..6"],
         "--levels",
         rlimit_as=SMALL_MEMORY,
     ),
     Case(
-        "study level 5 in 3 GB",
-        ["study", "paper_two_body", "--levels", "4..5"],
+        "study level 6 in 3 GB",
+        ["study", "paper_two_body", "--levels", "5..6"],
         "--levels",
         rlimit_as=SMALL_MEMORY,
     ),
     Case(
-        "bench level 5 in 3 GB",
-        ["bench", "--scenes", "paper_two_body", "--levels", "5", "--out", "{d}/b.json"],
+        "bench level 6 in 3 GB",
+        ["bench", "--scenes", "paper_two_body", "--levels", "6", "--out", "{d}/b.json"],
         "--levels",
         rlimit_as=SMALL_MEMORY,
     ),

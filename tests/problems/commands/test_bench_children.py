@@ -28,11 +28,23 @@ WOBBLY = '''
 import copy, multiprocessing, os, signal, time
 import numpy as np
 from problems.plugins import obstacle
-from problems.scene import Scene
+from problems.scene import Scene, Section
+from problems.scene.fields import Text
+from problems.scene.model import head
 
 CONTRACT = 2
 NAME = "wobbly"
 DESCRIPTION = "test plug-in: crashes, raises, hangs or runs out of memory in a child"
+
+
+class Wobble(Section):
+    mode: Text
+    pidfile: Text | None = None
+
+
+class SCENE_MODEL(obstacle.SCENE_MODEL):  # an obstacle scene with [wobble] (contract 2)
+    scene: head(NAME, 2)
+    wobble: Wobble
 
 
 def build(scene, level=None):

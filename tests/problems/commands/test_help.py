@@ -9,7 +9,17 @@ import pytest
 from problems.commands import main as main_mod
 from problems.commands.main import OWN_PARSERS, main, parser
 
-COMMANDS = ("solve", "scenes", "check", "figures", "study", "bench", "extremes")
+COMMANDS = (
+    "solve",
+    "validate",
+    "schema",
+    "scenes",
+    "check",
+    "figures",
+    "study",
+    "bench",
+    "extremes",
+)
 
 
 def test_help_lists_every_command_on_one_line(capsys, monkeypatch):

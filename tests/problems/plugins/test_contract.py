@@ -12,12 +12,14 @@ from problems.commands import main as cli
 from problems.errors import SceneError
 from problems.plugins import registry
 from problems.plugins.contract import CONTRACT, Sweep, conforms
+from problems.scene import SceneModel
 
 
 def _plugin(**attrs) -> types.ModuleType:
     mod = types.ModuleType("fake")
     mod.NAME, mod.DESCRIPTION = "fake", "a fake plug-in"
     mod.build = mod.postprocess = lambda *a: None
+    mod.SCENE_MODEL = SceneModel
     for k, v in attrs.items():
         setattr(mod, k, v)
     return mod
@@ -47,6 +49,13 @@ def test_a_v2_plugin_is_accepted(monkeypatch):
     monkeypatch.setitem(registry.BUILTIN, "fake", "fake")
     monkeypatch.setattr(registry.importlib, "import_module", lambda name: _plugin(CONTRACT=2))
     assert registry.get("fake").NAME == "fake"
+
+
+def test_a_plugin_without_its_scene_model_is_refused():
+    plugin = _plugin(CONTRACT=2)
+    del plugin.SCENE_MODEL
+    assert conforms(plugin) == ["SCENE_MODEL (a subclass of problems.scene.SceneModel; contract 2)"]
+    assert conforms(_plugin(CONTRACT=2, SCENE_MODEL=dict)) != []
 
 
 def test_a_malformed_declaration_is_refused():

@@ -6,8 +6,10 @@ import pytest
 
 from problems.plugins import piezo_balance
 from problems.plugins import piezo_contact as pc
-from problems.scene import Table, load_scene
+from problems.plugins.bodies import BodySection
+from problems.scene import load_scene
 from problems.scene.exact import split_exact
+from problems.scene.fields import evaluate
 from problems.scene.materials import NAMED
 from vi_core import solve
 
@@ -24,12 +26,16 @@ def exact(scene):
     return split_exact(scene)[1]
 
 
-def _block(scene) -> Table:
-    return Table(scene.data["bodies"]["block"], "bodies.block")
+def _block(scene) -> BodySection:
+    return scene.validated(pc.SCENE_MODEL).bodies["block"]
 
 
-def _parts(scene, kind: str) -> dict[str, Table]:
-    return {t.string("boundary"): t for t in _block(scene).tables(kind)}
+def _parts(scene, kind: str) -> dict:
+    return {t.boundary: t for t in getattr(_block(scene), kind)}
+
+
+def _vec(components):
+    return lambda x, y: evaluate(components, x, y)
 
 
 def _points(n=400, seed=0):
@@ -70,9 +76,9 @@ def test_body_force_and_free_charge_solve_the_pde(scene, exact):
     D = lambda a, b: _fields(exact, a, b)[1]  # noqa: E731
     dsx, dsy = _d(sig, x, y, 0), _d(sig, x, y, 1)  # (n, 3) each
     div_sigma = np.stack([dsx[:, 0] + dsy[:, 2], dsx[:, 2] + dsy[:, 1]], axis=1)  # (n, 2)
-    f0 = blk.field("body_force", 2)(x, y)
+    f0 = _vec(blk.body_force)(x, y)
     np.testing.assert_allclose(f0, -div_sigma, rtol=1e-6, atol=1e-6 * np.abs(f0).max())
-    q0 = blk.field("free_charge", 1)(x, y)
+    q0 = blk.free_charge(x, y)
     div_D = _d(D, x, y, 0)[:, 0] + _d(D, x, y, 1)[:, 1]
     np.testing.assert_allclose(q0, div_D, rtol=1e-6, atol=1e-6 * np.abs(q0).max())
 
@@ -86,17 +92,15 @@ def test_boundary_data_match_the_exact_solution(scene, exact):
         sig, D = _fields(exact, x, y)
         sn = np.stack([sig[:, 0] * n[0] + sig[:, 2] * n[1], sig[:, 2] * n[0] + sig[:, 1] * n[1]], 1)
         if name in trac:
-            np.testing.assert_allclose(trac[name].field("value", 2)(x, y), sn, rtol=1e-10)
-        np.testing.assert_allclose(charge[name].field("value", 1)(x, y), D @ n, rtol=1e-10)
+            np.testing.assert_allclose(_vec(trac[name].value)(x, y), sn, rtol=1e-10)
+        np.testing.assert_allclose(charge[name].value(x, y), D @ n, rtol=1e-10)
         if name == "bottom":  # λ = −σn in the frame n = (0, −1), τ = (1, 0)
             np.testing.assert_allclose(exact.lam(x, y), np.stack([sn[:, 1], -sn[:, 0]], 1))
     x, y = 2 * s, 1 + 0 * s  # top: Dirichlet data = exact values
     np.testing.assert_allclose(
-        _parts(scene, "displacement")["top"].field("value", 2)(x, y), exact.u(x, y)
+        _vec(_parts(scene, "displacement")["top"].value)(x, y), exact.u(x, y)
     )
-    np.testing.assert_allclose(
-        _parts(scene, "potential")["top"].field("value", 1)(x, y), exact.phi(x, y)
-    )
+    np.testing.assert_allclose(_parts(scene, "potential")["top"].value(x, y), exact.phi(x, y))
 
 
 def test_tresca_law_holds_on_gamma3(scene, exact):
@@ -104,7 +108,7 @@ def test_tresca_law_holds_on_gamma3(scene, exact):
     y = 0 * x
     u = exact.u(x, y)  # (n, 2)
     lam_t = exact.lam(x, y)[:, 1]
-    g = Table(scene.data["contact"], "contact").field("g", 1)(x, y)
+    g = scene.validated(pc.SCENE_MODEL).contact.g(x, y)
     assert np.abs(u[:, 1]).max() == 0.0  # bilateral: u·n = 0
     slip = u[:, 0] != 0
     assert 0.3 < slip.mean() < 0.9  # both zones are present

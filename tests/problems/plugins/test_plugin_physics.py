@@ -77,7 +77,7 @@ def test_signorini_far_obstacle_is_free_problem():
         ("antiplane", "friction.g=-1.0", "friction.g"),
         ("signorini", "contact.gap=-1e-3", "contact.gap"),
         ("signorini", "body.material='BaTiO3'", "body.material"),
-        ("signorini", "scene.plugin='obstacle'", "domain"),
+        ("signorini", "scene.plugin='obstacle'", "body"),  # an obstacle scene has no [body]
     ],
 )
 def test_bad_input_names_the_key(name, override, key):

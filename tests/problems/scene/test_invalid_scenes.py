@@ -118,7 +118,7 @@ CASES = [
         R,
         ("bodies", "block", "material"),
         {"kind": "anisotropic", "C": [[True, 0, 0], [0, 1, 0], [0, 0, 1]]},
-        ("3×3",),
+        ("bodies.block.material.C[0][0]", "a number"),
     ),
     # magnitudes that overflow in assembly or plotting (were tracebacks)
     (R, ("contact", "g"), 1e308, ("contact.g",)),

@@ -4,14 +4,19 @@ the boundary, |λ| ≤ g with λ = g sign(u) where u ≠ 0 (an ℓ¹ obstacle; d
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import scipy.sparse as sp
+from pydantic import Field
 
 from fem import assembly, meshing
 from fem.io import write_vtu
-from problems.plugins.contract import ExtremeRow, Sweep, expect, read_head, read_solver
+from problems.plugins.contract import ExtremeRow, Sweep, expect
 from problems.plugins.transfer import nodal_reference_errors
+from problems.scene import SceneModel, Section
+from problems.scene.fields import Expression, Integer, Number
+from problems.scene.model import head
 from vi_core import Box, MixedVI
 
 CONTRACT = 2
@@ -20,6 +25,24 @@ DESCRIPTION = "membrane on a sticky floor: −Δu = f − λ, |λ| ≤ g (third-
 SCENE = str(Path(__file__).with_name("sticky_floor.toml"))
 SWEEP = Sweep("sticky.g", "floor strength g [N/m²]", factors=(2.0, 1.0, 0.5))
 NORMS = ("h1", "l2")
+
+
+class Sticky(Section):
+    """The [sticky] table."""
+
+    cells: Annotated[Integer, Field(ge=1)] = 8
+    load: Expression
+    g: Annotated[Number, Field(ge=0.0)]
+
+
+class StickyScene(SceneModel):
+    """A sticky_floor scene."""
+
+    scene: head(NAME, 1)
+    sticky: Sticky
+
+
+SCENE_MODEL = StickyScene
 
 
 @dataclass
@@ -42,15 +65,11 @@ class Model:
 
 
 def build(scene, level=None):
-    root = scene.root()
-    default_level = read_head(root, NAME)
-    level = default_level if level is None else level
-    t = root.table("sticky")
-    n = t.integer("cells", 8, lo=1) * 2**level
-    f, g = t.field("load", 1), t.number("g", lo=0.0)
-    t.finish()
-    options = read_solver(root)
-    root.finish()
+    spec = scene.validated(SCENE_MODEL)
+    level = spec.scene.level if level is None else level
+    n = spec.sticky.cells * 2**level
+    f, g = spec.sticky.load, spec.sticky.g
+    options = spec.options()
     mesh = meshing.rectangle((0.0, 1.0), (0.0, 1.0), (n, n), "triangle")
     free = np.flatnonzero(np.all((mesh.points > 0) & (mesh.points < 1), axis=1))
     K = assembly.stiffness_matrix(mesh)[free][:, free]

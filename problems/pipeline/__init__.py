@@ -1,0 +1,183 @@
+"""The solve pipeline shared by `mixvi solve` and the Python API: scene → validated model →
+plug-in build → MixedVI → solve (nested iteration) → results.
+
+    load(name_or_path, overrides)      read, migrate, override and validate (before any build)
+    solve(loaded, level, method, tol)  build and solve; a `Run` with the model and solution
+    results(loaded, run)               fields, contact state and info as objects
+
+Nothing here writes files: `mixvi solve` (problems.commands.solve) adds the output folder,
+`problems.solve_scene` returns the objects.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+import vi_core
+from problems.errors import SceneError
+from problems.plugins import registry
+from problems.scene import Scene, SceneModel, load_scene
+
+CONDITION_LIMIT = 200_000  # estimate the Newton matrix's condition up to this many unknowns
+
+
+@dataclass
+class Loaded:
+    """A scene validated by its plug-in's scene model, before anything is built."""
+
+    scene: Scene
+    plugin: Any
+    spec: SceneModel
+
+    @property
+    def notices(self) -> list[str]:
+        """Migration notices (format-1 scenes), one line each."""
+        return self.scene.notices
+
+
+def validated(scene: Scene) -> Loaded:
+    """The scene checked by its plug-in's SCENE_MODEL (SceneError naming the field)."""
+    plugin = registry.for_scene(scene)
+    return Loaded(scene, plugin, scene.validated(plugin.SCENE_MODEL))
+
+
+def load(name_or_path: str, overrides: list[str] | tuple[str, ...] = ()) -> Loaded:
+    """Read a scene (file or shipped name), apply `--set` overrides and validate it."""
+    return validated(load_scene(name_or_path, overrides))
+
+
+@dataclass
+class Run:
+    """One solve: the built model, the solution and how it was reached."""
+
+    model: Any
+    solution: vi_core.Solution
+    method: str
+    tol: float
+    nested: list[dict] = field(default_factory=list)  # per level: iterations, time
+    time_build: float = 0.0
+    time_solve: float = 0.0
+
+
+def solve(
+    loaded: Loaded,
+    level: int | None = None,
+    method: str | None = None,
+    tol: float | None = None,
+    cold: bool = False,
+) -> Run:
+    """Build `loaded` at `level` (None: the scene's) and solve it with `method` and `tol`
+    (None: the scene's [solver], else ssn and 1e-10). With ssn and a plug-in that has
+    `warm_start`, levels 0 … L−1 are solved first, each warm-starting the next (unless
+    `cold`)."""
+    scene, plugin = loaded.scene, loaded.plugin
+    t0 = time.perf_counter()
+    model = plugin.build(scene, level)
+    t_build = time.perf_counter() - t0
+    method = method or model.options.get("method", "ssn")
+    if method not in vi_core.METHODS:
+        raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
+    tol = tol if tol is not None else model.options.get("tol", 1e-10)
+    nested: list[dict] = []
+    warm: dict = {}
+    if method == "ssn" and hasattr(plugin, "warm_start") and model.level > 0 and not cold:
+        nested, warm = _nested(plugin, scene, model, tol)
+    if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
+        warm["estimate_condition"] = True
+    sol = vi_core.solve(model.vi, method=method, tol=tol, **warm)
+    if nested:
+        nested.append(level_record(model.level, model, sol))
+    t_solve = sum(r["time_s"] for r in nested) if nested else sol.time
+    return Run(model, sol, method, tol, nested, t_build, t_solve)
+
+
+def _nested(plugin: Any, scene: Scene, model: Any, tol: float) -> tuple[list[dict], dict]:
+    """Nested iteration: levels 0 … L−1 solved first, each warm-starting the next; returns
+    their records and the warm start of `model`. The coarse models are gone when it returns
+    (none of them is alive while the fine level is factorised)."""
+    nested, prev = [], None
+    for lev in range(model.level):
+        coarse = plugin.build(scene, lev)
+        kw = plugin.warm_start(*prev, coarse) if prev else {}
+        prev = None  # the level before is no longer needed
+        csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **kw)
+        nested.append(level_record(lev, coarse, csol))
+        prev = (coarse, csol)
+    return nested, plugin.warm_start(*prev, model)
+
+
+def level_record(level: int, model: Any, sol: vi_core.Solution) -> dict:
+    """One level of a run: unknowns, Newton steps, time, residual, converged."""
+    return {
+        "level": level,
+        "unknowns": int(model.vi.n + model.vi.m),
+        "iterations": sol.iterations,
+        "time_s": sol.time,
+        "residual": sol.residual,
+        "converged": sol.converged,
+    }
+
+
+def scaling_summary(model: Any) -> dict:
+    """The equilibration scales per field (geometric means): u = s_u·u', λ = s_λ·λ'."""
+    sc = model.vi.scaling
+
+    def gmean(v):
+        return float(np.exp(np.mean(np.log(v)))) if v.size else None
+
+    out = {"note": "u = s_u u', lambda = s_lam lambda' (Jacobi equilibration, geometric means)"}
+    fields = model.unknown_fields() if hasattr(model, "unknown_fields") else {"u": slice(None)}
+    for name, mask in fields.items():
+        out[f"s_{name}"] = gmean(sc.s_u[mask])
+    out["s_multiplier"] = gmean(sc.s_lam)
+    return out
+
+
+def info(loaded: Loaded, run: Run) -> dict:
+    """What a run reached, as summary.json records it (without the plug-in's entries)."""
+    model, sol = run.model, run.solution
+    out = {
+        "scene": loaded.scene.name,
+        "scene_file": loaded.scene.path,
+        "plugin": loaded.plugin.NAME,
+        "level": model.level,
+        "solver": run.method,
+        "tol": run.tol,
+        "dofs": model.dofs,
+        "converged": sol.converged,
+        "iterations": sol.iterations,
+        "residual": sol.residual,
+        "residual_history": sol.history,
+    }
+    return out
+
+
+@dataclass
+class Results:
+    """A solved scene as objects (the Python API's answer)."""
+
+    fields: dict[str, np.ndarray]  # nodal fields by name (the plug-in's `fields`)
+    contact: dict | None  # per-node contact state along Γ3 (the plug-in's `contact_state`)
+    info: dict  # converged, iterations, residual, dofs, level, solver, warnings, ...
+    model: Any  # the built model (vi, meshes, ...)
+    solution: vi_core.Solution
+
+
+def results(loaded: Loaded, run: Run) -> Results:
+    """Fields, contact state and info of a run (nothing written)."""
+    plugin, model, sol = loaded.plugin, run.model, run.solution
+    fields = plugin.fields(model, sol) if hasattr(plugin, "fields") else {}
+    contact = None
+    if hasattr(plugin, "contact_state") and getattr(model, "contact", True) is not None:
+        contact = plugin.contact_state(model, sol)
+    out = info(loaded, run)
+    if hasattr(model, "complementarity"):
+        out["complementarity"] = model.complementarity(sol)
+    out["warnings"] = list(model.warnings) + list(sol.warnings)
+    out["time_s"] = {"build": run.time_build, "solve": run.time_solve}
+    out["nested"] = run.nested
+    return Results(fields, contact, out, model, sol)

@@ -1,0 +1,205 @@
+"""Value types of the scene model (pydantic): checked numbers, expression fields, intervals.
+
+Every type refuses what it cannot take with a pydantic error; `problems.scene.model.validate`
+turns the first one into a SceneError naming the field path, the value and what is allowed.
+
+- `Number`: an int or float (never a bool or a string), finite, of size ≤ MAX_MAGNITUDE;
+  ranges are added per field with `Field(gt=..., le=...)`.
+- `Expression`: a number or an expression string (`problems.scene.expressions`), compiled
+  once; called as f(x, y) it refuses a non-finite or oversized result
+  with its field path and text (`NonNegativeExpr`: constants also checked ≥ 0 when read).
+  `Vector` is a pair of them.
+- `Interval`, `IntPair`, `Point`: [a, b] pairs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Annotated, Any
+
+import numpy as np
+from pydantic import (
+    AfterValidator,
+    BeforeValidator,
+    Field,
+    GetCoreSchemaHandler,
+    GetJsonSchemaHandler,
+)
+from pydantic_core import PydanticCustomError, core_schema
+
+from problems.errors import SceneError
+
+from .expressions import ALLOWED, MAX_LENGTH, MAX_MAGNITUDE, ExpressionError, compile_expression
+
+
+def _finite(v: Any) -> bool:
+    try:
+        return math.isfinite(float(v)) and abs(float(v)) <= MAX_MAGNITUDE
+    except OverflowError:
+        return False
+
+
+def number_value(v: Any) -> Any:
+    """A number as written: int or float, not bool, finite and of size ≤ MAX_MAGNITUDE."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise PydanticCustomError("number", "a number (not {kind})", {"kind": type(v).__name__})
+    if not _finite(v):
+        raise PydanticCustomError(
+            "number", "a finite number of size ≤ {limit}", {"limit": f"{MAX_MAGNITUDE:g}"}
+        )
+    return v
+
+
+def integer_value(v: Any) -> Any:
+    """An int, not a bool (nor a float with an integer value)."""
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise PydanticCustomError("integer", "an integer (not {kind})", {"kind": type(v).__name__})
+    return v
+
+
+def text_value(v: Any) -> Any:
+    """A string, never a number converted to one."""
+    if not isinstance(v, str):
+        raise PydanticCustomError("string", "a string (not {kind})", {"kind": type(v).__name__})
+    return v
+
+
+Number = Annotated[float, BeforeValidator(number_value)]
+Integer = Annotated[int, BeforeValidator(integer_value)]
+Text = Annotated[str, BeforeValidator(text_value)]
+
+
+class Expression:
+    """A compiled scalar field f(x, y) of a scene: a constant or an expression text.
+
+    `path` (the dotted scene field, set by `problems.scene.model.validate`) and `source` name
+    it in every refusal. Calling it never changes its arguments.
+    """
+
+    def __init__(self, source: float | str):
+        self.source = source
+        self.path = "(expression)"
+        if isinstance(source, str):
+            self._fn = compile_expression(source)
+            self.constant = False
+        else:
+            self._fn = None
+            self.constant = True
+
+    def __call__(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Values at the points (x, y): an array of their broadcast shape (SceneError if any
+        value is not finite or larger than MAX_MAGNITUDE)."""
+        shape = np.broadcast_shapes(np.shape(x), np.shape(y))
+        if self._fn is None:
+            return np.full(shape, float(self.source))
+        out = self._fn(x, y)
+        bad = ~(np.isfinite(out) & (np.abs(out) <= MAX_MAGNITUDE))
+        if bad.any():
+            i = np.unravel_index(int(np.argmax(bad)), shape)
+            xi, yi = (float(np.broadcast_to(a, shape)[i]) for a in (x, y))
+            raise SceneError(
+                self.path,
+                self.source,
+                f"an expression whose values are finite and of size ≤ {MAX_MAGNITUDE:g} on the "
+                f"domain (at (x, y) = ({xi:.6g}, {yi:.6g}) it is {float(out[i])!r}: a division "
+                "by zero, an overflow or a function outside its domain)",
+            )
+        return out
+
+    def __repr__(self) -> str:
+        return f"Expression({self.source!r})"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Expression) and other.source == self.source
+
+    __hash__ = None  # mutable path; equality by source
+
+    @classmethod
+    def parse(cls, v: Any) -> Expression:
+        """A number or an expression text → Expression (pydantic error otherwise)."""
+        if isinstance(v, Expression):
+            return v
+        if isinstance(v, str):
+            try:
+                e = cls(v)
+            except ExpressionError as err:
+                raise PydanticCustomError(
+                    "expression", "{why}; allowed: {allowed}", {"allowed": ALLOWED, "why": str(err)}
+                ) from None
+            if not ({"x", "y"} & _names(v)):  # a constant expression: evaluate it now
+                val = e._fn(np.zeros(1), np.zeros(1))
+                if not (np.isfinite(val).all() and (np.abs(val) <= MAX_MAGNITUDE).all()):
+                    raise PydanticCustomError(
+                        "expression",
+                        "an expression with a finite value of size ≤ {limit} (this one is {val})",
+                        {"limit": f"{MAX_MAGNITUDE:g}", "val": repr(float(val[0]))},
+                    )
+            return e
+        try:
+            number_value(v)
+        except PydanticCustomError:
+            raise PydanticCustomError("expression", "{allowed}", {"allowed": ALLOWED}) from None
+        return cls(v)
+
+    @classmethod
+    def __get_pydantic_core_schema__(
+        cls, source: Any, handler: GetCoreSchemaHandler
+    ) -> core_schema.CoreSchema:
+        return core_schema.no_info_plain_validator_function(
+            cls.parse,
+            serialization=core_schema.plain_serializer_function_ser_schema(lambda e: e.source),
+        )
+
+    @classmethod
+    def __get_pydantic_json_schema__(
+        cls, schema: core_schema.CoreSchema, handler: GetJsonSchemaHandler
+    ) -> dict:
+        return {
+            "anyOf": [
+                {"type": "number"},
+                {"type": "string", "maxLength": MAX_LENGTH, "minLength": 1},
+            ],
+            "description": ALLOWED,
+        }
+
+
+def _names(text: str) -> set[str]:
+    import ast
+
+    return {n.id for n in ast.walk(ast.parse(text.strip(), mode="eval")) if isinstance(n, ast.Name)}
+
+
+def _nonnegative(e: Expression) -> Expression:
+    if e.constant and float(e.source) < 0:
+        raise PydanticCustomError("expression", "a field ≥ 0 (a number or expression)")
+    return e
+
+
+NonNegativeExpr = Annotated[Expression, AfterValidator(_nonnegative)]  # constants checked now,
+# expressions where they are evaluated
+Vector = Annotated[list[Expression], Field(min_length=2, max_length=2)]
+
+
+def evaluate(components: Sequence[Expression], x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """A vector field's values: (..., len(components)) at the points (x, y)."""
+    return np.stack([c(x, y) for c in components], axis=-1)
+
+
+def _increasing(v: list) -> list:
+    if v[0] >= v[1]:
+        raise PydanticCustomError("interval", "an interval [a, b] with a < b")
+    return v
+
+
+def _positive_ints(v: list) -> list:
+    if min(v) < 1:
+        raise PydanticCustomError("cells", "two positive integers [nx, ny]")
+    return v
+
+
+Pair = Annotated[list[Number], Field(min_length=2, max_length=2)]
+Point = Pair
+Interval = Annotated[Pair, AfterValidator(_increasing)]
+IntPair = Annotated[list[Integer], Field(min_length=2, max_length=2)]
+Cells = Annotated[IntPair, AfterValidator(_positive_ints)]

@@ -1,0 +1,87 @@
+"""`mixvi schema` (the JSON Schema of scenes) and `mixvi validate` (check without solving)."""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import io
+import json
+import tomllib
+
+import pytest
+
+from problems.commands.main import main
+from problems.scene import SCENES_DIR
+
+jsonschema = pytest.importorskip("jsonschema")
+SHIPPED = sorted(SCENES_DIR.glob("*.toml"))
+
+
+def _run(*argv: str) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(list(argv))
+    return rc, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def validator():
+    rc, text, _ = _run("schema")
+    assert rc == 0
+    schema = json.loads(text)
+    jsonschema.Draft202012Validator.check_schema(schema)
+    return jsonschema.Draft202012Validator(schema)
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
+def test_every_shipped_scene_validates_against_the_schema(validator, path):
+    data = tomllib.loads(path.read_text())
+    errors = list(validator.iter_errors(data))
+    assert errors == [], [e.message for e in errors][:3]
+
+
+@pytest.mark.parametrize(
+    ("where", "key", "value"),
+    [
+        (("contact",), "nosuch", 1),  # an unknown key in a section
+        ((), "nosuch", 1),  # an unknown top-level table
+        (("scene",), "level", "two"),  # a wrong type
+        (("scene",), "level", -1),  # out of range
+        (("scene",), "plugin", "nosuch"),  # an unknown plug-in
+        (("bodies", "block", "geometry"), "kind", "sphere"),  # an unknown geometry kind
+        (("bodies", "block", "geometry"), "cells", [1]),  # a pair of one
+    ],
+)
+def test_a_scene_with_an_unknown_key_or_a_wrong_value_does_not(validator, where, key, value):
+    data = tomllib.loads((SCENES_DIR / "rigid_foundation.toml").read_text())
+    bad = copy.deepcopy(data)
+    node = bad
+    for k in where:
+        node = node[k]
+    node[key] = value
+    assert validator.is_valid(data) and not validator.is_valid(bad)
+
+
+def test_each_plugin_contributes_its_section(validator):
+    defs = validator.schema["$defs"]
+    for name in ("PiezoScene", "ObstacleScene", "AntiplaneScene", "SignoriniScene"):
+        assert {"$ref": f"#/$defs/{name}"} in validator.schema["oneOf"]
+        assert defs[name]["additionalProperties"] is False
+    kinds = defs["PiezoScene"]  # the geometry union is told apart by kind
+    assert "bodies" in kinds["properties"]
+
+
+def test_validate_checks_without_solving(tmp_path):
+    rc, out, err = _run("validate", "rigid_foundation")
+    assert rc == 0 and "valid piezo_contact scene" in out and err == ""
+    rc, out, err = _run("validate", "rigid_foundation", "--set", "contact.g='sin(x, y)'")
+    assert rc == 2 and "contact.g" in err and "--set contact.g=" in err and out == ""
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_validate_notes_a_format_1_scene_once(tmp_path):
+    text = (SCENES_DIR / "obstacle.toml").read_text().replace("format = 2", "")
+    p = tmp_path / "old.toml"
+    p.write_text(text)
+    rc, out, err = _run("validate", str(p))
+    assert rc == 0 and err.count("\n") == 1 and "format-1" in err and "deprecated" in err
