@@ -108,6 +108,30 @@ def test_a_misspelt_boundary_lists_the_file_s_curves(tmp_path):
         pc.build(scene, 0)
 
 
+def test_a_misspelt_body_boundary_is_named_by_its_field_after_meshing(tmp_path):
+    """A file's parts are known only once read (BOUNDARIES None): the check after meshing
+    names the field; without it the KeyError of the assembly would be an internal error."""
+    block = rectangle((0.0, 2.0), (0.0, 1.0), (4, 2), "quad")
+    scene = _imported("rigid_foundation", {"block": block}, tmp_path)
+    scene.data["bodies"]["block"]["displacement"][0]["boundary"] = "tpo"
+    with pytest.raises(SceneError, match="bottom, left, right, top") as err:
+        pc.build(scene, 0)
+    assert err.value.key == "bodies.block.displacement[0].boundary"
+
+
+def test_mutation_without_the_check_after_meshing_the_name_reaches_the_assembly(
+    tmp_path, monkeypatch
+):
+    from problems.plugins import bodies
+
+    monkeypatch.setattr(bodies, "check_meshed", lambda mesh, refs: None)
+    block = rectangle((0.0, 2.0), (0.0, 1.0), (4, 2), "quad")
+    scene = _imported("rigid_foundation", {"block": block}, tmp_path)
+    scene.data["bodies"]["block"]["displacement"][0]["boundary"] = "tpo"
+    with pytest.raises(KeyError):
+        pc.build(scene, 0)
+
+
 def test_a_contact_boundary_of_two_pieces_is_refused(tmp_path):
     m = rectangle((0.0, 2.0), (0.0, 1.0), (4, 2), "quad")
     parts = dict(m.boundaries)
