@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import Discriminator, Field, Tag, ValidationInfo, model_validator
+from pydantic import BeforeValidator, Discriminator, Field, Tag, ValidationInfo, model_validator
 
 from fem.boundary import trace
 from fem.mesh import Mesh
@@ -167,6 +167,17 @@ def _tag(v: Any) -> str | None:
     return getattr(v, "kind", None)
 
 
+def _known_kind(v: Any) -> Any:
+    """An unknown `kind` is refused at `kind` (the union's own error would name the table)."""
+    if isinstance(v, dict) and "kind" in v and v["kind"] not in KINDS:
+        raise refuse(
+            ["kind"],
+            v["kind"],
+            "one of " + ", ".join(KINDS) + " (or a file: mesh = FILE or geo = FILE.geo)",
+        )
+    return v
+
+
 # The geometry kinds, told apart by `kind` (a file by its `mesh` or `geo` key): add a kind by
 # adding a Section with a `kind` literal, BOUNDARIES (None: known only once meshed) and
 # mesh(level) to this union.
@@ -183,6 +194,7 @@ Geometry = Annotated[
         custom_error_message="a table with kind = " + " | ".join(KINDS) + ", or with mesh = "
         "FILE or geo = FILE.geo (and body = GROUP)",
     ),
+    BeforeValidator(_known_kind),
 ]
 GEOMETRIES = (*KINDS, "mesh", "geo")
 UNION_TAGS.update(("geometry", k) for k in GEOMETRIES)
