@@ -20,6 +20,9 @@ keeps the best-conditioned ones.
 when every entry of J and W (block diagonal, blocks of Λ) is structurally present, explicit
 zeros kept: its pattern is the same at every step whatever the active set, so PARDISO analyses
 it once per solve (`linalg.Refactorizer`; `info["symbolic_analyses"]`).
+
+**Iterative path.** linear_solver="amg" solves the condensed steps inexactly with GMRES and
+algebraic multigrid (`vi_core.krylov`: forcing terms, hierarchy reuse, direct fallback).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from .krylov import LINEAR_SOLVERS, KrylovSolver, forcing_term, thread_settings
 from .linalg import Refactorizer, condition_estimate, resolve_backend
 from .problem import MixedVI, natural_residual
 from .solution import Solution
@@ -126,13 +130,18 @@ def _on_pattern(M: sp.spmatrix, pattern: sp.csr_matrix) -> sp.csr_matrix:
 class _Stepper:
     """Computes Newton iterates (u⁺, λ⁺) for the equilibrated VI `e`."""
 
-    def __init__(self, e: MixedVI, condense: bool, linear_solver: str):
+    def __init__(self, e: MixedVI, condense: bool, linear_solver: str, tol: float = 0.0):
         self.e = e
         self.linear_solver = linear_solver
-        self.factorize = Refactorizer(linear_solver)
+        iterative = linear_solver == "amg"
+        self.factorize = Refactorizer("auto" if iterative else linear_solver)
         self.last = None  # factorisation of the last Newton matrix
         self.nnz: list[int] = []  # nonzeros stored in each Newton matrix (constant)
         self.cond = Condensation.detect(e.B) if condense else None
+        self.tol = tol
+        self.krylov = None  # the iterative path (condensed steps only)
+        if iterative and self.cond is not None:
+            self.krylov = KrylovSolver(self.cond.R, self.cond.S, e.fields, e.near_null)
         G = _block_structure(e.Lambda.block_sizes())  # (m, m) structure of J and W
         if self.cond is not None:
             c = self.cond
@@ -156,8 +165,9 @@ class _Stepper:
             )
         self.pattern.sort_indices()
 
-    def step(self, J, W, rhs_c):
-        """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c."""
+    def step(self, J, W, rhs_c, guess=None, forcing=0.0):
+        """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c (iterative path: from u⁺ = guess, to
+        the relative linear residual `forcing`, see `krylov.KrylovSolver`)."""
         e = self.e
         if self.cond is None:
             K = _on_pattern(sp.bmat([[e.A, e.B.T], [-J @ e.B, W]], format="csr"), self.pattern)
@@ -173,8 +183,12 @@ class _Stepper:
         K = _on_pattern(self.P @ sp.vstack([self.K_R, K_S], format="csr"), self.pattern)
         self.nnz.append(K.nnz)
         rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])
-        self.last = self.factorize(K)
-        u_new = self.last(rhs)
+        u_new = None
+        if self.krylov is not None:
+            u_new, _ = self.krylov(K, rhs, guess, forcing, self.tol)
+        if u_new is None:  # direct, or the Krylov solve's fallback
+            self.last = self.factorize(K)
+            u_new = self.last(rhs)
         lam_new = c.Dt_inv @ (self.f_S - self.A_S @ u_new)
         return u_new, lam_new
 
@@ -202,7 +216,11 @@ def solve_ssn(
     sc = vi.scaling
     u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
-    stepper = _Stepper(e, condense=condense, linear_solver=linear_solver)
+    if linear_solver not in LINEAR_SOLVERS:
+        raise ValueError(
+            f"linear solver {linear_solver!r} unknown; allowed: {', '.join(LINEAR_SOLVERS)}"
+        )
+    stepper = _Stepper(e, condense=condense, linear_solver=linear_solver, tol=tol)
     Lam = e.Lambda
 
     res = natural_residual(e, u, lam).relative
@@ -210,6 +228,7 @@ def solve_ssn(
     damped = 0
     converged = res <= tol
     k = 0
+    eta = None  # forcing term of the last inexact step (iterative path)
     while not converged and k < max_iter:
         k += 1
         y = lam + e.B @ u - e.gap
@@ -217,7 +236,9 @@ def solve_ssn(
         J = Lam.jacobian(y)
         W = sp.identity(e.m, format="csr") - J
         rhs_c = p - J @ y - J @ e.gap
-        u_new, lam_new = stepper.step(J, W, rhs_c)
+        if stepper.krylov is not None:
+            eta = forcing_term(res, history[-2] if k > 1 else None, eta, tol)
+        u_new, lam_new = stepper.step(J, W, rhs_c, guess=u, forcing=eta)
         du, dl = u_new - u, lam_new - lam
         t, best = 1.0, None
         while True:
@@ -257,11 +278,18 @@ def solve_ssn(
             "condensed": stepper.cond is not None,
             "damped_steps": damped,
             "inside": inner,  # coordinates with λ + Bu − gap strictly inside Λ
-            "linear_solver": resolve_backend(linear_solver, e.n),
+            "linear_solver": linear_solver
+            if stepper.krylov is not None
+            else resolve_backend("auto" if linear_solver == "amg" else linear_solver, e.n),
+            "threads": thread_settings(),
             "newton_nnz": sorted(set(stepper.nnz)),  # one value: the pattern is fixed
             "symbolic_analyses": stepper.factorize.analyses,
         },
     )
+    if stepper.krylov is not None:
+        sol.info.update(stepper.krylov.info())
+    elif linear_solver == "amg":
+        sol.info["fallback"] = [{"step": None, "reason": "not condensable: direct solves"}]
     if estimate_condition and stepper.last is not None:
         sol.info["condition_estimate"] = condition_estimate(stepper.last)
     if not converged:

@@ -34,6 +34,7 @@ from vi_core import Box, MixedVI, NonNegative, Solution, product
 
 from .bodies import Body, build_body
 from .contract import complementarity_defect, read_head, read_solver
+from .fields import field_data
 
 NAME = "signorini"
 DESCRIPTION = "elastic body in unilateral contact with a rigid obstacle, Tresca friction"
@@ -124,6 +125,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
         gap=gap,
         X=body.X[free][:, free],
         info={"scene": scene.name, "level": level},
+        **field_data([body], free, body.size),  # for the iterative linear path
     )
     return Model(scene, level, body, vi, free, body.values, tr, B_full, gap_n, gw, options)
 
