@@ -37,9 +37,11 @@ from __future__ import annotations
 
 import os
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -109,6 +111,8 @@ class BlockAMG:
         self.blocks: list[FieldBlock] = []
         for name, mask, nn in fields:
             index = np.flatnonzero(mask)
+            if index.size == 0:
+                continue
             Kf = K_RR[index][:, index]
             sym = ((Kf + Kf.T) * 0.5).tocsr()
             kw = {} if nn is None else {"B": np.asarray(nn, float).reshape(index.size, -1)}
@@ -223,9 +227,18 @@ class KrylovSolver:
             if cycles == self.max_cycles:
                 record["fallback"] = f"no convergence in {cycles} FGMRES({self.restart}) cycles"
                 break
-            x, _ = fgmres(
-                K, b, x0=x, tol=target / nb, restart=self.restart, maxiter=1, M=M, callback=count
-            )
+            with warnings.catch_warnings():  # a (near) breakdown is judged by the residual below
+                warnings.simplefilter("ignore", sla.LinAlgWarning)
+                x, _ = fgmres(
+                    K,
+                    b,
+                    x0=x,
+                    tol=target / nb,
+                    restart=min(self.restart, self.n),
+                    maxiter=1,
+                    M=M,
+                    callback=count,
+                )
             cycles += 1
             new = float(np.linalg.norm(b - K @ x))
             if new > 0.9 * res and new > target:

@@ -67,6 +67,7 @@ def _solve(args, t0, scene, plugin, level, folder) -> int:
         raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
     tol = args.tol if args.tol is not None else model.options.get("tol", 1e-10)
     nested = []
+    linear = {"linear_solver": args.linear_solver}
     warm = {}
     if method == "ssn" and hasattr(plugin, "warm_start") and model.level > 0 and not args.cold:
         # nested iteration: solve levels 0 … L−1 first, each warm-starting the next
@@ -74,13 +75,13 @@ def _solve(args, t0, scene, plugin, level, folder) -> int:
         for lev in range(model.level):
             coarse = plugin.build(scene, lev)
             kw = plugin.warm_start(*prev, coarse) if prev else {}
-            csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **kw)
+            csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **linear, **kw)
             nested.append({"level": lev, "iterations": csol.iterations, "time_s": csol.time})
             prev = (coarse, csol)
         warm = plugin.warm_start(*prev, model)
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
         warm["estimate_condition"] = True
-    sol = vi_core.solve(model.vi, method=method, tol=tol, **warm)
+    sol = vi_core.solve(model.vi, method=method, tol=tol, **linear, **warm)
     if nested:
         nested.append({"level": model.level, "iterations": sol.iterations, "time_s": sol.time})
     out = folder.path
@@ -92,6 +93,7 @@ def _solve(args, t0, scene, plugin, level, folder) -> int:
             "plugin": plugin.NAME,
             "level": model.level,
             "solver": method,
+            "linear_solver": args.linear_solver,  # as asked; solver_info: what ran
             "tol": tol,
             "dofs": model.dofs,
             "converged": sol.converged,
@@ -132,6 +134,14 @@ def _solve(args, t0, scene, plugin, level, folder) -> int:
     if c:
         extra = f"; mortar patch defect {defect:.1e}" if defect is not None else ""
         print(f"  contact nodes {c['nodes']}: stick {c['stick']}, slip {c['slip']}{extra}")
+    if "krylov_iterations" in sol.info:
+        fb = sol.info["fallback"]
+        print(
+            "  linear solver amg: Krylov iterations per Newton step "
+            f"{sol.info['krylov_iterations']}"
+            f", {len(fb)} direct fallback(s)"
+            + "".join(f"; step {f['step']}: {f['reason']}" for f in fb)
+        )
     print(f"  time {summary['time_s']['total']:.2f} s; wrote {out}/")
     for w in summary["warnings"]:
         print(f"  warning: {w}")
