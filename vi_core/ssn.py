@@ -37,6 +37,7 @@ import scipy.sparse as sp
 from .krylov import LINEAR_SOLVERS, KrylovSolver, forcing_term, thread_settings
 from .linalg import Refactorizer, condition_estimate, resolve_backend
 from .problem import MixedVI, natural_residual
+from .sets import Free
 from .solution import Solution
 
 
@@ -229,6 +230,7 @@ def solve_ssn(
     converged = res <= tol
     k = 0
     eta = None  # forcing term of the last inexact step (iterative path)
+    linear = all(isinstance(b, Free) for b in Lam.blocks())
     while not converged and k < max_iter:
         k += 1
         y = lam + e.B @ u - e.gap
@@ -237,7 +239,9 @@ def solve_ssn(
         W = sp.identity(e.m, format="csr") - J
         rhs_c = p - J @ y - J @ e.gap
         if stepper.krylov is not None:
-            eta = forcing_term(res, history[-2] if k > 1 else None, eta, tol)
+            eta = forcing_term(res, history[-2] if k > 1 else None, tol)
+            if linear:  # Λ = Rᵐ: the first Newton step is the solution, solve it to tol at once
+                eta = min(eta, 0.1 * tol / res)
         u_new, lam_new = stepper.step(J, W, rhs_c, guess=u, forcing=eta)
         du, dl = u_new - u, lam_new - lam
         t, best = 1.0, None

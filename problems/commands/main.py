@@ -118,6 +118,7 @@ def parser() -> argparse.ArgumentParser:
 # reaches the option's own check, which names the option and what is allowed
 VALUE_OPTIONS = {"--level", "--levels", "--tol", "--tols", "--timeout", "--only", "--scenes"}
 VALUE_OPTIONS |= {"--solvers", "--solver", "--json", "--out", "--accuracy", "--linear-solver"}
+VALUE_OPTIONS |= {"--linear-solvers"}
 
 
 def _glue_values(argv: list[str]) -> list[str]:
