@@ -34,7 +34,14 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from .krylov import LINEAR_SOLVERS, KrylovSolver, forcing_term, thread_settings
+from .krylov import (
+    ETA_MAX,
+    ETA_MAX_WARM,
+    LINEAR_SOLVERS,
+    KrylovSolver,
+    forcing_term,
+    thread_settings,
+)
 from .linalg import Refactorizer, condition_estimate, resolve_backend
 from .problem import MixedVI, natural_residual
 from .sets import Free
@@ -231,6 +238,7 @@ def solve_ssn(
     k = 0
     eta = None  # forcing term of the last inexact step (iterative path)
     linear = all(isinstance(b, Free) for b in Lam.blocks())
+    eta_max = ETA_MAX if u0 is None and lam0 is None else ETA_MAX_WARM
     while not converged and k < max_iter:
         k += 1
         y = lam + e.B @ u - e.gap
@@ -239,7 +247,7 @@ def solve_ssn(
         W = sp.identity(e.m, format="csr") - J
         rhs_c = p - J @ y - J @ e.gap
         if stepper.krylov is not None:
-            eta = forcing_term(res, history[-2] if k > 1 else None, tol)
+            eta = forcing_term(res, history[-2] if k > 1 else None, tol, eta_max)
             if linear:  # Λ = Rᵐ: the first Newton step is the solution, solve it to tol at once
                 eta = min(eta, 0.1 * tol / res)
         u_new, lam_new = stepper.step(J, W, rhs_c, guess=u, forcing=eta)
