@@ -187,10 +187,12 @@ class OutputFolder:
                 "which no mixvi run wrote (choose another folder, or pass --overwrite to "
                 "write mixvi's files beside it: mixvi never deletes a file it did not write)",
             )
-        self.created = _create_dirs(path, option)
+        self.created: list[Path] = []
         self._lock_fd: int | None = None
         self.committed = False
         try:
+            with deferred():  # a signal right after mkdir must still find what to remove
+                self.created = _create_dirs(path, option)
             self._lock()
             self._probe()
         except BaseException:
@@ -198,6 +200,10 @@ class OutputFolder:
             raise
 
     def _lock(self) -> None:
+        with deferred():  # a signal before the lock is recorded would leave the lock file
+            self._take_lock()
+
+    def _take_lock(self) -> None:
         lock = self.path / LOCK
         while True:
             try:
@@ -233,12 +239,13 @@ class OutputFolder:
         """Create and remove a file: catches read-only and virtual file systems before work."""
         probe = self.path / f"{STAGING}probe-{os.getpid()}"
         try:
-            fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-            try:
-                os.write(fd, b"mixvi")
-            finally:
-                os.close(fd)
-            probe.unlink()
+            with deferred():  # a signal between create and unlink would leave the probe
+                fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+                try:
+                    os.write(fd, b"mixvi")
+                finally:
+                    os.close(fd)
+                probe.unlink()
         except OSError as err:
             with suppress(OSError):
                 probe.unlink()
@@ -249,20 +256,26 @@ class OutputFolder:
     @contextmanager
     def staging(self) -> Iterator[Path]:
         """A fresh folder to write into; on normal exit its files are committed."""
+        tmp = Path(os.path.join(self.path, f"{STAGING}{os.getpid()}-{os.urandom(4).hex()}"))
+        made = False
         try:
-            tmp = Path(os.path.join(self.path, f"{STAGING}{os.getpid()}-{os.urandom(4).hex()}"))
-            tmp.mkdir()
-        except OSError as err:
-            raise _refuse(
-                self.option, self.path, f"a folder mixvi can write ({_reason(err)})"
-            ) from None
-        try:
+            # a signal right after mkdir must still find the folder to remove: the mkdir is a
+            # deferred section inside the try whose finally removes it
+            with deferred():
+                try:
+                    tmp.mkdir()
+                except OSError as err:
+                    raise _refuse(
+                        self.option, self.path, f"a folder mixvi can write ({_reason(err)})"
+                    ) from None
+                made = True
             yield tmp
             with deferred():
                 self._commit(tmp)
         finally:
-            with deferred():
-                shutil.rmtree(tmp, ignore_errors=True)
+            if made:
+                with deferred():
+                    shutil.rmtree(tmp, ignore_errors=True)
 
     def _commit(self, tmp: Path) -> None:
         new = _files(tmp)
@@ -351,8 +364,9 @@ class OutputFile:
         self.written = False
         probe = path.parent / f"{STAGING}probe-{os.getpid()}"
         try:
-            os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-            probe.unlink()
+            with deferred():  # a signal between create and unlink would leave the probe
+                os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+                probe.unlink()
         except OSError as err:
             with suppress(OSError):
                 probe.unlink()

@@ -10,6 +10,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import shutil
 import signal
 import stat
 
@@ -233,6 +234,59 @@ def test_signal_during_the_commit_is_deferred_until_it_is_complete(tmp_path, mon
     assert not [p for p in os.listdir(out) if p.startswith(files.STAGING)]
 
 
+def timeless(root) -> dict:
+    """`tree(root)` with the marker's time stamp taken out."""
+    out = tree(root)
+    for name, (data, mode) in out.items():
+        if name.endswith(MARKER):
+            marker = json.loads(data)
+            marker.pop("time")
+            out[name] = (marker, mode)
+    return out
+
+
+@pytest.mark.parametrize("call", ["mkdir", "open"])
+def test_a_signal_right_after_any_creation_leaves_nothing_behind(tmp_path, monkeypatch, call):
+    """SIGINT delivered right after the k-th folder or file creation of a run (output folder,
+    lock, probe, staging folder, temporary file), for every k: the run is interrupted and the
+    tree is as before (the run's own folder gone again, the previous run byte-identical), or,
+    when the signal came during the commit, as after a complete run."""
+    signals.install()
+    patched = (files.os, "open") if call == "open" else (files.Path, "mkdir")
+    real = getattr(*patched)
+    for previous in (False, True):
+        base, root, clean = (tmp_path / f"{name}{previous}" for name in ("base", "root", "clean"))
+        base.mkdir()
+        if previous:
+            run(base / "o", {"summary.json": "1", "a.png": "a"})
+        shutil.copytree(base, clean)
+        run(clean / "o", {"summary.json": "2", "b.png": "b"})
+        before, after = timeless(base), timeless(clean)
+        for k in range(1, 50):
+            shutil.rmtree(root, ignore_errors=True)
+            shutil.copytree(base, root)
+            count = [0]
+
+            def then_signal(*args, count=count, k=k, **kw):
+                result = real(*args, **kw)
+                count[0] += 1
+                if count[0] == k:
+                    os.kill(os.getpid(), signal.SIGINT)
+                return result
+
+            with monkeypatch.context() as m:
+                m.setattr(*patched, then_signal)
+                try:
+                    run(root / "o", {"summary.json": "2", "b.png": "b"})
+                except signals.Interrupted:
+                    assert timeless(root) in (before, after), (call, previous, k)
+                    continue
+            assert count[0] < k  # no signal was sent: every creation point was tried
+            break
+        else:
+            pytest.fail("more than 49 creations in one run")
+
+
 # ------------------------------------------------------------------ mutation tests
 CAUGHT = (AssertionError, pytest.fail.Exception)
 
@@ -261,3 +315,23 @@ def test_mutation_stale_files_not_removed_is_caught(tmp_path, monkeypatch):
     monkeypatch.setattr(files.OutputFolder, "_commit", keep_previous)
     with pytest.raises(CAUGHT):
         test_second_run_removes_only_its_predecessors_files(tmp_path)
+
+
+def test_mutation_staging_mkdir_outside_the_cleanup_is_caught(tmp_path, monkeypatch):
+    """The staging folder made before the try whose finally removes it (the old code): a
+    signal right after its mkdir leaves it behind."""
+    import contextlib
+
+    @contextlib.contextmanager
+    def leaky_staging(self):
+        tmp = self.path / f"{files.STAGING}leak"
+        tmp.mkdir()
+        try:
+            yield tmp
+            self._commit(tmp)
+        finally:
+            files.shutil.rmtree(tmp, ignore_errors=True)
+
+    monkeypatch.setattr(files.OutputFolder, "staging", leaky_staging)
+    with pytest.raises(CAUGHT):
+        test_a_signal_right_after_any_creation_leaves_nothing_behind(tmp_path, monkeypatch, "mkdir")
