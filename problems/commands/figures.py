@@ -1,8 +1,15 @@
-"""`mixvi figures`: Fig. 5.4, the contact multiplier and jump for several friction bounds."""
+"""`mixvi figures`: the scene solved for each value of its plug-in's SWEEP, one panel each.
+
+The plug-in declares (contract v2) `SWEEP = Sweep(path, label, values | factors, file)`: the
+scene value at `path` is set to each of `values`, or to the scene's own value times each of
+`factors`, and `draw(ax, model, sol)` (default `contract.draw_multiplier`) draws each panel.
+For piezo_contact on the paper scene this is Fig. 5.4: g = 1.5e8, 1e8, 0.6e8 Pa.
+"""
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -11,44 +18,62 @@ from problems.errors import SceneError
 from problems.output import plots
 from problems.output.files import output_folder
 from problems.plugins import registry
-from problems.scene import load_scene
+from problems.plugins.contract import Sweep, draw_multiplier, needs
+from problems.scene import Scene, load_scene
 
 from . import resources
 from .options import DEFAULT_SCENE
 
 
-def cmd_figures(args: argparse.Namespace) -> int:
-    """Solve the scene for three friction bounds and plot them side by side."""
-    bounds = (1.5e8, 1.0e8, 0.6e8)
-    probe = load_scene(args.scene or DEFAULT_SCENE, args.set or [])
-    plugin = registry.for_scene(probe)
-    if not hasattr(plugin, "contact_state"):
+def sweep_values(sweep: Sweep, scene: Scene) -> list[float]:
+    """The values of the sweep: absolute, or the scene's number at `sweep.path` × factors."""
+    if sweep.values:
+        return [float(v) for v in sweep.values]
+    node = scene.data
+    for part in sweep.path.split("."):
+        node = node.get(part) if isinstance(node, dict) else None
+    if isinstance(node, bool) or not isinstance(node, int | float) or not math.isfinite(node):
         raise SceneError(
-            "scene.plugin",
-            getattr(plugin, "NAME", None),
-            "a contact plug-in with a friction bound contact.g (figures compares friction "
-            "bounds); this scene's plug-in has none",
+            sweep.path,
+            node,
+            f"a number (mixvi figures sweeps it by the factors {list(sweep.factors)}; "
+            f"set it with --set {sweep.path}=VALUE)",
+            scene.path,
         )
+    return [float(node) * f for f in sweep.factors]
+
+
+def cmd_figures(args: argparse.Namespace) -> int:
+    """Solve the scene for each value of the plug-in's SWEEP and plot them side by side."""
+    name = args.scene or DEFAULT_SCENE
+    probe = load_scene(name, args.set or [])
+    plugin = registry.for_scene(probe)
+    needs(plugin, "mixvi figures", "SWEEP")
+    sweep: Sweep = plugin.SWEEP
+    values = sweep_values(sweep, probe)
+    draw = getattr(plugin, "draw", draw_multiplier)
     level = args.level if args.level is not None else resources.default_level(plugin, probe)
     option = "--level" if args.level is not None else "scene.level"  # where the level came from
     resources.check_levels(plugin, probe, (level, level), option, str(level), args.force)
     out = Path(args.out) if args.out else Path("out") / f"{probe.name}_figures"
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
-        states = []
-        for g in bounds:
-            scene = load_scene(args.scene or DEFAULT_SCENE, [*(args.set or []), f"contact.g={g!r}"])
+        panels = []
+        for v in values:
+            scene = load_scene(name, [*(args.set or []), f"{sweep.path}={v!r}"])
             model = plugin.build(scene, level)
             sol = vi_core.solve(model.vi, method="ssn")
             if not sol.converged:
                 print(
-                    f"mixvi: g = {g:g} did not converge (residual {sol.residual:.2e})",
+                    f"mixvi: {sweep.path} = {v:g} did not converge (residual {sol.residual:.2e})",
                     file=sys.stderr,
                 )
                 return 1
-            states.append((g, plugin.contact_state(model, sol)))
-            st = states[-1][1]
-            print(f"g = {g:.2e}: stick {int((~st['slip']).sum())}, slip {int(st['slip'].sum())}")
+            panels.append((f"{sweep.label.split(' [')[0]} = {v:.3g}", model, sol))
         with folder.staging() as tmp:
-            plots.friction_comparison(states, tmp / "fig_5_4.png", title=probe.name)
-    print(f"wrote {out}/fig_5_4.png")
+            titles = plots.sweep_figure(
+                panels, draw, tmp / sweep.file, title=f"{probe.name}: {sweep.label}"
+            )
+    for t in titles:
+        print(t)
+    print(f"wrote {out}/{sweep.file}")
     return 0

@@ -94,7 +94,7 @@ def parser() -> argparse.ArgumentParser:
     sc.set_defaults(func=cmd_scenes)
     for name, fn, helptext in (
         ("check", cmd_check, "solve with every applicable method and compare"),
-        ("figures", cmd_figures, "Fig. 5.4: multiplier and jump for g = 1.5e8, 1e8, 0.6e8"),
+        ("figures", cmd_figures, "the scene for each value of its plug-in's SWEEP, one panel each"),
     ):
         c = sub.add_parser(name, help=helptext)
         c.add_argument("scene", nargs="?", help=f"scene (default {DEFAULT_SCENE})")

@@ -7,19 +7,21 @@ Defaults: levels 0..3, all three solvers, tolerances 1e-6, 1e-8, 1e-10.
 
 For each level, solver and tolerance it records the solve time (`Solution.time`, wall clock),
 the iterations, the peak memory (tracemalloc peak during the solve: numpy arrays and Python
-objects; native workspaces of SuperLU/PARDISO/Clarabel are not seen) and the errors of
-Theorem 4.1 (`problems.plugins.piezo_errors`): against the scene's `[exact]` table if it has one,
-otherwise against the finest level solved by the same solver at the tightest tolerance (that
-level's own records then carry only the solver error of looser tolerances, and rates are fitted
-over the levels below it).
+objects; native workspaces of SuperLU/PARDISO/Clarabel are not seen) and the error norms the
+plug-in declares (contract v2: `NORMS`, `mesh_size`, `reference_errors`, optionally
+`exact_errors`; for
+piezo_contact those of Theorem 4.1, `problems.plugins.piezo_errors`): against the scene's exact
+solution if it has one (`exact_errors` not None), otherwise against the finest level solved by
+the same solver at the tightest tolerance (that level's own records then carry only the solver
+error of looser tolerances, and rates are fitted over the levels below it).
 
 Output (committed into DIR, default out/SCENE_study, by problems.output.files): `study.json`
 
-    {"scene", "reference": "exact" | "level N",
+    {"scene", "plugin", "norms": [NORMS...], "reference": "exact" | "level N",
      "records": [{"level", "h", "unknowns", "solver", "tol", "time_s", "iterations",
-                  "err": {"u_H1", "phi_H1", "phi_L2", "lam"},
+                  "err": {norm: value for norm in NORMS},
                   "converged", "residual", "peak_mem_mb"}],
-     "rates": {"<solver>": {"u_H1", "phi_H1", "lam"}}}
+     "rates": {"<solver>": {norm: slope or null}}}
 
 (rates: slope of np.polyfit(log h, log err) over the last three levels with an error, at the
 tightest tolerance; null when fewer than two levels), `errors_vs_h.png` and
@@ -33,6 +35,7 @@ import json
 import math
 import tracemalloc
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -40,17 +43,16 @@ from tqdm import tqdm
 import vi_core
 from problems.errors import SceneError
 from problems.output.files import output_folder
-from problems.plugins import piezo_contact, registry
-from problems.plugins.piezo_errors import NORMS, exact_errors, reference_errors
+from problems.plugins import registry
+from problems.plugins.contract import needs
 from problems.scene import Scene, load_scene
-from problems.scene.exact import Exact, split_exact
 
 from . import options, resources
 from .options import level_range
 
 SOLVERS = ("ssn", "conic", "homotopy")
-RATE_NORMS = ("u_H1", "phi_H1", "lam")
 RATE_LEVELS = 3
+STUDY_NEEDS = ("NORMS", "mesh_size", "reference_errors")  # exact_errors: optional
 
 
 # ------------------------------------------------------------------ argument parsing
@@ -71,7 +73,7 @@ def parse_tols(text: str) -> list[float]:
 
 
 # ------------------------------------------------------------------ the study
-def _solve(model: piezo_contact.Model, solver: str, tol: float) -> tuple[vi_core.Solution, float]:
+def _solve(model: Any, solver: str, tol: float) -> tuple[vi_core.Solution, float]:
     """Solve and return (solution, tracemalloc peak in MB during the solve)."""
     tracemalloc.start()
     try:
@@ -82,25 +84,24 @@ def _solve(model: piezo_contact.Model, solver: str, tol: float) -> tuple[vi_core
     return sol, peak
 
 
-def _h(model: piezo_contact.Model) -> float:
-    return max(b.mesh.h for b in model.bodies)
-
-
 def run_study(
     scene: Scene,
     levels: list[int],
     solvers: list[str],
     tols: list[float],
     progress: bool = True,
+    plugin: Any = None,
 ) -> dict:
     """Solve every (level, solver, tol) and measure errors; returns the study.json content."""
-    scene, exact = split_exact(scene)
+    plugin = registry.for_scene(scene) if plugin is None else plugin
+    needs(plugin, "mixvi study", *STUDY_NEEDS)
+    exact_errors = getattr(plugin, "exact_errors", lambda model, sol: None)
     tols = sorted(tols, reverse=True)
-    records, runs = [], {}
+    records, runs, exact = [], {}, True
     bar = tqdm(total=len(levels) * len(solvers) * len(tols), disable=not progress, unit="solve")
     try:
         for level in levels:
-            model = piezo_contact.build(scene, level)
+            model = plugin.build(scene, level)
             for solver in solvers:
                 if solver == "conic" and model.vi.structure == "general":
                     raise SceneError(
@@ -110,26 +111,29 @@ def run_study(
                     bar.set_description(f"level {level} {solver} tol {tol:.0e}")
                     sol, peak = _solve(model, solver, tol)
                     runs[level, solver, tol] = (model, sol)
-                    records.append(_record(model, solver, tol, sol, peak, exact))
+                    err = exact_errors(model, sol)
+                    exact = exact and err is not None
+                    records.append(_record(plugin, model, solver, tol, sol, peak, err))
                     bar.update()
     finally:
         bar.close()
-    if exact is None:
-        _reference_errors(records, runs, max(levels), tols[-1])
+    if not exact:
+        _reference_errors(plugin, records, runs, max(levels), tols[-1])
     return {
         "scene": scene.name,
-        "reference": "exact" if exact is not None else f"level {max(levels)}",
+        "plugin": plugin.NAME,
+        "norms": list(plugin.NORMS),
+        "reference": "exact" if exact else f"level {max(levels)}",
         "records": records,
         # against the finest level, that level's own error is rounding: fit the levels below it
-        "rates": fit_rates(records, below=None if exact is not None else max(levels)),
+        "rates": fit_rates(records, None if exact else max(levels), plugin.NORMS),
     }
 
 
-def _record(model, solver: str, tol: float, sol, peak: float, exact: Exact | None) -> dict:
-    err = exact_errors(model, sol.u, sol.lam, exact) if exact is not None else None
+def _record(plugin, model, solver: str, tol: float, sol, peak: float, err: dict | None) -> dict:
     return {
         "level": model.level,
-        "h": _h(model),
+        "h": float(plugin.mesh_size(model)),
         "unknowns": model.vi.n + model.vi.m,
         "solver": solver,
         "tol": tol,
@@ -142,18 +146,20 @@ def _record(model, solver: str, tol: float, sol, peak: float, exact: Exact | Non
     }
 
 
-def _reference_errors(records: list[dict], runs: dict, finest: int, tight: float) -> None:
+def _reference_errors(plugin, records: list[dict], runs: dict, finest: int, tight: float) -> None:
     """Fill `err` of every record against its solver's finest-level, tightest-tol solution."""
     for r in records:
         ref, rsol = runs[finest, r["solver"], tight]
         model, sol = runs[r["level"], r["solver"], r["tol"]]
-        r["err"] = reference_errors(model, sol.u, sol.lam, ref, rsol.u, rsol.lam)
+        r["err"] = plugin.reference_errors(model, sol, ref, rsol)
 
 
-def fit_rates(records: list[dict], below: int | None = None) -> dict:
+def fit_rates(records: list[dict], below: int | None = None, norms=None) -> dict:
     """Per solver: slope of log err against log h over the last three levels with a positive
     error at the tightest tolerance (None if fewer than two such levels); with `below`, only
-    levels below it count (the reference level when errors are taken against the finest)."""
+    levels below it count (the reference level when errors are taken against the finest);
+    `norms` default: the error keys of the first record."""
+    norms = list(records[0]["err"]) if norms is None else norms
     tight = min(r["tol"] for r in records)
     if below is not None:
         records = [r for r in records if r["level"] < below]
@@ -164,7 +170,7 @@ def fit_rates(records: list[dict], below: int | None = None) -> dict:
             key=lambda r: r["level"],
         )
         rates[solver] = {}
-        for k in RATE_NORMS:
+        for k in norms:
             pts = [(r["h"], r["err"][k]) for r in rows if r["err"][k] > 0][-RATE_LEVELS:]
             if len(pts) < 2:
                 rates[solver][k] = None
@@ -179,14 +185,14 @@ def table(result: dict) -> str:
     """The records as a text table, with the observed rate against the previous level."""
     head = (
         f"{'level':>5} {'h':>9} {'unknowns':>9} {'solver':>9} {'tol':>7} {'it':>4} "
-        f"{'time[s]':>8} {'mem[MB]':>8} " + " ".join(f"{k:>9} {'rate':>5}" for k in NORMS)
+        f"{'time[s]':>8} {'mem[MB]':>8} " + " ".join(f"{k:>9} {'rate':>5}" for k in result["norms"])
     )
     lines = [head]
     prev: dict = {}
     for r in result["records"]:
         key = (r["solver"], r["tol"])
         cells = []
-        for k in NORMS:
+        for k in result["norms"]:
             e, p = r["err"][k], prev.get(key)
             ok = p is not None and e > 0 and p["err"][k] > 0
             rate = math.log(p["err"][k] / e) / math.log(p["h"] / r["h"]) if ok else None
@@ -240,14 +246,12 @@ def study_main(argv: list[str] | None = None) -> int:
     tols = parse_tols(args.tols)
     scene = load_scene(args.scene, args.set or [])
     plugin = registry.for_scene(scene)
-    if plugin is not piezo_contact:
-        raise SceneError(
-            "scene.plugin", plugin.NAME, "piezo_contact (the study measures Theorem 4.1's errors)"
-        )
+    needs(plugin, "mixvi study", *STUDY_NEEDS)
     resources.check_levels(plugin, scene, (a, b), "--levels", args.levels, args.force)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_study"
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
-        result = run_study(scene, list(range(a, b + 1)), solvers, tols, not args.no_progress)
+        levels = list(range(a, b + 1))
+        result = run_study(scene, levels, solvers, tols, not args.no_progress, plugin)
         write_outputs(result, folder)
     print(table(result))
     print(f"wrote {out}/")

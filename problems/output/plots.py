@@ -74,23 +74,34 @@ def potential_plot(
     return "potential.png"
 
 
-def friction_comparison(states: list[tuple[float, dict]], path: Path, title: str = "") -> None:
-    """Fig. 5.4: λ·τ and the tangential jump along Γ3, one panel per friction bound g."""
-    fig, axes = plt.subplots(1, len(states), figsize=(5 * len(states), 4), sharey=True)
-    for ax, (g, st) in zip(np.atleast_1d(axes), states, strict=True):
-        _shade_slip(ax, st["s"], st["slip"])
-        ax.plot(st["s"], st["lam_t"], "o-", ms=2, label=r"$\lambda\cdot\tau$")
-        ax.axhline(g, color="k", ls="--", lw=1, label=r"$\pm g$")
-        ax.axhline(-g, color="k", ls="--", lw=1)
-        ax.set_xlabel("arc length along $\\Gamma_3$ [m]")
-        ax2 = ax.twinx()
-        ax2.plot(st["s"], st["jump_t"], "s-", ms=2, color="tab:orange", label=r"$[u]\cdot\tau$")
-        ax2.set_ylabel(r"$[u]\cdot\tau$ [m]", color="tab:orange")
-        n_slip = int(st["slip"].sum())
-        ax.set_title(f"g = {g:.2g} Pa: stick {st['slip'].size - n_slip}, slip {n_slip}")
-    np.atleast_1d(axes)[0].set_ylabel(r"$\lambda\cdot\tau$ [Pa]")
-    np.atleast_1d(axes)[0].legend(loc="best", fontsize=8)
+def friction_panel(ax, st: dict) -> str:
+    """One panel of a friction sweep: λ·τ with ±g and the slip zones, and the tangential jump
+    on a twin axis (`st` in the layout of `contact_plots`); returns "stick N, slip M"."""
+    _shade_slip(ax, st["s"], st["slip"])
+    ax.plot(st["s"], st["lam_t"], "o-", ms=2, label=r"$\lambda\cdot\tau$")
+    ax.plot(st["s"], st["g"], "k--", lw=1, label=r"$\pm g$")
+    ax.plot(st["s"], -st["g"], "k--", lw=1)
+    ax.set_xlabel("arc length along $\\Gamma_3$ [m]")
+    ax.set_ylabel(r"$\lambda\cdot\tau$ [Pa]")
+    ax2 = ax.twinx()
+    ax2.plot(st["s"], st["jump_t"], "s-", ms=2, color="tab:orange", label=r"$[u]\cdot\tau$")
+    ax2.set_ylabel(r"$[u]\cdot\tau$ [m]", color="tab:orange")
+    ax.legend(loc="best", fontsize=8)
+    n_slip = int(st["slip"].sum())
+    return f"stick {st['slip'].size - n_slip}, slip {n_slip}"
+
+
+def sweep_figure(panels: list, draw, path: Path, title: str = "") -> list[str]:
+    """One panel per (heading, model, sol) of `panels`, each drawn by draw(ax, model, sol),
+    which returns a note appended to the heading; returns the panels' titles."""
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4), squeeze=False)
+    titles = []
+    for ax, (heading, model, sol) in zip(axes[0], panels, strict=True):
+        note = draw(ax, model, sol)
+        titles.append(f"{heading}: {note}" if note else heading)
+        ax.set_title(titles[-1], fontsize=9)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+    return titles

@@ -29,8 +29,15 @@ def plot_errors_vs_h(result: dict, path: Path) -> None:
     reference slopes h¹ and h^{1/2} through the coarsest point."""
     tight = min(r["tol"] for r in result["records"])
     solvers = list(dict.fromkeys(r["solver"] for r in result["records"]))
-    fig, axes = plt.subplots(2, 2, figsize=(10, 8), constrained_layout=True)
-    for ax, k in zip(axes.ravel(), LABELS, strict=True):
+    norms = result["norms"]
+    cols = min(len(norms), 2)
+    rows_ = -(-len(norms) // cols)
+    fig, axes = plt.subplots(
+        rows_, cols, figsize=(5 * cols, 4 * rows_), constrained_layout=True, squeeze=False
+    )
+    for ax in axes.ravel()[len(norms) :]:
+        ax.set_visible(False)
+    for ax, k in zip(axes.ravel(), norms, strict=False):
         anchor = None
         for solver in solvers:
             rows = [r for r in _series(result, solver, tight) if r["err"][k] > 0]
@@ -44,7 +51,7 @@ def plot_errors_vs_h(result: dict, path: Path) -> None:
             for p, style in ((1.0, "k--"), (0.5, "k:")):
                 ax.loglog(h, e0 * (h / h[0]) ** p, style, label=f"$h^{{{p:g}}}$")
         ax.set_xlabel("mesh size h [m]")
-        ax.set_ylabel(LABELS[k])
+        ax.set_ylabel(LABELS.get(k, k))
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(
@@ -56,12 +63,16 @@ def plot_errors_vs_h(result: dict, path: Path) -> None:
 
 
 def plot_errors_vs_time(result: dict, path: Path) -> None:
-    """(b) the speed/accuracy front: u and λ errors against solve time, every level and
-    tolerance, one marker per solver (lines join the levels of one tolerance)."""
+    """(b) the speed/accuracy front: the first error norm and the last (for piezo_contact u and
+    λ) against solve time, every level and tolerance, one marker per solver (lines join the
+    levels of one tolerance)."""
     solvers = list(dict.fromkeys(r["solver"] for r in result["records"]))
     tols = sorted({r["tol"] for r in result["records"]}, reverse=True)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
-    for ax, k in zip(axes, ("u_H1", "lam"), strict=True):
+    shown = list(dict.fromkeys([result["norms"][0], result["norms"][-1]]))
+    fig, axes = plt.subplots(
+        1, len(shown), figsize=(5.5 * len(shown), 4.5), constrained_layout=True, squeeze=False
+    )
+    for ax, k in zip(axes[0], shown, strict=True):
         for i, solver in enumerate(solvers):
             color = f"C{i}"
             for j, tol in enumerate(tols):
@@ -76,7 +87,7 @@ def plot_errors_vs_time(result: dict, path: Path) -> None:
                     label=f"{solver} tol {tol:g}",
                 )
         ax.set_xlabel("solve time [s] (wall clock)")
-        ax.set_ylabel(LABELS[k])
+        ax.set_ylabel(LABELS.get(k, k))
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle(f"{result['scene']}: speed/accuracy (errors against {result['reference']})")

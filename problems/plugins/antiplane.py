@@ -33,13 +33,17 @@ from problems.scene.geometry import make_mesh
 from vi_core import Box, MixedVI, Solution
 
 from .contract import (
+    ExtremeRow,
+    Sweep,
     complementarity_defect,
+    expect,
     read_boundaries,
     read_dirichlet,
     read_exact,
     read_head,
     read_solver,
 )
+from .transfer import nodal_reference_errors
 
 NAME = "antiplane"
 DESCRIPTION = "antiplane shear −μΔw = f with Tresca friction on a rigid foundation (scalar)"
@@ -174,3 +178,57 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     if model.exact is not None:
         summary["errors"] = model.errors(sol)
     return summary
+
+
+# ------------------------------------------------------------------ contract v2 declarations
+CONTRACT = 2
+SWEEP = Sweep("friction.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6))
+NORMS = ("h1", "l2")
+
+
+def draw(ax, model: Model, sol: Solution) -> str:
+    """A panel of `mixvi figures`: λ with ±g, slip zones and w along Γ3."""
+    return plots.friction_panel(ax, contact_state(model, sol))
+
+
+def mesh_size(model: Model) -> float:
+    """h of the built level."""
+    return model.mesh.h
+
+
+def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
+    """|w − w_h|_H1 and ‖w − w_h‖_L2 against the scene's [exact] table (None without one)."""
+    if model.exact is None:
+        return None
+    err = model.errors(sol)
+    return {k: err[k] for k in NORMS}
+
+
+def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
+    """‖w_h − w_ref‖ in H¹ and L² against the finer level `ref`."""
+    return nodal_reference_errors(model.mesh, model.full(sol.u), ref.mesh, ref.full(ref_sol.u))
+
+
+def _counts(model: Model, sol: Solution) -> dict[str, int]:
+    slip = contact_state(model, sol)["slip"]
+    return {"stick": int((~slip).sum()), "slip": int(slip.sum())}
+
+
+def extremes() -> list[ExtremeRow]:
+    """g = 0 (everything slips) and g × 1e6 (everything sticks)."""
+    return [
+        ExtremeRow(
+            "g = 0 (frictionless)",
+            "antiplane",
+            ["friction.g=0.0"],
+            level=0,
+            checks=(expect(_counts, stick=0),),
+        ),
+        ExtremeRow(
+            "g × 1e6 (tied)",
+            "antiplane",
+            ["friction.g=8e11"],
+            level=0,
+            checks=(expect(_counts, slip=0),),
+        ),
+    ]

@@ -1,11 +1,35 @@
-"""The plug-in contract: what `mixvi` expects from a problem module and from the model it builds.
+"""The plug-in contract (version CONTRACT = 2): what `mixvi` expects from a problem module and
+from the model it builds.
 
 A plug-in is one module (or any object) with
 
+    CONTRACT: int = 2                          the contract version it is written against
+                                               (checked at registration: 1 or missing → refused
+                                               with the list of what changed, docs/plugins.md)
     NAME: str                                  the name scenes use: [scene] plugin = NAME
     DESCRIPTION: str                           one line for listings
     build(scene, level) -> Model               scene (TOML) → assembled mixed VI
     postprocess(model, sol, outdir) -> dict    solution → files in outdir + summary entries
+
+and, optionally, what the other commands need (a command refuses a plug-in without the
+declaration it needs with exit status 2, naming the declaration):
+
+    SWEEP: Sweep                               `mixvi figures`: the scene parameter swept, its
+                                               values (absolute or factors of the scene's value),
+                                               its label with units, the figure's file name
+    draw(ax, model, sol) -> str                `mixvi figures`: one panel of the sweep, returns
+                                               the panel's note (default: `draw_multiplier`,
+                                               the multiplier and slack per constraint row)
+    NORMS: tuple[str, ...]                     `mixvi study`: names of the error norms, in the
+                                               order they are printed (the first ones fitted)
+    mesh_size(model) -> float                  `mixvi study`: h of the built level
+    exact_errors(model, sol) -> dict | None    `mixvi study`: the NORMS against the scene's exact
+                                               solution (None: the scene has none)
+    reference_errors(model, sol, ref, ref_sol) `mixvi study`: the NORMS against the solution of a
+                         -> dict               finer level `ref` of the same scene
+    extremes() -> list[ExtremeRow]             `mixvi extremes`: this plug-in's extreme rows
+    warm_start(coarse, coarse_sol, fine)       `mixvi solve`, `bench`: nested iteration's
+                         -> dict               initial guess (keyword arguments of solve)
 
 and the `Model` it returns carries
 
@@ -37,7 +61,8 @@ The helpers below are shared by the built-in scalar plug-ins and are free to use
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -45,7 +70,7 @@ import numpy as np
 
 from fem.mesh import Mesh
 from problems.errors import SceneError
-from problems.scene import Scene, Table
+from problems.scene import Scene, Table, load_scene
 from vi_core import MixedVI, Solution
 
 
@@ -77,16 +102,133 @@ class Plugin(Protocol):
         """Write result files into `outdir` and return summary entries (JSON-able)."""
 
 
+CONTRACT = 2
+"""The contract version this mixvi implements; a plug-in declares the one it is written for."""
+
+V1_TO_V2 = (
+    "declare CONTRACT = 2; optionally SWEEP (mixvi figures), NORMS, mesh_size, exact_errors, "
+    "reference_errors (mixvi study), extremes() (mixvi extremes) — see docs/plugins.md, "
+    "'From contract v1 to v2'"
+)
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """What `mixvi figures` sweeps: the scene value at `path` (dotted, as for --set) set to each
+    of `values`, or to the scene's own value times each of `factors` (exactly one is given);
+    `label` names the parameter with its units, e.g. "friction bound g [Pa]"."""
+
+    path: str
+    label: str
+    values: tuple[float, ...] = ()
+    factors: tuple[float, ...] = ()
+    file: str = "sweep.png"
+
+    def __post_init__(self) -> None:
+        if bool(self.values) == bool(self.factors):
+            raise ValueError(f"Sweep({self.path!r}): give exactly one of values and factors")
+
+
+Checks = Callable[[Any, "ExtremeRow", Any, Solution], tuple[dict, list[str]]]
+"""check(plugin, row, model, sol) -> (record entries, notes) of one extreme row."""
+
+
+@dataclass
+class ExtremeRow:
+    """One row of `mixvi extremes`: a scene pushed to extreme data, and what is checked.
+
+    The scene is the shipped one named `scene` with the `--set`-style `overrides` (and `edit`,
+    a direct change of the raw scene data where an override cannot delete a key), built at
+    `level`. Every row gets the generic checks of `mixvi extremes` (ssn's residual, agreement
+    with the conic and homotopy answers, λ ∈ Λ, the model's complementarity identity); each of
+    `checks` (`check(plugin, row, model, sol)`) adds record entries and notes (a note starting
+    with "FAIL" fails the row). `huge` rows run only with --huge.
+    """
+
+    name: str
+    scene: str
+    overrides: Sequence[str] = ()
+    level: int = 1
+    edit: Callable[[dict], None] | None = None
+    checks: Sequence[Checks] = ()
+    huge: bool = False
+    plugin: str = field(default="", compare=False)  # filled in by `mixvi extremes`
+
+    def load(self, extra: Sequence[str] = ()) -> Scene:
+        """The row's scene: the shipped one with the overrides (then `extra`) and the edit."""
+        scene = load_scene(self.scene, [*self.overrides, *extra])
+        if self.edit is not None:
+            self.edit(scene.data)
+        return scene
+
+
+def expect(counts: Callable[[Any, Solution], dict[str, int]], **want: int | str) -> Checks:
+    """An extreme-row check: the counts of `counts(model, sol)` recorded, and each named one
+    held to `want` (an int: exactly that; "> 0": at least one); a miss fails the row."""
+
+    def check(plugin: Any, row: ExtremeRow, model: Any, sol: Solution):
+        rec = counts(model, sol)
+        notes = [", ".join(f"{k} {v}" for k, v in rec.items())]
+        for k, w in want.items():
+            ok = rec[k] > 0 if w == "> 0" else rec[k] == w
+            if not ok:
+                notes.append(f"FAIL: {k} = {rec[k]}, expected {w}")
+        return rec, notes
+
+    return check
+
+
 def conforms(obj: Any) -> list[str]:
-    """What `obj` lacks to be a plug-in (empty list: it conforms)."""
+    """What `obj` lacks to be a plug-in of this contract version (empty list: it conforms)."""
     missing = []
+    version = getattr(obj, "CONTRACT", 1)
+    if version != CONTRACT:
+        missing.append(
+            f"CONTRACT = {CONTRACT} (it declares contract version {version!r}; from v1: {V1_TO_V2})"
+        )
     for attr, kind in (("NAME", str), ("DESCRIPTION", str)):
         if not isinstance(getattr(obj, attr, None), kind):
             missing.append(f"{attr} (a string)")
     for attr in ("build", "postprocess"):
         if not callable(getattr(obj, attr, None)):
             missing.append(f"{attr}() (a function)")
+    optional = ("draw", "mesh_size", "exact_errors", "reference_errors", "extremes", "warm_start")
+    for attr in optional:
+        if hasattr(obj, attr) and not callable(getattr(obj, attr)):
+            missing.append(f"{attr}() (a function, when declared)")
+    if hasattr(obj, "SWEEP") and not isinstance(obj.SWEEP, Sweep):
+        missing.append("SWEEP (a problems.plugins.contract.Sweep, when declared)")
+    norms = getattr(obj, "NORMS", ())
+    if not (isinstance(norms, tuple) and all(isinstance(k, str) for k in norms)):
+        missing.append("NORMS (a tuple of names, when declared)")
     return missing
+
+
+def draw_multiplier(ax, model: Any, sol: Solution) -> str:
+    """The default panel of `mixvi figures` for a plug-in without `draw`: the multiplier λ and
+    the constraint slack Bu − gap against the constraint row (any mixed VI has both)."""
+    rows = np.arange(model.vi.m)  # (m,)
+    ax.plot(rows, sol.lam, "o-", ms=2, label=r"$\lambda$")
+    ax.set_xlabel("constraint row")
+    ax.set_ylabel(r"multiplier $\lambda$")
+    ax2 = ax.twinx()
+    slack = model.vi.B @ sol.u - model.vi.gap  # (m,)
+    ax2.plot(rows, slack, "s-", ms=2, color="tab:orange", label="Bu − gap")
+    ax2.set_ylabel("slack Bu − gap", color="tab:orange")
+    ax.legend(loc="best", fontsize=8)
+    return f"|λ|max {float(np.abs(sol.lam).max(initial=0.0)):.3g}"
+
+
+def needs(plugin: Any, option: str, *attrs: str) -> None:
+    """SceneError (exit 2) naming what `plugin` does not declare for the command `option`."""
+    lacking = [a for a in attrs if not hasattr(plugin, a)]
+    if lacking:
+        raise SceneError(
+            "scene.plugin",
+            plugin.NAME,
+            f"a plug-in declaring {', '.join(lacking)} ({option} needs it; contract "
+            f"v{CONTRACT}, docs/plugins.md)",
+        )
 
 
 # ------------------------------------------------------------------ helpers for plug-ins

@@ -27,13 +27,17 @@ from problems.scene.geometry import make_mesh
 from vi_core import MixedVI, NonNegative, Solution
 
 from .contract import (
+    ExtremeRow,
+    Sweep,
     complementarity_defect,
+    expect,
     read_dirichlet,
     read_exact,
     read_head,
     read_solver,
     triangles,
 )
+from .transfer import nodal_reference_errors
 
 NAME = "obstacle"
 DESCRIPTION = "membrane above an obstacle: −Δu = f, u ≥ ψ (nodal contact forces λ ≥ 0)"
@@ -131,7 +135,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     u = model.full(sol.u)  # (n_nodes,)
     lam = np.zeros_like(u)
     lam[model.free] = sol.lam
-    on = sol.lam > 1e-9 * max(float(sol.lam.max(initial=0.0)), 1e-300)  # (n_free,) touching
+    on = _touching(model, sol)  # (n_free,)
     contact = np.zeros_like(u)
     contact[model.free[on]] = 1.0
     write_vtu(
@@ -176,3 +180,75 @@ def _plot(model: Model, u: np.ndarray, touch: np.ndarray, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+# ------------------------------------------------------------------ contract v2 declarations
+CONTRACT = 2
+SWEEP = Sweep("domain.load", "load f [1]", values=(0.0, -2.0, -8.0))  # pressed onto ψ
+NORMS = ("h1", "l2")
+
+
+def _touching(model: Model, sol: Solution) -> np.ndarray:
+    """(n_free,) bool: nodes where the obstacle pushes, λ > 0 beyond rounding relative to the
+    largest nodal force, λ or the elastic force Au (λ is all rounding when nothing touches)."""
+    force = float(np.abs(model.vi.A @ sol.u).max(initial=0.0))
+    return sol.lam > 1e-9 * max(float(sol.lam.max(initial=0.0)), force, 1e-300)
+
+
+def draw(ax, model: Model, sol: Solution) -> str:
+    """A panel of `mixvi figures`: u and ψ along the mid line, contact nodes marked."""
+    P, u = model.mesh.points, model.full(sol.u)  # (n_nodes, 2), (n_nodes,)
+    ymid = P[np.argmin(np.abs(P[:, 1] - np.median(P[:, 1]))), 1]
+    row = np.flatnonzero(np.isclose(P[:, 1], ymid))
+    row = row[np.argsort(P[row, 0])]  # (k,) mid-line nodes, left to right
+    touch = np.zeros(model.mesh.n_nodes, dtype=bool)
+    touch[model.free[_touching(model, sol)]] = True
+    ax.plot(P[row, 0], u[row], "o-", ms=2, label="$u_h$")
+    ax.plot(P[row, 0], model.psi[row], "k--", lw=1, label=r"obstacle $\psi$")
+    on = row[touch[row]]
+    ax.plot(P[on, 0], u[on], "r.", ms=5, label="contact")
+    ax.set_xlabel(f"x (y = {ymid:.3g})")
+    ax.legend(loc="best", fontsize=8)
+    return f"{int(touch.sum())} nodes in contact"
+
+
+def mesh_size(model: Model) -> float:
+    """h of the built level."""
+    return model.mesh.h
+
+
+def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
+    """|u − u_h|_H1 and ‖u − u_h‖_L2 against the scene's [exact] table (None without one)."""
+    if model.exact is None:
+        return None
+    err = model.errors(sol)
+    return {k: err[k] for k in NORMS}
+
+
+def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
+    """‖u_h − u_ref‖ in H¹ and L² against the finer level `ref`."""
+    return nodal_reference_errors(model.mesh, model.full(sol.u), ref.mesh, ref.full(ref_sol.u))
+
+
+def _counts(model: Model, sol: Solution) -> dict[str, int]:
+    return {"contact": int(_touching(model, sol).sum())}
+
+
+def extremes() -> list[ExtremeRow]:
+    """An obstacle far below (no contact) and a load pressing the membrane onto it."""
+    return [
+        ExtremeRow(
+            "obstacle far below (no contact)",
+            "obstacle",
+            ["domain.obstacle=-100.0"],
+            level=0,
+            checks=(expect(_counts, contact=0),),
+        ),
+        ExtremeRow(
+            "load -1e3 (pressed onto the obstacle)",
+            "obstacle",
+            ["domain.load=-1000.0"],
+            level=0,
+            checks=(expect(_counts, contact="> 0"),),
+        ),
+    ]

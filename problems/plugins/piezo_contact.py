@@ -35,10 +35,12 @@ from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots
 from problems.scene import Scene, Table
+from problems.scene.exact import split_exact
 from vi_core import METHODS, Box, Free, MixedVI, Solution, product
 
-from . import piezo_balance
+from . import piezo_balance, piezo_errors, piezo_extremes
 from .bodies import Body, build_body
+from .contract import Sweep
 from .fields import field_data
 
 NAME = "piezo_contact"
@@ -644,3 +646,33 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         )
     summary["files"] = sorted(files)
     return summary
+
+
+# ------------------------------------------------------------------ contract v2 declarations
+CONTRACT = 2
+SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="fig_5_4.png")
+NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
+extremes = piezo_extremes.rows
+
+
+def draw(ax, model: Model, sol: Solution) -> str:
+    """A panel of `mixvi figures`: λ·τ with ±g, slip zones and the tangential jump along Γ3."""
+    if model.contact is None:
+        return "no contact interface"
+    return plots.friction_panel(ax, contact_state(model, sol))
+
+
+def mesh_size(model: Model) -> float:
+    """h of the built level: the largest cell diameter over the bodies."""
+    return max(b.mesh.h for b in model.bodies)
+
+
+def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
+    """The NORMS against the scene's [exact] table (None without one)."""
+    _, exact = split_exact(model.scene)
+    return None if exact is None else piezo_errors.exact_errors(model, sol.u, sol.lam, exact)
+
+
+def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
+    """The NORMS against the solution of the finer level `ref` of the same scene."""
+    return piezo_errors.reference_errors(model, sol.u, sol.lam, ref, ref_sol.u, ref_sol.lam)

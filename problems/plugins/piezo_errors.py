@@ -21,29 +21,28 @@ Gauss points of the reference Γ3 located by normalised arc length, weighted by 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
-from scipy.spatial import cKDTree
 
 from fem import assembly
 from fem.boundary import dual_basis_on_segment
-from fem.elements import reference_element
-from fem.mesh import Mesh
 from problems.scene.exact import Exact
 
-from .piezo_contact import Model
+from .transfer import evaluate
 
 GAUSS_T, GAUSS_W = np.polynomial.legendre.leggauss(4)
 GAUSS_T, GAUSS_W = 0.5 * (GAUSS_T + 1), 0.5 * GAUSS_W  # (4,) on [0, 1], weights sum 1
 NORMS = ("u_H1", "phi_H1", "phi_L2", "lam")
 
 
-def _fields(model: Model, u: np.ndarray):
+def _fields(model: Any, u: np.ndarray):
     """Per body: (body, displacement (N, 2), potential (N,) or None) of the full solution."""
     x = model.full(u)
     return [(b, *b.split(x[b.offset : b.offset + b.size])) for b in model.bodies]
 
 
-def _multiplier(model: Model, lam: np.ndarray):
+def _multiplier(model: Any, lam: np.ndarray):
     """(trace, γ, α) of the contact multiplier as segment-local dual coefficients (n_seg, 2):
     λ·n = Σ_(e,a) γ[e, a] ψ_{e,a} (the multiplier basis, end treatment included)."""
     c = model.contact
@@ -59,7 +58,7 @@ def _dual_values(coef: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray
     return np.einsum("ka,ka->k", psi, coef[seg])
 
 
-def exact_errors(model: Model, u: np.ndarray, lam: np.ndarray, exact: Exact) -> dict[str, float]:
+def exact_errors(model: Any, u: np.ndarray, lam: np.ndarray, exact: Exact) -> dict[str, float]:
     """The four norms of the module docstring, against the scene's `[exact]` solution."""
     sq = dict.fromkeys(NORMS, 0.0)
     for b, disp, phi in _fields(model, u):
@@ -87,42 +86,6 @@ def exact_errors(model: Model, u: np.ndarray, lam: np.ndarray, exact: Exact) -> 
 
 
 # ------------------------------------------------------------------ transfer between levels
-def _outside(cell_type: str, xi: np.ndarray) -> np.ndarray:
-    """How far reference points (..., 2) lie outside the reference cell (≤ 0 inside)."""
-    s, t = xi[..., 0], xi[..., 1]
-    if cell_type == "triangle":
-        return np.maximum.reduce([-s, -t, s + t - 1])
-    return np.maximum(np.abs(s), np.abs(t)) - 1
-
-
-def evaluate(mesh: Mesh, nodal: np.ndarray, pts: np.ndarray, candidates: int = 8) -> np.ndarray:
-    """The P1/Q1 function with nodal values `nodal` (N, k) at points `pts` (M, 2): (M, k).
-
-    Each point is located among the `candidates` cells with the nearest centroids by inverting
-    the cell maps (Newton; exact after one step for P1); a point outside every candidate (a
-    refined curved boundary) is extrapolated from the candidate it is least outside of.
-    """
-    ref = reference_element(mesh.cell_type)
-    X = mesh.points[mesh.cells]  # (n_cells, n_loc, 2)
-    k = min(candidates, mesh.n_cells)
-    _, cand = cKDTree(X.mean(axis=1)).query(pts, k=k)  # (M, k)
-    cand = cand.reshape(len(pts), k)
-    Xc = X[cand]  # (M, k, n_loc, 2)
-    xi = np.broadcast_to(ref.centroid, cand.shape + (2,)).copy()  # (M, k, 2)
-    for _ in range(6):
-        flat = xi.reshape(-1, 2)
-        phi = ref.values(flat).reshape(xi.shape[:2] + (-1,))  # (M, k, n_loc)
-        dphi = ref.gradients(flat).reshape(xi.shape[:2] + (-1, 2))  # (M, k, n_loc, 2)
-        r = np.einsum("mka,mkai->mki", phi, Xc) - pts[:, None, :]  # (M, k, 2)
-        J = np.einsum("mkai,mkaj->mkij", Xc, dphi)  # (M, k, 2, 2) ∂x_i/∂ξ_j
-        xi = xi - np.linalg.solve(J, r[..., None])[..., 0]
-    best = np.argmin(_outside(mesh.cell_type, xi), axis=1)  # (M,)
-    rows = np.arange(len(pts))
-    phi = ref.values(xi[rows, best])  # (M, n_loc)
-    vals = np.asarray(nodal, dtype=float).reshape(mesh.n_nodes, -1)[mesh.cells[cand[rows, best]]]
-    return np.einsum("ma,mak->mk", phi, vals)  # (M, k)
-
-
 def _locate_on_trace(tr, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Segment index and local t ∈ [0, 1] of normalised arc lengths s ∈ [0, 1] (both (M,))."""
     edges = np.concatenate([[0.0], np.cumsum(tr.lengths)]) / tr.lengths.sum()  # (n_seg + 1,)
@@ -132,7 +95,7 @@ def _locate_on_trace(tr, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def reference_errors(
-    model: Model, u: np.ndarray, lam: np.ndarray, ref: Model, u_ref: np.ndarray, lam_ref
+    model: Any, u: np.ndarray, lam: np.ndarray, ref: Any, u_ref: np.ndarray, lam_ref
 ) -> dict[str, float]:
     """The four norms against the solution (u_ref, lam_ref) of a finer level `ref`."""
     sq = dict.fromkeys(NORMS, 0.0)

@@ -1,6 +1,8 @@
 """Plug-in registry: built-in plug-ins plus third-party ones from the entry point group
-`mixvi.plugins` (each entry point names a module with NAME, DESCRIPTION, build, postprocess;
-see `problems.plugins.contract` for the contract and docs/plugins.md for a worked example).
+`mixvi.plugins` (each entry point names a module with CONTRACT = 2, NAME, DESCRIPTION, build,
+postprocess and the optional declarations of the commands; see `problems.plugins.contract` for
+the contract and docs/plugins.md for a worked example). A plug-in written against another
+contract version is refused when it is loaded, with what changed.
 
 A third-party package declares, in its pyproject.toml,
 
@@ -19,7 +21,7 @@ from typing import Any
 
 from problems.errors import SceneError
 
-from .contract import conforms
+from .contract import CONTRACT, conforms
 
 BUILTIN = {
     "piezo_contact": "problems.plugins.piezo_contact",
@@ -46,8 +48,8 @@ def _checked(name: str, obj: Any, origin: str) -> Any:
         raise SceneError(
             "scene.plugin",
             name,
-            f"a plug-in providing NAME, DESCRIPTION, build() and postprocess(); {origin} "
-            f"lacks {', '.join(missing)}",
+            f"a plug-in of contract v{CONTRACT} providing CONTRACT, NAME, DESCRIPTION, build() "
+            f"and postprocess(); {origin} lacks {'; '.join(missing)}",
         )
     if obj.NAME != name:
         raise SceneError(

@@ -33,8 +33,9 @@ from problems.scene.materials import material_from_scene
 from vi_core import Box, MixedVI, NonNegative, Solution, product
 
 from .bodies import Body, build_body
-from .contract import complementarity_defect, read_head, read_solver
+from .contract import ExtremeRow, Sweep, complementarity_defect, expect, read_head, read_solver
 from .fields import field_data
+from .transfer import nodal_reference_errors
 
 NAME = "signorini"
 DESCRIPTION = "elastic body in unilateral contact with a rigid obstacle, Tresca friction"
@@ -138,7 +139,9 @@ def contact_state(model: Model, sol: Solution) -> dict:
     lam_n, lam_t = sol.lam[:N], sol.lam[N:]
     g = model.g_weights / model.tr.weights
     slip = np.abs(lam_t) >= g - 1e-9 * max(float(g.max(initial=0.0)), 1e-300)
-    touch = lam_n > 1e-9 * max(float(lam_n.max(initial=0.0)), 1e-300)
+    # beyond rounding of the largest force, λ_n or the elastic Au (all rounding when apart)
+    force = float(np.abs(model.vi.A @ sol.u).max(initial=0.0))
+    touch = lam_n > 1e-9 * max(float(lam_n.max(initial=0.0)), force, 1e-300)
     return {
         "s": model.tr.s,
         "lam_n": lam_n,
@@ -194,3 +197,71 @@ def _normal_plot(st: dict, outdir: Path, title: str) -> str:
     fig.savefig(outdir / "contact_normal.png", dpi=120)
     plt.close(fig)
     return "contact_normal.png"
+
+
+# ------------------------------------------------------------------ contract v2 declarations
+CONTRACT = 2
+SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6))
+NORMS = ("u_H1", "u_L2")
+
+
+def draw(ax, model: Model, sol: Solution) -> str:
+    """A panel of `mixvi figures`: λ·τ with ±g, slip zones and u·τ along Γ3."""
+    st = contact_state(model, sol)
+    note = plots.friction_panel(ax, st)
+    return f"{note}, {int(st['touch'].sum())} of {st['touch'].size} touching"
+
+
+def mesh_size(model: Model) -> float:
+    """h of the built level."""
+    return model.body.mesh.h
+
+
+def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
+    """‖u_h − u_ref‖ in H¹ and L² against the finer level `ref` (no exact solution known)."""
+
+    def disp(m: Model, u: np.ndarray) -> np.ndarray:
+        return m.body.split(expand(u, m.free, m.values))[0]  # (n_nodes, 2)
+
+    e = nodal_reference_errors(
+        model.body.mesh, disp(model, sol.u), ref.body.mesh, disp(ref, ref_sol.u)
+    )
+    return {"u_H1": e["h1"], "u_L2": e["l2"]}
+
+
+def _counts(model: Model, sol: Solution) -> dict[str, int]:
+    st = contact_state(model, sol)
+    return {
+        "stick": int((~st["slip"]).sum()),
+        "slip": int(st["slip"].sum()),
+        "in_contact": int(st["touch"].sum()),
+    }
+
+
+def extremes() -> list[ExtremeRow]:
+    """Frictionless, tied, and an obstacle too far away to touch."""
+    return [
+        ExtremeRow(
+            "g = 0 (frictionless)",
+            "signorini",
+            ["contact.g=0.0"],
+            level=0,
+            checks=(expect(_counts, stick=0, in_contact="> 0"),),
+        ),
+        ExtremeRow(
+            "g × 1e6 (tied where touching)",
+            "signorini",
+            ["contact.g=5e11"],
+            level=0,
+            checks=(expect(_counts, slip=0, in_contact="> 0"),),
+        ),
+        ExtremeRow(
+            # 1 cm, 50 × the prescribed displacement 2e-4 m: with 1 m Clarabel's raw answer stops at
+            # residual 1.8e-6 and differs from ssn's by 0.11 (measured; conic's scaling)
+            "obstacle 1 cm below (no contact)",
+            "signorini",
+            ["contact.gap=1e-2"],
+            level=0,
+            checks=(expect(_counts, in_contact=0),),
+        ),
+    ]

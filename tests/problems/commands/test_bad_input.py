@@ -149,7 +149,11 @@ CASES = [
     ),
     Case("study --tols zero", ["study", "manufactured", "--tols", "0"], "--tols"),
     Case("study --tols empty", ["study", "manufactured", "--tols", ""], "--tols"),
-    Case("study of a scalar plug-in", ["study", "obstacle", "--out", "{d}/o"], "scene.plugin"),
+    Case(
+        "figures: the swept value is an expression",
+        ["figures", "antiplane", "--set", "friction.g='8e5 + 0*x'", "--out", "{d}/f"],
+        "friction.g",
+    ),
     Case("bench --scenes empty", ["bench", "--scenes", "", "--out", "{d}/b.json"], "--scenes"),
     Case("bench --scenes comma", ["bench", "--scenes", ",", "--out", "{d}/b.json"], "--scenes"),
     Case("bench --scenes unknown", ["bench", "--scenes", "nosuch", "--out", "{d}/b.json"], "scene"),
@@ -162,7 +166,11 @@ CASES = [
     Case("bench --timeout negative", ["bench", "--timeout", "-5"], "--timeout"),
     Case("bench --timeout nan", ["bench", "--timeout", "nan"], "--timeout"),
     Case("extremes --only nosuch", ["extremes", "--only", "nosuch"], "--only"),
-    Case("figures on a scalar plug-in", ["figures", "obstacle", "--out", "{d}/o"], "plugin"),
+    Case(
+        "extremes --plugins unknown",
+        ["extremes", "--plugins", "nosuch", "--out", "{d}/x"],
+        "--plugins",
+    ),
     Case("figures --level negative", ["figures", "--level", "-2"], "--level"),
     # ---------------------------------------------------------------- hostile output paths
     Case(

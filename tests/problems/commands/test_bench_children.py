@@ -30,6 +30,7 @@ import numpy as np
 from problems.plugins import obstacle
 from problems.scene import Scene
 
+CONTRACT = 2
 NAME = "wobbly"
 DESCRIPTION = "test plug-in: crashes, raises, hangs or runs out of memory in a child"
 

@@ -1,4 +1,5 @@
-"""The `mixvi extremes` rows at level 0: residual, cross-method agreement and physical checks.
+"""The `mixvi extremes` rows of every plug-in at level 0: residual, cross-method agreement,
+λ ∈ Λ and the plug-ins' physical checks.
 
 The conic answers are Clarabel's raw ones (no polishing). With loads and g scaled by 1e-12 the
 conic method used to fail (absolute tolerances); it now normalises the data (vi_core.conic) and
@@ -14,9 +15,21 @@ import dataclasses
 
 import pytest
 
-from problems.commands.extremes import AGREE_OK, RESIDUAL_OK, extremes_main, rows, run_row
+from problems.commands.extremes import (
+    ADMISSIBLE_OK,
+    AGREE_OK,
+    RESIDUAL_OK,
+    extremes_main,
+    rows,
+    run_row,
+)
+from problems.plugins import registry
 
 ROWS = [dataclasses.replace(r, level=0) for r in rows() if not r.huge]
+
+
+def test_every_builtin_plugin_has_rows():
+    assert {r.plugin for r in ROWS} == set(registry.BUILTIN)
 
 
 @pytest.mark.parametrize("row", ROWS, ids=[r.name for r in ROWS])
@@ -25,6 +38,10 @@ def test_extreme_row(row):
     assert rec["converged"] and rec["residual"] <= RESIDUAL_OK, rec
     agree = dict(rec["agreement"])
     assert agree and max(agree.values()) <= AGREE_OK, rec
+    assert rec["admissibility"] <= ADMISSIBLE_OK, rec
+    assert rec["ok"], rec
+    if row.plugin != "piezo_contact":
+        return
     assert rec["friction_excess"] <= 1e-9, rec
     # with no slipping node (4.3) reads 0 = 0 and the ratio is rounding over a "tiny"
     # denominator (3e-9 with SuperLU on the all-stick 10:1 row): checked only where nodes slip
@@ -41,7 +58,7 @@ def test_extreme_row(row):
 
 def test_thresholds_are_physical_checks():
     """g = 1e6 σ_ref ties every node; g = 0 lets every node slip."""
-    by = {r.name: r for r in ROWS}
+    by = {r.name: r for r in ROWS if r.plugin == "piezo_contact"}
     tied, free = run_row(by["g = 1e6 σ_ref"]), run_row(by["g = 0 (frictionless)"])
     assert tied["slip"] == 0 and tied["stick"] > 0
     assert free["stick"] == 0 and free["slip"] > 0
@@ -52,3 +69,72 @@ def test_command_writes_json(tmp_path, capsys):
     assert rc == 0
     assert "PZT-5H" in capsys.readouterr().out
     assert (tmp_path / "extremes.json").read_text().count('"row"') == 1
+
+
+def test_a_failed_plugin_check_fails_the_row():
+    """The obstacle's 'no contact' row with the obstacle back in place: the count check says
+    FAIL and the row is not ok (mutation: the check can fail)."""
+    row = next(r for r in ROWS if r.name == "obstacle far below (no contact)")
+    rec = run_row(dataclasses.replace(row, overrides=[]))
+    assert not rec["ok"] and any(n.startswith("FAIL: contact =") for n in rec["notes"]), rec
+
+
+def test_a_multiplier_outside_lambda_fails_the_row(monkeypatch):
+    import vi_core
+
+    real = vi_core.solve
+
+    def outside(vi, method, **kw):  # ssn's answer pushed out of Λ (a wrong sign of λ)
+        sol = real(vi, method, **kw)
+        if method == "ssn":
+            sol.lam = -sol.lam
+        return sol
+
+    monkeypatch.setattr(vi_core, "solve", outside)
+    rec = run_row(next(r for r in ROWS if r.name == "load -1e3 (pressed onto the obstacle)"))
+    assert rec["admissibility"] > ADMISSIBLE_OK and not rec["ok"], rec
+
+
+def test_plugins_option_selects_and_refuses(tmp_path, capsys):
+    assert extremes_main(["--plugins", "antiplane", "--out", str(tmp_path / "a")]) == 0
+    out = capsys.readouterr().out
+    assert "g × 1e6 (tied)" in out and "BaTiO3" not in out
+    with pytest.raises(Exception, match="--plugins"):
+        extremes_main(["--plugins", "nosuch", "--out", str(tmp_path / "b")])
+
+
+@pytest.mark.parametrize("part", ["u", "lam"])
+def test_a_disagreement_is_caught_where_ssn_answer_is_zero(part, monkeypatch):
+    """The obstacle far below: ssn's λ is rounding zero. A conic answer off by 1e-3 (u scaled,
+    or λ given a force of 1e-3 of the largest elastic one) still fails the row."""
+    import numpy as np
+
+    import vi_core
+
+    real = vi_core.solve
+
+    def off(vi, method, **kw):
+        sol = real(vi, method, **kw)
+        if method == "conic":
+            if part == "u":
+                sol.u = sol.u * (1 + 1e-3)
+            else:
+                sol.lam = sol.lam + 1e-3 * np.abs(vi.A @ sol.u).max()
+        return sol
+
+    monkeypatch.setattr(vi_core, "solve", off)
+    rec = run_row(next(r for r in ROWS if r.name == "obstacle far below (no contact)"))
+    assert rec["agreement"]["conic"] > AGREE_OK and not rec["ok"], rec
+
+
+def test_a_broken_third_party_plugin_is_skipped_unless_named(tmp_path, capsys, monkeypatch):
+    from importlib.metadata import EntryPoint
+
+    from problems.errors import SceneError
+
+    broken = EntryPoint("broken", "no_such_module_for_mixvi", registry.GROUP)
+    monkeypatch.setattr(registry, "_third_party", lambda: {"broken": broken})
+    assert extremes_main(["--only", "g × 1e6 (tied)", "--out", str(tmp_path / "a")]) == 0
+    assert "skipping plug-in 'broken'" in capsys.readouterr().err
+    with pytest.raises(SceneError, match="failed to load"):
+        extremes_main(["--plugins", "broken", "--out", str(tmp_path / "b")])

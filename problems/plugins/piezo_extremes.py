@@ -1,0 +1,162 @@
+"""The `mixvi extremes` rows of piezo_contact (contract v2 `extremes()`): the shipped contact
+scenes pushed to extreme friction bounds, data scales, materials, near-incompressibility and
+mesh ratios.
+
+Each row's checks, on top of the generic ones of `mixvi extremes`:
+- `contact_checks`: the Lemma 4.2 gap |b(u, λ) − ∫g|[u_τ]|| / ∫g|[u_τ]|, the friction bound
+  (max(|λ_τ| − g) / max g ≤ 0 up to rounding) and the stick/slip counts;
+- `homogeneity`: data scaled by s (loads and g) scale (u, λ) by s;
+- `locking`: the resultant normal contact force on this and two finer levels.
+
+σ_ref of a scene is the friction bound it ships with (9e6 Pa rigid_foundation, 1e8 Pa
+paper_two_body), which is of the order of its contact stresses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+import vi_core
+
+from .contract import ExtremeRow
+
+SIGMA_REF = {"rigid_foundation": 9.0e6, "paper_two_body": 1.0e8}
+HOMOGENEOUS = 1e-6  # relative deviation from degree-1 homogeneity that fails a row
+FRICTION_EXCESS = 1e-9  # relative excess of |λ_τ| over g that fails a row
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
+
+
+def contact_checks(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
+    """Lemma 4.2 gap, friction-bound violation and stick/slip counts of a solution."""
+    if model.contact is None:
+        return {}, ["no contact interface"]
+    st = plugin.contact_state(model, sol)
+    g = st["g"]
+    gmax = float(g.max(initial=0.0))
+    excess = float(np.max(np.abs(st["lam_t"]) - g))
+    rec = {
+        "lemma_4_2": st["lemma_4_2"] if gmax > 0 else None,
+        "friction_excess": excess / max(gmax, float(np.abs(sol.lam).max(initial=0)), 1e-300),
+        "stick": int((~st["slip"]).sum()),
+        "slip": int(st["slip"].sum()),
+    }
+    notes = [f"stick {rec['stick']}, slip {rec['slip']}"]
+    if rec["friction_excess"] > FRICTION_EXCESS:
+        notes.append(f"FAIL: |λ_τ| exceeds g by {rec['friction_excess']:.1e} (relative)")
+    if rec["lemma_4_2"] is not None and rec["lemma_4_2"] > 1e-10:
+        notes.append(f"Lemma 4.2 gap {rec['lemma_4_2']:.1e}")
+    return rec, notes
+
+
+def homogeneity(factor: float) -> Callable:
+    """Check: data scaled by `factor` (loads and g) must scale (u, λ) by `factor`."""
+
+    def check(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
+        base = ExtremeRow(row.name, row.scene, (), row.level, row.edit).load()
+        m0 = plugin.build(base, row.level)
+        s0 = vi_core.solve(m0.vi, "ssn")
+        du = _rel(model.full(sol.u) / factor, m0.full(s0.u))
+        h = max(du, _rel(sol.lam / factor, s0.lam))
+        verdict = "FAIL: not homogeneous" if h > HOMOGENEOUS else "homogeneous of degree 1"
+        return {"homogeneity": h}, [f"{verdict} (u/s, λ/s vs the unscaled scene: {h:.1e})"]
+
+    return check
+
+
+def locking(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
+    """Resultant normal contact force ∑ λ_n,k W_k on this and two finer levels (W_k = ∫φ̃_k,
+    the weight of normal multiplier row k): lowest-order elements lock, the force drops."""
+    forces = []
+    for lev in (row.level, row.level + 1, row.level + 2):
+        m = model if lev == row.level else plugin.build(row.load(), lev)
+        s = sol if lev == row.level else vi_core.solve(m.vi, "ssn")
+        n_n, _ = m.contact.sizes
+        forces.append(float(np.sum(s.lam[:n_n] * m.contact.W_n)))
+    over = forces[0] / forces[-1] - 1.0
+    note = (
+        f"locking: normal force {100 * over:.1f}% above the level {row.level + 2} value "
+        "(lowest-order elements)"
+    )
+    return {"normal_force_levels": forces, "locking_overestimate": over}, [note]
+
+
+def _drop_potential(body: str, material: dict) -> Callable[[dict], None]:
+    def edit(data: dict) -> None:
+        b = data["bodies"][body]
+        b["material"] = material
+        b.pop("potential", None)
+        data.get("output", {}).pop("potential_along", None)
+
+    return edit
+
+
+def _coupled(scale: float) -> str:
+    return f"bodies.block.material={{name='BaTiO3', coupling_scale={scale}}}"
+
+
+RF, PT = "rigid_foundation", "paper_two_body"
+S_RF = SIGMA_REF[RF]
+LOAD_RF = "bodies.block.displacement=[{{boundary='top', value=[{a!r}, {b!r}]}}]"
+
+
+def _scaled(f: float) -> tuple[str, ...]:
+    return (LOAD_RF.format(a=2e-4 * f, b=-1e-4 * f), f"contact.g={S_RF * f!r}")
+
+
+def rows() -> list[ExtremeRow]:
+    """The extreme cases, cheapest first within each group."""
+    C = (contact_checks,)
+    return [
+        ExtremeRow("g = 0 (frictionless)", RF, ["contact.g=0.0"], checks=C),
+        ExtremeRow("g = 1e-6 σ_ref", RF, [f"contact.g={1e-6 * S_RF!r}"], checks=C),
+        ExtremeRow("g = 1e6 σ_ref", RF, [f"contact.g={1e6 * S_RF!r}"], checks=C),
+        ExtremeRow(
+            "g varies 1e8 along Γ3",
+            RF,
+            [f"contact.g='{S_RF!r}*exp(log(1e8)*x/2 - log(1e4))'"],
+            checks=C,
+        ),
+        ExtremeRow("loads, g × 1e-12", RF, list(_scaled(1e-12)), checks=(*C, homogeneity(1e-12))),
+        ExtremeRow("loads, g × 1e3", RF, list(_scaled(1e3)), checks=(*C, homogeneity(1e3))),
+        ExtremeRow("BaTiO3", RF, level=0, checks=C),
+        ExtremeRow("PZT-5H", RF, ["bodies.block.material='PZT-5H'"], level=0, checks=C),
+        ExtremeRow("BaTiO3 coupling × 4 (ρ > 2)", RF, [_coupled(4.0)], level=0, checks=C),
+        ExtremeRow(
+            "ν = 0.49",
+            RF,
+            level=1,
+            edit=_drop_potential("block", {"kind": "isotropic", "E": 1e10, "nu": 0.49}),
+            checks=(*C, locking),
+        ),
+        ExtremeRow(
+            "ν = 0.4999",
+            RF,
+            level=1,
+            edit=_drop_potential("block", {"kind": "isotropic", "E": 1e10, "nu": 0.4999}),
+            checks=(*C, locking),
+        ),
+        ExtremeRow(
+            "aspect ratio 1e3 (thin layer)", RF, ["bodies.block.geometry.y=[0.0, 1e-3]"], checks=C
+        ),
+        ExtremeRow(
+            "slave 10× coarser than master",
+            PT,
+            ["bodies.disc.geometry.n_contact=4", "bodies.cradle.geometry.n_contact=40"],
+            level=0,
+            checks=C,
+        ),
+        ExtremeRow(
+            "slave 10× finer than master",
+            PT,
+            ["bodies.disc.geometry.n_contact=40", "bodies.cradle.geometry.n_contact=4"],
+            level=0,
+            checks=C,
+        ),
+        ExtremeRow("paper scene, level 6 (~1.6M unknowns)", PT, level=6, huge=True, checks=C),
+    ]

@@ -1,0 +1,185 @@
+"""Regression of the shipped scenes: the same answers as the stored baselines, to rounding.
+
+    python -m tests.regression [--write] [--levels 0,1] [--scenes a,b]
+
+solves every shipped scene (problems/scenes/*.toml) at levels 0 and 1 and compares its summary
+with tests/baselines/SCENE.json; `--write` stores the current summaries as the new baselines
+(do that only for a change of the answers that is meant, and say why in the commit).
+
+What is compared (`summary`): the unknowns per field, the norms of the solution per field
+(‖u‖, ‖φ‖ through `Model.unknown_fields()` where the model has it) and of the multiplier ‖λ‖,
+the energy uᵀAu, ‖Bu − gap‖, and every entry of the plug-in's `postprocess` summary (contact
+counts, errors against exact solutions, force resultants, ...) except the rounding residues
+listed in RESIDUES: quantities that are zero in exact arithmetic (a force imbalance, a Lemma 4.2
+gap, a complementarity defect, a mortar patch defect) are the rounding of the residual, not an
+answer, and differ from run to run at the 1e-16 level.
+
+The tolerance (`tolerance`), derived rather than chosen. Both the baseline and the rerun are
+solved by semismooth Newton to relative natural-map residuals r₀, r₁ (measured: ≤ 1e-14 on every
+shipped scene, Newton converges quadratically down to rounding), so each lies within κ·rᵢ of
+the exact discrete solution in the equilibrated variables, κ = est‖J⁻¹‖₁ of the natural map's
+Jacobian (recorded with each baseline; measured ≤ 3.1e3 at levels 0 and 1). Two runs therefore
+differ by at most κ·(r₀ + r₁) relatively; every compared quantity is a norm, an inner product
+or a linear functional of the solution, so it moves by at most that relative amount of its
+size as well (twice for the quadratic uᵀAu). The tolerance is SAFETY · κ · (r₀ + r₁ + 4ε),
+SAFETY = 1e3 covering the norm equivalences between equilibrated and physical variables and a
+different BLAS/LU ordering; with the measured κ and r it lies between 1e-10 and 1e-8 — far below
+any change of the discretisation (a perturbation of the data by 1e-6 is caught, see
+tests/test_regression.py). Integers and strings (dofs, contact counts, node lists, the master's
+name) must match exactly. A vector (a force resultant) is compared by its norm: its components
+near zero are rounding of the opposing forces, measured relative to the resultant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import vi_core
+from problems.plugins import registry
+from problems.scene import SCENES_DIR, load_scene
+
+BASELINES = Path(__file__).resolve().parent / "baselines"
+LEVELS = (0, 1)
+TOL = 1e-12  # Newton's stopping tolerance: it converges quadratically to rounding below it
+SAFETY = 1e3
+EPS = float(np.finfo(float).eps)
+RESIDUES = {"imbalance", "lemma_4_2", "complementarity", "mortar_patch_defect", "gap"}
+SKIP = {"files", "warnings"}  # names of written files and messages: not answers
+
+
+def scenes() -> list[str]:
+    """Names of the shipped scenes."""
+    return sorted(p.stem for p in SCENES_DIR.glob("*.toml"))
+
+
+def _strip(value):
+    """The postprocess summary without rounding residues and file lists (nested dicts kept)."""
+    if isinstance(value, dict):
+        return {k: _strip(v) for k, v in value.items() if k not in RESIDUES | SKIP}
+    return value
+
+
+def run_case(name: str, level: int, overrides: tuple[str, ...] = ()) -> dict:
+    """Build, solve (ssn, cold start, tol TOL) and post-process one scene at one level."""
+    scene = load_scene(name, list(overrides))
+    plugin = registry.for_scene(scene)
+    model = plugin.build(scene, level)
+    vi = model.vi
+    sol = vi_core.solve(vi, "ssn", tol=TOL, estimate_condition=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        extras = plugin.postprocess(model, sol, Path(tmp))
+    fields = model.unknown_fields() if hasattr(model, "unknown_fields") else {"u": slice(None)}
+    norms = {f"u:{k}": float(np.linalg.norm(sol.u[mask])) for k, mask in fields.items()}
+    norms["lambda"] = float(np.linalg.norm(sol.lam))
+    norms["energy"] = float(sol.u @ (vi.A @ sol.u))
+    norms["slack"] = float(np.linalg.norm(vi.B @ sol.u - vi.gap)) if vi.m else 0.0
+    return {
+        "plugin": plugin.NAME,
+        "level": int(model.level),
+        "dofs": {k: int(v) for k, v in model.dofs.items()},
+        "norms": norms,
+        "summary": json.loads(json.dumps(_strip(extras), default=_jsonable)),
+        "converged": bool(sol.converged),
+        "residual": float(sol.residual),
+        "condition": float(sol.info.get("condition_estimate") or 0.0),
+    }
+
+
+def _jsonable(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    raise TypeError(f"not JSON-able: {type(x).__name__}")
+
+
+def tolerance(base: dict, now: dict) -> float:
+    """SAFETY · κ · (r₀ + r₁ + 4ε): the relative distance two converged runs may have."""
+    kappa = max(base["condition"], now["condition"], 1.0)
+    return SAFETY * kappa * (base["residual"] + now["residual"] + 4 * EPS)
+
+
+def _numbers(x) -> bool:
+    return isinstance(x, list) and bool(x) and all(isinstance(v, float) for v in x)
+
+
+def compare(base, now, rtol: float, path: str = "") -> list[str]:
+    """Differences of `now` from `base` beyond `rtol` (floats) or at all (the rest)."""
+    if isinstance(base, dict) and isinstance(now, dict):
+        out = [f"{path}.{k}: missing" for k in base if k not in now]
+        out += [f"{path}.{k}: new entry" for k in now if k not in base]
+        for k in base.keys() & now.keys():
+            out += compare(base[k], now[k], rtol, f"{path}.{k}")
+        return out
+    if isinstance(base, float) or _numbers(base):
+        a, b = np.atleast_1d(np.asarray(base, float)), np.atleast_1d(np.asarray(now, float))
+        if a.shape != b.shape:
+            return [f"{path}: shape {a.shape} → {b.shape}"]
+        if not np.all(np.isfinite(b)):
+            return [f"{path}: {now} is not finite"]
+        size = max(float(np.linalg.norm(a)), float(np.linalg.norm(b)))
+        diff = float(np.linalg.norm(a - b))
+        if diff > rtol * size:
+            return [
+                f"{path}: {base} → {now} (relative {diff / max(size, 1e-300):.1e} > {rtol:.0e})"
+            ]
+        return []
+    return [] if base == now else [f"{path}: {base!r} → {now!r}"]
+
+
+def check_case(name: str, level: int, base: dict, now: dict) -> list[str]:
+    """Every difference of one (scene, level) from its baseline, each naming where."""
+    if not now["converged"]:
+        return [f"{name} level {level}: did not converge (residual {now['residual']:.1e})"]
+    rtol = tolerance(base, now)
+    keep = ("plugin", "level", "dofs", "norms", "summary")
+    return [
+        f"{name} level {level}: {d}"
+        for d in compare({k: base[k] for k in keep}, {k: now[k] for k in keep}, rtol)
+    ]
+
+
+def baseline(name: str) -> dict:
+    """The stored baseline of one scene: {"0": case, "1": case}."""
+    return json.loads((BASELINES / f"{name}.json").read_text())
+
+
+def main(argv: list[str] | None = None) -> int:
+    """0: every case matches its baseline (or --write stored them); 1: differences listed."""
+    p = argparse.ArgumentParser(
+        prog="python -m tests.regression", description=__doc__.split("\n")[0]
+    )
+    p.add_argument("--write", action="store_true", help="store the current answers as baselines")
+    p.add_argument("--levels", default=",".join(map(str, LEVELS)))
+    p.add_argument("--scenes", default=None, help="comma-separated names (default: all shipped)")
+    args = p.parse_args(argv)
+    levels = [int(v) for v in args.levels.split(",")]
+    names = args.scenes.split(",") if args.scenes else scenes()
+    bad = []
+    for name in names:
+        cases = {str(lev): run_case(name, lev) for lev in levels}
+        if args.write:
+            BASELINES.mkdir(exist_ok=True)
+            stored = baseline(name) if (BASELINES / f"{name}.json").exists() else {}
+            stored.update(cases)
+            (BASELINES / f"{name}.json").write_text(json.dumps(stored, indent=1) + "\n")
+            print(f"wrote {BASELINES / name}.json (levels {args.levels})")
+            continue
+        for lev, now in cases.items():
+            diffs = check_case(name, int(lev), baseline(name)[lev], now)
+            tol = tolerance(baseline(name)[lev], now)
+            print(f"{name:<24} level {lev}: {'ok' if not diffs else 'DIFFERS'} (rtol {tol:.1e})")
+            bad += diffs
+    for d in bad:
+        print("  " + d)
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,74 @@
+"""The shipped scenes give the stored answers (tests/baselines, taken before the plug-in
+contract v2 and the scene model), to the rounding tolerance derived in tests/regression.py;
+and the comparison catches a perturbed answer."""
+
+from __future__ import annotations
+
+import pytest
+
+import vi_core
+from tests import regression
+
+CASES = [(name, level) for name in regression.scenes() for level in regression.LEVELS]
+
+
+def test_every_shipped_scene_has_a_baseline():
+    assert {p.stem for p in regression.BASELINES.glob("*.json")} == set(regression.scenes())
+
+
+@pytest.mark.parametrize(("name", "level"), CASES)
+def test_same_answers_as_the_baseline(name, level):
+    base = regression.baseline(name)[str(level)]
+    now = regression.run_case(name, level)
+    assert regression.check_case(name, level, base, now) == []
+    # the derived tolerance stays a rounding tolerance (κ and r as measured at baseline time)
+    assert regression.tolerance(base, now) <= 1e-8
+
+
+def _scaled_solve(factor):
+    real = vi_core.solve
+
+    def solve(vi, *args, **kw):
+        sol = real(vi, *args, **kw)
+        sol.lam = sol.lam * factor
+        return sol
+
+    return solve
+
+
+@pytest.mark.parametrize("name", ["rigid_foundation", "obstacle", "antiplane", "signorini"])
+def test_a_perturbed_multiplier_is_caught(name, monkeypatch):
+    """λ scaled by 1 + 1e-6 (far above rounding, far below anything a plot would show)."""
+    base = regression.baseline(name)["0"]
+    monkeypatch.setattr(regression.vi_core, "solve", _scaled_solve(1 + 1e-6))
+    diffs = regression.check_case(name, 0, base, regression.run_case(name, 0))
+    assert any(".norms.lambda" in d for d in diffs), diffs
+
+
+def test_perturbed_data_are_caught():
+    """The friction bound changed by one part in a million moves the answer beyond tolerance."""
+    base = regression.baseline("rigid_foundation")["0"]
+    now = regression.run_case("rigid_foundation", 0, ("contact.g=9000009.0",))
+    diffs = regression.check_case("rigid_foundation", 0, base, now)
+    assert any(".norms." in d for d in diffs), diffs
+
+
+def test_a_changed_count_is_caught():
+    base = regression.baseline("signorini")["0"]
+    now = regression.run_case("signorini", 0)
+    now["summary"]["contact"]["slip"] += 1
+    assert regression.check_case("signorini", 0, base, now) == [
+        "signorini level 0: .summary.contact.slip: 2 → 3"
+    ]
+
+
+def test_rounding_is_not_a_difference(monkeypatch):
+    """λ moved by 10 ε: within tolerance (the check does not fail on rounding alone)."""
+    base = regression.baseline("rigid_foundation")["0"]
+    monkeypatch.setattr(regression.vi_core, "solve", _scaled_solve(1 + 10 * regression.EPS))
+    assert (
+        regression.check_case(
+            "rigid_foundation", 0, base, regression.run_case("rigid_foundation", 0)
+        )
+        == []
+    )
