@@ -1,5 +1,10 @@
 """Vectorised (over cells) assembly of P1/Q1 forms, loads, post-processing and error norms.
 
+Matrices are assembled in chunks of `CHUNK` cells: the quadrature data and local matrices of
+one chunk, not of the whole mesh, are alive at a time, and their values are summed into the
+matrix's final sparsity pattern (built first from the cells' dof pairs, so it is the same
+whatever the chunk size: explicit zeros where entries cancel are kept).
+
 Dof numbering: displacement component k of node i is dof 2 i + k; scalar fields (the electric
 potential) have dof = node index. Voigt order on (xx, yy, xy) with engineering shear strain
 γ_xy = 2 ε_xy. Sign convention of the paper: σ = C ε(u) + eᵀ∇φ, D = e ε(u) − κ∇φ.
@@ -44,14 +49,18 @@ def _det(J: np.ndarray) -> np.ndarray:
     return J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
 
 
-def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray) -> Geometry:
+CHUNK = 16384  # cells per assembly chunk
+
+
+def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray, cells: slice = slice(None)) -> Geometry:
+    """Quadrature data of the cells mesh.cells[cells] (a slice: first cell = its start)."""
     ref = reference_element(mesh.cell_type)
-    X = mesh.points[mesh.cells]  # (n_cells, n_loc, 2)
+    X = mesh.points[mesh.cells[cells]]  # (n_cells, n_loc, 2)
     # det J is constant (P1) or affine in the reference coordinates (Q1): it is positive on the
     # whole cell iff it is positive at the vertices
     XT = X.transpose(0, 2, 1)[:, None]  # (n_cells, 1, 2, n_loc)
     Jv = XT @ ref.gradients(ref.vertices)  # (n_cells, n_loc, 2, 2) J at the vertices
-    bad = np.flatnonzero((_det(Jv) <= 0).any(axis=1))  # (n_bad,)
+    bad = np.flatnonzero((_det(Jv) <= 0).any(axis=1)) + (cells.start or 0)  # (n_bad,)
     if bad.size:
         raise ValueError(
             f"inverted or degenerate cell {bad[0]} (nodes {mesh.cells[bad[0]].tolist()}): "
@@ -83,11 +92,68 @@ def _vector_dofs(mesh: Mesh) -> np.ndarray:
     return (2 * mesh.cells[:, :, None] + np.arange(2)).reshape(mesh.n_cells, -1)
 
 
+def _keys(rows: np.ndarray, cols: np.ndarray, ncol: int) -> np.ndarray:
+    """(k, r, c) flat positions row · ncol + col of the local entries of k cells."""
+    return rows[:, :, None].astype(np.int64) * ncol + cols[:, None, :]
+
+
+def _pattern(rows: np.ndarray, cols: np.ndarray, shape, chunk: int) -> sp.csr_matrix:
+    """The sparsity pattern (sorted csr, int8 ones) of all cells' (rows, cols) dof pairs."""
+    P = sp.csr_matrix(shape, dtype=np.float32)
+    for lo in range(0, rows.shape[0], chunk):
+        R, C = rows[lo : lo + chunk], cols[lo : lo + chunk]  # (k, r), (k, c)
+        k = _keys(R, C, shape[1]).ravel()  # (k r c,)
+        one = np.ones(k.size, dtype=np.float32)  # positive: no cancellation in the sum
+        P = P + sp.csr_matrix((one, (k // shape[1], k % shape[1])), shape=shape)
+    P.sort_indices()
+    return P
+
+
+def _assemble_chunks(
+    local_of: Callable[[slice], np.ndarray],
+    rows: np.ndarray,
+    cols: np.ndarray,
+    shape: tuple[int, int],
+    chunk: int = CHUNK,
+) -> sp.csr_matrix:
+    """Σ over cells of the local matrices local_of(cells) (k, r, c) of each chunk `cells` of k
+    cells, at the dofs rows (n_cells, r) × cols (n_cells, c), summed into the final pattern."""
+    if chunk < 1:
+        raise ValueError(f"chunk must be ≥ 1 cell, got {chunk}")
+    P = _pattern(rows, cols, shape, chunk)
+    keys = np.repeat(np.arange(shape[0], dtype=np.int64), np.diff(P.indptr))  # (nnz,)
+    keys *= shape[1]
+    keys += P.indices  # (nnz,) increasing (sorted csr)
+    data = np.zeros(P.nnz)  # (nnz,)
+    for lo in range(0, rows.shape[0], chunk):
+        cells = slice(lo, lo + chunk)
+        local = local_of(cells)  # (k, r, c)
+        pos = np.searchsorted(keys, _keys(rows[cells], cols[cells], shape[1]))  # (k, r, c)
+        np.add.at(data, pos.ravel(), local.ravel())
+    del keys
+    return sp.csr_matrix((data, P.indices, P.indptr), shape=shape)
+
+
+def _assemble_forms(
+    mesh: Mesh,
+    kernel: Callable[[Geometry], np.ndarray],
+    rows: np.ndarray,
+    cols: np.ndarray,
+    shape: tuple[int, int],
+    chunk: int = CHUNK,
+) -> sp.csr_matrix:
+    """Σ over cells of kernel(g) (k, r, c), g the order-2 quadrature data of a chunk of k
+    cells, computed chunk by chunk."""
+    pts, wts = reference_element(mesh.cell_type).quadrature(2)
+    return _assemble_chunks(
+        lambda cells: kernel(_geometry(mesh, pts, wts, cells)), rows, cols, shape, chunk
+    )
+
+
 def _assemble(local: np.ndarray, rows: np.ndarray, cols: np.ndarray, shape) -> sp.csr_matrix:
-    """Sum local matrices (n_cells, r, c) into a sparse matrix (duplicates added)."""
-    R = np.broadcast_to(rows[:, :, None], local.shape)  # (n_cells, r, c)
-    C = np.broadcast_to(cols[:, None, :], local.shape)  # (n_cells, r, c)
-    return sp.csr_matrix((local.ravel(), (R.ravel(), C.ravel())), shape=shape)
+    """Sum local matrices already computed for all cells (n_cells, r, c) into a sparse matrix
+    (duplicates added; the same pattern-and-scatter path as the chunked 2D forms)."""
+    return _assemble_chunks(lambda cells: local[cells], rows, cols, shape)
 
 
 def _strain_operator(grad: np.ndarray) -> np.ndarray:
@@ -108,47 +174,59 @@ def _check_matrix(name: str, M: np.ndarray, shape: tuple[int, int]) -> np.ndarra
     return M
 
 
-def elasticity_matrix(mesh: Mesh, C: np.ndarray) -> sp.csr_matrix:
-    """(2N × 2N) ∫ C ε(u)·ε(v), C the 3×3 Voigt matrix on (xx, yy, xy)."""
+def elasticity_matrix(mesh: Mesh, C: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
+    """(2N × 2N) ∫ C ε(u)·ε(v), C the 3×3 Voigt matrix on (xx, yy, xy); `chunk` cells at a
+    time (module docstring)."""
     C = _check_matrix("C", C, (3, 3))
-    g = cell_geometry(mesh, order=2)
-    B = _strain_operator(g.grad)  # (n_cells, n_qp, 3, 2 n_loc)
-    wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (n_cells, n_qp, 2 n_loc, 3)
-    Ke = (wBt @ (C @ B)).sum(axis=1)  # (n_cells, 2 n_loc, 2 n_loc)
+
+    def kernel(g: Geometry) -> np.ndarray:
+        B = _strain_operator(g.grad)  # (k, n_qp, 3, 2 n_loc)
+        wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (k, n_qp, 2 n_loc, 3)
+        return (wBt @ (C @ B)).sum(axis=1)  # (k, 2 n_loc, 2 n_loc)
+
     dofs = _vector_dofs(mesh)  # (n_cells, 2 n_loc)
     n = 2 * mesh.n_nodes
-    return _assemble(Ke, dofs, dofs, (n, n))
+    return _assemble_forms(mesh, kernel, dofs, dofs, (n, n), chunk)
 
 
-def coupling_matrix(mesh: Mesh, e: np.ndarray) -> sp.csr_matrix:
+def coupling_matrix(mesh: Mesh, e: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
     """(N × 2N) G[θ, u] = ∫ ∇θ · (e ε(u)), e the 2×3 piezoelectric matrix (rows D_x, D_y)."""
     e = _check_matrix("e", e, (2, 3))
-    g = cell_geometry(mesh, order=2)
-    B = _strain_operator(g.grad)  # (n_cells, n_qp, 3, 2 n_loc)
-    wgrad = g.grad * g.w[:, :, None, None]  # (n_cells, n_qp, n_loc, 2)
-    Ge = (wgrad @ (e @ B)).sum(axis=1)  # (n_cells, n_loc, 2 n_loc)
-    return _assemble(Ge, mesh.cells, _vector_dofs(mesh), (mesh.n_nodes, 2 * mesh.n_nodes))
+
+    def kernel(g: Geometry) -> np.ndarray:
+        B = _strain_operator(g.grad)  # (k, n_qp, 3, 2 n_loc)
+        wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, 2)
+        return (wgrad @ (e @ B)).sum(axis=1)  # (k, n_loc, 2 n_loc)
+
+    shape = (mesh.n_nodes, 2 * mesh.n_nodes)
+    return _assemble_forms(mesh, kernel, mesh.cells, _vector_dofs(mesh), shape, chunk)
 
 
-def permittivity_matrix(mesh: Mesh, kappa: np.ndarray) -> sp.csr_matrix:
+def permittivity_matrix(mesh: Mesh, kappa: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
     """(N × N) ∫ κ∇φ·∇θ, κ a 2×2 symmetric positive definite matrix."""
     kappa = _check_matrix("kappa", kappa, (2, 2))
-    g = cell_geometry(mesh, order=2)
-    wgrad = g.grad * g.w[:, :, None, None]  # (n_cells, n_qp, n_loc, 2)
-    Pe = (wgrad @ kappa @ g.grad.transpose(0, 1, 3, 2)).sum(axis=1)  # (n_cells, n_loc, n_loc)
-    return _assemble(Pe, mesh.cells, mesh.cells, (mesh.n_nodes, mesh.n_nodes))
+
+    def kernel(g: Geometry) -> np.ndarray:
+        wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, 2)
+        return (wgrad @ kappa @ g.grad.transpose(0, 1, 3, 2)).sum(axis=1)  # (k, n_loc, n_loc)
+
+    shape = (mesh.n_nodes, mesh.n_nodes)
+    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk)
 
 
-def stiffness_matrix(mesh: Mesh) -> sp.csr_matrix:
+def stiffness_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
     """(N × N) ∫ ∇φ·∇θ (the H¹ seminorm Gram matrix)."""
-    return permittivity_matrix(mesh, np.eye(2))
+    return permittivity_matrix(mesh, np.eye(2), chunk)
 
 
-def mass_matrix(mesh: Mesh) -> sp.csr_matrix:
+def mass_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
     """(N × N) ∫ φ θ (the L² Gram matrix)."""
-    g = cell_geometry(mesh, order=2)
-    Me = np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (n_cells, n_loc, n_loc)
-    return _assemble(Me, mesh.cells, mesh.cells, (mesh.n_nodes, mesh.n_nodes))
+
+    def kernel(g: Geometry) -> np.ndarray:
+        return np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (k, n_loc, n_loc)
+
+    shape = (mesh.n_nodes, mesh.n_nodes)
+    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk)
 
 
 def _evaluate(func: Func, x: np.ndarray, y: np.ndarray, ncomp: int) -> np.ndarray:

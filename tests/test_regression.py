@@ -72,3 +72,11 @@ def test_rounding_is_not_a_difference(monkeypatch):
         )
         == []
     )
+
+
+def test_a_slack_beyond_rounding_is_caught():
+    base = regression.baseline("curved_manufactured")["0"]
+    now = regression.run_case("curved_manufactured", 0)
+    assert regression.check_case("curved_manufactured", 0, base, now) == []
+    bad = {**now, "norms": {**now["norms"], "slack": 1e-6 * now["slack_scale"]}}
+    assert any("slack" in d for d in regression.check_case("curved_manufactured", 0, base, bad))

@@ -3,20 +3,27 @@
     from vi_core import MixedVI, Box, Ball, Free, NonNegative, product, solve, constants
     sol = solve(vi, method="ssn" | "conic" | "homotopy" | "auto", tol=1e-10)
 
+Unilateral contact with friction (`Coulomb`, `UnilateralTresca`: quasi-variational sets,
+docs/coulomb.md) takes method="ssn" | "fixed_point" | "auto".
+
 The gallery of test problems and hypothesis strategies live in `vi_core.testing`.
 """
 
 from .constants import Constants, constants, skew_ratio
+from .coulomb import ContactSet, Coulomb, UnilateralTresca
 from .problem import MixedVI, Residual, Scaling, natural_residual
 from .sets import Ball, Box, ConvexSet, Free, NonNegative, Product, product
 from .solution import Solution
-from .solve import METHODS, solve
+from .solve import CONTACT_METHODS, METHODS, solve
 
 __all__ = [
+    "CONTACT_METHODS",
     "METHODS",
     "Ball",
     "Box",
     "Constants",
+    "ContactSet",
+    "Coulomb",
     "ConvexSet",
     "Free",
     "MixedVI",
@@ -25,6 +32,7 @@ __all__ = [
     "Residual",
     "Scaling",
     "Solution",
+    "UnilateralTresca",
     "constants",
     "natural_residual",
     "product",

@@ -1,9 +1,18 @@
 """Sparse LU factorisations behind one interface.
 
-Backends: "splu" (SciPy SuperLU, COLAMD ordering: 5.5 s on a 99k-unknown piezo system, where
-the MMD(AᵀA+A) ordering took far longer) and "pardiso" (MKL PARDISO through the optional
-`pypardiso`, ``pip install mixvi[fast]``: 1.05 s on the same system). "auto" takes PARDISO
-where it imports and the system is large enough to pay for it, else SuperLU.
+Backends: "splu" (SciPy SuperLU) and "pardiso" (MKL PARDISO through the optional `pypardiso`,
+``pip install mixvi[fast]``, METIS nested dissection). "auto" takes PARDISO where it imports
+and the system is large enough to pay for it, else SuperLU.
+
+SuperLU's column ordering is ORDERING = minimum degree on the graph of Aᵀ + A: on the condensed
+Newton matrix of the paper scene at level 4 (96,576 unknowns) its factors hold 8.4 × nnz(A)
+where COLAMD's hold 19.7 × and a nested dissection from level-set separators
+(`vi_core.ordering`) 10.3 ×; it also factorises 3.6 × faster than COLAMD
+(`python -m problems.commands.bench_ordering --level 4`).
+
+Memory: a factorisation's factors are released by `Factorization.free` (SuperLU: the SuperLU
+object is dropped); a `Refactorizer` frees the previous factorisation before it builds the
+next, so at most one factor per Refactorizer is alive.
 
 `Refactorizer` factorises a sequence of matrices (the Newton steps of ssn). With PARDISO, a
 matrix with the same sparsity pattern (indptr and indices) as the previous one reuses the
@@ -24,6 +33,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 BACKENDS = ("auto", "splu", "pardiso")
+ORDERING = "MMD_AT_PLUS_A"  # SuperLU's column ordering (module docstring)
 AUTO_PARDISO_MIN = 2000  # below this SuperLU is as fast and has no library overhead
 
 
@@ -62,6 +72,7 @@ class Factorization:
     pardiso_solver : (PARDISO only) a solver object whose symbolic analysis of a matrix with
         A's sparsity pattern is reused: only the numerical factorisation is computed, and the
         object stays owned by the caller (`Refactorizer`).
+    After `free()` (or `stale`) the factorisation cannot solve any more.
     """
 
     def __init__(self, A: sp.spmatrix, backend: str = "auto", pardiso_solver=None):
@@ -79,35 +90,47 @@ class Factorization:
             else:
                 self._pardiso = pardiso_solver
                 self._pardiso._check_A(self.A)
-                self._pardiso.factorized_A = self.A.copy()
+                self._pardiso.factorized_A = self.A  # not modified: no copy needed
                 self._pardiso.set_phase(22)  # numerical factorisation, symbolic reused
                 self._pardiso._call_pardiso(self.A, np.zeros((self.A.shape[0], 1)))
-            self._solve = lambda b: self._pardiso.solve(self.A, np.ascontiguousarray(b, float))
-            self._solve_t = None  # a factorisation of Aᵀ, made on first use
+            self._lu = None
         else:
-            lu = spla.splu(sp.csc_matrix(self.A), permc_spec="COLAMD")
-            self._solve = lambda b: lu.solve(np.asarray(b, dtype=float))
-            self._solve_t = lambda b: lu.solve(np.asarray(b, dtype=float), trans="T")
+            self._pardiso = None
+            # A's csr arrays are Aᵀ in csc: factorise Aᵀ without a copy of A, solve transposed
+            At = sp.csc_matrix((self.A.data, self.A.indices, self.A.indptr), self.A.shape[::-1])
+            self._lu = spla.splu(At, permc_spec=ORDERING)
+        self._transposed: Factorization | None = None  # PARDISO: a factorisation of Aᵀ
+
+    def _solve(self, b: np.ndarray, trans: str = "N") -> np.ndarray:
+        if self.stale or (self._lu is None and self._pardiso is None):
+            raise RuntimeError("this factorisation was freed or replaced by a later one")
+        b = np.ascontiguousarray(b, dtype=float)
+        if self._lu is not None:  # the factors are those of Aᵀ
+            return self._lu.solve(b, trans="N" if trans == "T" else "T")
+        return self._pardiso.solve(self.A, b)
 
     def __call__(self, b: np.ndarray) -> np.ndarray:
-        if self.stale:
-            raise RuntimeError("this factorisation was replaced by a later one (Refactorizer)")
         x = self._solve(b)
         return _refine(self.A, b, x, self._solve)
 
     def solve_transposed(self, b: np.ndarray) -> np.ndarray:
         """x with Aᵀx = b (PARDISO: factorises Aᵀ on first use)."""
-        if self._solve_t is None:
+        if self._pardiso is None:
+            return self._solve(np.ravel(b), trans="T")
+        if self._transposed is None:
             self._transposed = Factorization(self.A.T, self.backend)
-            self._solve_t = self._transposed
-        return self._solve_t(np.ravel(b))
+        return self._transposed(np.ravel(b))
 
     def free(self) -> None:
-        """Release the factor's memory now (PARDISO keeps it outside Python's heap); a shared
-        solver object is released by its Refactorizer."""
+        """Release the factor's memory now (PARDISO keeps it outside Python's heap; a shared
+        solver object is released by its Refactorizer)."""
         if getattr(self, "_pardiso", None) is not None and getattr(self, "_owner", True):
             self._pardiso.free_memory(everything=True)
         self._pardiso = None
+        self._lu = None
+        if getattr(self, "_transposed", None) is not None:
+            self._transposed.free()
+            self._transposed = None
 
     def __del__(self):
         self.free()
@@ -131,8 +154,7 @@ class Refactorizer:
         A = sp.csr_matrix(A)
         A.sort_indices()
         backend = resolve_backend(self.backend, A.shape[0])
-        if self._last is not None:
-            self._last.stale = backend == "pardiso"
+        self.release()  # never two factors at once: the old one goes first
         self.factorizations += 1
         if backend != "pardiso":
             self.analyses += 1
@@ -154,6 +176,15 @@ class Refactorizer:
             self.analyses += 1
         self._last = Factorization(A, "pardiso", pardiso_solver=self._solver)
         return self._last
+
+    def release(self) -> None:
+        """Free the last factorisation now (it goes `stale`); a PARDISO analysis is kept (its
+        numerical factor is overwritten in place by the next call)."""
+        if self._last is not None:
+            self._last.stale = True
+            if self._last.backend != "pardiso":
+                self._last.free()
+            self._last = None
 
     def free(self) -> None:
         """Release the PARDISO analysis and factors."""

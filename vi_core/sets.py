@@ -5,6 +5,10 @@ Every set knows its projection P_Λ, an element of the generalised (Clarke) Jaco
 (used by the conic path). Sets scale by a positive diagonal (used by equilibration).
 
 A `Ball(radius, dim)` block of k balls owns dim·k consecutive coordinates, ball by ball.
+
+Contact sets whose friction bound depends on the multiplier itself (Coulomb) live in
+`vi_core.coulomb`; they set `quasi = True` (a quasi-variational inequality: no fixed convex set,
+no support function).
 """
 
 from __future__ import annotations
@@ -31,9 +35,10 @@ def _vector(name: str, value: Any, size: int | None = None) -> np.ndarray:
 
 
 class ConvexSet(ABC):
-    """A closed convex set Λ ⊂ R^size."""
+    """A closed convex set Λ ⊂ R^size (or, with `quasi`, a set depending on λ: vi_core.coulomb)."""
 
     size: int
+    quasi: bool = False  # True: Λ = Λ(λ), `project` is a combined complementarity map
 
     @abstractmethod
     def project(self, y: np.ndarray) -> np.ndarray:
@@ -229,6 +234,11 @@ class Product(ConvexSet):
 
     def blocks(self):
         return list(self._blocks)
+
+    @property
+    def quasi(self) -> bool:
+        """Whether some block depends on λ itself (a quasi-variational inequality)."""
+        return any(b.quasi for b in self._blocks)
 
     def slices(self) -> list[slice]:
         """The coordinate range of each block."""

@@ -5,7 +5,17 @@ Methods
 "ssn"       semismooth Newton / primal-dual active set (`vi_core.ssn.solve_ssn`): any A.
 "conic"     cvxpy + Clarabel (`vi_core.conic.solve_conic`): symmetric or skew-coupled A only.
 "homotopy"  nested fixed point of Lemma 3.3 (`vi_core.homotopy.solve_homotopy`): any A.
+"fixed_point"  contact sets only (vi_core.coulomb): the fixed point on Tresca problems
+            g ← F λ_n (`vi_core.tresca_fixed_point.solve_tresca_fixed_point`), each Tresca
+            problem solved by `inner` = "ssn", "homotopy" or "conic".
 "auto"      the rule below.
+
+**Quasi-variational sets** (`Coulomb`, `UnilateralTresca(contact_only=True)`: Λ depends on λ).
+"ssn" applies unchanged (the Hüeber–Stadler–Wohlmuth semismooth Newton, vi_core.coulomb) and so
+does "fixed_point"; "conic" and "homotopy" need a fixed convex set and are refused (reach them
+as the inner solver of "fixed_point"). "auto" takes "ssn" and falls back to "fixed_point"
+(inner "ssn") from a cold start. A VI with a contact set that is not quasi (Tresca everywhere)
+takes "ssn", "fixed_point" (one Tresca problem) or "auto".
 
 **The "auto" rule.** Semismooth Newton first: it handles every structure and set and is the
 fastest on the gallery problems (n ≤ 60: ~10–30 ms against ~70–300 ms for "conic" and
@@ -21,10 +31,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from .coulomb import ContactSet
 from .problem import MixedVI
 from .solution import Solution
 
-METHODS = ("auto", "ssn", "conic", "homotopy")
+METHODS = ("auto", "ssn", "conic", "homotopy")  # for fixed convex sets
+CONTACT_METHODS = ("auto", "ssn", "fixed_point")  # for Λ with contact blocks (vi_core.coulomb)
 
 
 def _run(vi: MixedVI, method: str, tol: float, options: dict[str, Any]) -> Solution:
@@ -36,6 +48,10 @@ def _run(vi: MixedVI, method: str, tol: float, options: dict[str, Any]) -> Solut
         from .conic import solve_conic
 
         return solve_conic(vi, tol=tol, **options)
+    if method == "fixed_point":
+        from .tresca_fixed_point import solve_tresca_fixed_point
+
+        return solve_tresca_fixed_point(vi, tol=tol, **options)
     from .homotopy import solve_homotopy
 
     return solve_homotopy(vi, tol=tol, **options)
@@ -44,24 +60,40 @@ def _run(vi: MixedVI, method: str, tol: float, options: dict[str, Any]) -> Solut
 def solve(vi: MixedVI, method: str = "auto", tol: float = 1e-10, **options: Any) -> Solution:
     """Solve the mixed VI `vi` to relative natural-map residual `tol` (`MixedVI.residual`).
 
-    method : "ssn", "conic", "homotopy" or "auto" (module docstring).
+    method : "ssn", "conic", "homotopy", "fixed_point" or "auto" (module docstring).
     options : passed to the chosen solver unchanged, e.g.
         ``solve(vi, "conic", clarabel={"max_iter": 50}, polish=0)``,
         ``solve(vi, "homotopy", inner="conic", rate=0.5)``,
-        ``solve(vi, "ssn", linear_solver="splu", max_iter=30)``.
+        ``solve(vi, "ssn", linear_solver="splu", max_iter=30)``,
+        ``solve(vi, "fixed_point", inner="conic", max_iter=50)``.
         With "auto" they go to semismooth Newton (and `linear_solver` also to the fallback).
     """
-    if method not in METHODS:
-        raise ValueError(f"method {method!r} unknown; allowed: {', '.join(METHODS)}")
+    known = METHODS + ("fixed_point",)
+    if method not in known:
+        raise ValueError(f"method {method!r} unknown; allowed: {', '.join(known)}")
     if not 0.0 < tol < 1.0:
         raise ValueError(f"tol = {tol!r}: a relative residual tolerance must lie in (0, 1)")
+    contact = any(isinstance(b, ContactSet) for b in vi.Lambda.blocks())
+    if contact and method not in CONTACT_METHODS:
+        raise ValueError(
+            f"method {method!r} needs a fixed convex set; {vi.Lambda!r} holds contact blocks: "
+            f'allowed: {", ".join(CONTACT_METHODS)} (fixed_point takes inner="{method}")'
+        )
+    if not contact and method not in METHODS:
+        raise ValueError(
+            f"method {method!r} iterates on contact blocks (vi_core.coulomb); {vi.Lambda!r} "
+            f"has none: allowed: {', '.join(METHODS)}"
+        )
     if method != "auto":
         return _run(vi, method, tol, options)
     sol = _run(vi, "ssn", tol, options)
     sol.info["auto"] = {"chosen": "ssn"}
     if sol.converged:
         return sol
-    fallback = "conic" if vi.structure in ("symmetric", "skew-coupled") else "homotopy"
+    if contact:
+        fallback = "fixed_point"
+    else:
+        fallback = "conic" if vi.structure in ("symmetric", "skew-coupled") else "homotopy"
     keep = {k: v for k, v in options.items() if k == "linear_solver"}
     alt = _run(vi, fallback, tol, keep)
     alt.info["auto"] = {"chosen": fallback, "ssn_residual": sol.residual}

@@ -126,10 +126,15 @@ def _on_pattern(M: sp.spmatrix, pattern: sp.csr_matrix) -> sp.csr_matrix:
     """M stored on `pattern` (sorted csr ⊇ the structure of M), explicit zeros kept."""
     M = sp.csr_matrix(M)
     ncol = np.int64(pattern.shape[1])
+    # flat keys row · ncol + col, computed in place (few full-size temporaries: memory)
     keys_p = np.repeat(np.arange(pattern.shape[0], dtype=np.int64), np.diff(pattern.indptr))
-    keys_p = keys_p * ncol + pattern.indices  # (nnz_p,) increasing (sorted csr)
-    rows = np.repeat(np.arange(M.shape[0], dtype=np.int64), np.diff(M.indptr))
-    pos = np.searchsorted(keys_p, rows * ncol + M.indices)  # (nnz_M,)
+    keys_p *= ncol
+    keys_p += pattern.indices  # (nnz_p,) increasing (sorted csr)
+    keys = np.repeat(np.arange(M.shape[0], dtype=np.int64), np.diff(M.indptr))
+    keys *= ncol
+    keys += M.indices  # (nnz_M,)
+    pos = np.searchsorted(keys_p, keys)  # (nnz_M,)
+    del keys_p, keys
     data = np.zeros(pattern.nnz)
     np.add.at(data, pos, M.data)
     return sp.csr_matrix((data, pattern.indices, pattern.indptr), shape=pattern.shape)
@@ -172,11 +177,14 @@ class _Stepper:
                 sp.bmat([[_structure(e.A), _structure(e.B.T)], [G @ _structure(e.B), G]])
             )
         self.pattern.sort_indices()
+        self.pattern.data = np.ones(self.pattern.nnz, dtype=np.int8)  # only its structure is used
 
     def step(self, J, W, rhs_c, guess=None, forcing=0.0):
         """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c (iterative path: from u⁺ = guess, to
         the relative linear residual `forcing`, see `krylov.KrylovSolver`)."""
         e = self.e
+        self.last = None  # the previous factor is freed before the next matrix is assembled
+        self.factorize.release()
         if self.cond is None:
             K = _on_pattern(sp.bmat([[e.A, e.B.T], [-J @ e.B, W]], format="csr"), self.pattern)
             self.nnz.append(K.nnz)
@@ -189,6 +197,7 @@ class _Stepper:
         K_S = (Dt @ (W @ (c.Dt_inv @ self.A_S)) + Dt @ (J @ e.B)).tocsr()
         rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
         K = _on_pattern(self.P @ sp.vstack([self.K_R, K_S], format="csr"), self.pattern)
+        del K_S  # what the factorisation does not need is freed before it runs
         self.nnz.append(K.nnz)
         rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])
         u_new = None

@@ -13,6 +13,10 @@ Every generator is deterministic in its integer `seed` (``np.random.default_rng(
   B u* − gap = 0: strict complementarity fails); f = A u* + Bᵀλ*, gap = B u* − z* with
   z* ∈ N_Λ(λ*).
 
+* `random_contact_vi`: the same operators with a product of `Free` rows and one contact block
+  (`Coulomb` or `UnilateralTresca`) of k nodes in R^dim, gaps drawn so that about two thirds
+  of the nodes are pressed into contact by the load and the rest lift off.
+
 Structures: "symmetric" (C = 0), "skew-coupled" (A = [[K, Gᵀ], [−G, P]], B on the first block)
 and "general" (a dense random skew C).
 """
@@ -26,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .constants import skew_ratio
+from .coulomb import Coulomb, UnilateralTresca
 from .problem import MixedVI
 from .sets import Ball, Box, ConvexSet, Free, NonNegative, product
 
@@ -269,6 +274,80 @@ def manufactured_vi(
         u=u / scale,
         lam=lam,
         kind=kind.astype(str),
+    )
+
+
+def random_contact_vi(
+    seed: int,
+    n: int = 20,
+    k: int = 4,
+    dim: int = 2,
+    F: float | np.ndarray = 0.3,
+    law: str = "coulomb",
+    structure: str = "symmetric",
+    rho: float = 0.5,
+    cond: float = 10.0,
+    free: int = 0,
+    spread: float = 0.0,
+    decoupled: bool = False,
+) -> MixedVI:
+    """A random contact problem: Λ = Free(free) × Coulomb(F, dim) (k nodes) or
+    Free(free) × UnilateralTresca(g = F, dim, contact_only=True) (law="tresca").
+
+    The normal gaps are set from the solution u_0 with the free rows only (A u_0 + B_freeᵀμ = f,
+    B_free u_0 = gap_free): about two thirds of the nodes (at least one) get
+    (B u_0)_n − gap_n > 0 (the load presses them into contact), the others lift off; tangential
+    gaps are 0. F scales with the typical normal pressure: the friction radius F λ_n
+    and the tangential loads are of one size for F ≈ 1.
+    decoupled : A block diagonal, the free and normal rows of B acting on the first block and
+        the tangential rows on the second: λ_n does not depend on friction (a bilateral-like
+        pressure known in advance), and Coulomb is exactly Tresca with g = F λ_n.
+    """
+    if law not in ("coulomb", "tresca"):
+        raise ValueError(f"law {law!r} unknown; allowed: coulomb, tresca")
+    rng = np.random.default_rng(seed)
+    m = free + k * dim
+    normal = free + dim * np.arange(k)  # (k,) rows of the normal multipliers
+    if decoupled:
+        # A = diag(A_1, A_2); free and normal rows act on block 1, tangential rows on block 2
+        n1 = n // 2
+        A1, c1 = _operator(rng, n1, structure, rho, cond)
+        A2, c2 = _operator(rng, n - n1, structure, rho, cond)
+        A = np.block([[A1, np.zeros((n1, n - n1))], [np.zeros((n - n1, n1)), A2]])
+        tangential = np.setdiff1d(np.arange(free, m), normal)
+        if free + k > c1 or tangential.size > c2:
+            raise ValueError(f"n = {n} is too small for {k} decoupled nodes in R^{dim}")
+        B = np.zeros((m, n))
+        rows1 = np.concatenate([np.arange(free), normal])
+        B[np.ix_(rows1, np.arange(c1))] = rng.standard_normal((rows1.size, c1))
+        B[np.ix_(tangential, n1 + np.arange(c2))] = rng.standard_normal((tangential.size, c2))
+    else:
+        A, n_first = _operator(rng, n, structure, rho, cond)
+        if m > n_first:
+            raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
+        B = np.zeros((m, n))
+        B[:, :n_first] = rng.standard_normal((m, n_first))
+    f = rng.standard_normal(n)
+    # constraint values of the solution with the free rows only (B_free u = gap_free)
+    gap_free = 0.5 * rng.standard_normal(free)
+    K = np.block([[A, B[:free].T], [B[:free], np.zeros((free, free))]])
+    z0 = B @ np.linalg.solve(K, np.concatenate([f, gap_free]))[:n]  # (m,)
+    gap = np.zeros(m)
+    gap[:free] = gap_free
+    size = np.median(np.abs(z0[normal])) + 1e-3
+    pressed = rng.random(k) < 2.0 / 3.0
+    pressed[rng.integers(k)] = True  # at least one node is pressed: some contact
+    push = size * np.where(pressed, -rng.uniform(1.0, 3.0, k), rng.uniform(0.1, 0.5, k))
+    gap[normal] = z0[normal] + push
+    contact = Coulomb(F, dim, k=k) if law == "coulomb" else UnilateralTresca(F, dim, k=k)
+    A, B, f, _ = _variables(rng, A, B, f, spread)
+    return MixedVI(
+        A=sp.csr_matrix(A),
+        B=sp.csr_matrix(B),
+        f=f,
+        Lambda=product(Free(free), contact),
+        gap=gap,
+        info={"gallery": "random_contact_vi", "seed": seed, "structure": structure, "rho": rho},
     )
 
 

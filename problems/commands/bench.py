@@ -8,8 +8,10 @@ For each (scene, level) a child process builds the model and times
   tied problem), by the same machinery (ssn on a linear problem = one condensed factorisation
   and solve);
 and reports their ratio, the child's peak resident memory (ru_maxrss, which — unlike
-tracemalloc — includes the sparse factorisations' C allocations) and the memory estimate of
-`resources` for the same level (made before the child starts), so the model can be checked.
+tracemalloc — includes the sparse factorisations' C allocations), that peak in bytes per
+unknown, and the memory estimate of `resources` for the same level (made before the child
+starts), so the model can be checked. A second table (JSON key "memory") lists per case the
+peak, the bytes per unknown and the estimate with its ratio estimate / measured.
 
 A case whose child raises, is killed (e.g. by the out-of-memory killer) or exceeds `--timeout`
 seconds becomes a failed row with its cause; the parent polls the child's liveness and never
@@ -127,9 +129,10 @@ def _record(
                 ),
             }
         )
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux → MiB
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0  # KiB on Linux → bytes
     for r in out:
-        r["peak_mem_mb"] = peak
+        r["peak_mem_mb"] = peak / 2**20
+        r["bytes_per_unknown"] = peak / r["unknowns"]
     return out
 
 
@@ -231,7 +234,11 @@ def _timeout(text: str) -> float:
 HEAD = (
     f"{'scene':<18}{'level':>6}{'unknowns':>10}{'solver':>10}{'linear':>9}{'iter':>6}"
     f"{'krylov/step':>12}"
-    f"{'nonlinear [s]':>15}{'linear [s]':>12}{'ratio':>8}{'peak [MB]':>11}{'est. [MB]':>11}"
+    f"{'nonlinear [s]':>15}{'linear [s]':>12}{'ratio':>8}{'peak [MB]':>11}{'B/unknown':>11}"
+)
+MEMORY_HEAD = (
+    f"{'scene':<18}{'level':>6}{'unknowns':>10}{'peak [MB]':>11}{'B/unknown':>11}"
+    f"{'est. [MB]':>11}{'est./peak':>11}"
 )
 
 
@@ -246,7 +253,37 @@ def _line(r: dict) -> str:
         f"{r['scene']:<18}{r['level']:>6}{r['unknowns']:>10}{r['solver']:>10}"
         f"{r.get('linear_solver') or '-':>9}{r['iterations']:>6}{kry:>12}"
         f"{r['time_nonlinear_s']:>15.2f}{r['time_linear_s']:>12.2f}"
-        f"{r['ratio']:>8.2f}{r['peak_mem_mb']:>11.0f}{r['estimate_mem_mb']:>11.0f}"
+        f"{r['ratio']:>8.2f}{r['peak_mem_mb']:>11.0f}{r['bytes_per_unknown']:>11.0f}"
+    )
+
+
+def memory_table(records: list[dict]) -> list[dict]:
+    """One row per case that ran: peak resident memory, bytes per unknown, the estimate of
+    `resources` made before the case and their ratio estimate / measured."""
+    rows, seen = [], set()
+    for r in records:
+        key = (r["scene"], r["level"])
+        if r.get("error") or key in seen:
+            continue
+        seen.add(key)
+        rows.append(
+            {
+                "scene": r["scene"],
+                "level": r["level"],
+                "unknowns": r["unknowns"],
+                "peak_mem_mb": r["peak_mem_mb"],
+                "bytes_per_unknown": r["bytes_per_unknown"],
+                "estimate_mem_mb": r["estimate_mem_mb"],
+                "estimate_ratio": r["estimate_mem_mb"] / r["peak_mem_mb"],
+            }
+        )
+    return rows
+
+
+def _memory_line(m: dict) -> str:
+    return (
+        f"{m['scene']:<18}{m['level']:>6}{m['unknowns']:>10}{m['peak_mem_mb']:>11.0f}"
+        f"{m['bytes_per_unknown']:>11.0f}{m['estimate_mem_mb']:>11.0f}{m['estimate_ratio']:>11.2f}"
     )
 
 
@@ -299,7 +336,13 @@ def bench_main(argv: list[str] | None = None) -> int:
             "linear_solver": resolve_backend("auto"),  # what auto means here
             "threads": thread_settings(),
         }
-        target.write(json.dumps({"machine": machine, "records": records}, indent=2))
+        memory = memory_table(records)
+        print("\npeak resident memory (ru_maxrss of each case's child process)")
+        print(MEMORY_HEAD)
+        for m in memory:
+            print(_memory_line(m))
+        data = {"machine": machine, "records": records, "memory": memory}
+        target.write(json.dumps(data, indent=2))
     print(f"wrote {args.out}")
     ok = all(not r.get("error") and r.get("converged") for r in records)
     return 0 if ok else 1

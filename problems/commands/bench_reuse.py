@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     t_pd = time.perf_counter() - t0
     F.free()
     print(
-        f"one factorisation + solve of the last matrix: SuperLU (COLAMD) {t_lu:.2f} s, "
+        f"one factorisation + solve of the last matrix: SuperLU ({linalg.ORDERING}) {t_lu:.2f} s, "
         f"PARDISO {t_pd:.2f} s (ratio {t_lu / t_pd:.1f}; difference "
         f"{np.linalg.norm(x_lu - x_pd) / np.linalg.norm(x_pd):.1e})"
     )

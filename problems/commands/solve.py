@@ -66,19 +66,10 @@ def _solve(args, t0, scene, plugin, level, folder) -> int:
     if method not in vi_core.METHODS:
         raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
     tol = args.tol if args.tol is not None else model.options.get("tol", 1e-10)
-    nested = []
     linear = {"linear_solver": args.linear_solver}
-    warm = {}
+    nested, warm = [], {}
     if method == "ssn" and hasattr(plugin, "warm_start") and model.level > 0 and not args.cold:
-        # nested iteration: solve levels 0 … L−1 first, each warm-starting the next
-        prev = None
-        for lev in range(model.level):
-            coarse = plugin.build(scene, lev)
-            kw = plugin.warm_start(*prev, coarse) if prev else {}
-            csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **linear, **kw)
-            nested.append({"level": lev, "iterations": csol.iterations, "time_s": csol.time})
-            prev = (coarse, csol)
-        warm = plugin.warm_start(*prev, model)
+        nested, warm = _nested(plugin, scene, model, tol, linear)
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
         warm["estimate_condition"] = True
     sol = vi_core.solve(model.vi, method=method, tol=tol, **linear, **warm)
@@ -149,6 +140,21 @@ def _solve(args, t0, scene, plugin, level, folder) -> int:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
         return 1
     return 0 if sol.converged else 1
+
+
+def _nested(plugin, scene, model, tol: float, linear: dict) -> tuple[list[dict], dict]:
+    """Nested iteration: levels 0 … L−1 solved first, each warm-starting the next; returns
+    their records and the warm start of `model`. The coarse models are gone when it returns
+    (none of them is alive while the fine level is factorised)."""
+    nested, prev = [], None
+    for lev in range(model.level):
+        coarse = plugin.build(scene, lev)
+        kw = plugin.warm_start(*prev, coarse) if prev else {}
+        prev = None  # the level before is no longer needed
+        csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **linear, **kw)
+        nested.append({"level": lev, "iterations": csol.iterations, "time_s": csol.time})
+        prev = (coarse, csol)
+    return nested, plugin.warm_start(*prev, model)
 
 
 def load(args: argparse.Namespace):

@@ -218,6 +218,8 @@ def _build(scene: Scene, level: int | None) -> Model:
     fixed = np.concatenate([b.fixed for b in bodies.values()])
     values = np.concatenate([b.values for b in bodies.values()])
     X_full = sp.block_diag([b.X for b in bodies.values()], format="csr")
+    for b in bodies.values():  # vi.X below is the one copy kept (memory)
+        b.X = None
     _check_finite(A_full, f_full, values, contact)
     A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
     if contact is None:  # no contact: no multipliers
@@ -230,7 +232,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         f=f,
         Lambda=Lam,
         gap=gap,
-        X=X_full[free][:, free],
+        X=sp.csr_matrix(X_full[free][:, free]),
         Y=Y,
         info={"scene": scene.name, "level": level},
         **field_data(list(bodies.values()), free, n_full),  # for the iterative linear path

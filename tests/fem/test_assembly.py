@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from hypothesis import given
+from hypothesis import strategies as st
 
 from fem.assembly import (
     boundary_load,
@@ -374,3 +376,67 @@ def test_boundary_load_exact(element):
     assert np.isclose(L[1::2].sum(), -1.5 + 1.5**2 / 2, rtol=1e-13)
     with pytest.raises(KeyError, match="bottom, left, right, top"):
         boundary_load(mesh, "contact", 1.0, 1)
+
+
+# chunked assembly: any chunk size gives the one-shot matrix (same pattern, values to rounding)
+_FORMS = {
+    "elasticity": lambda mesh, chunk: elasticity_matrix(mesh, C_ANISO, chunk=chunk),
+    "coupling": lambda mesh, chunk: coupling_matrix(mesh, E_BTO, chunk=chunk),
+    "permittivity": lambda mesh, chunk: permittivity_matrix(mesh, KAPPA_BTO, chunk=chunk),
+    "mass": lambda mesh, chunk: mass_matrix(mesh, chunk=chunk),
+}
+
+
+def _one_shot_stiffness(mesh: Mesh) -> sp.csr_matrix:
+    """∫ ∇φ·∇θ from the whole mesh's geometry and one global COO array (the reference)."""
+    g = cell_geometry(mesh, order=2)
+    Ke = np.einsum("cq,cqai,cqbi->cab", g.w, g.grad, g.grad)  # (n_cells, n_loc, n_loc)
+    R = np.broadcast_to(mesh.cells[:, :, None], Ke.shape)  # (n_cells, n_loc, n_loc)
+    C = np.broadcast_to(mesh.cells[:, None, :], Ke.shape)  # (n_cells, n_loc, n_loc)
+    n = mesh.n_nodes
+    return sp.csr_matrix((Ke.ravel(), (R.ravel(), C.ravel())), shape=(n, n))
+
+
+def _same(M: sp.csr_matrix, R: sp.csr_matrix) -> bool:
+    M, R = sp.csr_matrix(M), sp.csr_matrix(R)
+    M.sort_indices()
+    R.sort_indices()
+    return (
+        np.array_equal(M.indptr, R.indptr)
+        and np.array_equal(M.indices, R.indices)
+        and np.allclose(M.data, R.data, rtol=0, atol=1e-13 * np.abs(R.data).max())
+    )
+
+
+@given(st.integers(0, 2**32 - 1), st.sampled_from(ELEMENTS))
+def test_chunked_assembly_equals_one_shot_for_random_chunk_sizes(seed, element):
+    rng = np.random.default_rng(seed)
+    nx, ny = (int(k) for k in rng.integers(2, 9, 2))
+    h = min(2.0 / nx, 1.5 / ny)
+    mesh = distorted(element, cells=(nx, ny), seed=seed, amount=0.25 * h / 0.5)  # up to h/8
+    chunk = int(rng.integers(1, mesh.n_cells + 3))
+    assert _same(stiffness_matrix(mesh, chunk=chunk), _one_shot_stiffness(mesh))
+    for form in _FORMS.values():
+        assert _same(form(mesh, chunk), form(mesh, mesh.n_cells))
+
+
+def test_mutation_a_chunk_assembled_from_the_wrong_cells_is_caught(monkeypatch):
+    import fem.assembly as assembly
+
+    mesh = distorted("quad", cells=(6, 5))
+    good = _one_shot_stiffness(mesh)
+    real = assembly._geometry
+
+    def shifted(mesh, pts, wts, cells=slice(None)):  # every chunk after the first off by one
+        if cells.start:
+            cells = slice(cells.start - 1, min(cells.stop, mesh.n_cells) - 1)
+        return real(mesh, pts, wts, cells)
+
+    monkeypatch.setattr(assembly, "_geometry", shifted)
+    assert not _same(stiffness_matrix(mesh, chunk=7), good)
+    assert _same(stiffness_matrix(mesh, chunk=mesh.n_cells), good)  # one chunk: unaffected
+
+
+def test_chunk_size_must_be_positive():
+    with pytest.raises(ValueError, match="chunk"):
+        mass_matrix(rectangle((0, 1), (0, 1), (2, 2)), chunk=0)

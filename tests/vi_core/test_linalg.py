@@ -1,12 +1,17 @@
 """Sparse factorisations: solves, transposed solves and the condition estimate."""
 
+import gc
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from hypothesis import given
 from hypothesis import strategies as st
 
+from vi_core import linalg
 from vi_core.linalg import Factorization, Refactorizer, condition_estimate, pardiso_available
+from vi_core.ordering import nested_dissection
 
 BACKENDS = ["splu"] + (["pardiso"] if pardiso_available() else [])
 
@@ -71,3 +76,136 @@ def test_pardiso_reanalyses_when_the_pattern_changes_and_old_factors_go_stale():
         Fa(np.ones(a.shape[0]))
     x = Fb(np.ones(b.shape[0]))
     assert np.linalg.norm(b @ x - 1.0) <= 1e-10 * np.abs(b).max() * np.sqrt(b.shape[0])
+
+
+def _grid(k: int) -> sp.csr_matrix:
+    """The 5-point Laplacian of a k × k grid in its natural (row by row, banded) numbering,
+    with a non-symmetric convection term (the structure of a mesh matrix)."""
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(k, k))
+    D = sp.diags([-0.3, 0.3], [-1, 1], shape=(k, k))
+    eye = sp.identity(k)
+    return sp.csr_matrix(sp.kron(eye, T + D) + sp.kron(T, eye))
+
+
+def _fill(A: sp.spmatrix, spec: str) -> float:
+    lu = spla.splu(sp.csc_matrix(A), permc_spec=spec)
+    return (lu.L.nnz + lu.U.nnz) / A.nnz
+
+
+def _factor_fill(F: Factorization) -> float:
+    return (F._lu.L.nnz + F._lu.U.nnz) / F.A.nnz
+
+
+def test_superlu_ordering_fills_less_than_the_natural_order_of_a_mesh_matrix():
+    A = _grid(40)
+    F = Factorization(A, "splu")
+    assert _factor_fill(F) < 0.5 * _fill(A, "NATURAL")
+    b = np.ones(A.shape[0])
+    assert np.linalg.norm(A @ F(b) - b) <= 1e-12 * np.linalg.norm(b) * abs(A).max()
+
+
+def test_mutation_natural_ordering_fails_the_fill_test(monkeypatch):
+    monkeypatch.setattr(linalg, "ORDERING", "NATURAL")
+    A = _grid(40)
+    assert not _factor_fill(Factorization(A, "splu")) < 0.5 * _fill(A, "NATURAL")
+
+
+def _nd_fill(A: sp.spmatrix, p: np.ndarray) -> float:
+    Ap = sp.csc_matrix(A[p][:, p])
+    return _fill(Ap, "NATURAL")
+
+
+@given(st.integers(36, 45), st.integers(0, 2**32 - 1))
+def test_nested_dissection_is_a_permutation_and_fills_less_than_natural(k, seed):
+    A = _grid(k)
+    rng = np.random.default_rng(seed)
+    q = rng.permutation(A.shape[0])  # any numbering of the same mesh
+    Aq = sp.csr_matrix(A[q][:, q])
+    p = nested_dissection(Aq)
+    assert np.array_equal(np.sort(p), np.arange(A.shape[0]))
+    assert _nd_fill(Aq, p) < 0.6 * _nd_fill(A, np.arange(A.shape[0]))  # vs the banded order
+
+
+def test_mutation_identity_ordering_fails_the_nested_dissection_fill_test():
+    A = _grid(30)
+    identity = np.arange(A.shape[0])
+    assert not _nd_fill(A, identity) < 0.6 * _nd_fill(A, identity)
+    assert _nd_fill(A, nested_dissection(A)) < 0.6 * _nd_fill(A, identity)
+
+
+def test_nested_dissection_of_disconnected_and_tiny_graphs():
+    A = sp.block_diag([_grid(12), _grid(9), sp.identity(5)], format="csr")
+    p = nested_dissection(A, leaf=8)
+    assert np.array_equal(np.sort(p), np.arange(A.shape[0]))
+    assert nested_dissection(sp.csr_matrix((0, 0))).size == 0
+    with pytest.raises(ValueError, match="square"):
+        nested_dissection(sp.csr_matrix((3, 4)))
+
+
+class _CountedLU:
+    """A SuperLU stand-in that counts how many of its kind are alive."""
+
+    alive = 0
+    most = 0
+
+    def __init__(self, lu):
+        self.lu = lu
+        _CountedLU.alive += 1
+        _CountedLU.most = max(_CountedLU.most, _CountedLU.alive)
+
+    def solve(self, b, trans="N"):
+        return self.lu.solve(b, trans=trans)
+
+    def __del__(self):
+        _CountedLU.alive -= 1
+
+
+def _count_factors(monkeypatch):
+    real = spla.splu
+    _CountedLU.alive = _CountedLU.most = 0
+
+    def counted(A, **kw):
+        gc.collect()  # only factors still referenced count
+        _CountedLU.most = max(_CountedLU.most, _CountedLU.alive + 1)
+        return _CountedLU(real(A, **kw))
+
+    monkeypatch.setattr(linalg.spla, "splu", counted)
+
+
+def test_a_refactorizer_never_holds_two_factors(monkeypatch):
+    _count_factors(monkeypatch)
+    R = Refactorizer("splu")
+    mats = _same_pattern_sequence(5, k=5)
+    b = np.ones(mats[0].shape[0])
+    old = None
+    for A in mats:
+        F = R(A)
+        x = F(b)
+        assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b) * np.abs(A).max()
+        if old is not None:  # the replaced one was freed, even though it is still referenced
+            with pytest.raises(RuntimeError, match="freed or replaced"):
+                old(b)
+        old = F
+    assert _CountedLU.most == 1
+    old.free()
+    gc.collect()
+    assert _CountedLU.alive == 0
+
+
+def test_semismooth_newton_never_holds_two_factors(monkeypatch):
+    from vi_core import solve
+    from vi_core.testing import manufactured_vi
+
+    _count_factors(monkeypatch)
+    vi = manufactured_vi(3, n=40, m=16, sets=["box"]).vi
+    sol = solve(vi, "ssn", linear_solver="splu", tol=1e-12)
+    assert sol.converged and sol.iterations >= 2
+    assert _CountedLU.most == 1
+
+
+def test_mutation_keeping_the_old_factor_is_caught(monkeypatch):
+    _count_factors(monkeypatch)
+    monkeypatch.setattr(Factorization, "free", lambda self: None)  # the old factor stays
+    R = Refactorizer("splu")
+    kept = [R(A) for A in _same_pattern_sequence(5, k=3)]  # noqa: F841  (as ssn's self.last)
+    assert _CountedLU.most > 1

@@ -31,7 +31,7 @@ import pytest
 from problems.scene import SCENES_DIR
 
 MIXVI = str(Path(sys.executable).with_name("mixvi"))
-SMALL_MEMORY = 3 * 10**9  # RLIMIT_AS for the memory cases: paper_two_body level 5 needs ~6 GB
+SMALL_MEMORY = 3 * 10**9  # RLIMIT_AS for the memory cases: paper_two_body level 6 needs ~8 GB
 
 
 @dataclass
@@ -247,26 +247,26 @@ CASES = [
     ),
     # ---------------------------------------------------------------- memory
     Case(
-        "level 5 in 3 GB",
-        ["solve", "paper_two_body", "--level", "5", "--out", "{d}/o"],
+        "level 6 in 3 GB",
+        ["solve", "paper_two_body", "--level", "6", "--out", "{d}/o"],
         "--level",
         rlimit_as=SMALL_MEMORY,
     ),
     Case(
-        "check level 5 in 3 GB",
-        ["check", "paper_two_body", "--levels", "0..5"],
+        "check level 6 in 3 GB",
+        ["check", "paper_two_body", "--levels", "0..6"],
         "--levels",
         rlimit_as=SMALL_MEMORY,
     ),
     Case(
-        "study level 5 in 3 GB",
-        ["study", "paper_two_body", "--levels", "4..5"],
+        "study level 6 in 3 GB",
+        ["study", "paper_two_body", "--levels", "5..6"],
         "--levels",
         rlimit_as=SMALL_MEMORY,
     ),
     Case(
-        "bench level 5 in 3 GB",
-        ["bench", "--scenes", "paper_two_body", "--levels", "5", "--out", "{d}/b.json"],
+        "bench level 6 in 3 GB",
+        ["bench", "--scenes", "paper_two_body", "--levels", "6", "--out", "{d}/b.json"],
         "--levels",
         rlimit_as=SMALL_MEMORY,
     ),

@@ -11,7 +11,7 @@ def test_bench_writes_the_contract(tmp_path, capsys):
         main(["bench", "--scenes", "rigid_foundation", "--levels", "0..1", "--out", str(out)]) == 0
     )
     data = json.loads(out.read_text())
-    assert set(data) == {"machine", "records"}
+    assert set(data) == {"machine", "records", "memory"}
     keys = {
         "scene",
         "level",
@@ -22,13 +22,24 @@ def test_bench_writes_the_contract(tmp_path, capsys):
         "time_linear_s",
         "ratio",
         "peak_mem_mb",
+        "bytes_per_unknown",
     }
     assert [r["level"] for r in data["records"]] == [0, 1]
     for r in data["records"]:
         assert keys <= set(r)
         assert r["converged"] and r["time_linear_s"] > 0 and r["peak_mem_mb"] > 0
         assert abs(r["ratio"] - r["time_nonlinear_s"] / r["time_linear_s"]) < 1e-12
-    assert "ratio" in capsys.readouterr().out
+        assert abs(r["bytes_per_unknown"] * r["unknowns"] - r["peak_mem_mb"] * 2**20) < 1.0
+    mem = data["memory"]
+    assert [(m["scene"], m["level"]) for m in mem] == [
+        ("rigid_foundation", 0),
+        ("rigid_foundation", 1),
+    ]
+    for m, r in zip(mem, data["records"], strict=True):
+        assert m["peak_mem_mb"] == r["peak_mem_mb"] and m["bytes_per_unknown"] > 1000
+        assert abs(m["estimate_ratio"] - m["estimate_mem_mb"] / m["peak_mem_mb"]) < 1e-12
+    out = capsys.readouterr().out
+    assert "ratio" in out and "B/unknown" in out and "peak resident memory" in out
 
 
 def test_bench_bad_input_exits_2(tmp_path, capsys):
