@@ -44,7 +44,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
 def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     scene, plugin = loaded.scene, loaded.plugin
-    run = pipeline.solve(loaded, level, args.solver, args.tol, args.cold)
+    run = pipeline.solve(loaded, level, args.solver, args.tol, args.cold, args.linear_solver)
     model, sol, method, nested = run.model, run.solution, run.method, run.nested
     out = folder.path
     with folder.staging() as tmp:
@@ -85,6 +85,14 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     if c:
         extra = f"; mortar patch defect {defect:.1e}" if defect is not None else ""
         print(f"  contact nodes {c['nodes']}: stick {c['stick']}, slip {c['slip']}{extra}")
+    if "krylov_iterations" in sol.info:
+        fb = sol.info["fallback"]
+        print(
+            "  linear solver amg: Krylov iterations per Newton step "
+            f"{sol.info['krylov_iterations']}"
+            f", {len(fb)} direct fallback(s)"
+            + "".join(f"; step {f['step']}: {f['reason']}" for f in fb)
+        )
     print(f"  time {summary['time_s']['total']:.2f} s; wrote {out}/")
     for w in summary["warnings"]:
         print(f"  warning: {w}")

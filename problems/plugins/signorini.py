@@ -37,6 +37,7 @@ from vi_core import Box, MixedVI, NonNegative, Solution, product
 
 from .bodies import Body, BodySection, build_body
 from .contract import ExtremeRow, Sweep, check_boundaries, complementarity_defect, expect
+from .fields import field_data
 from .transfer import nodal_reference_errors
 
 NAME = "signorini"
@@ -156,6 +157,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
         gap=gap,
         X=body.X[free][:, free],
         info={"scene": scene.name, "level": level},
+        **field_data([body], free, body.size),  # for the iterative linear path
     )
     return Model(scene, level, body, vi, free, body.values, tr, B_full, gap_n, gw, options)
 
