@@ -7,24 +7,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
-@dataclass(frozen=True, eq=False)
-class Mesh:
-    """A 2D mesh.
-
-    points : (n_nodes, 2) float coordinates.
-    cells : (n_cells, 3) triangles or (n_cells, 4) quadrilaterals, counterclockwise.
-    boundaries : name -> (n_edges, 2) node pairs; each edge (a, b) has the domain on its left
-        (boundary traversed counterclockwise); edges of one part are ordered along the part.
-    """
+class CellMesh:
+    """What every mesh offers (2D `Mesh`, 3D `fem.mesh3d.Mesh3D`): `points` (n_nodes, d),
+    `cells` (n_cells, k) and `boundaries` name -> (n_facets, k_facet) node lists."""
 
     points: np.ndarray
     cells: np.ndarray
-    boundaries: dict[str, np.ndarray] = field(default_factory=dict)
-
-    @property
-    def cell_type(self) -> str:
-        """'triangle' or 'quad'."""
-        return "triangle" if self.cells.shape[1] == 3 else "quad"
+    boundaries: dict[str, np.ndarray]
 
     @property
     def n_nodes(self) -> int:
@@ -45,6 +34,26 @@ class Mesh:
     @property
     def h(self) -> float:
         """Mesh size: the largest cell diameter."""
-        P = self.points[self.cells]  # (n_cells, k, 2)
+        P = self.points[self.cells]  # (n_cells, k, d)
         d = np.linalg.norm(P[:, :, None, :] - P[:, None, :, :], axis=-1)  # (n_cells, k, k)
         return float(d.max())
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh(CellMesh):
+    """A 2D mesh.
+
+    points : (n_nodes, 2) float coordinates.
+    cells : (n_cells, 3) triangles or (n_cells, 4) quadrilaterals, counterclockwise.
+    boundaries : name -> (n_edges, 2) node pairs; each edge (a, b) has the domain on its left
+        (boundary traversed counterclockwise); edges of one part are ordered along the part.
+    """
+
+    points: np.ndarray
+    cells: np.ndarray
+    boundaries: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def cell_type(self) -> str:
+        """'triangle' or 'quad'."""
+        return "triangle" if self.cells.shape[1] == 3 else "quad"

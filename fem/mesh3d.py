@@ -16,12 +16,13 @@ from itertools import permutations
 import numpy as np
 
 from .elements3d import CELL_TYPES, FACES, reference_element3d
+from .mesh import CellMesh
 
 SIDES = ("left", "right", "front", "back", "bottom", "top")  # x0, x1, y0, y1, z0, z1
 
 
 @dataclass(frozen=True, eq=False)
-class Mesh3D:
+class Mesh3D(CellMesh):
     """A 3D mesh.
 
     points : (n_nodes, 3) float coordinates.
@@ -39,29 +40,6 @@ class Mesh3D:
     def cell_type(self) -> str:
         """'tetra' or 'hexahedron' (meshio's names)."""
         return "tetra" if self.cells.shape[1] == 4 else "hexahedron"
-
-    @property
-    def n_nodes(self) -> int:
-        return self.points.shape[0]
-
-    @property
-    def n_cells(self) -> int:
-        return self.cells.shape[0]
-
-    def boundary_nodes(self, name: str) -> np.ndarray:
-        """Sorted unique node indices of the boundary part `name`."""
-        if name not in self.boundaries:
-            raise KeyError(
-                f"unknown boundary {name!r}; this mesh has: {', '.join(sorted(self.boundaries))}"
-            )
-        return np.unique(self.boundaries[name])
-
-    @property
-    def h(self) -> float:
-        """Mesh size: the largest cell diameter."""
-        P = self.points[self.cells]  # (n_cells, k, 3)
-        d = np.linalg.norm(P[:, :, None, :] - P[:, None, :, :], axis=-1)  # (n_cells, k, k)
-        return float(d.max())
 
 
 def cofactors(J: np.ndarray) -> np.ndarray:

@@ -63,9 +63,11 @@ def solve_scene(
     solver: str | None = None,
     tol: float | None = None,
     cold: bool = False,
+    linear_solver: str = "auto",
     **overrides: Any,
 ) -> pipeline.Results:
-    """Validate, build and solve a scene; its fields, contact state and info as objects."""
+    """Validate, build and solve a scene; its fields, contact state and info as objects.
+    `linear_solver`: auto|splu|pardiso|amg for the Newton steps."""
     loaded = _loaded(path_or_model, overrides)
-    run = pipeline.solve(loaded, level, solver, tol, cold)
+    run = pipeline.solve(loaded, level, solver, tol, cold, linear_solver)
     return pipeline.results(loaded, run)

@@ -63,6 +63,11 @@ class MixedVI:
     gap : (m,) optional offset of the constraint (default 0, the paper's Problem 3.1).
     X, Y : optional Gram matrices of the norms of X (n × n) and Y (m × m) for `constants`.
     info : free-form metadata of the plug-in (names of fields, dof counts, …).
+    fields : optional {name: indices or boolean mask (n,)} of the unknowns' fields, in the order
+        a block-triangular preconditioner takes them (e.g. displacement, then potential);
+        used by the iterative linear path (`vi_core.krylov`).
+    near_null : optional {field name: (k, d) array} near-null space of that field's block of A,
+        rows in the field's order (e.g. the rigid-body modes of the displacement block).
     """
 
     A: Any
@@ -73,6 +78,8 @@ class MixedVI:
     X: Any = None
     Y: Any = None
     info: dict = field(default_factory=dict)
+    fields: dict | None = None
+    near_null: dict | None = None
 
     def __post_init__(self):
         self.A = sp.csr_matrix(self.A, dtype=float)
@@ -100,10 +107,37 @@ class MixedVI:
         for name in ("f", "gap"):
             if not np.isfinite(getattr(self, name)).all():
                 raise ValueError(f"{name} contains NaN or inf")
+        self._check_fields(n)
         d = self.A.diagonal()
         if (d <= 0).any():
             i = int(np.flatnonzero(d <= 0)[0])
             raise ValueError(f"A must have a positive diagonal (A + Aᵀ > 0); A[{i},{i}] = {d[i]}")
+
+    def _check_fields(self, n: int) -> None:
+        """fields as boolean masks (n,), disjoint; near_null rows = the field's size."""
+        if self.fields is None:
+            if self.near_null:
+                raise ValueError("near_null needs fields (which unknowns each block holds)")
+            return
+        masks, seen = {}, np.zeros(n, dtype=bool)
+        for name, sel in self.fields.items():
+            mask = np.zeros(n, dtype=bool)
+            mask[np.asarray(sel)] = True
+            if (mask & seen).any():
+                raise ValueError(f"field {name!r} overlaps an earlier field")
+            seen |= mask
+            masks[name] = mask
+        self.fields = masks
+        near = {}
+        for name, N in (self.near_null or {}).items():
+            k = int(masks[name].sum()) if name in masks else None
+            N = np.asarray(N, dtype=float)
+            if k is None or N.ndim != 2 or N.shape[0] != k or not np.isfinite(N).all():
+                raise ValueError(
+                    f"near_null[{name!r}] must be a finite ({k}, d) array for field {name!r}"
+                )
+            near[name] = N
+        self.near_null = near or None
 
     @property
     def n(self) -> int:
@@ -210,6 +244,12 @@ class MixedVI:
             Lambda=self.Lambda.scaled(s.s_lam),
             gap=self.gap * s.s_lam,
             info={"equilibrated": True},
+            fields=self.fields,
+            # u = Su u': a near-null vector z of A is Su^{-1} z for the equilibrated A'
+            near_null={
+                k: N / s.s_u[self.fields[k]][:, None] for k, N in (self.near_null or {}).items()
+            }
+            or None,
         )
 
     # ---------------------------------------------------------------- residual
@@ -229,6 +269,8 @@ class MixedVI:
             X=self.X,
             Y=self.Y,
             info=dict(self.info),
+            fields=self.fields,
+            near_null=self.near_null,
         )
 
     def __repr__(self):

@@ -20,6 +20,9 @@ keeps the best-conditioned ones.
 when every entry of J and W (block diagonal, blocks of Λ) is structurally present, explicit
 zeros kept: its pattern is the same at every step whatever the active set, so PARDISO analyses
 it once per solve (`linalg.Refactorizer`; `info["symbolic_analyses"]`).
+
+**Iterative path.** linear_solver="amg" solves the condensed steps inexactly with GMRES and
+algebraic multigrid (`vi_core.krylov`: forcing terms, hierarchy reuse, direct fallback).
 """
 
 from __future__ import annotations
@@ -31,8 +34,17 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from .krylov import (
+    ETA_MAX,
+    ETA_MAX_WARM,
+    LINEAR_SOLVERS,
+    KrylovSolver,
+    forcing_term,
+    thread_settings,
+)
 from .linalg import Refactorizer, condition_estimate, resolve_backend
 from .problem import MixedVI, natural_residual
+from .sets import Free
 from .solution import Solution
 
 
@@ -131,13 +143,18 @@ def _on_pattern(M: sp.spmatrix, pattern: sp.csr_matrix) -> sp.csr_matrix:
 class _Stepper:
     """Computes Newton iterates (u⁺, λ⁺) for the equilibrated VI `e`."""
 
-    def __init__(self, e: MixedVI, condense: bool, linear_solver: str):
+    def __init__(self, e: MixedVI, condense: bool, linear_solver: str, tol: float = 0.0):
         self.e = e
         self.linear_solver = linear_solver
-        self.factorize = Refactorizer(linear_solver)
+        iterative = linear_solver == "amg"
+        self.factorize = Refactorizer("auto" if iterative else linear_solver)
         self.last = None  # factorisation of the last Newton matrix
         self.nnz: list[int] = []  # nonzeros stored in each Newton matrix (constant)
         self.cond = Condensation.detect(e.B) if condense else None
+        self.tol = tol
+        self.krylov = None  # the iterative path (condensed steps only)
+        if iterative and self.cond is not None:
+            self.krylov = KrylovSolver(self.cond.R, self.cond.S, e.fields, e.near_null)
         G = _block_structure(e.Lambda.block_sizes())  # (m, m) structure of J and W
         if self.cond is not None:
             c = self.cond
@@ -162,8 +179,9 @@ class _Stepper:
         self.pattern.sort_indices()
         self.pattern.data = np.ones(self.pattern.nnz, dtype=np.int8)  # only its structure is used
 
-    def step(self, J, W, rhs_c):
-        """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c."""
+    def step(self, J, W, rhs_c, guess=None, forcing=0.0):
+        """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c (iterative path: from u⁺ = guess, to
+        the relative linear residual `forcing`, see `krylov.KrylovSolver`)."""
         e = self.e
         self.last = None  # the previous factor is freed before the next matrix is assembled
         self.factorize.release()
@@ -182,8 +200,12 @@ class _Stepper:
         del K_S  # what the factorisation does not need is freed before it runs
         self.nnz.append(K.nnz)
         rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])
-        self.last = self.factorize(K)
-        u_new = self.last(rhs)
+        u_new = None
+        if self.krylov is not None:
+            u_new, _ = self.krylov(K, rhs, guess, forcing, self.tol)
+        if u_new is None:  # direct, or the Krylov solve's fallback
+            self.last = self.factorize(K)
+            u_new = self.last(rhs)
         lam_new = c.Dt_inv @ (self.f_S - self.A_S @ u_new)
         return u_new, lam_new
 
@@ -211,7 +233,11 @@ def solve_ssn(
     sc = vi.scaling
     u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
-    stepper = _Stepper(e, condense=condense, linear_solver=linear_solver)
+    if linear_solver not in LINEAR_SOLVERS:
+        raise ValueError(
+            f"linear solver {linear_solver!r} unknown; allowed: {', '.join(LINEAR_SOLVERS)}"
+        )
+    stepper = _Stepper(e, condense=condense, linear_solver=linear_solver, tol=tol)
     Lam = e.Lambda
 
     res = natural_residual(e, u, lam).relative
@@ -219,6 +245,9 @@ def solve_ssn(
     damped = 0
     converged = res <= tol
     k = 0
+    eta = None  # forcing term of the last inexact step (iterative path)
+    linear = all(isinstance(b, Free) for b in Lam.blocks())
+    eta_max = ETA_MAX if u0 is None and lam0 is None else ETA_MAX_WARM
     while not converged and k < max_iter:
         k += 1
         y = lam + e.B @ u - e.gap
@@ -226,7 +255,11 @@ def solve_ssn(
         J = Lam.jacobian(y)
         W = sp.identity(e.m, format="csr") - J
         rhs_c = p - J @ y - J @ e.gap
-        u_new, lam_new = stepper.step(J, W, rhs_c)
+        if stepper.krylov is not None:
+            eta = forcing_term(res, history[-2] if k > 1 else None, tol, eta_max)
+            if linear:  # Λ = Rᵐ: the first Newton step is the solution, solve it to tol at once
+                eta = min(eta, 0.1 * tol / res)
+        u_new, lam_new = stepper.step(J, W, rhs_c, guess=u, forcing=eta)
         du, dl = u_new - u, lam_new - lam
         t, best = 1.0, None
         while True:
@@ -266,11 +299,18 @@ def solve_ssn(
             "condensed": stepper.cond is not None,
             "damped_steps": damped,
             "inside": inner,  # coordinates with λ + Bu − gap strictly inside Λ
-            "linear_solver": resolve_backend(linear_solver, e.n),
+            "linear_solver": linear_solver
+            if stepper.krylov is not None
+            else resolve_backend("auto" if linear_solver == "amg" else linear_solver, e.n),
+            "threads": thread_settings(),
             "newton_nnz": sorted(set(stepper.nnz)),  # one value: the pattern is fixed
             "symbolic_analyses": stepper.factorize.analyses,
         },
     )
+    if stepper.krylov is not None:
+        sol.info.update(stepper.krylov.info())
+    elif linear_solver == "amg":
+        sol.info["fallback"] = [{"step": None, "reason": "not condensable: direct solves"}]
     if estimate_condition and stepper.last is not None:
         sol.info["condition_estimate"] = condition_estimate(stepper.last)
     if not converged:

@@ -37,6 +37,7 @@ from problems.errors import SceneError
 from problems.output import signals
 from problems.output.files import output_file
 from vi_core import Free, MixedVI
+from vi_core.krylov import LINEAR_SOLVERS, thread_settings
 from vi_core.linalg import resolve_backend
 
 from . import options, resources
@@ -46,21 +47,23 @@ DEFAULT_TIMEOUT = 3600.0  # seconds per (scene, level): the paper scene at level
 POLL = 0.2  # seconds between liveness checks of a child
 
 
-def _nested_ssn(plugin, scene, level: int, tol: float):
+def _nested_ssn(plugin, scene, level: int, tol: float, linear_solver: str = "auto"):
     prev, iters, total = None, [], 0.0
     warm = hasattr(plugin, "warm_start")  # without one: levels solved from cold starts
     for lev in range(level + 1):
         model = plugin.build(scene, lev)
         t = time.perf_counter()
         kw = plugin.warm_start(*prev, model) if prev and warm else {}
-        sol = vi_core.solve(model.vi, "ssn", tol=tol, **kw)
+        sol = vi_core.solve(model.vi, "ssn", tol=tol, linear_solver=linear_solver, **kw)
         total += time.perf_counter() - t
         iters.append(sol.iterations)
         prev = (model, sol)
     return prev[0], prev[1], total, iters
 
 
-def _record(scene_name: str, level: int, solvers: list[str], tol: float) -> list[dict]:
+def _record(
+    scene_name: str, level: int, solvers: list[str], tol: float, linear_solver: str = "auto"
+) -> list[dict]:
     from problems.plugins import registry
     from problems.scene import load_scene
 
@@ -70,11 +73,23 @@ def _record(scene_name: str, level: int, solvers: list[str], tol: float) -> list
     # warm-up (untimed): library loading and first-call costs must not land on either timing
     for backend in ("splu", "auto"):
         vi_core.solve(plugin.build(scene, 0).vi, "ssn", tol=tol, linear_solver=backend)
-    model, sol, t_nl, iters = _nested_ssn(plugin, scene, level, tol)
+    if linear_solver == "amg":
+        vi_core.solve(plugin.build(scene, 0).vi, "ssn", tol=tol, linear_solver="amg")
+    model, sol, t_nl, iters = _nested_ssn(plugin, scene, level, tol, linear_solver)
     vi = model.vi
-    tied = MixedVI(A=vi.A, B=vi.B, f=vi.f, Lambda=Free(vi.m), gap=vi.gap)
+    # the linear reference: same matrix size, same linear solver (for amg: hierarchy set-up
+    # and one FGMRES solve to tol — ssn solves a linear VI's first step to tol at once)
+    tied = MixedVI(
+        A=vi.A,
+        B=vi.B,
+        f=vi.f,
+        Lambda=Free(vi.m),
+        gap=vi.gap,
+        fields=vi.fields,
+        near_null=vi.near_null,
+    )
     t = time.perf_counter()
-    lin = vi_core.solve(tied, "ssn", tol=tol)
+    lin = vi_core.solve(tied, "ssn", tol=tol, linear_solver=linear_solver)
     t_lin = time.perf_counter() - t
     if not lin.converged:
         raise RuntimeError(f"the tied linear solve did not converge ({lin.residual:.1e})")
@@ -89,6 +104,11 @@ def _record(scene_name: str, level: int, solvers: list[str], tol: float) -> list
             "time_nonlinear_s": t_nl,
             "time_linear_s": t_lin,
             "ratio": t_nl / t_lin,
+            "linear_solver": sol.info.get("linear_solver"),
+            "krylov_iterations": sol.info.get("krylov_iterations"),  # per fine-level step
+            "krylov_iterations_linear": (lin.info.get("krylov_iterations") or [None])[0],
+            "fallbacks": len(sol.info.get("fallback", [])),
+            "threads": sol.info.get("threads"),
         }
     )
     for meth in solvers:
@@ -126,12 +146,12 @@ def _die_with_parent() -> None:
         pass
 
 
-def _child(scene_name: str, level: int, solvers: list[str], tol: float, q) -> None:
+def _child(scene_name: str, level: int, solvers: list[str], tol: float, q, linear="auto"):
     """Run one case in a worker process and put ("ok", rows) or ("error", cause) on `q`."""
     signals.ignore_in_child()
     _die_with_parent()
     try:
-        q.put(("ok", _record(scene_name, level, solvers, tol)))
+        q.put(("ok", _record(scene_name, level, solvers, tol, linear)))
     except MemoryError:
         q.put(("error", "out of memory (MemoryError in the child)"))
     except SceneError as err:
@@ -151,11 +171,21 @@ def death_cause(exitcode: int | None) -> str:
     return f"the child process exited with status {exitcode} without a result"
 
 
-def run_case(ctx, name: str, level: int, solvers: list[str], tol: float, timeout: float):
+def run_case(
+    ctx,
+    name: str,
+    level: int,
+    solvers: list[str],
+    tol: float,
+    timeout: float,
+    linear_solver: str = "auto",
+):
     """("ok", rows) or ("error", cause) of one case run in a fresh child process; the child is
     polled every POLL seconds and killed after `timeout` seconds or on any exception here."""
     q = ctx.Queue()
-    proc = ctx.Process(target=_child, args=(name, level, solvers, tol, q), daemon=True)
+    proc = ctx.Process(
+        target=_child, args=(name, level, solvers, tol, q, linear_solver), daemon=True
+    )
     proc.start()
     deadline = time.monotonic() + timeout
     try:
@@ -202,7 +232,8 @@ def _timeout(text: str) -> float:
 
 
 HEAD = (
-    f"{'scene':<18}{'level':>6}{'unknowns':>10}{'solver':>10}{'iter':>6}"
+    f"{'scene':<18}{'level':>6}{'unknowns':>10}{'solver':>10}{'linear':>9}{'iter':>6}"
+    f"{'krylov/step':>12}"
     f"{'nonlinear [s]':>15}{'linear [s]':>12}{'ratio':>8}{'peak [MB]':>11}{'B/unknown':>11}"
 )
 MEMORY_HEAD = (
@@ -214,9 +245,14 @@ MEMORY_HEAD = (
 def _line(r: dict) -> str:
     if r.get("error"):
         return f"{r['scene']:<18}{r['level']:>6}{r['unknowns']:>10}  FAILED: {r['error']}"
+    its = r.get("krylov_iterations")
+    kry = f"{np.mean(its):.1f}" if its else "-"
+    if r.get("fallbacks"):
+        kry += f" ({r['fallbacks']}fb)"
     return (
         f"{r['scene']:<18}{r['level']:>6}{r['unknowns']:>10}{r['solver']:>10}"
-        f"{r['iterations']:>6}{r['time_nonlinear_s']:>15.2f}{r['time_linear_s']:>12.2f}"
+        f"{r.get('linear_solver') or '-':>9}{r['iterations']:>6}{kry:>12}"
+        f"{r['time_nonlinear_s']:>15.2f}{r['time_linear_s']:>12.2f}"
         f"{r['ratio']:>8.2f}{r['peak_mem_mb']:>11.0f}{r['bytes_per_unknown']:>11.0f}"
     )
 
@@ -262,6 +298,12 @@ def bench_main(argv: list[str] | None = None) -> int:
         "--tol", type=options.tol, default=1e-10, help="relative residual (default 1e-10)"
     )
     p.add_argument(
+        "--linear-solvers",
+        default="auto",
+        help="comma-separated Newton-step solvers, each case once per solver in its own child: "
+        + ",".join(LINEAR_SOLVERS),
+    )
+    p.add_argument(
         "--timeout",
         type=_timeout,
         default=DEFAULT_TIMEOUT,
@@ -271,6 +313,7 @@ def bench_main(argv: list[str] | None = None) -> int:
     p.add_argument("--force", action="store_true", help="skip the memory estimate's refusal")
     args = p.parse_args(argv)
     solvers = options.names(args.solvers, "--solvers", ("ssn", "conic", "homotopy"))
+    linear = options.names(args.linear_solvers, "--linear-solvers", LINEAR_SOLVERS)
     from problems.plugins import registry
     from problems.scene import load_scene
 
@@ -285,14 +328,15 @@ def bench_main(argv: list[str] | None = None) -> int:
             a, b = DEFAULT.get(name, (0, 3))
             text = f"{a}..{b}"
         sizes = resources.check_levels(plugin, scene, (a, b), "--levels", text, args.force)
-        jobs += [(name, lev, sizes.estimate(lev)) for lev in range(a, b + 1)]
+        jobs += [(name, lev, sizes.estimate(lev), ls) for lev in range(a, b + 1) for ls in linear]
     with output_file(args.out, "--out") as target:
         records = _run(jobs, solvers, args)
         machine = {
             "platform": platform.platform(),
             "python": platform.python_version(),
             "cpus": mp.cpu_count(),
-            "linear_solver": resolve_backend("auto"),
+            "linear_solver": resolve_backend("auto"),  # what auto means here
+            "threads": thread_settings(),
         }
         memory = memory_table(records)
         print("\npeak resident memory (ru_maxrss of each case's child process)")
@@ -310,8 +354,8 @@ def _run(jobs, solvers: list[str], args) -> list[dict]:
     print(HEAD)
     ctx = mp.get_context("spawn")
     records = []
-    for name, lev, est in jobs:
-        kind, payload = run_case(ctx, name, lev, solvers, args.tol, args.timeout)
+    for name, lev, est, ls in jobs:
+        kind, payload = run_case(ctx, name, lev, solvers, args.tol, args.timeout, ls)
         extra = {"estimate_unknowns": est.unknowns, "estimate_mem_mb": est.peak_bytes / 2**20}
         if kind == "ok":
             recs = [{**r, **extra} for r in payload]
@@ -322,6 +366,7 @@ def _run(jobs, solvers: list[str], args) -> list[dict]:
                     "level": lev,
                     "unknowns": est.unknowns,
                     "solver": "ssn",
+                    "linear_solver": ls,
                     "converged": False,
                     "error": payload,
                     **extra,

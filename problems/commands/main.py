@@ -1,6 +1,7 @@
 """The `mixvi` command line.
 
-mixvi solve [SCENE] [--level N] [--solver NAME] [--tol T] [--set key=value ...] [--out DIR]
+mixvi solve [SCENE] [--level N] [--solver NAME] [--linear-solver NAME] [--tol T]
+            [--set key=value ...] [--out DIR]
 mixvi validate SCENE [--set key=value ...]    check a scene without solving
 mixvi schema | scenes | check | figures | study | bench | extremes    (`mixvi --help`: one line
 each)
@@ -19,6 +20,7 @@ import traceback
 
 from problems.errors import SceneError
 from problems.output import signals
+from vi_core.krylov import LINEAR_SOLVERS
 
 from . import options
 from .check import cmd_check
@@ -86,6 +88,14 @@ def parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--solver", default=None, help="ssn (default) or another vi_core method")
     s.add_argument(
+        "--linear-solver",
+        choices=LINEAR_SOLVERS,
+        default="auto",
+        help="Newton steps: direct (auto = PARDISO if installed and the system is large, else "
+        "splu; splu; pardiso) or amg = GMRES with algebraic multigrid, inexact early steps, "
+        "direct fallback where it stagnates (default auto)",
+    )
+    s.add_argument(
         "--tol", type=options.tol, default=None, help="relative residual (default 1e-10)"
     )
     s.add_argument(
@@ -150,7 +160,8 @@ def parser() -> argparse.ArgumentParser:
 # the value for an option and print its own message; glued as "--levels=-1..2" the value
 # reaches the option's own check, which names the option and what is allowed
 VALUE_OPTIONS = {"--level", "--levels", "--tol", "--tols", "--timeout", "--only", "--scenes"}
-VALUE_OPTIONS |= {"--solvers", "--solver", "--json", "--out", "--accuracy"}
+VALUE_OPTIONS |= {"--solvers", "--solver", "--json", "--out", "--accuracy", "--linear-solver"}
+VALUE_OPTIONS |= {"--linear-solvers"}
 
 
 def _glue_values(argv: list[str]) -> list[str]:

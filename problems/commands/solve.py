@@ -44,7 +44,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
 def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     plugin = loaded.plugin
-    run = pipeline.solve(loaded, level, args.solver, args.tol, args.cold)
+    run = pipeline.solve(loaded, level, args.solver, args.tol, args.cold, args.linear_solver)
     model, sol, nested = run.model, run.solution, run.nested
     out = folder.path
     with folder.staging() as tmp:
@@ -126,6 +126,14 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         if c.get("mortar_patch_defect") is not None:
             line += f"; mortar patch defect {c['mortar_patch_defect']:.1e}"
         out.append(line)
+    info = summary.get("solver_info") or {}
+    if "krylov_iterations" in info:
+        fb = info["fallback"]
+        out.append(
+            "  linear solver amg: Krylov iterations per Newton step "
+            f"{info['krylov_iterations']}, {len(fb)} direct fallback(s)"
+            + "".join(f"; step {f['step']}: {f['reason']}" for f in fb)
+        )
     t = summary["time_s"]
     out.append(f"  time {t['total']:.2f} s (build {t['build']:.2f} s, solve {t['solve']:.2f} s)")
     out += [f"  warning: {w}" for w in summary["warnings"]]

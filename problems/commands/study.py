@@ -2,6 +2,7 @@
 
     mixvi study SCENE [--levels A..B] [--solvers ssn,conic,homotopy] [--tols 1e-6,1e-8,1e-10]
                       [--set KEY=VALUE ...] [--out DIR] [--no-progress]
+                      [--workers N | --scheduler ADDRESS]
 
 Defaults: levels 0..3, all three solvers, tolerances 1e-6, 1e-8, 1e-10.
 
@@ -14,6 +15,12 @@ piezo_contact those of Theorem 4.1, `problems.plugins.piezo_errors`): against th
 solution if it has one (`exact_errors` not None), otherwise against the finest level solved by
 the same solver at the tightest tolerance (that level's own records then carry only the solver
 error of looser tolerances, and rates are fitted over the levels below it).
+
+With `--workers N` the (level, solver) cases run as Dask tasks on a local cluster of N
+single-threaded worker processes; with `--scheduler ADDRESS` on a running dask.distributed
+cluster (optional extra: `pip install mixvi[dask]`). Every case is solved with BLAS limited to
+one thread, in the serial run too, so every number except times and memory peaks is the same
+either way. A task that fails (not bad input) is a failed record with its cause (`error`).
 
 Output (committed into DIR, default out/SCENE_study, by problems.output.files): `study.json`
 
@@ -34,10 +41,13 @@ import argparse
 import json
 import math
 import tracemalloc
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 import vi_core
@@ -84,6 +94,34 @@ def _solve(model: Any, solver: str, tol: float) -> tuple[vi_core.Solution, float
     return sol, peak
 
 
+def run_case(scene: Scene, level: int, solver: str, tols: list[float]) -> list[tuple]:
+    """One study task: build `scene` at `level` and solve it with `solver` at every tolerance,
+    BLAS single-threaded (serial and Dask runs then give the same numbers).
+
+    Returns [(record, solution)] per tolerance; a failure other than bad input is one failed
+    record per tolerance with its cause (`error`), so a study goes on without it."""
+    plugin = registry.for_scene(scene)
+    exact_errors = getattr(plugin, "exact_errors", lambda model, sol: None)
+    with threadpool_limits(1):
+        try:
+            model = plugin.build(scene, level)
+            if solver == "conic" and model.vi.structure == "general":
+                raise SceneError("--solvers", solver, "ssn or homotopy: A of this scene is general")
+            out = []
+            for tol in tols:
+                sol, peak = _solve(model, solver, tol)
+                out.append(
+                    (_record(plugin, model, solver, tol, sol, peak, exact_errors(model, sol)), sol)
+                )
+            return out
+        except SceneError:
+            raise
+        except Exception as err:  # a failed task is a failed row, with its cause
+            cause = f"{type(err).__name__}: {err}"
+            return [({"level": level, "solver": solver, "tol": tol, "converged": False,
+                      "err": None, "error": cause}, None) for tol in tols]  # fmt: skip
+
+
 def run_study(
     scene: Scene,
     levels: list[int],
@@ -91,34 +129,47 @@ def run_study(
     tols: list[float],
     progress: bool = True,
     plugin: Any = None,
+    client: Any = None,
 ) -> dict:
-    """Solve every (level, solver, tol) and measure errors; returns the study.json content."""
+    """Solve every (level, solver, tol) and measure errors; returns the study.json content.
+
+    client : a `dask.distributed.Client`: the (level, solver) tasks run on its workers
+        (`run_case`); None runs them one after the other here. Every number but the times and
+        memory peaks is the same either way."""
     plugin = registry.for_scene(scene) if plugin is None else plugin
     needs(plugin, "mixvi study", *STUDY_NEEDS)
-    exact_errors = getattr(plugin, "exact_errors", lambda model, sol: None)
     tols = sorted(tols, reverse=True)
-    records, runs, exact = [], {}, True
-    bar = tqdm(total=len(levels) * len(solvers) * len(tols), disable=not progress, unit="solve")
+    cases = [(level, solver) for level in levels for solver in solvers]
+    bar = tqdm(total=len(cases) * len(tols), disable=not progress, unit="solve")
+    done: dict[tuple, list[tuple]] = {}
     try:
-        for level in levels:
-            model = plugin.build(scene, level)
-            for solver in solvers:
-                if solver == "conic" and model.vi.structure == "general":
-                    raise SceneError(
-                        "--solvers", solver, "ssn or homotopy: A of this scene is general"
-                    )
-                for tol in tols:
-                    bar.set_description(f"level {level} {solver} tol {tol:.0e}")
-                    sol, peak = _solve(model, solver, tol)
-                    runs[level, solver, tol] = (model, sol)
-                    err = exact_errors(model, sol)
-                    exact = exact and err is not None
-                    records.append(_record(plugin, model, solver, tol, sol, peak, err))
-                    bar.update()
+        if client is None:
+            for level, solver in cases:
+                bar.set_description(f"level {level} {solver}")
+                done[level, solver] = run_case(scene, level, solver, tols)
+                bar.update(len(tols))
+        else:
+            from dask.distributed import as_completed
+
+            futures = {
+                client.submit(run_case, scene, level, solver, tols, pure=False): (level, solver)
+                for level, solver in cases
+            }
+            for future in as_completed(futures):
+                done[futures[future]] = future.result()  # bad input (SceneError) raised here
+                bar.update(len(tols))
     finally:
         bar.close()
+    records, runs = [], {}
+    for level, solver in cases:
+        for record, sol in done[level, solver]:
+            records.append(record)
+            runs[level, solver, record["tol"]] = sol
+    solved = [r for r in records if "error" not in r]
+    exact = bool(solved) and all(r["err"] is not None for r in solved)
     if not exact:
-        _reference_errors(plugin, records, runs, max(levels), tols[-1])
+        _reference_errors(plugin, scene, records, runs, max(levels), tols[-1])
+    ok = [r for r in records if r.get("err") is not None]
     return {
         "scene": scene.name,
         "plugin": plugin.NAME,
@@ -126,7 +177,7 @@ def run_study(
         "reference": "exact" if exact else f"level {max(levels)}",
         "records": records,
         # against the finest level, that level's own error is rounding: fit the levels below it
-        "rates": fit_rates(records, None if exact else max(levels), plugin.NORMS),
+        "rates": fit_rates(ok, None if exact else max(levels), plugin.NORMS),
     }
 
 
@@ -146,12 +197,27 @@ def _record(plugin, model, solver: str, tol: float, sol, peak: float, err: dict 
     }
 
 
-def _reference_errors(plugin, records: list[dict], runs: dict, finest: int, tight: float) -> None:
-    """Fill `err` of every record against its solver's finest-level, tightest-tol solution."""
+def _reference_errors(
+    plugin, scene: Scene, records: list[dict], runs: dict, finest: int, tight: float
+) -> None:
+    """Fill `err` of every record against its solver's finest-level, tightest-tol solution
+    (models rebuilt here: tasks return solutions, not models)."""
+    models = {}
+
+    def model(level):
+        if level not in models:
+            with threadpool_limits(1):
+                models[level] = plugin.build(scene, level)
+        return models[level]
+
     for r in records:
-        ref, rsol = runs[finest, r["solver"], tight]
-        model, sol = runs[r["level"], r["solver"], r["tol"]]
-        r["err"] = plugin.reference_errors(model, sol, ref, rsol)
+        ref = runs.get((finest, r["solver"], tight))
+        sol = runs.get((r["level"], r["solver"], r["tol"]))
+        if "error" in r or ref is None or sol is None:
+            r["err"] = None  # the failed task, or its reference, has no error to measure
+            continue
+        with threadpool_limits(1):
+            r["err"] = plugin.reference_errors(model(r["level"]), sol, model(finest), ref)
 
 
 def fit_rates(records: list[dict], below: int | None = None, norms=None) -> dict:
@@ -159,6 +225,8 @@ def fit_rates(records: list[dict], below: int | None = None, norms=None) -> dict
     error at the tightest tolerance (None if fewer than two such levels); with `below`, only
     levels below it count (the reference level when errors are taken against the finest);
     `norms` default: the error keys of the first record."""
+    if not records:
+        return {}
     norms = list(records[0]["err"]) if norms is None else norms
     tight = min(r["tol"] for r in records)
     if below is not None:
@@ -190,6 +258,12 @@ def table(result: dict) -> str:
     lines = [head]
     prev: dict = {}
     for r in result["records"]:
+        if r.get("err") is None:
+            why = r.get("error", "no reference solution (its task failed)")
+            lines.append(
+                f"{r['level']:>5} {'':>9} {'':>9} {r['solver']:>9} {r['tol']:7.0e} failed: {why}"
+            )
+            continue
         key = (r["solver"], r["tol"])
         cells = []
         for k in result["norms"]:
@@ -229,6 +303,20 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
     p.add_argument("--out", default=None, help="output directory (default out/SCENE_study)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=_workers,
+        default=None,
+        help="run the cases as Dask tasks on a local cluster of N single-threaded worker "
+        "processes (needs the optional extra: pip install mixvi[dask])",
+    )
+    where.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run the cases on a running dask.distributed cluster, e.g. tcp://host:8786",
+    )
     p.add_argument(
         "--overwrite",
         action="store_true",
@@ -236,6 +324,48 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--force", action="store_true", help="try levels above the scene's memory cap")
     return p
+
+
+def _workers(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if not 1 <= n <= 256:
+        raise SceneError("--workers", text, "a whole number of worker processes, 1 … 256")
+    return n
+
+
+@contextmanager
+def _client(args: argparse.Namespace) -> Iterator[Any]:
+    """A Dask client for --workers / --scheduler (None without either: a serial study)."""
+    if args.workers is None and args.scheduler is None:
+        yield None
+        return
+    option = "--workers" if args.workers is not None else "--scheduler"
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise SceneError(
+            option, args.workers or args.scheduler, "available after: pip install mixvi[dask]"
+        ) from None
+    if args.workers is not None:
+        with (
+            LocalCluster(
+                n_workers=args.workers, threads_per_worker=1, processes=True, dashboard_address=":0"
+            ) as cluster,
+            Client(cluster) as client,
+        ):
+            yield client
+        return
+    try:
+        client = Client(args.scheduler, timeout=30)
+    except (OSError, ValueError, TimeoutError) as err:
+        raise SceneError(
+            "--scheduler", args.scheduler, f"a reachable Dask scheduler ({err})"
+        ) from None
+    with client:
+        yield client
 
 
 def study_main(argv: list[str] | None = None) -> int:
@@ -251,7 +381,8 @@ def study_main(argv: list[str] | None = None) -> int:
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_study"
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
         levels = list(range(a, b + 1))
-        result = run_study(scene, levels, solvers, tols, not args.no_progress, plugin)
+        with _client(args) as client:
+            result = run_study(scene, levels, solvers, tols, not args.no_progress, plugin, client)
         write_outputs(result, folder)
     print(table(result))
     print(f"wrote {out}/")

@@ -21,7 +21,7 @@ UNITS_NOTE = "H¹ norms mix L² (× m) and gradient parts; lengths in m"
 
 def _series(result: dict, solver: str, tol: float) -> list[dict]:
     rows = [r for r in result["records"] if r["solver"] == solver and r["tol"] == tol]
-    return sorted(rows, key=lambda r: r["level"])
+    return sorted((r for r in rows if r.get("err") is not None), key=lambda r: r["level"])
 
 
 def plot_errors_vs_h(result: dict, path: Path) -> None:

@@ -59,6 +59,7 @@ class Run:
     method: str
     tol: float
     nested: list[dict] = field(default_factory=list)  # per level: iterations, time
+    linear_solver: str = "auto"  # as asked (solver_info says what ran)
     time_build: float = 0.0
     time_solve: float = 0.0
 
@@ -69,11 +70,13 @@ def solve(
     method: str | None = None,
     tol: float | None = None,
     cold: bool = False,
+    linear_solver: str = "auto",
 ) -> Run:
     """Build `loaded` at `level` (None: the scene's) and solve it with `method` and `tol`
     (None: the scene's [solver], else ssn and 1e-10). With ssn and a plug-in that has
     `warm_start`, levels 0 … L−1 are solved first, each warm-starting the next (unless
-    `cold`)."""
+    `cold`). `linear_solver` (auto|splu|pardiso|amg) solves the Newton steps, coarse levels
+    included."""
     scene, plugin = loaded.scene, loaded.plugin
     t0 = time.perf_counter()
     model = plugin.build(scene, level)
@@ -85,17 +88,19 @@ def solve(
     nested: list[dict] = []
     warm: dict = {}
     if method == "ssn" and hasattr(plugin, "warm_start") and model.level > 0 and not cold:
-        nested, warm = _nested(plugin, scene, model, tol)
+        nested, warm = _nested(plugin, scene, model, tol, linear_solver)
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
         warm["estimate_condition"] = True
-    sol = vi_core.solve(model.vi, method=method, tol=tol, **warm)
+    sol = vi_core.solve(model.vi, method=method, tol=tol, linear_solver=linear_solver, **warm)
     if nested:
         nested.append(level_record(model.level, model, sol))
     t_solve = sum(r["time_s"] for r in nested) if nested else sol.time
-    return Run(model, sol, method, tol, nested, t_build, t_solve)
+    return Run(model, sol, method, tol, nested, linear_solver, t_build, t_solve)
 
 
-def _nested(plugin: Any, scene: Scene, model: Any, tol: float) -> tuple[list[dict], dict]:
+def _nested(
+    plugin: Any, scene: Scene, model: Any, tol: float, linear_solver: str
+) -> tuple[list[dict], dict]:
     """Nested iteration: levels 0 … L−1 solved first, each warm-starting the next; returns
     their records and the warm start of `model`. The coarse models are gone when it returns
     (none of them is alive while the fine level is factorised)."""
@@ -104,7 +109,7 @@ def _nested(plugin: Any, scene: Scene, model: Any, tol: float) -> tuple[list[dic
         coarse = plugin.build(scene, lev)
         kw = plugin.warm_start(*prev, coarse) if prev else {}
         prev = None  # the level before is no longer needed
-        csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, **kw)
+        csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, linear_solver=linear_solver, **kw)
         nested.append(level_record(lev, coarse, csol))
         prev = (coarse, csol)
     return nested, plugin.warm_start(*prev, model)
@@ -146,6 +151,7 @@ def info(loaded: Loaded, run: Run) -> dict:
         "plugin": loaded.plugin.NAME,
         "level": model.level,
         "solver": run.method,
+        "linear_solver": run.linear_solver,
         "tol": run.tol,
         "dofs": model.dofs,
         "converged": sol.converged,

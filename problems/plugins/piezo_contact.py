@@ -47,6 +47,7 @@ from . import piezo_balance, piezo_errors, piezo_extremes
 from .bodies import Body, BodySection, build_body
 from .body_output import body_fields
 from .contract import Sweep, check_meshed
+from .fields import field_data
 
 NAME = "piezo_contact"
 LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
@@ -271,6 +272,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         X=sp.csr_matrix(X_full[free][:, free]),
         Y=Y,
         info={"scene": scene.name, "level": level},
+        **field_data(list(bodies.values()), free, n_full),  # for the iterative linear path
     )
     model = Model(scene, level, list(bodies.values()), contact, vi, free, values, options)
     if contact is not None:

@@ -46,6 +46,7 @@ from .contract import (
     complementarity_defect,
     expect,
 )
+from .fields import field_data
 from .transfer import nodal_reference_errors
 
 NAME = "signorini"
@@ -166,6 +167,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
         gap=gap,
         X=body.X[free][:, free],
         info={"scene": scene.name, "level": level},
+        **field_data([body], free, body.size),  # for the iterative linear path
     )
     return Model(scene, level, body, vi, free, body.values, tr, B_full, gap_n, gw, options)
 

@@ -56,7 +56,10 @@ def build(scene, level=None):
     if multiprocessing.parent_process() is not None:
         mode = wobble.get("mode")
         if "pidfile" in wobble:
-            open(wobble["pidfile"], "w").write(str(os.getpid()))
+            tmp = wobble["pidfile"] + ".part"  # written whole, then renamed: never read empty
+            with open(tmp, "w") as fh:
+                fh.write(str(os.getpid()))
+            os.replace(tmp, wobble["pidfile"])
         if mode == "kill":
             os.kill(os.getpid(), signal.SIGKILL)
         if mode == "segv":
@@ -158,7 +161,7 @@ def test_sigint_to_bench_ends_the_child_and_keeps_the_old_table(site, tmp_path):
         env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     deadline = time.monotonic() + 120
-    while not pidfile.exists() and time.monotonic() < deadline:
+    while not pidfile.exists() and time.monotonic() < deadline:  # renamed into place whole
         time.sleep(0.05)
     assert pidfile.exists(), "the child never started"
     child = int(pidfile.read_text())

@@ -86,8 +86,8 @@ def test_conic_scale_invariance_on_a_scene():
 
 # ------------------------------------------------------------------ solver faults → check
 def _flip_complementarity_rhs(orig):
-    def step(self, J, W, rhs_c):  # W λ⁺ − J B u⁺ = −(p − J y − J gap): a sign in the update
-        return orig(self, J, W, -rhs_c)
+    def step(self, J, W, rhs_c, **kw):  # W λ⁺ − J B u⁺ = −(p − J y − J gap): a sign in the update
+        return orig(self, J, W, -rhs_c, **kw)
 
     return step
 

@@ -170,3 +170,35 @@ def test_accuracy_presets_set_level_and_tolerance(tmp_path):
     out2 = tmp_path / "explicit"  # an explicit --level wins over the preset
     assert main(["solve", "--accuracy", "fast", "--level", "0", "--out", str(out2)]) == 0
     assert json.loads((out2 / "summary.json").read_text())["level"] == 0
+
+
+def test_solve_with_the_amg_linear_solver_reports_it(tmp_path, capsys):
+    out = tmp_path / "amg"
+    assert (
+        main(
+            [
+                "solve",
+                "rigid_foundation",
+                "--level",
+                "1",
+                "--linear-solver",
+                "amg",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    s = json.loads((out / "summary.json").read_text())
+    assert s["linear_solver"] == "amg" and s["solver_info"]["linear_solver"] == "amg"
+    info = s["solver_info"]
+    assert len(info["krylov_iterations"]) == s["iterations"] and info["fallback"] == []
+    assert "OMP_NUM_THREADS" in info["threads"]
+    assert "Krylov iterations per Newton step" in capsys.readouterr().out
+
+
+def test_unknown_linear_solver_exits_2(tmp_path, capsys):
+    with pytest.raises(SystemExit) as err:
+        main(["solve", "rigid_foundation", "--linear-solver", "cg", "--out", str(tmp_path)])
+    assert err.value.code == 2
+    assert "--linear-solver" in capsys.readouterr().err

@@ -1,0 +1,163 @@
+"""The iterative linear path (`vi_core.krylov`): agreement with the direct solver, forcing
+terms, field data, and the faults it must notice (dropped coupling, broken preconditioner)."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from hypothesis import given
+from hypothesis import strategies as st
+
+from vi_core import Box, Free, MixedVI, NonNegative, product, solve
+from vi_core import krylov as kr
+
+pytest.importorskip("pyamg")
+
+seeds = st.integers(0, 2**32 - 1)
+
+
+def _laplacian(k: int) -> sp.csr_matrix:
+    """5-point Laplacian on a k × k grid (Dirichlet), (k², k²)."""
+    T = sp.diags([-np.ones(k - 1), 2 * np.ones(k), -np.ones(k - 1)], [-1, 0, 1])
+    eye = sp.identity(k)
+    return (sp.kron(T, eye) + sp.kron(eye, T)).tocsr()
+
+
+def coupled_grid_vi(rng: np.random.Generator, k: int, rho: float) -> MixedVI:
+    """A piezo-like VI: A = [[L, ρLᵀ], [−ρL, L]] on two k × k grid fields, dual-mortar-like B on
+    the first grid row of field a (private column j, coupled to the node above), random set."""
+    L = _laplacian(k)
+    n1 = k * k
+    A = sp.bmat([[L, rho * L.T], [-rho * L, L]]).tocsr()
+    m = k
+    rows = np.arange(m)
+    B = sp.csr_matrix(
+        (
+            np.concatenate([rng.uniform(0.5, 2.0, m), -rng.uniform(0.1, 1.0, m)]),
+            (np.concatenate([rows, rows]), np.concatenate([rows, rows + k])),
+        ),
+        shape=(m, 2 * n1),
+    )
+    g = rng.uniform(0.0, 1.0, m)
+    kind = rng.integers(0, 3)
+    Lam = (
+        product(Box(-g, g))
+        if kind == 0
+        else NonNegative(m)
+        if kind == 1
+        else product(Free(m // 2), Box(-g[m // 2 :], g[m // 2 :]))
+    )
+    fields = {"a": np.arange(n1), "b": np.arange(n1, 2 * n1)}
+    return MixedVI(A, B, 10 * rng.standard_normal(2 * n1), Lam, fields=fields)
+
+
+def _agree(vi: MixedVI, tol: float = 1e-10) -> tuple:
+    """Solve with SuperLU and with amg; both must reach tol; return (difference, bound, amg)."""
+    d = solve(vi, "ssn", tol=tol, linear_solver="splu", estimate_condition=True)
+    a = solve(vi, "ssn", tol=tol, linear_solver="amg")
+    assert d.converged and a.converged, (d.residual, a.residual)
+    assert a.residual <= tol
+    s = vi.scaling.s_u  # compare in equilibrated variables, where the condition is estimated
+    diff = np.linalg.norm((a.u - d.u) / s) / np.linalg.norm(d.u / s)
+    # forward error ≤ κ · residual for each, so they differ by at most 2κ·tol
+    return diff, 2 * d.info["condition_estimate"] * tol, a
+
+
+@given(seeds)
+def test_amg_and_direct_agree_on_coupled_grids(seed):
+    rng = np.random.default_rng(seed)
+    vi = coupled_grid_vi(rng, int(rng.integers(8, 20)), float(rng.uniform(0.0, 2.0)))
+    diff, bound, a = _agree(vi)
+    assert diff <= bound
+    assert a.info["linear_solver"] == "amg" and len(a.info["krylov_iterations"]) == a.iterations
+
+
+def test_amg_reports_and_is_honest_about_the_residual():
+    """The reported residual is the natural residual of the returned iterate."""
+    vi = coupled_grid_vi(np.random.default_rng(3), 16, 1.0)
+    a = solve(vi, "ssn", tol=1e-8, linear_solver="amg")
+    assert a.converged
+    assert a.residual == pytest.approx(vi.residual(a.u, a.lam).relative, rel=1e-6)
+    assert a.info["fallback"] == []
+    assert set(a.info["threads"]) >= {"OMP_NUM_THREADS", "MKL_NUM_THREADS", "cpu_count"}
+    assert a.info["amg_fields"]["a"]["near_null_dim"] == 1
+
+
+def test_unknown_linear_solver_is_refused():
+    vi = coupled_grid_vi(np.random.default_rng(0), 6, 0.5)
+    with pytest.raises(ValueError, match="amg"):
+        solve(vi, "ssn", linear_solver="cg")
+
+
+def test_not_condensable_falls_back_to_direct():
+    """A dense random B has no private block: amg says so and solves directly."""
+    rng = np.random.default_rng(1)
+    n, m = 20, 5
+    A = sp.csr_matrix(np.eye(n) * 3 + 0.1 * rng.standard_normal((n, n)))
+    vi = MixedVI(A, rng.standard_normal((m, n)), rng.standard_normal(n), Box(-1.0, 1.0, size=m))
+    a = solve(vi, "ssn", linear_solver="amg")
+    assert a.converged and a.info["fallback"][0]["reason"].startswith("not condensable")
+
+
+def test_stagnation_falls_back_to_the_direct_solver(monkeypatch):
+    """A preconditioner that returns nothing on R: FGMRES stalls, the step is redone directly,
+    the fallback is reported, and the answer is still the direct one."""
+    vi = coupled_grid_vi(np.random.default_rng(5), 14, 1.0)
+    monkeypatch.setattr(kr.BlockAMG, "__call__", lambda self, r: np.zeros_like(r))
+    diff, bound, a = _agree(vi)
+    assert a.info["fallback"] and "stagnation" in a.info["fallback"][0]["reason"]
+    assert diff <= bound
+
+
+def test_block_preconditioner_applies_the_coupling():
+    """Blocks small enough for one level (a direct coarse solve) make BlockAMG the exact inverse
+    of a block lower-triangular K = [[K_a, 0], [−G, K_b]]: the coupling block must be applied
+    (mutation: couple=False leaves a residual of the size of G)."""
+    k = 12
+    L = _laplacian(k)
+    K = sp.bmat([[L, None], [-5.0 * L, 2 * L]]).tocsr()
+    n1 = k * k
+    fields = [("a", np.arange(2 * n1) < n1, None), ("b", np.arange(2 * n1) >= n1, None)]
+    b = np.random.default_rng(0).standard_normal(2 * n1)
+    rel = {}
+    for couple in (True, False):
+        M = kr.BlockAMG(K, fields, couple=couple)
+        assert all(len(blk.ml.levels) == 1 for blk in M.blocks)
+        rel[couple] = np.linalg.norm(K @ M(b) - b) / np.linalg.norm(b)
+    assert rel[True] < 1e-12 and rel[False] > 0.1, rel
+
+
+def test_forcing_term():
+    assert kr.forcing_term(1.0, None, 1e-10) == kr.ETA_MAX
+    # fast convergence: η follows 0.9 (F_k / F_{k−1})²
+    assert kr.forcing_term(1e-4, 1e-1, 1e-16) == pytest.approx(0.9e-6)
+    # never more accurate than reaching tol needs
+    assert kr.forcing_term(1e-6, 1e-3, 1e-10) == pytest.approx(0.1 * 1e-10 / 1e-6)
+    # slow convergence: capped
+    assert kr.forcing_term(0.5, 1.0, 1e-10) == kr.ETA_MAX
+    assert kr.forcing_term(0.5, 1.0, 1e-10, kr.ETA_MAX_WARM) == kr.ETA_MAX_WARM
+
+
+def test_field_data_is_checked_and_equilibrated():
+    rng = np.random.default_rng(2)
+    k = 6
+    L = _laplacian(k) * rng.uniform(1, 100)  # a unit change: scales differ from 1
+    A = sp.block_diag([L, 50.0 * L]).tocsr()
+    n1 = k * k
+    N = rng.standard_normal((n1, 2))
+    fields = {"a": np.arange(n1), "b": np.arange(n1, 2 * n1)}
+    vi = MixedVI(A, sp.csr_matrix((0, 2 * n1)), np.ones(2 * n1), product(), fields=fields)
+    vi = MixedVI(vi.A, vi.B, vi.f, vi.Lambda, fields=fields, near_null={"a": N})
+    e = vi.equilibrated
+    s = vi.scaling.s_u
+    # A'N' = Su A N: the equilibrated near-null vectors are Su⁻¹ N
+    a = fields["a"]
+    lhs = e.A[a][:, a] @ e.near_null["a"]
+    assert np.allclose(lhs, s[a][:, None] * (A[a][:, a] @ N), rtol=1e-12, atol=0)
+    # the mutation: unscaled vectors would not satisfy it
+    assert not np.allclose(e.A[a][:, a] @ N, s[a][:, None] * (A[a][:, a] @ N), rtol=1e-6)
+    with pytest.raises(ValueError, match="overlaps"):
+        MixedVI(A, vi.B, vi.f, product(), fields={"a": [0, 1], "b": [1, 2]})
+    with pytest.raises(ValueError, match=r"near_null\['a'\]"):
+        MixedVI(A, vi.B, vi.f, product(), fields=fields, near_null={"a": N[:-1]})
+    with pytest.raises(ValueError, match="needs fields"):
+        MixedVI(A, vi.B, vi.f, product(), near_null={"a": N})
