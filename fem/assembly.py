@@ -285,6 +285,22 @@ def boundary_load(mesh: Mesh, name: str, func: Func, ncomp: int) -> np.ndarray:
     return _scatter(Fe, edges, mesh.n_nodes)
 
 
+def cell_gradients(
+    mesh: Mesh, u: np.ndarray, phi: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Strain ε(u) in Voigt order (xx, yy, 2xy) (n_cells, 3) and ∇φ (n_cells, 2) (None if
+    `phi` is None) at the cell centroids."""
+    ref = reference_element(mesh.cell_type)
+    g = _geometry(mesh, ref.centroid[None, :], np.ones(1))
+    grad = g.grad[:, 0]  # (n_cells, n_loc, 2)
+    U = np.asarray(u, dtype=float).reshape(mesh.n_nodes, 2)[mesh.cells]  # (n_cells, n_loc, 2)
+    Du = np.einsum("cak,cai->cki", U, grad, optimize=True)  # (n_cells, 2, 2) ∂u_k/∂x_i
+    eps = np.stack([Du[:, 0, 0], Du[:, 1, 1], Du[:, 0, 1] + Du[:, 1, 0]], axis=1)  # (n_cells, 3)
+    if phi is None:
+        return eps, None
+    return eps, np.einsum("ca,cai->ci", np.asarray(phi, dtype=float)[mesh.cells], grad)
+
+
 def cell_fields(
     mesh: Mesh,
     u: np.ndarray,
@@ -299,18 +315,12 @@ def cell_fields(
     With `phi` None (purely elastic body) σ = Cε(u), D = 0 and `e`, `kappa` are ignored.
     """
     C = _check_matrix("C", C, (3, 3))
-    ref = reference_element(mesh.cell_type)
-    g = _geometry(mesh, ref.centroid[None, :], np.ones(1))
-    grad = g.grad[:, 0]  # (n_cells, n_loc, 2)
-    U = np.asarray(u, dtype=float).reshape(mesh.n_nodes, 2)[mesh.cells]  # (n_cells, n_loc, 2)
-    Du = np.einsum("cak,cai->cki", U, grad, optimize=True)  # (n_cells, 2, 2) ∂u_k/∂x_i
-    eps = np.stack([Du[:, 0, 0], Du[:, 1, 1], Du[:, 0, 1] + Du[:, 1, 0]], axis=1)  # (n_cells, 3)
+    eps, E = cell_gradients(mesh, u, phi)  # (n_cells, 3), (n_cells, 2) ∇φ
     sigma = eps @ C.T  # (n_cells, 3)
     if phi is None:
         return sigma, np.zeros((mesh.n_cells, 2))
     e = _check_matrix("e", e, (2, 3))
     kappa = _check_matrix("kappa", kappa, (2, 2))
-    E = np.einsum("ca,cai->ci", np.asarray(phi, dtype=float)[mesh.cells], grad)  # (n_cells, 2)
     return sigma + E @ e, eps @ e.T - E @ kappa.T
 
 

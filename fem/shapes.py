@@ -1,4 +1,4 @@
-"""The two bodies of the paper's Section 5 example (DESIGN.md §6) as mapped Q1 meshes.
+"""The two bodies of the paper's Section 5 example (docs/design.md §5) as mapped Q1 meshes.
 
 Both bodies share the circle of radius r about `center`; the contact arc Γ3 has opening `angle`
 centred at the circle's bottom point, from C_l (angle 3π/2 − angle/2) to C_r (3π/2 + angle/2).

@@ -193,7 +193,7 @@ def plane_strain(material: Material3D, plane: str = "xz") -> Material3D:
 
 
 # Published constants (C in Pa, e in C/m², κ = ε^S in F/m), poling axis 3 = z.
-# BaTiO3 (ceramic): the set of DESIGN.md §6 (the one the 2D scenes use), as tabulated by
+# BaTiO3 (ceramic): the set of docs/design.md §4 (the one the 2D scenes use), as tabulated by
 #   M. L. Dunn, M. Taya, Int. J. Solids Struct. 30 (1993) 161–175, after Berlincourt et al.;
 #   c12 = c13 = 6.6e10; 6mm symmetry then fixes c66 = (c11 − c12)/2 = 4.2e10.
 # PZT-5H and PZT-4: D. A. Berlincourt, D. R. Curran, H. Jaffe, "Piezoelectric and piezomagnetic

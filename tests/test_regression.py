@@ -9,7 +9,7 @@ import pytest
 import vi_core
 from tests import regression
 
-CASES = [(name, level) for name in regression.scenes() for level in regression.LEVELS]
+CASES = [(name, level) for name in regression.scenes() for level in regression.levels(name)]
 
 
 def test_every_shipped_scene_has_a_baseline():

@@ -294,7 +294,9 @@ def bench_main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenes", default=",".join(DEFAULT), help="comma-separated scene names")
     p.add_argument("--levels", default=None, help="A..B for every scene (default per scene)")
     p.add_argument("--solvers", default="ssn", help="comma-separated: ssn,conic,homotopy")
-    p.add_argument("--tol", type=options.tol, default=1e-10)
+    p.add_argument(
+        "--tol", type=options.tol, default=1e-10, help="relative residual (default 1e-10)"
+    )
     p.add_argument(
         "--linear-solvers",
         default="auto",
@@ -307,7 +309,7 @@ def bench_main(argv: list[str] | None = None) -> int:
         default=DEFAULT_TIMEOUT,
         help=f"seconds per case before its child is killed (default {DEFAULT_TIMEOUT:g})",
     )
-    p.add_argument("--out", default="bench.json")
+    p.add_argument("--out", default="bench.json", help="JSON file (default bench.json)")
     p.add_argument("--force", action="store_true", help="skip the memory estimate's refusal")
     args = p.parse_args(argv)
     solvers = options.names(args.solvers, "--solvers", ("ssn", "conic", "homotopy"))

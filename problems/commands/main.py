@@ -3,7 +3,8 @@
 mixvi solve [SCENE] [--level N] [--solver NAME] [--linear-solver NAME] [--tol T]
             [--set key=value ...] [--out DIR]
 mixvi validate SCENE [--set key=value ...]    check a scene without solving
-mixvi schema | scenes | check | figures | study | bench | extremes
+mixvi schema | scenes | check | figures | study | bench | extremes    (`mixvi --help`: one line
+each)
 
 Exit status (every command): 0 all good, 1 ran but a case failed or did not converge, 2 bad
 input (one line naming the option or scene key, the value and what is allowed), 3 internal
@@ -29,6 +30,8 @@ from .scenes import cmd_scenes
 from .schema import cmd_schema, cmd_validate
 from .solve import ACCURACY, cmd_solve
 
+SET_HELP = "override a scene value, e.g. contact.g=5e7 (repeatable)"
+
 
 def add_force(p: argparse.ArgumentParser) -> None:
     """--force: skip the memory estimate's refusal and the scene's level cap."""
@@ -50,11 +53,35 @@ def add_output_options(p: argparse.ArgumentParser) -> None:
     add_force(p)
 
 
+# the commands with their own argument parsers (dispatched before `parser()` runs); listed in
+# `mixvi --help` with one line each
+OWN_PARSERS = {
+    "study": "accuracy and cost of every solver over levels and tolerances",
+    "bench": "time the nonlinear solve against one linear solve",
+    "extremes": "the shipped scenes pushed to extreme data, each row checked",
+}
+EPILOG = (
+    "Run 'mixvi COMMAND --help' for a command's options. Exit status: 0 all good, 1 ran but "
+    "did not converge or a case failed, 2 bad input, 3 internal error (--debug anywhere prints "
+    "the traceback), 130/143 interrupted. Scenes, conventions and the design: docs/design.md."
+)
+
+
 def parser() -> argparse.ArgumentParser:
-    """The argument parser of solve, scenes, check and figures."""
-    p = argparse.ArgumentParser(prog="mixvi", description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="command", required=True)
-    s = sub.add_parser("solve", help="solve a scene and write summary.json, VTU and PNG files")
+    """The argument parser of solve, scenes, check and figures (and the list of all commands)."""
+    p = argparse.ArgumentParser(
+        prog="mixvi",
+        description="mixvi: mixed variational inequalities; frictional contact of "
+        "elasto-piezoelectric bodies (dual mortar).",
+        epilog=EPILOG,
+    )
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    s = sub.add_parser(
+        "solve",
+        help="solve a scene; write results (JSON, CSV, VTU, PNG)",
+        description="Solve a scene and write its results (summary.json, contact.csv, one VTU "
+        "per body, contact.vtu, results.pvd, PNG plots) into a folder.",
+    )
     s.add_argument("scene", nargs="?", help=f"scene file or shipped name (default {DEFAULT_SCENE})")
     s.add_argument(
         "--level", type=options.level, default=None, help="refinement level (default: scene's)"
@@ -78,7 +105,7 @@ def parser() -> argparse.ArgumentParser:
         help="preset level and tolerance: "
         + ", ".join(f"{k} = level {lv}, tol {t:g}" for k, (lv, t) in ACCURACY.items()),
     )
-    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
     s.add_argument("--out", default=None, help="output directory (default out/SCENE)")
     add_output_options(s)
     s.add_argument(
@@ -92,7 +119,7 @@ def parser() -> argparse.ArgumentParser:
         help="exit 0 even if a contact interface's mortar patch defect exceeds 1e-8",
     )
     s.set_defaults(func=cmd_solve)
-    sc = sub.add_parser("scenes", help="list the scenes that ship")
+    sc = sub.add_parser("scenes", help="list the shipped scenes with their plug-in and title")
     sc.set_defaults(func=cmd_scenes)
     sh = sub.add_parser("schema", help="print the JSON Schema of scenes (every plug-in's section)")
     sh.set_defaults(func=cmd_schema)
@@ -104,20 +131,28 @@ def parser() -> argparse.ArgumentParser:
         ("check", cmd_check, "solve with every applicable method and compare"),
         ("figures", cmd_figures, "the scene for each value of its plug-in's SWEEP, one panel each"),
     ):
-        c = sub.add_parser(name, help=helptext)
+        c = sub.add_parser(name, help=helptext, description=helptext[0].upper() + helptext[1:])
         c.add_argument("scene", nargs="?", help=f"scene (default {DEFAULT_SCENE})")
-        c.add_argument("--level", type=options.level, default=None)
-        c.add_argument("--set", action="append", metavar="KEY=VALUE")
+        c.add_argument(
+            "--level", type=options.level, default=None, help="refinement level (default: scene's)"
+        )
+        c.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
         if name == "check":
-            c.add_argument("--tol", type=options.tol, default=1e-10)
+            c.add_argument(
+                "--tol", type=options.tol, default=1e-10, help="relative residual (default 1e-10)"
+            )
             c.add_argument("--levels", default=None, help="several levels, e.g. 0..2")
             c.add_argument("--json", default=None, help="also write the table as JSON")
         else:
-            c.add_argument("--out", default=None)
+            c.add_argument(
+                "--out", default=None, help="output directory (default out/SCENE_figures)"
+            )
             add_output_options(c)
         if name == "check":
             add_force(c)
         c.set_defaults(func=fn)
+    for name, helptext in OWN_PARSERS.items():  # listed here, parsed by their own parsers
+        sub.add_parser(name, help=helptext, add_help=False)
     return p
 
 

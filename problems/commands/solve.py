@@ -43,9 +43,9 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
 
 def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
-    scene, plugin = loaded.scene, loaded.plugin
+    plugin = loaded.plugin
     run = pipeline.solve(loaded, level, args.solver, args.tol, args.cold, args.linear_solver)
-    model, sol, method, nested = run.model, run.solution, run.method, run.nested
+    model, sol, nested = run.model, run.solution, run.nested
     out = folder.path
     with folder.staging() as tmp:
         extras = plugin.postprocess(model, sol, tmp)
@@ -64,42 +64,81 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
             },
         }
         (tmp / "summary.json").write_text(json.dumps(jsonable(summary), indent=2) + "\n")
-    c = summary.get("contact", {})
-    print(
-        f"{scene.name} level {model.level}: {sum(model.dofs.values())} unknowns "
-        f"{model.dofs}, solver {method}"
-    )
-    identity = ""
-    if "lemma_4_2" in summary:
-        identity = f", lemma 4.2 gap {summary['lemma_4_2']:.1e}"
-    elif "complementarity" in summary:
-        identity = f", complementarity defect {summary['complementarity']:.1e}"
-    print(
-        f"  converged {sol.converged} in {sol.iterations} iterations, "
-        f"residual {sol.residual:.2e}{identity}"
-    )
-    if nested:
-        its = ", ".join(f"L{r['level']}: {r['iterations']}" for r in nested)
-        print(f"  nested iteration (Newton steps per level, each warm-started): {its}")
-    defect = c.get("mortar_patch_defect")
-    if c:
-        extra = f"; mortar patch defect {defect:.1e}" if defect is not None else ""
-        print(f"  contact nodes {c['nodes']}: stick {c['stick']}, slip {c['slip']}{extra}")
-    if "krylov_iterations" in sol.info:
-        fb = sol.info["fallback"]
-        print(
-            "  linear solver amg: Krylov iterations per Newton step "
-            f"{sol.info['krylov_iterations']}"
-            f", {len(fb)} direct fallback(s)"
-            + "".join(f"; step {f['step']}: {f['reason']}" for f in fb)
-        )
-    print(f"  time {summary['time_s']['total']:.2f} s; wrote {out}/")
-    for w in summary["warnings"]:
-        print(f"  warning: {w}")
+    for line in console_summary(
+        summary, nested or [pipeline.level_record(model.level, model, sol)]
+    ):
+        print(line)
+    files = ["summary.json", *summary.get("files", [])]
+    print(f"  wrote {out}/: {', '.join(files)}")
+    defect = summary.get("contact", {}).get("mortar_patch_defect")
     if defect is not None and defect > PATCH_DEFECT_LIMIT and not args.allow_defect:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
         return 1
     return 0 if sol.converged else 1
+
+
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+
+
+def console_summary(summary: dict, levels: list[dict]) -> list[str]:
+    """What `mixvi solve` prints: a header, one row per level solved (unknowns, Newton steps,
+    time, residual), the outcome, the contact line (stick/slip counts and lengths, total
+    force on the slave body), the time and the warnings — no raw dicts."""
+    dofs = summary["dofs"]
+    out = [
+        f"{summary['scene']} (plug-in {summary['plugin']}, solver {summary['solver']}, "
+        f"tol {summary['tol']:g}), level {summary['level']}: "
+        + " + ".join(f"{n:,} {k}" for k, n in dofs.items())
+        + f" = {sum(dofs.values()):,} unknowns"
+    ]
+    out.append(
+        f"  {'level':>5} {'unknowns':>10} {'Newton steps':>12} {'time [s]':>9} {'residual':>9}"
+    )
+    for r in levels:
+        out.append(
+            f"  {r['level']:>5} {r['unknowns']:>10,} {r['iterations']:>12} "
+            f"{r['time_s']:>9.2f} {r['residual']:>9.1e}"
+        )
+    if len(levels) > 1:
+        out.append("  (nested iteration: each level starts from the one below)")
+    identity = ""
+    if summary.get("lemma_4_2") is not None:
+        identity = f"; Lemma 4.2 identity defect {summary['lemma_4_2']:.1e}"
+    elif summary.get("complementarity") is not None:
+        identity = f"; complementarity defect {summary['complementarity']:.1e}"
+    verdict = "converged" if summary["converged"] else "NOT converged"
+    out.append(
+        f"  {verdict} in {summary['iterations']} Newton steps, residual "
+        f"{summary['residual']:.2e}{identity}"
+    )
+    c = summary.get("contact")
+    if c:
+        parts = [f"{c['nodes']} nodes", f"stick {c['stick']}", f"slip {c['slip']}"]
+        if c.get("open"):
+            parts.append(f"open {c['open']}")
+        if "stick_length" in c:
+            parts[1] += f" ({c['stick_length']:.4g} m)"
+            parts[2] += f" ({c['slip_length']:.4g} m)"
+        line = "  contact: " + ", ".join(parts)
+        if "force_on_slave" in c:
+            line += f"; force on the slave {_vec(c['force_on_slave'])} N/m"
+        if c.get("mortar_patch_defect") is not None:
+            line += f"; mortar patch defect {c['mortar_patch_defect']:.1e}"
+        out.append(line)
+    info = summary.get("solver_info") or {}
+    if "krylov_iterations" in info:
+        fb = info["fallback"]
+        out.append(
+            "  linear solver amg: Krylov iterations per Newton step "
+            f"{info['krylov_iterations']}, {len(fb)} direct fallback(s)"
+            + "".join(f"; step {f['step']}: {f['reason']}" for f in fb)
+        )
+    t = summary["time_s"]
+    out.append(f"  time {t['total']:.2f} s (build {t['build']:.2f} s, solve {t['solve']:.2f} s)")
+    out += [f"  warning: {w}" for w in summary["warnings"]]
+    out += [f"  note: {n}" for n in summary.get("notes", [])]
+    return out
 
 
 def load(args: argparse.Namespace) -> pipeline.Loaded:

@@ -10,6 +10,18 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+# the sign convention of every tangential quantity, printed under the contact plots
+TAU_NOTE = (
+    r"$\tau = (-n_y, n_x)$: the slave's outward normal $n$ turned 90° counterclockwise; "
+    r"arc length runs along $\tau$ (the slave body on the left)"
+)
+
+
+def _note(fig) -> None:
+    """The τ sign convention at the foot of a figure."""
+    fig.text(0.5, 0.01, TAU_NOTE, ha="center", va="bottom", fontsize=7, color="0.3")
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
+
 
 def _shade_slip(ax, s: np.ndarray, slip: np.ndarray) -> None:
     """Shade the slip zones (nodes with |λ·τ| = g) in light red."""
@@ -39,7 +51,7 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
     ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=8)
     n_slip = int(slip.sum())
     ax.set_title(f"{title}: stick {slip.size - n_slip}, slip {n_slip} nodes")
-    fig.tight_layout()
+    _note(fig)
     fig.savefig(outdir / "contact_multiplier.png", dpi=120)
     plt.close(fig)
 
@@ -52,7 +64,7 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
     ax.set_ylabel(r"tangential displacement $u\cdot\tau$ [m]")
     ax.legend(loc="best", fontsize=8)
     ax.set_title(title)
-    fig.tight_layout()
+    _note(fig)
     fig.savefig(outdir / "contact_displacement.png", dpi=120)
     plt.close(fig)
     return ["contact_multiplier.png", "contact_displacement.png"]

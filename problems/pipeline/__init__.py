@@ -93,7 +93,7 @@ def solve(
         warm["estimate_condition"] = True
     sol = vi_core.solve(model.vi, method=method, tol=tol, linear_solver=linear_solver, **warm)
     if nested:
-        nested.append({"level": model.level, "iterations": sol.iterations, "time_s": sol.time})
+        nested.append(level_record(model.level, model, sol))
     t_solve = sum(r["time_s"] for r in nested) if nested else sol.time
     return Run(model, sol, method, tol, nested, linear_solver, t_build, t_solve)
 
@@ -110,9 +110,21 @@ def _nested(
         kw = plugin.warm_start(*prev, coarse) if prev else {}
         prev = None  # the level before is no longer needed
         csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, linear_solver=linear_solver, **kw)
-        nested.append({"level": lev, "iterations": csol.iterations, "time_s": csol.time})
+        nested.append(level_record(lev, coarse, csol))
         prev = (coarse, csol)
     return nested, plugin.warm_start(*prev, model)
+
+
+def level_record(level: int, model: Any, sol: vi_core.Solution) -> dict:
+    """One level of a run: unknowns, Newton steps, time, residual, converged."""
+    return {
+        "level": level,
+        "unknowns": int(model.vi.n + model.vi.m),
+        "iterations": sol.iterations,
+        "time_s": sol.time,
+        "residual": sol.residual,
+        "converged": sol.converged,
+    }
 
 
 def scaling_summary(model: Any) -> dict:

@@ -2,7 +2,7 @@
 
 The out-of-plane displacement w solves −μΔw = f₀ in Ω, w = w_D on Γ1, μ∂ₙw = f₂ on Γ2 and on
 Γ3 the friction law |μ∂ₙw| ≤ g, with −μ∂ₙw = g w/|w| where w ≠ 0 (slip). Dual multipliers on
-Γ3 (DESIGN.md §5): λ_h = Σ λ_i ψ_i, the rows of B are D_i e_iᵀ at the Γ3 nodes (D_i = ∫φ_i) and
+Γ3 (docs/design.md §3): λ_h = Σ λ_i ψ_i, the rows of B are D_i e_iᵀ at the Γ3 nodes (D_i = ∫φ_i) and
 
     μK w + Bᵀλ = F,   Λ = Box(−g_i, g_i),   g_i = ∫gφ_i / D_i,
 
@@ -43,6 +43,7 @@ from .contract import (
     ScalarExact,
     Sweep,
     check_boundaries,
+    check_meshed,
     complementarity_defect,
     dirichlet,
     expect,
@@ -149,6 +150,14 @@ def build(scene: Scene, level: int | None = None) -> Model:
     spec = scene.validated(SCENE_MODEL)
     level = spec.scene.level if level is None else level
     mesh = spec.domain.geometry.mesh(level)
+    if spec.domain.geometry.BOUNDARIES is None:
+        refs = [
+            (d.key("boundary"), b)
+            for k in ("dirichlet", "traction")
+            for d in getattr(spec, k)
+            for b in d.boundary
+        ]
+        check_meshed(mesh, [*refs, (spec.friction.key("boundary"), spec.friction.boundary)])
     mu = spec.domain.shear_modulus
     F = assembly.volume_load(mesh, spec.domain.load, 1)  # (n_nodes,)
     fixed, values = dirichlet(spec.dirichlet, mesh)

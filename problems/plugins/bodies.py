@@ -23,7 +23,7 @@ from problems.scene.geometry import Geometry
 from problems.scene.materials import Material, MaterialSpec
 from problems.scene.model import one_or_many, refuse
 
-from .contract import check_boundaries
+from .contract import check_boundaries, check_meshed
 
 COMPONENTS = {"x": (0,), "y": (1,), "xy": (0, 1)}
 
@@ -113,6 +113,14 @@ class BodySection(Section):
     potential: Annotated[list[ScalarPart], Parts] = []
     charge: Annotated[list[ScalarPart], Parts] = []
 
+    def boundary_refs(self) -> list[tuple[str, str]]:
+        """(field path, boundary name) of every boundary this table names."""
+        return [
+            (part.key("boundary"), part.boundary)
+            for key in ("displacement", "traction", "potential", "charge")
+            for part in getattr(self, key)
+        ]
+
     @model_validator(mode="after")
     def _consistent(self) -> BodySection:
         names = self.geometry.BOUNDARIES
@@ -147,8 +155,11 @@ class BodySection(Section):
 
 
 def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
-    """Mesh one validated `[bodies.NAME]` table and assemble the body's blocks."""
+    """Mesh one validated `[bodies.NAME]` table and assemble the body's blocks (the boundary
+    references checked now if the geometry's parts are known only once meshed)."""
     mesh = t.geometry.mesh(level)
+    if t.geometry.BOUNDARIES is None:
+        check_meshed(mesh, t.boundary_refs())
     material = t.material.material()
     body = Body(name, mesh, material, offset)
     N = mesh.n_nodes

@@ -267,6 +267,16 @@ def check_boundaries(field: list, names: list[str], available) -> None:
             raise refuse(field, n, f"a boundary of this geometry: {', '.join(available)}")
 
 
+def check_meshed(mesh: Mesh, refs: Sequence[tuple[str, str]]) -> None:
+    """After meshing a geometry whose BOUNDARIES are None (a mesh file): SceneError naming the
+    field for the first (field path, boundary name) of `refs` the mesh does not have, listing
+    the ones it has."""
+    for key, name in refs:
+        if name not in mesh.boundaries:
+            have = ", ".join(sorted(mesh.boundaries)) or "(none)"
+            raise SceneError(key, name, f"a boundary group of this mesh: {have}")
+
+
 class ScalarExact(Section):
     """The optional [exact] table of a scalar plug-in: u and grad = [∂x u, ∂y u]."""
 

@@ -36,6 +36,7 @@ from .contract import (
     ScalarExact,
     Sweep,
     check_boundaries,
+    check_meshed,
     complementarity_defect,
     dirichlet,
     expect,
@@ -122,6 +123,8 @@ def build(scene: Scene, level: int | None = None) -> Model:
     spec = scene.validated(SCENE_MODEL)
     level = spec.scene.level if level is None else level
     mesh = spec.domain.geometry.mesh(level)
+    if spec.domain.geometry.BOUNDARIES is None:
+        check_meshed(mesh, [(d.key("boundary"), b) for d in spec.dirichlet for b in d.boundary])
     f_fun, psi_fun = spec.domain.load, spec.domain.obstacle
     fixed, values = dirichlet(spec.dirichlet, mesh)
     exact = None if spec.exact is None else spec.exact.compiled()

@@ -1,7 +1,7 @@
 """Plug-in: elasto-piezoelectric bodies in bilateral contact with Tresca friction (Problem 4.1).
 
 Dual (biorthogonal) multipliers on the slave side Γ3: λ_h = Σ_k γ_k ψ̃_k n_k + Σ_k α_k ψ̃_k τ_k,
-and Λ_h = product(Free(N_n), Box(−g_k, g_k)) with g_k = ∫g φ̃_k / ∫φ̃_k (DESIGN.md §5; φ̃_k = φ_k
+and Λ_h = product(Free(N_n), Box(−g_k, g_k)) with g_k = ∫g φ̃_k / ∫φ̃_k (docs/design.md §3; φ̃_k = φ_k
 unless an end treatment merged a neighbour in). With a rigid foundation the constraint rows are
 Σ_j Ds_kj n_kᵀu_j (normal) and the same with τ_k (tangential); with a master body they act on
 the mortar jump Ds u_s − M u_m (`fem.mortar`).
@@ -30,21 +30,23 @@ import numpy as np
 import scipy.sparse as sp
 from pydantic import Field, model_validator
 
-from fem import assembly
 from fem.boundary import ENDS, Trace, dual_mass, multiplier_basis, segment_loads, trace
 from fem.dirichlet import expand, reduce_dirichlet
 from fem.mesh import Mesh
 from problems.errors import SceneError
-from problems.output import plots
+from problems.output import plots, results
+from problems.output.results import ContactTable
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.exact import ExactSection, split_exact
 from problems.scene.fields import NonNegativeExpr, Text
+from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
 from vi_core import Box, Free, MixedVI, Solution, product
 
 from . import piezo_balance, piezo_errors, piezo_extremes
 from .bodies import Body, BodySection, build_body
-from .contract import Sweep
+from .body_output import body_fields
+from .contract import Sweep, check_meshed
 from .fields import field_data
 
 NAME = "piezo_contact"
@@ -52,9 +54,12 @@ LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 
 # Two-body interfaces must coincide in the reference configuration (bilateral contact has no
 # initial gap). A slave node may sit off the master polyline (distance along its normal) by at
 # most SEPARATION_TOL × h, h the longest of its adjacent slave segments and the master segment
-# it faces: this admits the chord-versus-arc discrepancy of a discretised curved interface
-# (the sagitta h²/(8r), i.e. h/(8r) relative to h: 0.02 for the paper's mesh, < 0.1 while
-# h < 0.8 r) and refuses bodies that overlap or stand apart by more.
+# it faces, measured on the level-0 mesh (h · 2^level: uniform refinement does not change the
+# geometry of a mesh read from a file, whose new boundary nodes stay on its polylines): this
+# admits the chord-versus-arc discrepancy of a discretised curved interface (the sagitta
+# h²/(8r), i.e. h/(8r) relative to h: 0.02 for the paper's mesh, < 0.1 while h < 0.8 r), e.g.
+# two bodies meshed separately in gmsh along one curve, and refuses bodies that overlap or
+# stand apart by more (docs/design.md, "Meshes from files").
 SEPARATION_TOL = 0.1
 DESCRIPTION = "elasto-piezoelectric bodies in bilateral Tresca contact (dual mortar multipliers)"
 # A prescribed displacement component at a contact node counts as along the contact normal or
@@ -226,13 +231,24 @@ def _build(scene: Scene, level: int | None) -> Model:
     if ct is not None:
         sname, slave_part = ct.slave.split(".", 1)
         slave, master, mpart = bodies[sname], None, None
+        refs = [(ct.key("slave"), slave, slave_part)]
         if ct.master != "rigid":
             mname, mpart = ct.master.split(".", 1)
             master = bodies[mname]
-        contact = _contact(slave, slave_part, master, mpart, ct.g, ct.g.path, ct.ends, n_full)
+            refs.append((ct.key("master"), master, mpart))
+        for key, b, part in refs:
+            check_meshed(b.mesh, [(key, part)])
+            require_curve(b.mesh, part, key, f"{b.name}.{part}")
+        contact = _contact(
+            slave, slave_part, master, mpart, ct.g, ct.g.path, ct.ends, n_full, level
+        )
     options = {"potential_along": None, **spec.options()}
     if spec.output is not None and spec.output.potential_along is not None:
-        options["potential_along"] = tuple(spec.output.potential_along.split(".", 1))
+        bname, part = spec.output.potential_along.split(".", 1)
+        key = spec.output.key("potential_along")
+        check_meshed(bodies[bname].mesh, [(key, part)])
+        require_curve(bodies[bname].mesh, part, key, spec.output.potential_along)
+        options["potential_along"] = (bname, part)
 
     A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
     f_full = np.concatenate([b.f for b in bodies.values()])
@@ -349,6 +365,7 @@ def _contact(
     gkey: str,
     ends: str,
     n_full: int,
+    level: int = 0,
 ) -> Contact:
     """The contact rows: normal Σ_j Ds_kj n_kᵀu_s,j − Σ_j M_kj n_kᵀu_m,j (M = 0 for a rigid
     foundation), then the same with τ_k, for the multiplier rows of each component."""
@@ -367,7 +384,7 @@ def _contact(
     n_seg = tr.segments.shape[0]
     uncovered_local = np.zeros(2 * n_seg, dtype=bool)
     if master is not None:
-        _check_separation(slave, part, tr, tr.normals, master, mpart)
+        _check_separation(slave, part, tr, tr.normals, master, mpart, level)
         mort = mortar_coupling(slave.mesh, part, master.mesh, mpart)
         assert np.array_equal(tr.nodes, mort.slave_nodes)
         uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,)
@@ -483,9 +500,12 @@ def _normal_distances(
     return out, seg
 
 
-def _check_separation(slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str) -> None:
+def _check_separation(
+    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
+) -> None:
     """SceneError if the interfaces overlap or stand apart by more than SEPARATION_TOL·h
-    (h: the longer of the slave node's adjacent segments and the master segment hit)."""
+    (h: the longer of the slave node's adjacent segments and the master segment hit, times
+    2^level: the level-0 mesh size)."""
     mtr = trace(master.mesh, mpart)
     P = master.mesh.points[mtr.nodes]
     t, k = _normal_distances(
@@ -494,6 +514,7 @@ def _check_separation(slave: Body, part: str, tr: Trace, normals, master: Body, 
     h = mtr.lengths[k]
     np.maximum.at(h, tr.segments[:, 0], tr.lengths)
     np.maximum.at(h, tr.segments[:, 1], tr.lengths)
+    h = h * 2.0**level  # the size at level 0, where the interface geometry was given
     rel = t / h
     bad = np.flatnonzero(np.abs(np.nan_to_num(rel)) > SEPARATION_TOL)
     if bad.size:
@@ -504,7 +525,7 @@ def _check_separation(slave: Body, part: str, tr: Trace, normals, master: Body, 
             f"{master.name}.{mpart}",
             f"a master boundary that coincides with {slave.name}.{part} in the "
             f"reference configuration: it would {what} by {abs(t[i]):.3g} "
-            f"({abs(rel[i]):.2f} × the local mesh size {h[i]:.3g}; allowed "
+            f"({abs(rel[i]):.2f} × the local level-0 mesh size {h[i]:.3g}; allowed "
             f"{SEPARATION_TOL:g}) at slave node {slave.mesh.points[tr.nodes[i]].tolist()}",
         )
 
@@ -623,6 +644,31 @@ def contact_warnings(state: dict) -> list[str]:
     return []
 
 
+def contact_table(model: Model, sol: Solution) -> ContactTable:
+    """One row per slave node of Γ3 (problems.output.results): λ_n, λ_t, the tangential
+    mortar jump and stick/slip; NaN and state 'no_multiplier' where a node carries none."""
+    c = model.contact
+    tr = c.tr
+    st = contact_state(model, sol)
+    k = tr.size
+    lam_n, lam_t, jump_t = np.full(k, np.nan), np.full(k, np.nan), np.full(k, np.nan)
+    lam_n[c.rows_n] = st["lam_n"]
+    lam_t[c.rows_t] = st["lam_t"]
+    jump_t[c.rows_t] = st["jump_t"]
+    state = np.full(k, "no_multiplier", dtype=object)
+    state[c.rows_t] = np.where(st["slip"], "slip", "stick")
+    return ContactTable(
+        points=c.slave.mesh.points[tr.nodes],
+        normals=tr.normals,
+        weights=tr.weights,
+        segments=tr.segments,
+        lambda_n=lam_n,
+        lambda_t=lam_t,
+        jump_t=jump_t,
+        state=state.astype(str),
+    )
+
+
 def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
     """Nodal fields by name: "BODY.displacement" (N, 2) and, for piezoelectric bodies,
     "BODY.potential" (N,)."""
@@ -637,23 +683,20 @@ def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """Write VTU fields and PNG plots into `outdir`; return the summary entries."""
+    """Write VTU fields (one per body, the contact line, a .pvd), contact.csv and PNG plots
+    into `outdir`; return the summary entries."""
     from fem.io import write_vtu
 
     x_full = model.full(sol.u)
-    files = []
+    files, notes, datasets = [], [], []
     for b in model.bodies:
-        u, phi = b.split(x_full[b.offset : b.offset + b.size])
-        m = b.material
-        sigma, D = assembly.cell_fields(b.mesh, u.ravel(), phi, m.C, m.e, m.kappa)
-        point = {"displacement": u}
-        cell = {"stress": sigma}
-        if phi is not None:
-            point["potential"] = phi
-            cell["electric_displacement"] = D
+        point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
         fn = f"{b.name}.vtu"
         write_vtu(outdir / fn, b.mesh, point, cell)
         files.append(fn)
+        datasets.append((model.level, len(datasets), fn))
+        if note:
+            notes.append(note)
     summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
     if model.contact is not None:
         quad = piezo_balance.lemma_4_2(model, sol)
@@ -661,15 +704,26 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
             summary["lemma_4_2_quadrature"] = quad
         state = contact_state(model, sol)
         files += plots.contact_plots(state, outdir, title=model.scene.name)
+        table = contact_table(model, sol)
+        results.write_contact_csv(outdir / "contact.csv", table)
+        results.write_contact_vtu(outdir / "contact.vtu", table)
+        files += ["contact.csv", "contact.vtu"]
+        datasets.append((model.level, len(datasets), "contact.vtu"))
         n_slip = int(state["slip"].sum())
         summary["contact"] = {
             "nodes": int(state["slip"].size),
             "stick": int(state["slip"].size - n_slip),
             "slip": n_slip,
+            **table.totals(),
             **interface_summary(model.contact),
+            "table": table.records(),
         }
         summary["lemma_4_2"] = state["lemma_4_2"]
         summary["warnings"] = contact_warnings(state)
+    results.write_pvd(outdir / "results.pvd", datasets)
+    files.append("results.pvd")
+    if notes:
+        summary["notes"] = notes
     along = model.options.get("potential_along")
     if along is not None:
         b = next(bb for bb in model.bodies if bb.name == along[0])

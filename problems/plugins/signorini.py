@@ -29,14 +29,23 @@ from fem import assembly
 from fem.boundary import Trace, trace
 from fem.dirichlet import expand, reduce_dirichlet
 from problems.errors import SceneError
-from problems.output import plots
+from problems.output import plots, results
+from problems.output.results import ContactTable
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import NonNegativeExpr, Text
 from problems.scene.model import head
 from vi_core import Box, MixedVI, NonNegative, Solution, product
 
 from .bodies import Body, BodySection, build_body
-from .contract import ExtremeRow, Sweep, check_boundaries, complementarity_defect, expect
+from .body_output import body_fields
+from .contract import (
+    ExtremeRow,
+    Sweep,
+    check_boundaries,
+    check_meshed,
+    complementarity_defect,
+    expect,
+)
 from .fields import field_data
 from .transfer import nodal_reference_errors
 
@@ -118,6 +127,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     body = build_body("body", spec.body, level, 0)
     ct = spec.contact
     part, gap_fun, g_fun = ct.boundary, ct.gap, ct.g
+    check_meshed(body.mesh, [(ct.key("boundary"), part)])
     options = spec.options()
 
     mesh = body.mesh
@@ -187,6 +197,24 @@ def contact_state(model: Model, sol: Solution) -> dict:
     }
 
 
+def contact_table(model: Model, sol: Solution) -> ContactTable:
+    """One row per node of Γ3: λ, u·τ (the jump against the fixed obstacle), the remaining
+    gap gap0 − u·n, and the state: open where the node does not touch, else stick or slip."""
+    st = contact_state(model, sol)
+    state = np.where(st["touch"], np.where(st["slip"], "slip", "stick"), "open")
+    return ContactTable(
+        points=model.body.mesh.points[model.tr.nodes],
+        normals=model.tr.normals,
+        weights=model.tr.weights,
+        segments=model.tr.segments,
+        lambda_n=st["lam_n"],
+        lambda_t=st["lam_t"],
+        jump_t=st["jump_t"],
+        state=state,
+        gap=np.maximum(st["gap"] - st["u_n"], 0.0),
+    )
+
+
 def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
     """Nodal fields: "displacement" (n_nodes, 2)."""
     u, _ = model.body.split(expand(sol.u, model.free, model.values))
@@ -194,25 +222,40 @@ def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """signorini.vtu (displacement, stress), friction plots and contact_normal.png."""
+    """signorini.vtu (displacement, stress), the contact line (contact.vtu, contact.csv),
+    friction plots and contact_normal.png."""
     from fem.io import write_vtu
 
     b = model.body
-    u, _ = b.split(expand(sol.u, model.free, model.values))  # (n_nodes, 2)
-    sigma, _ = assembly.cell_fields(b.mesh, u.ravel(), None, b.material.C, None, None)
-    write_vtu(outdir / "signorini.vtu", b.mesh, {"displacement": u}, {"stress": sigma})
+    point, cell, note = body_fields(b, expand(sol.u, model.free, model.values))
+    write_vtu(outdir / "signorini.vtu", b.mesh, point, cell)
+    table = contact_table(model, sol)
+    results.write_contact_csv(outdir / "contact.csv", table)
+    results.write_contact_vtu(outdir / "contact.vtu", table)
+    results.write_pvd(
+        outdir / "results.pvd", [(model.level, 0, "signorini.vtu"), (model.level, 1, "contact.vtu")]
+    )
     st = contact_state(model, sol)
     files = plots.contact_plots(st, outdir, title=f"{model.scene.name} (tangential)")
     files.append(_normal_plot(st, outdir, model.scene.name))
-    n, n_slip, n_touch = st["slip"].size, int(st["slip"].sum()), int(st["touch"].sum())
+    n, n_touch = st["slip"].size, int(st["touch"].sum())
     lemma = model.complementarity(sol)
-    return {
-        "contact": {"nodes": n, "stick": n - n_slip, "slip": n_slip},
+    totals = table.totals()  # stick and slip among the touching nodes; the others open
+    out = {
+        "contact": {
+            "nodes": n,
+            **{k: totals["counts"][k] for k in ("stick", "slip", "open")},
+            **totals,
+            "table": table.records(),
+        },
         "signorini": {"nodes": n, "in_contact": n_touch, "separated": n - n_touch},
         "lemma_4_2": lemma,
         "complementarity": lemma,
-        "files": sorted([*files, "signorini.vtu"]),
+        "files": sorted([*files, "signorini.vtu", "contact.csv", "contact.vtu", "results.pvd"]),
     }
+    if note:
+        out["notes"] = [note]
+    return out
 
 
 def _normal_plot(st: dict, outdir: Path, title: str) -> str:

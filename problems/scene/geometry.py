@@ -1,26 +1,31 @@
 """Geometry tables of a scene (pydantic sections) → meshes at a refinement level.
 
 Kinds, a union told apart by `kind`: "rectangle" (structured P1/Q1), "half_disc" and "cradle"
-(the paper's two bodies as mapped Q1 blocks with boundary nodes on the true arc). Each kind
-names its boundary parts (BOUNDARIES, checked against the scene's references before anything
-is built). A mesh that would exceed MAX_CELLS cells, or that the mesher refuses (inverted or
-degenerate cells), is a SceneError naming the key.
+(the paper's two bodies as mapped Q1 blocks with boundary nodes on the true arc); or a file,
+`{ mesh = "FILE", body = "GROUP" }` or `{ geo = "FILE.geo", body = "GROUP" }` (`imported`; the
+path relative to the scene file). The built-in kinds name their boundary parts (BOUNDARIES,
+checked against the scene's references before anything is built); a file's parts are known
+only once it is read (BOUNDARIES None: the plug-ins check them after meshing, `check_meshed`).
+A mesh that would exceed MAX_CELLS cells, or that the mesher refuses (inverted or degenerate
+cells), is a SceneError naming the key.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, ClassVar, Literal, get_args
+from pathlib import Path
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import BeforeValidator, Discriminator, Field, Tag, ValidationInfo, model_validator
 
 from fem.boundary import trace
 from fem.mesh import Mesh
 from fem.meshing import rectangle
 from problems.errors import SceneError
 
-from .fields import Cells, Integer, Interval, Number, Point
-from .model import UNION_TAGS, Section
+from .fields import Cells, Integer, Interval, Number, Point, Text
+from .imported import geo_mesh, imported_mesh, resolve
+from .model import UNION_TAGS, Section, refuse
 
 MAX_CELLS = 4_000_000  # cells of one body at the requested level (≈ 12M piezo unknowns)
 
@@ -93,12 +98,105 @@ class Cradle(_Arc):
         return _meshed(self, shapes.cradle, *args)
 
 
-# The geometry kinds, told apart by `kind`: add a kind by adding a Section with a `kind`
-# literal, BOUNDARIES (None: known only once meshed) and mesh(level) to this union.
-Geometry = Annotated[Rectangle | HalfDisc | Cradle, Field(discriminator="kind")]
-GEOMETRIES = tuple(
-    get_args(c.model_fields["kind"].annotation)[0] for c in get_args(get_args(Geometry)[0])
-)
+class _File(Section):
+    BOUNDARIES: ClassVar[None] = None  # the file's physical curve groups, known once read
+    FILE_KEY: ClassVar[str]  # the scene key naming the file
+    FILE_ATTR: ClassVar[str]  # the field holding it
+    body: Text | None = Field(
+        None, description="a physical surface group (omitted: every surface cell of the file)"
+    )
+    _dir: Path | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _one_file(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "mesh" in data and "geo" in data:
+            raise refuse(
+                ["geo"],
+                data["geo"],
+                "either mesh (a mesh file) or geo (a gmsh geometry, needs gmsh), not both",
+            )
+        return data
+
+    @model_validator(mode="after")
+    def _scene_dir(self, info: ValidationInfo) -> _File:
+        scene_file = (info.context or {}).get("file")
+        if scene_file and not scene_file.startswith("<"):
+            self._dir = Path(scene_file).parent
+        return self
+
+    def resolved(self) -> Path:
+        """The file, resolved against the scene file's folder."""
+        return resolve(self._dir, getattr(self, self.FILE_ATTR))
+
+
+class MeshFile(_File):
+    """`{ mesh = "FILE", body = "GROUP" }`: a mesh file (gmsh .msh or any meshio format), the
+    group's cells refined `level` times with new boundary nodes on the file's polyline."""
+
+    FILE_KEY: ClassVar[str] = "mesh"
+    FILE_ATTR: ClassVar[str] = "mesh_file"  # `mesh` is the method
+    mesh_file: Text = Field(alias="mesh", description="the file, relative to the scene file")
+
+    def mesh(self, level: int) -> Mesh:
+        """The body's mesh at refinement `level`."""
+        return imported_mesh(self.resolved(), self.body, level, self.key("mesh"), MAX_CELLS)
+
+
+class GeoFile(_File):
+    """`{ geo = "FILE.geo", body = "GROUP" }`: a gmsh geometry (needs the optional gmsh
+    package), meshed and refined by gmsh with new boundary nodes on the geometry's curves."""
+
+    FILE_KEY: ClassVar[str] = "geo"
+    FILE_ATTR: ClassVar[str] = "geo"
+    geo: Text = Field(description="the .geo file, relative to the scene file")
+
+    def mesh(self, level: int) -> Mesh:
+        """The body's mesh at refinement `level`."""
+        return geo_mesh(self.resolved(), self.body, level, self.key("geo"), MAX_CELLS)
+
+
+def _tag(v: Any) -> str | None:
+    """The union member of a geometry table: its `kind`, or "mesh"/"geo" for a file."""
+    if isinstance(v, dict):
+        if "kind" in v:
+            return v["kind"] if isinstance(v["kind"], str) else None
+        return "mesh" if "mesh" in v else "geo" if "geo" in v else None
+    if isinstance(v, _File):
+        return v.FILE_KEY
+    return getattr(v, "kind", None)
+
+
+def _known_kind(v: Any) -> Any:
+    """An unknown `kind` is refused at `kind` (the union's own error would name the table)."""
+    if isinstance(v, dict) and "kind" in v and v["kind"] not in KINDS:
+        raise refuse(
+            ["kind"],
+            v["kind"],
+            "one of " + ", ".join(KINDS) + " (or a file: mesh = FILE or geo = FILE.geo)",
+        )
+    return v
+
+
+# The geometry kinds, told apart by `kind` (a file by its `mesh` or `geo` key): add a kind by
+# adding a Section with a `kind` literal, BOUNDARIES (None: known only once meshed) and
+# mesh(level) to this union.
+KINDS = ("rectangle", "half_disc", "cradle")
+Geometry = Annotated[
+    Annotated[Rectangle, Tag("rectangle")]
+    | Annotated[HalfDisc, Tag("half_disc")]
+    | Annotated[Cradle, Tag("cradle")]
+    | Annotated[MeshFile, Tag("mesh")]
+    | Annotated[GeoFile, Tag("geo")],
+    Discriminator(
+        _tag,
+        custom_error_type="geometry",
+        custom_error_message="a table with kind = " + " | ".join(KINDS) + ", or with mesh = "
+        "FILE or geo = FILE.geo (and body = GROUP)",
+    ),
+    BeforeValidator(_known_kind),
+]
+GEOMETRIES = (*KINDS, "mesh", "geo")
 UNION_TAGS.update(("geometry", k) for k in GEOMETRIES)
 
 

@@ -24,12 +24,20 @@ EPS0 = 8.8541878128e-12  # vacuum permittivity, F/m
 
 @dataclass(frozen=True)
 class Material:
-    """A body's constitutive data; `e` and `kappa` are None for a purely elastic body."""
+    """A body's constitutive data; `e` and `kappa` are None for a purely elastic body.
+
+    The out-of-plane stress of plane strain (ε_zz = 0), σ_zz = C_zz·ε + e_zz·∇φ, needs
+    constants the in-plane problem does not: C_zz (3,) = (c12, c13, 0) for a crystal poled
+    along y (z is crystal axis 2), (λ, λ, 0) for an isotropic material, and e_zz (2,) =
+    (0, e31). None where the scene's material table does not give them.
+    """
 
     name: str
     C: np.ndarray  # (3, 3)
     e: np.ndarray | None = None  # (2, 3)
     kappa: np.ndarray | None = None  # (2, 2)
+    C_zz: np.ndarray | None = None  # (3,) σ_zz row on (ε_xx, ε_yy, γ_xy)
+    e_zz: np.ndarray | None = None  # (2,) σ_zz row on ∇φ
 
     @property
     def piezoelectric(self) -> bool:
@@ -40,22 +48,27 @@ class Material:
         return float(np.max(np.abs(self.C)))
 
 
-def _piezo(c11, c13, c33, c44, e31, e33, e15, k11, k33) -> dict:
+def _piezo(c11, c12, c13, c33, c44, e31, e33, e15, k11, k33) -> dict:
     return {
         "C": [[c11, c13, 0.0], [c13, c33, 0.0], [0.0, 0.0, c44]],
+        "C_zz": [c12, c13, 0.0],
+        "e_zz": [0.0, e31],
         "e": [[0.0, 0.0, e15], [e31, e33, 0.0]],
         "kappa": [[k11, 0.0], [0.0, k33]],
     }
 
 
-# DESIGN.md §6: BaTiO3 (one commonly quoted set), Berlincourt's set, and PZT-5H.
+# docs/design.md, "Materials": BaTiO3 (one commonly quoted set), Berlincourt's set, and PZT-5H
+# (c11, c12, c13, c33, c44 in Pa; e31, e33, e15 in C/m²; κ11, κ33 in F/m).
 NAMED: dict[str, dict] = {
-    "BaTiO3": _piezo(15.0e10, 6.6e10, 14.6e10, 4.4e10, -4.35, 17.5, 11.4, 9.87e-9, 1.116e-8),
+    "BaTiO3": _piezo(
+        15.0e10, 6.6e10, 6.6e10, 14.6e10, 4.4e10, -4.35, 17.5, 11.4, 9.87e-9, 1.116e-8
+    ),
     "BaTiO3-Berlincourt": _piezo(
-        16.6e10, 7.8e10, 16.2e10, 4.3e10, -4.4, 18.6, 11.6, 11.2e-9, 12.6e-9
+        16.6e10, 7.7e10, 7.8e10, 16.2e10, 4.3e10, -4.4, 18.6, 11.6, 11.2e-9, 12.6e-9
     ),
     "PZT-5H": _piezo(
-        12.6e10, 8.41e10, 11.7e10, 2.30e10, -6.5, 23.3, 17.0, 1700 * EPS0, 1470 * EPS0
+        12.6e10, 7.95e10, 8.41e10, 11.7e10, 2.30e10, -6.5, 23.3, 17.0, 1700 * EPS0, 1470 * EPS0
     ),
 }
 MATERIAL_NAMES = tuple(NAMED)
@@ -116,8 +129,8 @@ class NamedMaterial(Section):
         """The constitutive data."""
         data, scale = NAMED[self.name], self.coupling_scale
         label = self.name if scale == 1.0 else f"{self.name} (coupling ×{scale:g})"
-        C, e, kappa = (np.array(data[k]) for k in ("C", "e", "kappa"))
-        return Material(label, C, scale * e, kappa)
+        C, e, kappa, C_zz, e_zz = (np.array(data[k]) for k in ("C", "e", "kappa", "C_zz", "e_zz"))
+        return Material(label, C, scale * e, kappa, C_zz, scale * e_zz)
 
 
 class Isotropic(Section):
@@ -130,7 +143,8 @@ class Isotropic(Section):
 
     def material(self) -> Material:
         """The constitutive data."""
-        return Material(self.label, isotropic_plane_strain(self.E, self.nu))
+        C = isotropic_plane_strain(self.E, self.nu)
+        return Material(self.label, C, C_zz=np.array([C[0, 1], C[0, 1], 0.0]))
 
 
 class Anisotropic(Section):

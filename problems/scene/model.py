@@ -131,7 +131,7 @@ def validate(
     field, the value, what is allowed and the override that caused it, if one did). `prefix`:
     where `data` sits in the scene when `cls` is one section (e.g. ("exact",))."""
     try:
-        model = cls.model_validate(data)
+        model = cls.model_validate(data, context={"file": file})
     except ValidationError as err:
         e = err.errors()[0]
         e = {**e, "loc": (*prefix, *e["loc"])}

@@ -30,7 +30,7 @@ from fem.meshing import rectangle, refine
 
 ELEMENTS = ["quad", "triangle"]
 
-# BaTiO3 (DESIGN.md §6), made dimensionless with c0 = 1e10 Pa, κ0 = 1e-8 F/m and length 1:
+# BaTiO3 (docs/design.md §4), made dimensionless with c0 = 1e10 Pa, κ0 = 1e-8 F/m and length 1:
 # potential scale φ0 = sqrt(c0/κ0), so C̃ = C/c0, ẽ = e/sqrt(c0 κ0), κ̃ = κ/κ0 (all of order 1).
 C0, K0 = 1e10, 1e-8
 C_BTO = np.array([[15.0e10, 6.6e10, 0.0], [6.6e10, 14.6e10, 0.0], [0.0, 0.0, 4.4e10]]) / C0

@@ -1,0 +1,350 @@
+"""Meshes made elsewhere: gmsh .msh (v2 and v4) and the other formats meshio reads.
+
+A mesh file may hold several bodies. Named **physical groups** (gmsh) select them: a group of
+dimension 2 (surfaces) is a body, a group of dimension 1 (curves) a boundary part. `read_mesh`
+reads the file once; `body_mesh` cuts one body out as a `fem.mesh.Mesh` in this package's
+conventions (docs/design.md, "Meshes"):
+
+- the body's nodes renumbered 0 … n−1 in the file's order, the z coordinate dropped (it must be 0);
+- cells counterclockwise (a body whose cells are all clockwise, as gmsh writes a surface whose
+  normal points along −z, is flipped as a whole); one cell type per body (all triangles or all
+  quadrilaterals: gmsh's ``Mesh.RecombineAll`` makes the second);
+- each boundary part: the line cells of the curve group that lie on the body's boundary,
+  oriented with the body on their left and ordered along the part (several pieces allowed;
+  whether a part is one simple curve is checked where that matters: `require_curve`).
+
+Refused with `MeshImportError` (a ValueError naming the file, the group or cell and what is
+allowed): unreadable files, unknown physical groups (the available ones are listed), cells
+other than triangles/quadrilaterals in a body, mixed cell types, cells with mixed orientation
+(a fold), degenerate (zero-area) cells and non-convex quadrilaterals, a curve group edge inside
+a body, a z coordinate other than 0.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import difflib
+import io
+import tempfile
+from dataclasses import dataclass
+from os import PathLike
+from pathlib import Path
+
+import numpy as np
+
+from .mapped import _order_edges
+from .mesh import Mesh
+
+SURFACE_CELLS = {"triangle": 3, "quad": 4}  # meshio cell types accepted in a body
+LINE_CELLS = ("line",)  # meshio cell types accepted in a boundary part
+IGNORED_CELLS = ("vertex",)  # point groups: no role in 2D
+# A cell whose signed area is at most AREA_TOL × (longest edge)² counts as degenerate.
+AREA_TOL = 1e-12
+# |z| of a node must be at most Z_TOL × the mesh's extent (the file holds a planar mesh).
+Z_TOL = 1e-12
+
+
+class MeshImportError(ValueError):
+    """A mesh file that cannot be used: which file, which group or cell, what is allowed."""
+
+    def __init__(self, file: str, what: str, allowed: str):
+        self.file, self.what, self.allowed = file, what, allowed
+        super().__init__(f"{file}: {what}: {allowed}")
+
+
+@dataclass(frozen=True)
+class MeshFile:
+    """A mesh file as read: points and cell blocks with their physical groups.
+
+    points : (n, 2) coordinates.
+    blocks : list of (cell type, (n_cells, k) node ids, (n_cells,) physical tag or −1).
+    groups : physical group name → (dimension, tag).
+    """
+
+    path: str
+    points: np.ndarray
+    blocks: list[tuple[str, np.ndarray, np.ndarray]]
+    groups: dict[str, tuple[int, int]]
+
+    def names(self, dim: int) -> list[str]:
+        """Sorted names of the physical groups of dimension `dim`."""
+        return sorted(n for n, (d, _) in self.groups.items() if d == dim)
+
+    def _group(self, name: str, dim: int, what: str) -> int:
+        """The tag of the named group of dimension `dim`; refusal listing the available ones."""
+        have = self.names(dim)
+        if self.groups.get(name, (None, None))[0] == dim:
+            return self.groups[name][1]
+        hint = difflib.get_close_matches(name, have, n=1)
+        extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+        listed = ", ".join(repr(n) for n in have) if have else "none"
+        raise MeshImportError(
+            self.path,
+            f"{what} {name!r}",
+            f"the name of a physical group of dimension {dim} in this file{extra}; "
+            f"available: {listed}",
+        )
+
+
+def read_mesh(path: str | PathLike) -> MeshFile:
+    """Read a mesh file with meshio (format from the file name; gmsh .msh v2 or v4, ...)."""
+    import meshio
+
+    path = str(path)
+    try:  # meshio prints its own complaint and may even call sys.exit: keep it quiet
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            m = meshio.read(path)
+    except (Exception, SystemExit) as err:  # ReadError, KeyError, ValueError, exit(1), ...
+        first = str(err).splitlines()[0][:200] if str(err) else type(err).__name__
+        raise MeshImportError(
+            path, "unreadable", f"a mesh file meshio can read, e.g. gmsh .msh v2/v4 ({first})"
+        ) from None
+    pts = np.asarray(m.points, dtype=float)
+    if pts.ndim != 2 or pts.shape[0] == 0:
+        raise MeshImportError(path, "no nodes", "a mesh with nodes")
+    if pts.shape[1] == 3:
+        extent = float(np.ptp(pts[:, :2], axis=0).max()) if len(pts) > 1 else 1.0
+        z = np.abs(pts[:, 2])
+        if z.max() > Z_TOL * max(extent, 1e-300):
+            i = int(np.argmax(z))
+            raise MeshImportError(
+                path, f"node {i} at {pts[i].tolist()}", "a planar mesh in the plane z = 0"
+            )
+    if not np.isfinite(pts).all():
+        raise MeshImportError(path, "node coordinates", "finite numbers")
+    tags = m.cell_data.get("gmsh:physical")
+    blocks = []
+    for i, block in enumerate(m.cells):
+        phys = np.asarray(tags[i], dtype=int) if tags is not None else np.full(len(block.data), -1)
+        blocks.append((block.type, np.asarray(block.data, dtype=np.int64), phys))
+    groups = {str(k): (int(v[1]), int(v[0])) for k, v in (m.field_data or {}).items()}
+    return MeshFile(path, pts[:, :2].copy(), blocks, groups)
+
+
+def mesh_geo(path: str | PathLike, level: int = 0) -> MeshFile:
+    """Mesh a gmsh geometry file (.geo) with the optional gmsh package and refine it `level`
+    times with gmsh: new boundary nodes are put on the geometry's curves (not on the level-0
+    polyline), interior ones at edge midpoints. The mesh options are the .geo file's own."""
+    path = str(path)
+    try:
+        import gmsh
+    except ImportError:
+        raise MeshImportError(
+            path,
+            "a .geo geometry",
+            "the optional gmsh package (pip install gmsh) to mesh it; or a mesh file made from "
+            "it (gmsh -2 FILE.geo), whose refinement keeps new boundary nodes on its polyline",
+        ) from None
+    own = not gmsh.isInitialized()
+    if own:
+        gmsh.initialize(["-noenv"], readConfigFiles=False, interruptible=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        with tempfile.TemporaryDirectory(prefix="mixvi-geo-") as tmp:
+            try:
+                gmsh.open(path)
+                gmsh.model.mesh.generate(2)
+                for _ in range(level):
+                    gmsh.model.mesh.refine()
+                gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+                out = str(Path(tmp) / "mesh.msh")
+                gmsh.write(out)
+            except Exception as err:  # gmsh raises plain Exceptions with its log line
+                first = str(err).splitlines()[0][:200] if str(err) else type(err).__name__
+                raise MeshImportError(
+                    path, "gmsh failed", f"a .geo file gmsh meshes ({first})"
+                ) from None
+            mf = read_mesh(out)
+    finally:
+        gmsh.clear()
+        if own:
+            gmsh.finalize()
+    return MeshFile(path, mf.points, mf.blocks, mf.groups)
+
+
+def _dim(cell_type: str) -> int:
+    if cell_type in SURFACE_CELLS or cell_type.startswith(("triangle", "quad", "polygon")):
+        return 2
+    if cell_type.startswith("line"):
+        return 1
+    if cell_type in IGNORED_CELLS:
+        return 0
+    return 3
+
+
+def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
+    """The body `body` (a physical surface group; None: every surface cell of the file) as a
+    Mesh, with every physical curve group that lies on its boundary as a boundary part."""
+    where = "the file" if body is None else f"body {body!r}"
+    tag = None if body is None else mf._group(body, 2, "body")
+    cells_of: dict[str, list[np.ndarray]] = {}
+    for ctype, data, phys in mf.blocks:
+        if _dim(ctype) != 2 and not (_dim(ctype) == 3 and tag is None):
+            continue
+        sel = data if tag is None else data[phys == tag]
+        if len(sel) == 0:
+            continue
+        if ctype not in SURFACE_CELLS:
+            raise MeshImportError(
+                mf.path,
+                f"{len(sel)} cell(s) of type {ctype!r} in {where}",
+                "linear triangles ('triangle') or quadrilaterals ('quad'); mesh with element "
+                "order 1 (gmsh -order 1) and without 3D cells",
+            )
+        cells_of.setdefault(ctype, []).append(sel)
+    if not cells_of:
+        raise MeshImportError(mf.path, where, "a surface with triangles or quadrilaterals")
+    if len(cells_of) > 1:
+        counts = ", ".join(f"{sum(map(len, v))} {k}" for k, v in cells_of.items())
+        raise MeshImportError(
+            mf.path,
+            f"{where} mixes cell types ({counts})",
+            "one cell type per body: all triangles or all quadrilaterals "
+            "(gmsh: Mesh.RecombineAll = 1 for quadrilaterals everywhere)",
+        )
+    ctype, pieces = next(iter(cells_of.items()))
+    cells_file = np.concatenate(pieces)  # (n_cells, k) file node ids
+    order = np.unique(cells_file.ravel())  # file node ids used by the body, in file order
+    new_id = np.full(mf.points.shape[0], -1, dtype=np.int64)
+    new_id[order] = np.arange(order.size)
+    points = mf.points[order]  # (n, 2)
+    cells = new_id[cells_file]  # (n_cells, k)
+    cells = _oriented(mf.path, where, points, cells)
+    boundaries = _boundaries(mf, where, new_id, cells)
+    return Mesh(points, cells, boundaries)
+
+
+def _oriented(path: str, where: str, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Cells made counterclockwise (all flipped if all are clockwise); refusal of folds,
+    degenerate cells and non-convex quadrilaterals."""
+    P = points[cells]  # (n_cells, k, 2)
+    e_next = np.roll(P, -1, axis=1) - P  # (n_cells, k, 2) edge leaving corner i
+    e_prev = np.roll(P, 1, axis=1) - P  # (n_cells, k, 2) edge arriving at corner i, reversed
+    cross = e_next[..., 0] * e_prev[..., 1] - e_next[..., 1] * e_prev[..., 0]  # (n_cells, k)
+    longest = (np.linalg.norm(e_next, axis=-1) ** 2).max(axis=1)  # (n_cells,)
+    area = 0.5 * np.sum(
+        P[..., 0] * np.roll(P[..., 1], -1, 1) - np.roll(P[..., 0], -1, 1) * P[..., 1], axis=1
+    )
+    tiny = AREA_TOL * longest
+    neg, pos = area < -tiny, area > tiny
+    if neg.all():
+        cells, cross, neg, pos = cells[:, ::-1], -cross, pos, neg
+    bad = np.flatnonzero(~pos)
+    if bad.size:
+        kind = "degenerate (zero area)" if np.abs(area[bad[0]]) <= tiny[bad[0]] else "inverted"
+        raise MeshImportError(
+            path,
+            f"{where}: {bad.size} cell(s) inverted or degenerate, e.g. cell {bad[0]} ({kind}) "
+            f"with corners {P[bad[0]].tolist()}",
+            "cells of positive area, all with the same orientation",
+        )
+    if cells.shape[1] == 4:
+        nonconvex = np.flatnonzero((cross <= AREA_TOL * longest[:, None]).any(axis=1))
+        if nonconvex.size:
+            i = nonconvex[0]
+            raise MeshImportError(
+                path,
+                f"{where}: {nonconvex.size} quadrilateral(s) not strictly convex, e.g. cell {i} "
+                f"with corners {P[i].tolist()}",
+                "convex quadrilaterals (angles below 180°)",
+            )
+    return cells
+
+
+def _boundaries(
+    mf: MeshFile, where: str, new_id: np.ndarray, cells: np.ndarray
+) -> dict[str, np.ndarray]:
+    """Curve groups on the body's boundary → directed, ordered edge lists (body on the left)."""
+    n = int(cells.max()) + 1
+    directed = np.stack([cells, np.roll(cells, -1, axis=1)], axis=2).reshape(-1, 2)  # (k n_c, 2)
+    s = np.sort(directed, axis=1)
+    code = s[:, 0] * n + s[:, 1]  # (k n_cells,) orientation-free edge codes
+    ucode, inv, count = np.unique(code, return_inverse=True, return_counts=True)
+    once = count[inv] == 1  # (k n_cells,) the edge belongs to one cell: a boundary edge
+    b_code, b_dir = code[once], directed[once]  # (n_b,), (n_b, 2) with the body on the left
+    sort = np.argsort(b_code)
+    b_code, b_dir = b_code[sort], b_dir[sort]
+    out: dict[str, np.ndarray] = {}
+    for name in mf.names(1):
+        tag = mf.groups[name][1]
+        edges = [d[p == tag] for t, d, p in mf.blocks if _dim(t) == 1]
+        edges = np.concatenate(edges) if edges else np.zeros((0, 2), dtype=np.int64)
+        if edges.shape[1] != 2:
+            raise MeshImportError(
+                mf.path, f"curve group {name!r}", "linear line cells (element order 1)"
+            )
+        local = new_id[edges]  # (n_e, 2); −1 where a node is not in this body
+        local = local[(local >= 0).all(axis=1)]
+        if local.size == 0:
+            continue
+        s = np.sort(local, axis=1)
+        c = s[:, 0] * n + s[:, 1]
+        inside = ~np.isin(c, b_code) & np.isin(c, ucode)
+        if inside.any():
+            i = int(np.flatnonzero(inside)[0])
+            raise MeshImportError(
+                mf.path,
+                f"curve group {name!r} has {int(inside.sum())} edge(s) inside {where}, e.g. "
+                f"from {mf.points[edges[i, 0]].tolist()} to {mf.points[edges[i, 1]].tolist()}",
+                "boundary parts on the body's boundary (an interface between two bodies: mesh "
+                "them as two physical surfaces with their own curves)",
+            )
+        on = np.unique(c[np.isin(c, b_code)])  # (n_part,) edges of the part in this body
+        if on.size:
+            out[name] = _order_edges(b_dir[np.searchsorted(b_code, on)])
+    return out
+
+
+def require_curve(mesh: Mesh, part: str) -> None:
+    """ValueError unless boundary part `part` is one simple curve (an open chain of edges,
+    or one closed loop): contact boundaries must be."""
+    from .boundary import trace
+
+    trace(mesh, part)
+
+
+def write_msh(
+    path: str | PathLike,
+    bodies: dict[str, Mesh],
+    file_format: str = "gmsh22",
+) -> None:
+    """Write meshes as one gmsh file (meshio's `file_format`: "gmsh22" = v2.2, "gmsh" = v4.1):
+    each body a physical surface named for it, each boundary part a physical curve named
+    `part` (`body_part` where two bodies have a part of that name). Nodes of different bodies
+    are not merged. Tests and examples use it to hand built-in meshes to `body_mesh`."""
+    import meshio
+
+    counts: dict[str, int] = {}
+    for m in bodies.values():
+        for p in m.boundaries:
+            counts[p] = counts.get(p, 0) + 1
+    points, cells, phys, geo, field, dim_tags = [], [], [], [], {}, []
+    offset, tag = 0, 1
+    for bname, m in bodies.items():
+        field[bname] = np.array([tag, 2])
+        dt = np.tile([2, tag], (m.n_nodes, 1))  # (n, 2) the entity each node is classified on
+        cells.append((m.cell_type, m.cells + offset))
+        phys.append(np.full(m.n_cells, tag))
+        geo.append(np.full(m.n_cells, tag))
+        tag += 1
+        for p, e in m.boundaries.items():
+            name = p if counts[p] == 1 else f"{bname}_{p}"
+            field[name] = np.array([tag, 1])
+            cells.append(("line", e + offset))
+            phys.append(np.full(len(e), tag))
+            geo.append(np.full(len(e), tag))
+            dt[e.ravel()] = [1, tag]
+            tag += 1
+        points.append(m.points)
+        dim_tags.append(dt)
+        offset += m.n_nodes
+    pts = np.concatenate(points)
+    pts3 = np.concatenate([pts, np.zeros((len(pts), 1))], axis=1)
+    out = meshio.Mesh(
+        pts3,
+        cells,
+        point_data={"gmsh:dim_tags": np.concatenate(dim_tags)},
+        cell_data={"gmsh:physical": phys, "gmsh:geometrical": geo},
+        field_data=field,
+    )
+    out.write(str(Path(path)), file_format=file_format, binary=False)

@@ -1,0 +1,114 @@
+"""Meshes from files in scenes: `geometry = { mesh = "part.msh", body = "plate" }`, or
+`geometry = { geo = "part.geo", body = "plate" }` (meshed by the optional gmsh package).
+
+The path is relative to the scene file's folder; `body` names a physical surface group (omitted:
+every surface cell of the file is the body); the file's physical curve groups on that body's
+boundary become its boundary parts, usable wherever a scene names a boundary (Dirichlet data,
+loads, potentials, contact). `--level L` refines the file's mesh uniformly L times; new boundary
+nodes stay on the file's polyline, so against a curved exact boundary the error stalls at the
+polyline's geometric error (docs/design.md, "Meshes from files"). From a `.geo` file gmsh meshes
+and refines, putting new boundary nodes on the geometry's curves.
+
+Everything here is independent of how the scene is read: `imported_mesh` takes the resolved
+path, the group name and the key to blame, and turns `fem.mesh_import` refusals into
+SceneErrors.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from fem.mesh import Mesh
+from fem.mesh_import import MeshFile, MeshImportError, body_mesh, mesh_geo, read_mesh
+from fem.mesh_import import require_curve as _require_curve
+from fem.meshing import refine
+from problems.errors import SceneError
+
+
+@lru_cache(maxsize=8)
+def _read(path: str, mtime_ns: int, size: int) -> MeshFile:
+    """Read once per file version: a two-body file is read once for both bodies."""
+    del mtime_ns, size  # part of the cache key only
+    return read_mesh(path)
+
+
+def resolve(scene_dir: Path | None, name: str) -> Path:
+    """The mesh file `name` relative to the scene file's folder (absolute paths kept)."""
+    p = Path(name).expanduser()
+    return p if p.is_absolute() or scene_dir is None else scene_dir / p
+
+
+@lru_cache(maxsize=8)
+def _geo(path: str, mtime_ns: int, size: int, level: int) -> MeshFile:
+    """Mesh a .geo file at a level once: both bodies of a two-body geometry use one meshing."""
+    del mtime_ns, size  # part of the cache key only
+    return mesh_geo(path, level)
+
+
+def _stat(path: Path, key: str, what: str):
+    try:
+        return path.stat()
+    except OSError as err:
+        raise SceneError(
+            key, str(path), f"an existing {what}, relative to the scene file ({err.strerror})"
+        ) from None
+
+
+def _check_cells(n_cells: int, level: int, key: str, path: Path, max_cells: int | None) -> None:
+    cells = n_cells * 4**level
+    if max_cells is not None and cells > max_cells:
+        raise SceneError(
+            key,
+            str(path),
+            f"a mesh of at most {max_cells:,} cells per body at the requested level "
+            f"({n_cells} cells refined {level} times would have {cells:,})",
+        )
+
+
+def imported_mesh(
+    path: Path, body: str | None, level: int, key: str, max_cells: int | None = None
+) -> Mesh:
+    """The body `body` of the mesh file `path`, refined `level` times (new boundary nodes on
+    the file's polyline).
+
+    SceneError naming `key` (the scene's mesh key) and the file for a missing or unusable file,
+    an unknown group (the available ones listed), unsupported or invalid cells, and a mesh that
+    would exceed `max_cells` cells at this level.
+    """
+    st = _stat(path, key, "mesh file")
+    try:
+        mesh = body_mesh(_read(str(path), st.st_mtime_ns, st.st_size), body)
+    except MeshImportError as err:
+        raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
+    _check_cells(mesh.n_cells, level, key, path, max_cells)
+    return refine(mesh, level)
+
+
+def geo_mesh(
+    path: Path, body: str | None, level: int, key: str, max_cells: int | None = None
+) -> Mesh:
+    """The body `body` of the gmsh geometry `path` (.geo), meshed and refined `level` times by
+    gmsh (optional dependency): new boundary nodes lie on the geometry's curves, so rates on
+    curved domains do not stall at a polyline's error. Refusals as for `imported_mesh`, and
+    without gmsh a SceneError saying how to install it or what to give instead."""
+    st = _stat(path, key, "gmsh geometry file")
+    try:
+        base = body_mesh(_geo(str(path), st.st_mtime_ns, st.st_size, 0), body)
+        _check_cells(base.n_cells, level, key, path, max_cells)
+        if level == 0:
+            return base
+        return body_mesh(_geo(str(path), st.st_mtime_ns, st.st_size, level), body)
+    except MeshImportError as err:
+        raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
+
+
+def require_curve(mesh: Mesh, part: str, key: str, value: str) -> None:
+    """SceneError naming `key` unless boundary part `part` is one simple curve (contact
+    boundaries and curves to plot along must be; Dirichlet parts need not)."""
+    try:
+        _require_curve(mesh, part)
+    except ValueError as err:
+        raise SceneError(
+            key, value, f"a boundary part that is one simple curve, without branches ({err})"
+        ) from None
