@@ -122,6 +122,11 @@ def parser() -> argparse.ArgumentParser:
     sc = sub.add_parser("scenes", help="list the shipped scenes with their plug-in and title")
     sc.set_defaults(func=cmd_scenes)
     sh = sub.add_parser("schema", help="print the JSON Schema of scenes (every plug-in's section)")
+    sh.add_argument(
+        "--markdown",
+        action="store_true",
+        help="print the scene reference (Markdown tables) generated from the schema instead",
+    )
     sh.set_defaults(func=cmd_schema)
     v = sub.add_parser("validate", help="check a scene and its --set overrides without solving")
     v.add_argument("scene", help="scene file or shipped name")

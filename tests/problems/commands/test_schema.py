@@ -85,3 +85,57 @@ def test_validate_notes_a_format_1_scene_once(tmp_path):
     p.write_text(text)
     rc, out, err = _run("validate", str(p))
     assert rc == 0 and err.count("\n") == 1 and "format-1" in err and "deprecated" in err
+
+
+# ------------------------------------------------------------------ the scene reference
+def _builtin_reference() -> str:
+    import importlib
+
+    from problems.commands.schema import scene_reference
+    from problems.plugins.registry import BUILTIN
+    from problems.scene.model import json_schema
+
+    models = {n: importlib.import_module(m).SCENE_MODEL for n, m in BUILTIN.items()}
+    return scene_reference(json_schema(models))
+
+
+def test_docs_scene_reference_is_generated_from_the_current_schema():
+    """docs/scenes.md is `mixvi schema --markdown` of the built-in plug-ins, not a stale copy
+    (regenerate: `mixvi schema --markdown > docs/scenes.md`)."""
+    doc = SCENES_DIR.parents[1] / "docs" / "scenes.md"
+    assert doc.read_text() == _builtin_reference()
+
+
+def test_the_reference_lists_every_key_of_the_shipped_scenes():
+    """Every key used by a shipped scene (at any depth) has a row in the reference."""
+    text = _builtin_reference()
+
+    def keys(d):
+        for k, v in d.items():
+            yield k
+            items = v if isinstance(v, list) else [v]
+            for item in items:
+                if isinstance(item, dict):
+                    yield from keys(item)
+
+    names = set()
+    for path in SHIPPED:
+        data = tomllib.loads(path.read_text())
+        names |= {k for k in keys(data) if k not in data.get("bodies", {})}
+    missing = sorted(k for k in names if f"| `{k}` |" not in text)
+    assert not missing, missing
+
+
+def test_mutation_a_dropped_row_is_caught(monkeypatch):
+    """The key check above fails on a reference that leaves out one key's row."""
+    from problems.commands import schema
+
+    real = schema.scene_reference
+
+    def without_n_contact(spec):
+        rows = real(spec).splitlines()
+        return "\n".join(r for r in rows if not r.startswith("| `n_contact` |"))
+
+    monkeypatch.setattr(schema, "scene_reference", without_n_contact)
+    with pytest.raises(AssertionError, match="n_contact"):
+        test_the_reference_lists_every_key_of_the_shipped_scenes()
