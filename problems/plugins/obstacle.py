@@ -42,7 +42,7 @@ from .contract import (
     expect,
     triangles,
 )
-from .transfer import nodal_reference_errors
+from .transfer import scalar_exact_errors, scalar_mesh_size, scalar_reference_errors
 
 NAME = "obstacle"
 DESCRIPTION = "membrane above an obstacle: −Δu = f, u ≥ ψ (nodal contact forces λ ≥ 0)"
@@ -249,22 +249,9 @@ def draw(ax, model: Model, sol: Solution) -> str:
     return f"{int(touch.sum())} nodes in contact"
 
 
-def mesh_size(model: Model) -> float:
-    """h of the built level."""
-    return model.mesh.h
-
-
-def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
-    """|u − u_h|_H1 and ‖u − u_h‖_L2 against the scene's [exact] table (None without one)."""
-    if model.exact is None:
-        return None
-    err = model.errors(sol)
-    return {k: err[k] for k in NORMS}
-
-
-def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
-    """‖u_h − u_ref‖ in H¹ and L² against the finer level `ref`."""
-    return nodal_reference_errors(model.mesh, model.full(sol.u), ref.mesh, ref.full(ref_sol.u))
+mesh_size = scalar_mesh_size
+exact_errors = scalar_exact_errors  # h1, l2 against the scene's [exact] table
+reference_errors = scalar_reference_errors
 
 
 def _counts(model: Model, sol: Solution) -> dict[str, int]:
