@@ -216,7 +216,7 @@ def _build(scene: Scene, level: int | None) -> Model:
     if spec.contact is not None:
         ct = spec.contact
         sname, part = ct.slave.split(".", 1)
-        contact = rigid_contact(bodies[sname], part, ct.g, n_full)
+        contact = slave_contact(bodies[sname], part, ct.g, n_full)
     A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
     f_full = np.concatenate([b.f for b in bodies.values()])
     fixed = np.concatenate([b.fixed for b in bodies.values()])
@@ -366,7 +366,7 @@ def contact_rows(
     return B
 
 
-def rigid_contact(
+def slave_contact(
     slave: Body3D, part: str, gfun, n_full: int, master: Coupling | None = None
 ) -> Contact3D:
     """The contact of `slave`'s boundary `part` (a rigid foundation along it, or `master`):
@@ -518,8 +518,10 @@ def contact_state(model: Model, sol: Solution) -> dict:
     has_t = np.zeros(k, dtype=bool)
     has_t[c.disc] = has_t[c.line] = True
     mag = np.linalg.norm(vec, axis=1)
-    gmax = float(c.g.max(initial=0.0))
-    slip = has_t & (mag >= c.g - 1e-9 * max(gmax, 1e-300))
+    # slip where |λ_t| reaches g up to the solver's accuracy, which is relative to the whole λ
+    # (with g ≪ λ_n a rounding-level shortfall of |λ_t| must not read as stick)
+    scale = max(float(c.g.max(initial=0.0)), float(np.abs(lam).max(initial=0.0)), 1e-300)
+    slip = has_t & (mag >= c.g - 1e-9 * scale)
     state = np.full(k, "no_multiplier", dtype=object)
     state[has_t] = np.where(slip[has_t], "slip", "stick")
     state[~has_t & np.isin(np.arange(k), c.rows_n)] = "normal_only"
