@@ -114,6 +114,12 @@ def parser() -> argparse.ArgumentParser:
         help="no nested iteration: start Newton from λ = 0 on the requested level only",
     )
     s.add_argument(
+        "--write-levels",
+        action="store_true",
+        help="also write the results of every coarser level of the nested iteration into "
+        "levels/L/ and add their VTU files to results.pvd (one time step per level)",
+    )
+    s.add_argument(
         "--allow-defect",
         action="store_true",
         help="exit 0 even if a contact interface's mortar patch defect exceeds 1e-8",

@@ -11,6 +11,7 @@ from pathlib import Path
 import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
+from problems.output.collection import write_pvd
 from problems.output.files import jsonable, output_folder
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 
@@ -44,14 +45,37 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
 def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     plugin = loaded.plugin
-    run = pipeline.solve(loaded, level, args.solver, args.tol, args.cold, args.linear_solver)
-    model, sol, nested = run.model, run.solution, run.nested
     out = folder.path
     with folder.staging() as tmp:
+        coarse: dict[int, list[str]] = {}  # level → its files under levels/L/
+
+        def write_level(model, sol) -> None:  # --write-levels: a coarse level's results
+            sub = Path("levels") / str(model.level)
+            (tmp / sub).mkdir(parents=True)
+            written = plugin.postprocess(model, sol, tmp / sub).get("files", [])
+            coarse[model.level] = [(sub / f).as_posix() for f in written]
+
+        run = pipeline.solve(
+            loaded,
+            level,
+            args.solver,
+            args.tol,
+            args.cold,
+            args.linear_solver,
+            on_level=write_level if args.write_levels else None,
+        )
+        model, sol, nested = run.model, run.solution, run.nested
         extras = plugin.postprocess(model, sol, tmp)
+        files = [*extras.get("files", [])]
+        per_level = [*sorted(coarse.items()), (model.level, files)]
+        datasets = [(lev, f) for lev, fs in per_level for f in _vtu_first(fs) if f.endswith(".vtu")]
+        if datasets:
+            write_pvd(tmp / "results.pvd", datasets)
+            files.append("results.pvd")
         summary = {
             **pipeline.info(loaded, run),
             **extras,
+            "files": files,
             "scaling": pipeline.scaling_summary(model),
             "condition_estimate": sol.info.get("condition_estimate"),
             "solver_info": sol.info,
@@ -63,13 +87,21 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
                 "total": time.perf_counter() - t0,
             },
         }
+        if coarse:
+            summary["levels_written"] = {str(lev): fs for lev, fs in sorted(coarse.items())}
         (tmp / "summary.json").write_text(json.dumps(jsonable(summary), indent=2) + "\n")
     for line in console_summary(
         summary, nested or [pipeline.level_record(model.level, model, sol)]
     ):
         print(line)
-    files = ["summary.json", *summary.get("files", [])]
-    print(f"  wrote {out}/: {', '.join(files)}")
+    print(f"  wrote {out}/: {', '.join(['summary.json', *files])}")
+    if coarse:
+        print(f"  and the coarse levels' results in {out}/levels/{{{','.join(map(str, coarse))}}}/")
+    elif args.write_levels:
+        print(
+            "  note: --write-levels: no coarse level was solved (only the nested ssn solve "
+            "of a level above 0 has them)"
+        )
     defect = summary.get("contact", {}).get("mortar_patch_defect")
     if defect is not None and defect > PATCH_DEFECT_LIMIT and not args.allow_defect:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
@@ -77,8 +109,13 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     return 0 if sol.converged else 1
 
 
+def _vtu_first(files: list[str]) -> list[str]:
+    """The files with the bodies' VTUs before the contact line (the parts' order in the .pvd)."""
+    return sorted(files, key=lambda f: (Path(f).name == "contact.vtu", f))
+
+
 def _vec(v) -> str:
-    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+    return "(" + ", ".join(f"{x + 0.0:.4g}" for x in v) + ")"  # + 0.0: no "-0"
 
 
 def console_summary(summary: dict, levels: list[dict]) -> list[str]:
@@ -117,6 +154,9 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         parts = [f"{c['nodes']} nodes", f"stick {c['stick']}", f"slip {c['slip']}"]
         if c.get("open"):
             parts.append(f"open {c['open']}")
+        bare = c.get("counts", {}).get("no_multiplier")
+        if bare:
+            parts[-1] += f" (and {bare} node{'s' if bare > 1 else ''} without multiplier)"
         if "stick_length" in c:
             parts[1] += f" ({c['stick_length']:.4g} m)"
             parts[2] += f" ({c['slip_length']:.4g} m)"

@@ -232,9 +232,6 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     table = contact_table(model, sol)
     results.write_contact_csv(outdir / "contact.csv", table)
     results.write_contact_vtu(outdir / "contact.vtu", table)
-    results.write_pvd(
-        outdir / "results.pvd", [(model.level, 0, "signorini.vtu"), (model.level, 1, "contact.vtu")]
-    )
     st = contact_state(model, sol)
     files = plots.contact_plots(st, outdir, title=f"{model.scene.name} (tangential)")
     files.append(_normal_plot(st, outdir, model.scene.name))
@@ -251,7 +248,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         "signorini": {"nodes": n, "in_contact": n_touch, "separated": n - n_touch},
         "lemma_4_2": lemma,
         "complementarity": lemma,
-        "files": sorted([*files, "signorini.vtu", "contact.csv", "contact.vtu", "results.pvd"]),
+        "files": sorted([*files, "signorini.vtu", "contact.csv", "contact.vtu"]),
     }
     if note:
         out["notes"] = [note]
