@@ -27,8 +27,9 @@ from .check import cmd_check
 from .figures import cmd_figures
 from .options import DEFAULT_SCENE
 from .scenes import cmd_scenes
-from .schema import cmd_schema, cmd_validate
+from .schema import cmd_schema
 from .solve import ACCURACY, cmd_solve
+from .validate import cmd_validate
 
 SET_HELP = "override a scene value, e.g. contact.g=5e7 (repeatable)"
 
@@ -134,7 +135,12 @@ def parser() -> argparse.ArgumentParser:
         help="print the scene reference (Markdown tables) generated from the schema instead",
     )
     sh.set_defaults(func=cmd_schema)
-    v = sub.add_parser("validate", help="check a scene and its --set overrides without solving")
+    v = sub.add_parser(
+        "validate",
+        help="check a scene, its --set overrides and its mesh files without solving",
+        description="Check a scene, its overrides and the mesh files it names (groups, cells, "
+        "contact curves) as a solve's build would, at level 0; nothing is solved or written.",
+    )
     v.add_argument("scene", help="scene file or shipped name")
     v.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
     v.set_defaults(func=cmd_validate)

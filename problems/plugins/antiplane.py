@@ -34,6 +34,7 @@ from problems.output.results import ContactTable
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import Expression, NonNegativeExpr, Number, Text
 from problems.scene.geometry import Geometry
+from problems.scene.imported import require_curve
 from problems.scene.model import head, one_or_many
 from vi_core import Box, MixedVI, Solution
 
@@ -159,13 +160,15 @@ def build(scene: Scene, level: int | None = None) -> Model:
             for b in d.boundary
         ]
         check_meshed(mesh, [*refs, (spec.friction.key("boundary"), spec.friction.boundary)])
+    part = spec.friction.boundary
+    require_curve(mesh, part, spec.friction.key("boundary"), part)
     mu = spec.domain.shear_modulus
     F = assembly.volume_load(mesh, spec.domain.load, 1)  # (n_nodes,)
     fixed, values = dirichlet(spec.dirichlet, mesh)
     for t in spec.traction:
         for part in t.boundary:
             F += assembly.boundary_load(mesh, part, t.value, 1)
-    part, g_fun = spec.friction.boundary, spec.friction.g
+    g_fun = spec.friction.g
     options = spec.options()
     exact = None if spec.exact is None else spec.exact.compiled()
 

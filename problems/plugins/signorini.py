@@ -33,6 +33,7 @@ from problems.output import plots, results
 from problems.output.results import ContactTable
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import NonNegativeExpr, Text
+from problems.scene.imported import require_curve
 from problems.scene.model import head
 from vi_core import Box, MixedVI, NonNegative, Solution, product
 
@@ -128,6 +129,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     ct = spec.contact
     part, gap_fun, g_fun = ct.boundary, ct.gap, ct.g
     check_meshed(body.mesh, [(ct.key("boundary"), part)])
+    require_curve(body.mesh, part, ct.key("boundary"), part)
     options = spec.options()
 
     mesh = body.mesh
