@@ -154,12 +154,12 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         parts = [f"{c['nodes']} nodes", f"stick {c['stick']}", f"slip {c['slip']}"]
         if c.get("open"):
             parts.append(f"open {c['open']}")
-        bare = c.get("counts", {}).get("no_multiplier")
-        if bare:
-            parts[-1] += f" (and {bare} node{'s' if bare > 1 else ''} without multiplier)"
         if "stick_length" in c:
             parts[1] += f" ({c['stick_length']:.4g} m)"
             parts[2] += f" ({c['slip_length']:.4g} m)"
+        bare = c.get("counts", {}).get("no_multiplier")
+        if bare:
+            parts.append(f"{bare} node{'s' if bare > 1 else ''} without multiplier")
         line = "  contact: " + ", ".join(parts)
         if "force_on_slave" in c:
             line += f"; force on the slave {_vec(c['force_on_slave'])} N/m"

@@ -160,15 +160,16 @@ def build(scene: Scene, level: int | None = None) -> Model:
             for b in d.boundary
         ]
         check_meshed(mesh, [*refs, (spec.friction.key("boundary"), spec.friction.boundary)])
-    part = spec.friction.boundary
-    require_curve(mesh, part, spec.friction.key("boundary"), part)
+    require_curve(
+        mesh, spec.friction.boundary, spec.friction.key("boundary"), spec.friction.boundary
+    )
     mu = spec.domain.shear_modulus
     F = assembly.volume_load(mesh, spec.domain.load, 1)  # (n_nodes,)
     fixed, values = dirichlet(spec.dirichlet, mesh)
     for t in spec.traction:
         for part in t.boundary:
             F += assembly.boundary_load(mesh, part, t.value, 1)
-    g_fun = spec.friction.g
+    part, g_fun = spec.friction.boundary, spec.friction.g
     options = spec.options()
     exact = None if spec.exact is None else spec.exact.compiled()
 
@@ -211,7 +212,19 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "jump_t": w3,
         "ut_slave": w3,
         "slip": slip,
+        **PLOT_LABELS,
     }
+
+
+# the plots' words for antiplane: the friction acts along e_z, not along an in-plane tangent
+PLOT_LABELS = {
+    "lam_label": r"friction traction $\lambda = -\mu\,\partial w/\partial n$ [Pa]",
+    "jump_label": "out-of-plane displacement (slip) w [m]",
+    "ut_label": "out-of-plane displacement w [m]",
+    "tangent_note": r"sign convention: $w$ and $\lambda$ point along $e_z$, out of the plane; "
+    r"$\lambda > 0$: the foundation pulls the body along $-e_z$; arc length runs with the body "
+    "on the left",
+}
 
 
 def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
