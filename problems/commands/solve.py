@@ -11,7 +11,7 @@ from pathlib import Path
 import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
-from problems.output.collection import write_pvd
+from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import jsonable, output_folder
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 
@@ -68,7 +68,7 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
         extras = plugin.postprocess(model, sol, tmp)
         files = [*extras.get("files", [])]
         per_level = [*sorted(coarse.items()), (model.level, files)]
-        datasets = [(lev, f) for lev, fs in per_level for f in _vtu_first(fs) if f.endswith(".vtu")]
+        datasets = [d for lev, fs in per_level for d in vtu_datasets(lev, fs)]
         if datasets:
             write_pvd(tmp / "results.pvd", datasets)
             files.append("results.pvd")
@@ -107,11 +107,6 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
         return 1
     return 0 if sol.converged else 1
-
-
-def _vtu_first(files: list[str]) -> list[str]:
-    """The files with the bodies' VTUs before the contact line (the parts' order in the .pvd)."""
-    return sorted(files, key=lambda f: (Path(f).name == "contact.vtu", f))
 
 
 def _vec(v) -> str:

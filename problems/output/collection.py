@@ -49,6 +49,16 @@ def pvd_text(datasets: Sequence[tuple[float, str]]) -> str:
     )
 
 
+def vtu_datasets(time: float, files: Sequence[str]) -> list[tuple[float, str]]:
+    """The `.vtu` files among `files` as datasets of one time step, the bodies before the
+    contact line (`contact.vtu`), for `write_pvd`."""
+    vtus = sorted(
+        (f for f in files if f.endswith(".vtu")),
+        key=lambda f: (PurePosixPath(f).name == "contact.vtu", f),
+    )
+    return [(time, f) for f in vtus]
+
+
 def write_pvd(path: Path, datasets: Sequence[tuple[float, str]]) -> None:
     """Write the ParaView collection `path` of `datasets`: (time or index, file relative to
     the folder of `path`) each; datasets of one time are the parts of that step."""
