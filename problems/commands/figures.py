@@ -13,6 +13,8 @@ import math
 import sys
 from pathlib import Path
 
+from tqdm import tqdm
+
 import vi_core
 from problems.errors import SceneError
 from problems.output import plots
@@ -66,7 +68,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("out") / f"{probe.name}_figures"
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
         panels = []
-        for v in values:
+        for v in tqdm(values, desc=f"solving for each {sweep.path}", unit="solve", disable=None):
             scene = load_scene(name, [*(args.set or []), f"{sweep.path}={v!r}"])
             model = plugin.build(scene, level)
             sol = vi_core.solve(model.vi, method="ssn")

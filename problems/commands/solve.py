@@ -8,6 +8,8 @@ import sys
 import time
 from pathlib import Path
 
+from tqdm import tqdm
+
 import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
@@ -49,21 +51,28 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     with folder.staging() as tmp:
         coarse: dict[int, list[str]] = {}  # level → its files under levels/L/
 
-        def write_level(model, sol) -> None:  # --write-levels: a coarse level's results
-            sub = Path("levels") / str(model.level)
-            (tmp / sub).mkdir(parents=True)
-            written = plugin.postprocess(model, sol, tmp / sub).get("files", [])
-            coarse[model.level] = [(sub / f).as_posix() for f in written]
+        # a progress bar over the levels of the nested iteration (on a terminal only)
+        bar = tqdm(total=level + 1, unit="level", desc="solving", disable=None, leave=False)
 
-        run = pipeline.solve(
-            loaded,
-            level,
-            args.solver,
-            args.tol,
-            args.cold,
-            args.linear_solver,
-            on_level=write_level if args.write_levels else None,
-        )
+        def on_level(model, sol) -> None:  # a coarse level is solved
+            bar.update(1)
+            if args.write_levels:  # its results, under levels/L/
+                sub = Path("levels") / str(model.level)
+                (tmp / sub).mkdir(parents=True)
+                written = plugin.postprocess(model, sol, tmp / sub).get("files", [])
+                coarse[model.level] = [(sub / f).as_posix() for f in written]
+
+        with bar:
+            run = pipeline.solve(
+                loaded,
+                level,
+                args.solver,
+                args.tol,
+                args.cold,
+                args.linear_solver,
+                on_level=on_level,
+            )
+            bar.update(bar.total - bar.n)
         model, sol, nested = run.model, run.solution, run.nested
         extras = plugin.postprocess(model, sol, tmp)
         files = [*extras.get("files", [])]
