@@ -146,7 +146,12 @@ def parser() -> argparse.ArgumentParser:
     v.set_defaults(func=cmd_validate)
     for name, fn, helptext in (
         ("check", cmd_check, "solve with every applicable method and compare"),
-        ("figures", cmd_figures, "the scene for each value of its plug-in's SWEEP, one panel each"),
+        (
+            "figures",
+            cmd_figures,
+            "solve for a few values of one scene parameter (the friction bound g: Fig. 5.4) "
+            "and plot them side by side",
+        ),
     ):
         c = sub.add_parser(name, help=helptext, description=helptext[0].upper() + helptext[1:])
         c.add_argument("scene", nargs="?", help=f"scene (default {DEFAULT_SCENE})")
