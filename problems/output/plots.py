@@ -49,13 +49,14 @@ def _finish(fig) -> None:
     fig.tight_layout(rect=(0, 0.05 if noted else 0, 1, 1))
 
 
-def _data_range(ax, which: str) -> tuple[float, float] | None:
-    """The range of the finite data of `ax`'s lines along `which` (None: no data)."""
+def _data_range(ax, which: str, log: bool = False) -> tuple[float, float] | None:
+    """The range of the finite (on a log axis: positive) data of `ax`'s lines along `which`
+    (None: no data)."""
     vals = [
         np.asarray(line.get_ydata() if which == "y" else line.get_xdata(), dtype=float)
         for line in ax.get_lines()
     ]
-    vals = [v[np.isfinite(v)] for v in vals if v.size]
+    vals = [v[np.isfinite(v) & ((v > 0) if log else True)] for v in vals if v.size]
     vals = [v for v in vals if v.size]
     if not vals:
         return None
@@ -74,13 +75,18 @@ def share_scales(fig) -> None:
             if label:
                 groups.setdefault(label, []).append(ax)
         for axes in groups.values():
-            ranges = [r for r in (_data_range(ax, which) for ax in axes) if r is not None]
-            if len(axes) < 2 or not ranges:
+            log = {(ax.get_yscale() if which == "y" else ax.get_xscale()) == "log" for ax in axes}
+            ranges = [r for r in (_data_range(ax, which, log == {True}) for ax in axes) if r]
+            if len(axes) < 2 or not ranges or len(log) > 1:
                 continue
             lo, hi = min(r[0] for r in ranges), max(r[1] for r in ranges)
-            pad = 0.05 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.05
+            if log == {True}:  # a factor of margin on a log axis
+                lo, hi = lo / 1.2, hi * 1.2
+            else:
+                pad = 0.05 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.05
+                lo, hi = lo - pad, hi + pad
             for ax in axes:
-                (ax.set_ylim if which == "y" else ax.set_xlim)(lo - pad, hi + pad)
+                (ax.set_ylim if which == "y" else ax.set_xlim)(lo, hi)
     mappables: dict[str, list] = {}
     for ax in fig.axes:
         for m in [*ax.images, *ax.collections]:

@@ -91,3 +91,17 @@ def test_panel_headings_carry_the_unit():
     assert panel_heading("friction bound g [Pa]", 1.5e8) == "friction bound g = 1.5e+08 Pa"
     assert panel_heading("load f [1]", -2.0) == "load f = -2"
     assert panel_heading("scale", 3.0) == "scale = 3"
+
+
+def test_log_axes_share_a_positive_range():
+    fig, (a, b) = plt.subplots(1, 2)
+    a.loglog([0.1, 0.2], [1e-3, 1e-4])
+    b.loglog([0.05, 0.4], [1.0, 2.0])
+    for ax in (a, b):
+        ax.set_xlabel("mesh size h [m]")
+    plots.share_scales(fig)
+    assert a.get_xlim() == b.get_xlim()
+    lo, hi = a.get_xlim()
+    assert 0 < lo < 0.05 and hi > 0.4
+    assert a.get_ylim() != b.get_ylim()  # no y labels: not the same quantity
+    plt.close(fig)
