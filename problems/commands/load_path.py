@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from tqdm import tqdm
@@ -21,11 +22,15 @@ COUNTS = ("nodes", "stick", "slip", "open")  # contact counts kept per step
 
 
 def run(
-    args: argparse.Namespace, t0: float, loaded: pipeline.Loaded, level: int, folder: OutputFolder
+    args: argparse.Namespace,
+    t0: float,
+    loaded: pipeline.Loaded,
+    level: int,
+    folder: OutputFolder,
+    console_summary: Callable[[dict, list[dict]], list[str]],
 ) -> int:
-    """Solve the load path of `loaded` into `folder`; exit status 0 if every step converged."""
-    from .solve import console_summary
-
+    """Solve the load path of `loaded` into `folder`; exit status 0 if every step converged.
+    `console_summary(summary, levels)` gives the lines about the last step (mixvi solve's)."""
     plugin = loaded.plugin
     ts = loaded.spec.load_path.values()
     datasets: list[tuple[float, str]] = []

@@ -40,7 +40,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("out") / scene.name
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
         if loaded.spec.load_path is not None:  # one solve per load step
-            return load_path.run(args, t0, loaded, level, folder)
+            return load_path.run(args, t0, loaded, level, folder, console_summary)
         return _solve(args, t0, loaded, level, folder)
 
 

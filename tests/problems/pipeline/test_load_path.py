@@ -204,3 +204,34 @@ def test_voltage_and_loads_follow_t_step_by_step(seed):
         us.append(sol.u)
         assert np.allclose(s.solution.u, sol.u, rtol=0, atol=1e-7 * np.abs(sol.u).max())
     assert not np.allclose(us[0], us[-1])  # the steps differ: t reached the potential
+
+
+def test_the_shipped_path_scene_follows_its_closed_form():
+    """shear_strip_path (pressed, sheared, unloaded in shear; level 0): at every step the slip
+    and λ_t of the recursion and the pressure λ_n = (λ + 2μ) v/H of the uniform compression."""
+    loaded = pipeline.load("shear_strip_path")
+    ts = loaded.spec.load_path.values()
+    deltas = [1e-3 * max(0.0, min(t - 1.0, 3.0 - t)) for t in ts]
+    press = [2e-4 * min(t, 1.0) for t in ts]
+    ref = recursion(deltas, 4e5)
+    got = []
+    solve_path(
+        loaded, 0, on_step=lambda s: got.append(piezo_contact.contact_state(s.model, s.solution))
+    )
+    assert len(got) == 30
+    for st_, (s, tau), v in zip(got, ref, press, strict=True):
+        assert np.allclose(st_["ut_slave"], s, rtol=0, atol=1e-9 * 4e-4)
+        assert np.allclose(st_["lam_t"], tau, rtol=0, atol=1e-8 * 4e5)
+        assert np.allclose(st_["lam_n"], 3.5e9 * v, rtol=0, atol=1e-8 * 7e5)
+    assert ref[-1] == pytest.approx((4e-4, -4e5))  # the residual slip of the unloaded strip
+
+
+def test_the_python_api_solves_the_path():
+    """problems.solve_scene of a load-path scene: the last step, info["steps"]. Three steps
+    δ = 0, 1e-3, 0 (pressed throughout): slip 6e-4 forward, then back to gH/μ = 4e-4."""
+    import problems
+
+    res = problems.solve_scene("shear_strip_path", level=0, load_path__steps=3)
+    assert [s["t"] for s in res.info["steps"]] == [1.0, 2.0, 3.0] and res.info["converged"]
+    assert np.allclose(res.contact["ut_slave"], 4e-4, rtol=1e-8)
+    assert np.allclose(res.contact["lam_t"], -4e5, rtol=1e-8)
