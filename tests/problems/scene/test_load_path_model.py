@@ -53,6 +53,7 @@ def test_t_without_a_load_path_is_refused_naming_the_field(case, seed):
     rng = np.random.default_rng(seed)
     scale = float(rng.uniform(0.5, 2.0))
     scene = load_scene(name)
+    scene.data.pop("load_path", None)  # a shipped load-path scene: its path removed
     text = f"0*x + {scale!r}*t"
     _set(scene.data, path, text)
     with pytest.raises(SceneError) as err:
