@@ -17,16 +17,18 @@ from hypothesis import strategies as st
 import fem.mortar3d as fm3
 from fem.assembly3d import permittivity_matrix
 from fem.elements import reference_element
-from fem.mesh3d import Mesh3D, box, transform
-from fem.mortar import patch_defect
+from fem.mesh3d import Mesh3D, box, extrude, transform
+from fem.mortar import mortar_coupling, patch_defect
 from fem.mortar3d import (
     couple,
     dual_mass,
     faces_of,
+    mortar_coupling3d,
     multiplier_basis,
     rim_nodes,
     triangle_rule,
 )
+from fem.shapes import cradle, half_disc
 
 HEX, TET = "hexahedron", "tetra"
 PAIRS = [(HEX, TET), (TET, HEX), (HEX, HEX), (TET, TET)]
@@ -124,13 +126,24 @@ def test_rigid_body_patch_test(kind, es, em):
 
 
 def test_trapezoids_need_the_higher_default_order():
-    """On the trapezoids of the sphere mesh the cell integrand is not polynomial: the defect
-    falls with the order (hexahedra on both sides: 2.4e-6, 3.2e-9, 4.5e-12 at orders 3, 5, 8)
-    and the default order meets 1e-12."""
+    """On the trapezoids of the sphere mesh the inverse map is not polynomial: the rigid-body
+    defect falls with the order of the cell rule and the default order meets 1e-12."""
     s, m = pair("sphere", HEX, HEX)
     d = [rigid_defect(couple(s, m, q)) for q in (3, 5, 8)]
     assert d[0] > 1e-7 and d[0] > 100 * d[1] > 1e4 * d[2], d
     assert rigid_defect(couple(s, m)) <= 1e-12
+
+
+@pytest.mark.parametrize(
+    "kind,es,em", [("cylinder", TET, TET), ("sphere", TET, TET), ("sphere", HEX, TET)]
+)
+def test_cell_rule_default_is_converged(kind, es, em):
+    """M at the default order agrees with an order-24 rule to 1e-13 (relative to max |M|);
+    order 3 does not (the integrand is not polynomial)."""
+    s, m = pair(kind, es, em)
+    ref = couple(s, m, 24).M
+    err = [abs(couple(s, m, q).M - ref).max() / abs(ref).max() for q in (3, None)]
+    assert err[0] > 1e-11 and err[1] <= 1e-13, err
 
 
 @pytest.mark.parametrize("kind", ["flat", "trapezoid"])
@@ -167,6 +180,43 @@ def test_linear_fields_converge_at_rate_two_on_curved_surfaces(kind):
     errs = [nodal_transfer_error(couple(*pair(kind, HEX, TET, level=lv)), f) for lv in range(3)]
     rate = -np.polyfit(np.arange(3), np.log2(errs), 1)[0]
     assert 1.8 < rate < 2.2, (errs, rate)
+
+
+@pytest.mark.parametrize("level,layers", [(0, 1), (1, 2)])
+def test_extruded_2d_meshes_reproduce_the_2d_mortar(level, layers):
+    """The paper's non-matching meshes (8 : 12 segments on the arc) extruded: summed over the
+    layers' nodes, the 3D M is the 2D M (fem.mortar, interpolated normals) × thickness, to
+    rounding; the cells, the projection and the dual basis reduce to 2D's in each section."""
+    d, c = half_disc(level=level), cradle(level=level)
+    mo2 = mortar_coupling(d, "contact", c, "contact")
+    tr = mo2.slave
+    P2 = sp.csr_matrix(
+        (np.ones(tr.segments.size), (tr.segments.ravel(), np.arange(tr.segments.size)))
+    )
+    M2 = (P2 @ mo2.M).toarray()  # (ns, nm) nodal rows
+    mo3 = mortar_coupling3d(
+        extrude(d, (0.0, 0.3), layers), "contact", extrude(c, (0.0, 0.3), layers), "contact"
+    )
+    s3 = mo3.slave
+    P3 = sp.csr_matrix((np.ones(s3.faces.size), (s3.faces.ravel(), np.arange(s3.faces.size))))
+    M3 = (P3 @ mo3.M).tocoo()  # (ns3, nm3) nodal rows
+    row = {g: i for i, g in enumerate(tr.nodes)}
+    col = {g: j for j, g in enumerate(mo2.master_nodes)}
+    M3to2 = np.zeros_like(M2)
+    nd, nc = d.n_nodes, c.n_nodes
+    for i, j, v in zip(M3.row, M3.col, M3.data, strict=True):  # node i + l·n → 2D node i
+        M3to2[row[s3.nodes[i] % nd], col[mo3.master.nodes[j] % nc]] += v
+    np.testing.assert_allclose(M3to2 / 0.3, M2, rtol=0, atol=1e-13 * np.abs(M2).max())
+    assert rigid_defect(mo3) <= 1e-12
+
+
+def test_mutation_projection_along_the_plane_normal_misses_the_2d_mortar(monkeypatch):
+    """Projecting along each face's constant auxiliary normal n0 instead of the interpolated
+    normal field (the textbook auxiliary-plane variant) still passes the rigid-body patch test
+    but no longer reduces to the 2D mortar on an extruded mesh (5e-4 relative at level 0)."""
+    monkeypatch.setattr(fm3, "_rays", lambda face_type, X, y, xi, **kw: xi)
+    with pytest.raises(AssertionError, match="Not equal"):
+        test_extruded_2d_meshes_reproduce_the_2d_mortar(0, 1)
 
 
 # ---------------------------------------------------------------- area and dual basis
@@ -276,10 +326,10 @@ def test_coupling_is_invariant_under_rotations(seed):
 
 # ---------------------------------------------------------------- brute force
 def brute_force_M(s, m, n_sub, faces):
-    """TEST-ONLY: M by sampling each slave face on a fine sub-grid and shooting each sample
-    along its face's auxiliary normal at every master face (all of them, no clipping; a
-    quadrilateral hit by Newton on the 3×3 system x_m(η) − α n0 = x_s)."""
-    x0, n0, _ = fm3._planes(s)
+    """TEST-ONLY: M by sampling each slave face on a fine sub-grid and shooting each sample x
+    along its interpolated normal n(ξ) = Σ φ_a(ξ) n_a at every master face near it (no
+    clipping, no auxiliary plane; the hit by Newton on the 3×3 system x_m(η) − α n = x; the
+    nearest hit inside a master face is kept)."""
     ref_s, ref_m = reference_element(s.face_type), reference_element(m.face_type)
     pts, w = fine_rule(s.face_type, n_sub)
     phi_s = ref_s.values(pts)  # (p, m_s)
@@ -287,25 +337,22 @@ def brute_force_M(s, m, n_sub, faces):
     cm = m.points[m.faces].mean(axis=1)  # (n_fm, 3)
     for e in faces:
         X = s.points[s.faces[e]]  # (m_s, 3)
-        near = np.linalg.norm(cm - x0[e], axis=1) < 3 * np.linalg.norm(X - x0[e], axis=1).max()
+        c = X.mean(axis=0)
+        near = np.linalg.norm(cm - c, axis=1) < 3 * np.linalg.norm(X - c, axis=1).max()
         Xm, mf = m.points[m.faces[near]], m.faces[near]  # (n_near, m_m, 3): a generous prefilter
         T = np.einsum("ai,paj->pij", X, ref_s.gradients(pts))  # (p, 3, 2)
         dA = np.linalg.norm(np.cross(T[..., 0], T[..., 1]), axis=-1) * w  # (p,)
         xs = phi_s @ X  # (p, 3)
+        ns = phi_s @ s.normals[s.faces[e]]  # (p, 3) the interpolated normal
         psi = phi_s @ s.dual[e].T  # (p, m_s)
-        eta = np.zeros((len(xs), Xm.shape[0], 2)) + ref_m.centroid  # (p, n_fm, 2)
+        eta = np.zeros((len(xs), Xm.shape[0], 2)) + ref_m.centroid  # (p, n_near, 2)
         alpha = np.zeros((len(xs), Xm.shape[0]))
-        for _ in range(8):  # Newton on x_m(η) − α n0 − x_s = 0 for every sample and face
+        for _ in range(8):  # Newton on x_m(η) − α n − x_s = 0 for every sample and face
             phi = ref_m.values(eta.reshape(-1, 2)).reshape(*eta.shape[:2], -1)
             dphi = ref_m.gradients(eta.reshape(-1, 2)).reshape(*eta.shape[:2], -1, 2)
-            r = np.einsum("pfa,fai->pfi", phi, Xm) - alpha[..., None] * n0[e] - xs[:, None]
-            J = np.concatenate(
-                [
-                    np.einsum("pfaj,fai->pfij", dphi, Xm),
-                    -np.broadcast_to(n0[e], r.shape)[..., None],
-                ],
-                axis=3,
-            )  # (p, n_fm, 3, 3)
+            r = np.einsum("pfa,fai->pfi", phi, Xm) - alpha[..., None] * ns[:, None] - xs[:, None]
+            dn = -np.broadcast_to(ns[:, None], r.shape)[..., None]  # (p, n_near, 3, 1) ∂/∂α
+            J = np.concatenate([np.einsum("pfaj,fai->pfij", dphi, Xm), dn], axis=3)  # (.., 3, 3)
             step = np.linalg.solve(J, r[..., None])[..., 0]
             eta -= step[..., :2]
             alpha -= step[..., 2]
@@ -313,7 +360,7 @@ def brute_force_M(s, m, n_sub, faces):
         inside = (eta >= lo - 1e-12).all(axis=2) & (eta <= hi + 1e-12).all(axis=2)
         if m.face_type == "triangle":
             inside &= eta.sum(axis=2) <= 1 + 1e-12
-        dist = np.where(inside, np.abs(alpha), np.inf)  # (p, n_fm)
+        dist = np.where(inside, np.abs(alpha), np.inf)  # (p, n_near)
         f = np.argmin(dist, axis=1)  # (p,) the nearest master face hit
         hit = np.isfinite(dist[np.arange(len(f)), f])
         phi_m = ref_m.values(eta[np.arange(len(f)), f])  # (p, m_m)
@@ -327,8 +374,8 @@ def brute_force_M(s, m, n_sub, faces):
 def test_m_agrees_with_a_brute_force_computation(kind, es, em):
     """The brute force converges to M at its own rate (the integrand has kinks along the
     master edges, so sampling converges like n_sub⁻²): halving its sub-cells divides the
-    difference by about 4 (measured, max entry difference / max entry, n_sub = 8, 16, 32:
-    sphere 3.5e-4, 8.9e-5, 1.6e-5; cylinder 4.8e-4, 9.2e-5, 2.1e-5)."""
+    difference by about 4 (measured, max entry difference / max entry, n_sub = 8, 16:
+    sphere 3.4e-4, 8.7e-5; cylinder 4.7e-4, 9.4e-5)."""
     s, m = pair(kind, es, em)
     faces = np.arange(0, s.faces.shape[0], 5)  # a sample of the slave faces, rim and inside
     rows = (s.faces.shape[1] * faces[:, None] + np.arange(s.faces.shape[1])).ravel()
