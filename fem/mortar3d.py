@@ -500,3 +500,24 @@ def couple(s: Faces, m: Faces, quad_order: int | None = None, reach: float = 1.0
     M = sp.csr_matrix((loc.ravel(), (rows.ravel(), cols.ravel())), shape=(s.faces.size, m.size))
     coverage = np.bincount(et, wt.sum(axis=1), minlength=s.faces.shape[0]) / s.areas
     return Mortar3D(s, m, M, coverage, int(e.size))
+
+
+def nodal_rows(mo: Mortar3D) -> sp.csr_matrix:
+    """(k, k_m) M in nodal rows, Σ_a over the faces around each slave node: the rows of
+    Q·M for `multiplier_basis(…, ends="keep")` with every node carrying, whose slave block is
+    D = diag(weights)."""
+    s = mo.slave
+    P = sp.csr_matrix(
+        (np.ones(s.faces.size), (s.faces.ravel(), np.arange(s.faces.size))),
+        shape=(s.size, s.faces.size),
+    )
+    return (P @ mo.M).tocsr()
+
+
+def covered_nodes(mo: Mortar3D, tol: float = 1e-9) -> np.ndarray:
+    """(k,) bool: the master lies behind every face around the slave node (coverage ≥ 1 − tol);
+    only such nodes can carry a multiplier whose rigid-body row is exact."""
+    bad = mo.coverage < 1.0 - tol  # (n_f,)
+    out = np.ones(mo.slave.size, dtype=bool)
+    out[mo.slave.faces[bad].ravel()] = False
+    return out

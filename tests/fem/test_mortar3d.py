@@ -219,6 +219,24 @@ def test_mutation_projection_along_the_plane_normal_misses_the_2d_mortar(monkeyp
         test_extruded_2d_meshes_reproduce_the_2d_mortar(0, 1)
 
 
+def test_nodal_rows_and_coverage_on_a_partly_covered_slave():
+    """A master covering part of the slave: covered nodes have exact nodal rows (Σ_j M_kj =
+    W_k), the others are flagged; with full coverage every node is covered."""
+    s, m = pair("cylinder", HEX, TET)
+    mo = couple(s, m)
+    np.testing.assert_allclose(np.asarray(fm3.nodal_rows(mo).sum(axis=1)).ravel(), s.weights)
+    assert fm3.covered_nodes(mo).all()
+    short = cylinder((1.0, 1.5), (0.4, 1.3), (1, 4, 3), TET)  # θ from 0.4: the slave starts at 0
+    mo = couple(s, faces_of(short, "left"))
+    cov = fm3.covered_nodes(mo)
+    theta = np.arctan2(s.points[:, 1], s.points[:, 0])
+    assert (~cov).any() and cov.any()
+    assert (theta[~cov] < 0.4 + 0.25).all()  # only nodes next to the uncovered strip
+    rows = np.asarray(fm3.nodal_rows(mo).sum(axis=1)).ravel()
+    np.testing.assert_allclose(rows[cov], s.weights[cov], rtol=1e-12)
+    assert (np.abs(rows[~cov] - s.weights[~cov]) > 1e-3 * s.weights[~cov]).all()
+
+
 # ---------------------------------------------------------------- area and dual basis
 def polyhedral_area(f):
     """The area of a trace from its node coordinates alone (planar faces split in triangles)."""
