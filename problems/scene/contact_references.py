@@ -88,3 +88,63 @@ def uniaxial_electrical_contact(
         phi0 = brentq(residual, lo, hi, xtol=1e-14 * max(abs(lo), abs(hi), 1.0), rtol=1e-15)
     kk = float(k(lam(phi0)))
     return Uniaxial(phi0=phi0, lam_n=lam(phi0), flux=kk * (phi0 - phi_F), k=kk)
+
+
+VOIGT = ((0, 2), (2, 1))  # VOIGT[i][j]: the Voigt index of (i, j) in (xx, yy, xy)
+
+
+def extended_moduli(
+    C: np.ndarray, e: np.ndarray | None = None, kappa: np.ndarray | None = None
+) -> np.ndarray:
+    """E_iJKl (2, n, n, 2), n = 2 (elastic) or 3 (u_x, u_y, φ), of σ_iJ = E_iJKl u_K,l with
+    σ_i3 = D_i (Barnett–Lothe's extension), in mixvi's signs σ = Cε + eᵀ∇φ, D = eε − κ∇φ."""
+    n = 2 if e is None else 3
+    E = np.zeros((2, n, n, 2))
+    for i in range(2):
+        for ll in range(2):
+            for J in range(2):
+                for K in range(2):
+                    E[i, J, K, ll] = C[VOIGT[i][J], VOIGT[K][ll]]
+                if n == 3:
+                    E[i, J, 2, ll] = e[ll, VOIGT[i][J]]  # σ_iJ from φ,l
+                    E[i, 2, J, ll] = e[i, VOIGT[J][ll]]  # D_i from u_J,l
+            if n == 3:
+                E[i, 2, 2, ll] = -kappa[i, ll]
+    return E
+
+
+def barnett_lothe_L(
+    C: np.ndarray,
+    e: np.ndarray | None = None,
+    kappa: np.ndarray | None = None,
+    points: int = 256,
+) -> np.ndarray:
+    """The Barnett–Lothe tensor L (n, n) of the (extended) Stroh formalism for the plane x–y,
+    by its integral form L = −(1/π) ∫_0^π (R T⁻¹ Rᵀ − Q)(θ) dθ with Q = n·E·n, R = n·E·m,
+    T = m·E·m, n = (cos θ, sin θ), m = (−sin θ, cos θ) (Ting, Anisotropic Elasticity, 1996,
+    §7.6; Barnett & Lothe 1975 for the piezoelectric extension). The integrand is smooth and
+    π-periodic: the trapezoidal rule on `points` nodes converges geometrically, and degenerate
+    (isotropic) materials need no special case. Isotropic plane strain: L = E/(2(1 − ν²)) I."""
+    E = extended_moduli(C, e, kappa)
+    th = np.pi * np.arange(points) / points  # (points,)
+    nv = np.stack([np.cos(th), np.sin(th)], axis=1)  # (points, 2)
+    mv = np.stack([-np.sin(th), np.cos(th)], axis=1)  # (points, 2)
+    Q = np.einsum("ti,iJKl,tl->tJK", nv, E, nv)  # (points, n, n)
+    R = np.einsum("ti,iJKl,tl->tJK", nv, E, mv)
+    T = np.einsum("ti,iJKl,tl->tJK", mv, E, mv)
+    N3 = R @ np.linalg.solve(T, np.swapaxes(R, 1, 2)) - Q  # (points, n, n)
+    L = -N3.mean(axis=0)
+    return 0.5 * (L + L.T)
+
+
+def hertz_modulus(
+    C: np.ndarray, e: np.ndarray | None = None, kappa: np.ndarray | None = None
+) -> float:
+    """The plane-strain Hertz modulus E* = 2 / (L⁻¹)_yy of a half-plane y < 0 (its surface
+    normal y, the poling axis of mixvi's piezoelectric materials) against a rigid frictionless
+    cylinder: the surface slope is u_y' = (L⁻¹)_yy/π · PV∫p(s)/(s − x) ds under a normal pressure
+    alone (SL⁻¹ is antisymmetric, so no local term), the isotropic one with 2/E*. With e and κ
+    the surface is charge free (an insulating indenter: D·n = 0 on the whole surface) and L the
+    extended tensor; the conducting indenter (φ prescribed under it) is not covered."""
+    Li = np.linalg.inv(barnett_lothe_L(C, e, kappa))
+    return float(2.0 / Li[1, 1])
