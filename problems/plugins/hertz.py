@@ -61,8 +61,19 @@ def measure(
 
 
 def of_model(model, sol, R: float) -> LineContact:
-    """`measure` on a solved signorini model (its body's E* from the Stroh formalism)."""
-    N = model.tr.size
-    mat = model.body.material
-    x = model.body.mesh.points[model.tr.nodes, 0]
-    return measure(x, model.tr.weights, sol.lam[:N], R, hertz_modulus(mat.C, mat.e, mat.kappa))
+    """`measure` on a solved signorini or piezo_contact (rigid foundation) model, with the
+    contact body's E* from the Barnett–Lothe tensor (`hertz_modulus`: the charge-free
+    surface for a piezoelectric body)."""
+    c = getattr(model, "contact", None)
+    if c is None:  # signorini: λ = [normal rows, tangential rows], nodal weights
+        body, nodes, w, lam_n = (
+            model.body,
+            model.tr.nodes,
+            model.tr.weights,
+            sol.lam[: model.tr.size],
+        )
+    else:  # piezo_contact: the normal rows where they sit in λ, their weights ∫φ̃_k
+        body, nodes, w, lam_n = c.slave, c.tr.nodes[c.rows_n], c.W_n, c.normal(sol.lam)
+    mat = body.material
+    x = body.mesh.points[nodes, 0]
+    return measure(x, w, lam_n, R, hertz_modulus(mat.C, mat.e, mat.kappa))

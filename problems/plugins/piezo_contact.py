@@ -378,7 +378,7 @@ def _electrical(
     return electrical_contact.Coupling(
         vi0=vi,
         phi=np.where(found, pos, -1),
-        normal=np.arange(nodes.size),
+        normal=contact.idx_n,
         weights=tr.weights[nodes],
         law=e.law_of(kappa_max, float(tr.lengths.max())),
         phi_F=float(e.phi_F),

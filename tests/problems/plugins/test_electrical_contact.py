@@ -290,3 +290,39 @@ def test_fault_law_on_the_tangential_multiplier_is_caught(monkeypatch):
     ref = _reference(1e-6, 0.0, 100.0, model.electrical.law)
     phi, _ = _bottom(model, sol)
     assert not (np.abs(phi - ref.phi0).max() <= MATCH * abs(ref.phi0))
+
+
+# ------------------------------------------------------------------ with unilateral contact
+@pytest.mark.parametrize(
+    "sets",
+    [
+        ['contact.electrical.kind="grounded"'],
+        [
+            'contact.electrical.kind="conductive"',
+            "contact.electrical.k0=1e-7",
+            "contact.electrical.lambda_star=1e9",
+            "contact.electrical.tol=1e-12",
+        ],
+    ],
+)
+def test_electrical_conditions_act_only_where_the_body_touches(sets):
+    """On the Hertz block (unilateral, only the middle of the top touches): D·n recovered on
+    the open nodes is 0 (k = 0 apart) while it is not on the touching ones; grounded: φ = φ_F
+    on the touching nodes to 1e-6 of the potential's scale; conductive: the law holds."""
+    model = pc.build(load_scene("hertz_piezo", sets), 0)
+    sol = pc.solve(model, method="ssn", tol=1e-12)
+    assert sol.converged, sol.warnings
+    c = model.electrical
+    lam_n = sol.lam[c.normal]
+    touch = lam_n > ec.TOUCH * lam_n.max()
+    assert 0 < touch.sum() < touch.size
+    flux = c.flux(sol.u, sol.lam)
+    phi = sol.u[c.phi]
+    top = np.abs(flux).max()
+    assert np.abs(flux[~touch]).max() <= 1e-12 * top
+    assert np.abs(flux[touch]).min() > 1e-6 * top
+    rep = ec.report(c, sol)
+    if c.law.kind == "grounded":
+        assert np.abs(phi[touch] - c.phi_F).max() <= 1e-6 * np.abs(phi).max()
+    else:
+        assert rep["law_defect"] <= 1e-6

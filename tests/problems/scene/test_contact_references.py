@@ -28,6 +28,9 @@ def _stroh_eigen_L(C, e=None, kappa=None):
     return L.real
 
 
+GAUSS = np.polynomial.legendre.leggauss(400)
+
+
 def _piezo(name, scale=1.0):
     m = NAMED[name]
     return np.array(m["C"]), scale * np.array(m["e"]), np.array(m["kappa"])
@@ -80,8 +83,7 @@ def test_hertz_pressure_fits_the_cylinder(P, R, E, t):
     u_y'(x) = (L⁻¹)_yy/π · PV∫p(s)/(s − x) ds with (L⁻¹)_yy = 2/E*, is the cylinder's −x/R
     inside the contact (the principal value by subtracting the singularity, Gauss–Legendre)."""
     h = cr.hertz_line_contact(P, R, E)
-    g, w = np.polynomial.legendre.leggauss(400)
-    s, w = h.a * g, h.a * w  # (400,) on [−a, a]
+    s, w = h.a * GAUSS[0], h.a * GAUSS[1]  # (400,) on [−a, a]
     assert w @ h.pressure(s) == pytest.approx(P, rel=1e-5)
     x = t * h.a
     px = h.pressure(np.array([x]))[0]
