@@ -13,16 +13,16 @@ import json
 import math
 import sys
 
-from problems import pipeline
+from problems.pipeline import load, solve
 from problems.plugins import hertz
 
 
 def rows(scene: str, levels: range, R: float) -> list[dict]:
     """Solve `scene` at each level and measure its line contact."""
-    loaded = pipeline.load(scene)
+    loaded = load(scene)
     out = []
     for lev in levels:
-        run = pipeline.solve(loaded, lev, cold=True)
+        run = solve(loaded, lev, cold=True)
         lc = hertz.of_model(run.model, run.solution, R)
         out.append(
             {
@@ -52,7 +52,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None, help="write the rows to this JSON file")
     args = ap.parse_args(argv)
     lo, _, hi = args.levels.partition("..")
-    table = rows(args.scene, range(int(lo), int(hi or lo) + 1), args.radius)
+    try:
+        levels = range(int(lo), int(hi or lo) + 1)
+    except ValueError:
+        ap.error(f"--levels = {args.levels!r}: expected A..B with integers 0 ≤ A ≤ B")
+    if not levels or levels.start < 0:
+        ap.error(f"--levels = {args.levels!r}: expected A..B with integers 0 ≤ A ≤ B")
+    if not args.radius > 0:
+        ap.error(f"--radius = {args.radius!r}: expected a radius > 0 (m)")
+    table = rows(args.scene, levels, args.radius)
     print(
         f"{'level':>5} {'unknowns':>9} {'Newton':>6} {'P [N/m]':>10} {'a/a_ref-1':>10} "
         f"{'rate':>5} {'p0/p0_ref-1':>11} {'rate':>5}"
