@@ -151,6 +151,9 @@ class Model:
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     electrical: electrical_contact.Coupling | None = None  # [contact.electrical], if given
+    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
+    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
+    slip_origin: np.ndarray | None = None
 
     def unknown_fields(self) -> dict[str, np.ndarray]:
         """Boolean masks over the unknowns: which are displacement, which potential."""
@@ -792,9 +795,10 @@ def contact_state(model: Model, sol: Solution) -> dict:
     rho = c.bound(sol.lam) * touch_t  # (N_t,); a rounding-level λ_n does not touch
     rmax = float(rho.max(initial=0.0))
     slip = touch_t & (np.abs(lam_t) >= rho - 1e-9 * max(rmax, 1e-300))
-    b_uh_lam = float(sol.lam @ (Bu - gap_rows))
+    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    b_uh_lam = float(sol.lam @ (Bi - gap_rows))
     weights = rho * c.W_t  # (N_t,) ∫ρφ̃_k (bilateral: g_weights)
-    g_abs = float(np.sum(weights * np.abs(jump_t)))
+    g_abs = float(np.sum(weights * np.abs(c.tangential(Bi) / c.W_t)))
     tiny = np.finfo(float).eps * float(np.sum(weights)) * max(np.abs(x_full).max(), 1e-300)
     scale = g_abs if c.law == "bilateral" else g_abs + float(np.abs(sol.lam) @ np.abs(gap_rows))
     lemma = abs(b_uh_lam - g_abs) / max(scale, tiny, 1e-300)
@@ -944,7 +948,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
             notes.append(note)
     summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
     if model.contact is not None:
-        quad = piezo_balance.lemma_4_2(model, sol)
+        quad = piezo_balance.lemma_4_2(model, sol) if model.slip_origin is None else None
         if quad is not None:
             summary["lemma_4_2_quadrature"] = quad
         state = contact_state(model, sol)
@@ -1014,6 +1018,41 @@ def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
     """The NORMS against the scene's [exact] table (None without one)."""
     _, exact = split_exact(model.scene)
     return None if exact is None else piezo_errors.exact_errors(model, sol.u, sol.lam, exact)
+
+
+def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
+    """One load step's files (no plots): a VTU per body, contact.vtu and contact.csv; the
+    summary entries "files" and "contact" (the counts per state)."""
+    from fem.io import write_vtu
+
+    x_full = model.full(sol.u)
+    files = []
+    for b in model.bodies:
+        point, cell, _ = body_fields(b, x_full[b.offset : b.offset + b.size])
+        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
+        files.append(f"{b.name}.vtu")
+    out: dict = {"files": files}
+    if model.contact is not None:
+        table = contact_table(model, sol)
+        results.write_contact_csv(outdir / "contact.csv", table)
+        results.write_contact_vtu(outdir / "contact.vtu", table)
+        files += ["contact.csv", "contact.vtu"]
+        out["contact"] = table.totals()["counts"]
+    return out
+
+
+def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
+    """Load paths: the friction law of the next step `model` acts on the slip since the
+    previous step, [u]_τ − [u_prev]_τ: the tangential rows of the gap are shifted by
+    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
+    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
+    c = model.contact
+    if c is None:
+        return
+    origin = c.B_full @ previous.full(previous_sol.u)  # (N_n + N_t,) in B_full's row order
+    origin[c.idx_n] = 0.0
+    model.slip_origin = origin
+    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
 
 
 def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
