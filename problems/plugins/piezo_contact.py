@@ -932,18 +932,17 @@ def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """Write VTU fields (one per body, the contact line, a .pvd), contact.csv and PNG plots
+    """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
     into `outdir`; return the summary entries."""
     from fem.io import write_vtu
 
     x_full = model.full(sol.u)
-    files, notes, datasets = [], [], []
+    files, notes = [], []
     for b in model.bodies:
         point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
         fn = f"{b.name}.vtu"
         write_vtu(outdir / fn, b.mesh, point, cell)
         files.append(fn)
-        datasets.append((model.level, len(datasets), fn))
         if note:
             notes.append(note)
     summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
@@ -957,7 +956,6 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         results.write_contact_csv(outdir / "contact.csv", table)
         results.write_contact_vtu(outdir / "contact.vtu", table)
         files += ["contact.csv", "contact.vtu"]
-        datasets.append((model.level, len(datasets), "contact.vtu"))
         n_slip = int(state["slip"].sum())
         n_touch = int(state["touch_t"].sum())
         summary["contact"] = {
@@ -977,8 +975,6 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         if model.electrical is not None:
             summary["electrical"] = electrical_contact.report(model.electrical, sol)
         summary["warnings"] = contact_warnings(state)
-    results.write_pvd(outdir / "results.pvd", datasets)
-    files.append("results.pvd")
     if notes:
         summary["notes"] = notes
     along = model.options.get("potential_along")
