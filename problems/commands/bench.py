@@ -29,6 +29,7 @@ import queue
 import resource
 import signal
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -40,7 +41,7 @@ from vi_core import Free, MixedVI
 from vi_core.krylov import LINEAR_SOLVERS, thread_settings
 from vi_core.linalg import resolve_backend
 
-from . import options, resources
+from . import bench_scaling, options, resources
 
 DEFAULT = {"paper_two_body": (2, 5), "rigid_foundation": (3, 6)}
 DEFAULT_TIMEOUT = 3600.0  # seconds per (scene, level): the paper scene at level 5 takes ~5 min
@@ -310,6 +311,12 @@ def bench_main(argv: list[str] | None = None) -> int:
         help=f"seconds per case before its child is killed (default {DEFAULT_TIMEOUT:g})",
     )
     p.add_argument("--out", default="bench.json", help="JSON file (default bench.json)")
+    p.add_argument(
+        "--figure",
+        default=None,
+        help="scaling figure, SVG: time and memory against unknowns, log-log with the fitted "
+        "exponents (default: --out with the suffix .svg)",
+    )
     p.add_argument("--force", action="store_true", help="skip the memory estimate's refusal")
     args = p.parse_args(argv)
     solvers = options.names(args.solvers, "--solvers", ("ssn", "conic", "homotopy"))
@@ -329,7 +336,8 @@ def bench_main(argv: list[str] | None = None) -> int:
             text = f"{a}..{b}"
         sizes = resources.check_levels(plugin, scene, (a, b), "--levels", text, args.force)
         jobs += [(name, lev, sizes.estimate(lev), ls) for lev in range(a, b + 1) for ls in linear]
-    with output_file(args.out, "--out") as target:
+    figure = args.figure or str(Path(args.out).with_suffix(".svg"))
+    with output_file(args.out, "--out") as target, output_file(figure, "--figure") as fig:
         records = _run(jobs, solvers, args)
         machine = {
             "platform": platform.platform(),
@@ -343,9 +351,19 @@ def bench_main(argv: list[str] | None = None) -> int:
         print(MEMORY_HEAD)
         for m in memory:
             print(_memory_line(m))
-        data = {"machine": machine, "records": records, "memory": memory}
+        fitted = bench_scaling.fits(records)
+        if fitted:
+            print("\nfitted exponents b of a·N^b (least squares over the sizes that converged)")
+            for f in fitted:
+                ex = f["exponent"]
+                print(
+                    f"{f['scene']:<18}{f['linear_solver']:>9}  nonlinear {ex['time_nonlinear']:.2f}"
+                    f"  linear {ex['time_linear']:.2f}  peak memory {ex['peak_mem']:.2f}"
+                )
+        data = {"machine": machine, "records": records, "memory": memory, "fits": fitted}
         target.write(json.dumps(data, indent=2))
-    print(f"wrote {args.out}")
+        fig.write(bench_scaling.figure_svg(records))
+    print(f"wrote {args.out} and {figure}")
     ok = all(not r.get("error") and r.get("converged") for r in records)
     return 0 if ok else 1
 
