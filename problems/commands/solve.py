@@ -14,7 +14,7 @@ from problems.errors import SceneError
 from problems.output.files import jsonable, output_folder
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 
-from . import resources
+from . import load_path, resources
 from .options import DEFAULT_SCENE
 
 # --accuracy presets: (level, tol); measured time and error on the paper scene in the README
@@ -39,6 +39,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
     resources.check_levels(plugin, scene, (level, level), option, str(level), args.force)
     out = Path(args.out) if args.out else Path("out") / scene.name
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
+        if loaded.spec.load_path is not None:  # one solve per load step
+            return load_path.run(args, t0, loaded, level, folder, console_summary)
         return _solve(args, t0, loaded, level, folder)
 
 
