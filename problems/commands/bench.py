@@ -238,7 +238,7 @@ HEAD = (
     f"{'nonlinear [s]':>15}{'linear [s]':>12}{'ratio':>8}{'peak [MB]':>11}{'B/unknown':>11}"
 )
 MEMORY_HEAD = (
-    f"{'scene':<18}{'level':>6}{'unknowns':>10}{'peak [MB]':>11}{'B/unknown':>11}"
+    f"{'scene':<18}{'level':>6}{'linear':>9}{'unknowns':>10}{'peak [MB]':>11}{'B/unknown':>11}"
     f"{'est. [MB]':>11}{'est./peak':>11}"
 )
 
@@ -263,7 +263,7 @@ def memory_table(records: list[dict]) -> list[dict]:
     `resources` made before the case and their ratio estimate / measured."""
     rows, seen = [], set()
     for r in records:
-        key = (r["scene"], r["level"])
+        key = (r["scene"], r["level"], r.get("linear_solver"))
         if r.get("error") or key in seen:
             continue
         seen.add(key)
@@ -271,6 +271,7 @@ def memory_table(records: list[dict]) -> list[dict]:
             {
                 "scene": r["scene"],
                 "level": r["level"],
+                "linear_solver": r.get("linear_solver"),
                 "unknowns": r["unknowns"],
                 "peak_mem_mb": r["peak_mem_mb"],
                 "bytes_per_unknown": r["bytes_per_unknown"],
@@ -283,7 +284,8 @@ def memory_table(records: list[dict]) -> list[dict]:
 
 def _memory_line(m: dict) -> str:
     return (
-        f"{m['scene']:<18}{m['level']:>6}{m['unknowns']:>10}{m['peak_mem_mb']:>11.0f}"
+        f"{m['scene']:<18}{m['level']:>6}{m['linear_solver'] or '-':>9}{m['unknowns']:>10}"
+        f"{m['peak_mem_mb']:>11.0f}"
         f"{m['bytes_per_unknown']:>11.0f}{m['estimate_mem_mb']:>11.0f}{m['estimate_ratio']:>11.2f}"
     )
 
@@ -334,8 +336,10 @@ def bench_main(argv: list[str] | None = None) -> int:
         else:
             a, b = DEFAULT.get(name, (0, 3))
             text = f"{a}..{b}"
-        sizes = resources.check_levels(plugin, scene, (a, b), "--levels", text, args.force)
-        jobs += [(name, lev, sizes.estimate(lev), ls) for lev in range(a, b + 1) for ls in linear]
+        for ls in linear:  # each linear solver's own memory model (resources.MEMORY_MODEL)
+            sizes = resources.check_levels(plugin, scene, (a, b), "--levels", text, args.force, ls)
+            jobs += [(name, lev, sizes.estimate(lev), ls) for lev in range(a, b + 1)]
+        jobs.sort(key=lambda j: (j[0], j[1]))  # every solver of a level before the next level
     figure = args.figure or str(Path(args.out).with_suffix(".svg"))
     with output_file(args.out, "--out") as target, output_file(figure, "--figure") as fig:
         records = _run(jobs, solvers, args)
