@@ -14,8 +14,8 @@ from pathlib import Path
 from tqdm import tqdm
 
 import problems.pipeline as pipeline
+from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import OutputFolder, jsonable
-from problems.output.results import write_pvd
 from problems.pipeline.load_path import Step, solve_path
 
 COUNTS = ("nodes", "stick", "slip", "open")  # contact counts kept per step
@@ -45,8 +45,8 @@ def run(
             c = extras.get("contact") or {}
             if c:
                 step.record["contact"] = {k: c[k] for k in COUNTS if k in c}
-            files = sorted(extras.get("files", []), key=lambda f: (f == "contact.vtu", f))
-            datasets.extend((step.t, (sub / f).as_posix()) for f in files if f.endswith(".vtu"))
+            files = [(sub / f).as_posix() for f in extras.get("files", [])]
+            datasets.extend(vtu_datasets(step.t, files))
             bar.set_postfix(t=f"{step.t:.4g}", newton=step.solution.iterations)
             bar.update(1)
 
@@ -65,12 +65,7 @@ def run(
         run_ = path.run
         model, sol = run_.model, run_.solution
         extras = plugin.postprocess(model, sol, tmp)
-        parts: dict[float, int] = {}
-        entries = []
-        for t, f in datasets:
-            entries.append((t, parts.get(t, 0), f))
-            parts[t] = parts.get(t, 0) + 1
-        write_pvd(tmp / "steps.pvd", entries)
+        write_pvd(tmp / "steps.pvd", datasets)
         warnings = model.warnings + sol.warnings + extras.get("warnings", [])
         if not path.incremental:
             warnings.append(
