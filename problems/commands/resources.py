@@ -3,8 +3,11 @@
 Unknowns. A level refines every cell into 2^d (d = the geometry's dimension: the model's
 optional `dimension`, 2 if absent), so with s = 2^level the number of unknowns is a polynomial
 of degree d in s (cells ~ s^d, boundary and contact nodes ~ s^(d-1), corners ~ 1). It is
-fitted exactly through the levels 0 … d, which are cheap to build; in 2D a level multiplies
-the unknowns by about 4, in 3D by 8.
+fitted exactly through the levels 0 … d; in 2D a level multiplies the unknowns by about 4,
+in 3D by 8. Level 0 is built (its model tells d); the levels 1 … d are built too, unless the
+plug-in declares `count(scene, level) -> (unknowns, nnz(A), n)`, which counts them from the
+meshes, Dirichlet data and contact rows without assembling (contact3d: level 3 of a 3D scene
+is 512 times level 0).
 
 Peak memory. peak ≈ base + a · x^b per linear solver (MEMORY_MODEL), where x is whichever
 quantity predicts that solver's measured peaks better. SuperLU: x = nnz(A), the stored entries
@@ -115,13 +118,17 @@ class Sizes:
 
     def __init__(self, plugin, scene):
         self.scene = scene
-        counts, dim = [], 2
-        for lev in range(4):  # levels 0 … d (d read from the level-0 model)
+        model = plugin.build(scene, 0)
+        dim = int(getattr(model, "dimension", 2))  # the level-0 model tells d
+        counts = [(model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n)]
+        del model
+        for lev in range(1, dim + 1):  # levels 1 … d: counted without assembly where the
+            if hasattr(plugin, "count"):  # plug-in can (a 3D level 3 is 512 × level 0)
+                counts.append(tuple(int(v) for v in plugin.count(scene, lev)))
+                continue
             model = plugin.build(scene, lev)
-            dim = int(getattr(model, "dimension", 2))
             counts.append((model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n))
-            if lev >= dim:
-                break
+            del model
         self.dimension = dim
         s = 2.0 ** np.arange(len(counts))  # (d+1,)
         v = np.array(counts, float)  # (d+1, 3): unknowns, nnz(A), n

@@ -32,6 +32,8 @@ declaration it needs with exit status 2, naming the declaration):
     extremes() -> list[ExtremeRow]             `mixvi extremes`: this plug-in's extreme rows
     warm_start(coarse, coarse_sol, fine)       `mixvi solve`, `bench`: nested iteration's
                          -> dict               initial guess (keyword arguments of solve)
+    count(scene, level) -> (unknowns, nnz, n)  level caps and memory estimates: the sizes of
+                                               a level without building it (else it is built)
 
 and the `Model` it returns carries
 
@@ -208,7 +210,15 @@ def conforms(obj: Any) -> list[str]:
     sm = getattr(obj, "SCENE_MODEL", None)
     if not (isinstance(sm, type) and issubclass(sm, SceneModel)):
         missing.append("SCENE_MODEL (a subclass of problems.scene.SceneModel; contract 2)")
-    optional = ("draw", "mesh_size", "exact_errors", "reference_errors", "extremes", "warm_start")
+    optional = (
+        "draw",
+        "mesh_size",
+        "exact_errors",
+        "reference_errors",
+        "extremes",
+        "warm_start",
+        "count",
+    )
     for attr in optional:
         if hasattr(obj, attr) and not callable(getattr(obj, attr)):
             missing.append(f"{attr}() (a function, when declared)")
