@@ -450,6 +450,7 @@ def mortar_coupling3d(
     master_part: str | Sequence[str],
     quad_order: int | None = None,
     reach: float = 1.0,
+    face_order: int = FACE_ORDER,
 ) -> Mortar3D:
     """The segment-based dual mortar matrices of `slave_part` against `master_part`.
 
@@ -458,9 +459,12 @@ def mortar_coupling3d(
         quadrilaterals that are not parallelograms need more).
     reach : a master face is a candidate for a slave face e if their centres are at most
         (1 + reach)·r_e + r_max apart (r: the largest centre-to-node distance of a face).
+    face_order : quadrature order of the face integrals (`faces_of`): a caller whose slave
+        block D = diag(∫φ_k) comes from another rule passes that rule's order, so that D and
+        the dual basis in M agree on non-planar faces.
     Cost: O(n_cells · q) with n_cells ≈ (slave faces) × (master faces per slave face).
     """
-    s, m = faces_of(slave, slave_part), faces_of(master, master_part)
+    s, m = faces_of(slave, slave_part, face_order), faces_of(master, master_part, face_order)
     return couple(s, m, quad_order, reach)
 
 

@@ -242,6 +242,7 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             "force_units": "N",
             "master": "rigid" if c.master is None else c.master.body.name,
             "mortar_patch_defect": 0.0 if c.master is None else c.master.patch_defect,
+            "uncovered_nodes": [] if c.master is None else uncovered(c),
             "multipliers": {
                 "normal": int(c.rows_n.size),
                 "disc": int(c.disc.size),
@@ -251,10 +252,21 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
         }
         summary["lemma_4_2"] = st["lemma_4_2"]
         summary["warnings"] = _warnings(st)
+        if c.master is not None and summary["contact"]["uncovered_nodes"]:
+            summary["warnings"].append(
+                f"{len(summary['contact']['uncovered_nodes'])} node(s) of {c.slave.name}."
+                f"{c.slave_part} have no master behind their whole support and carry no "
+                "multiplier (contact.uncovered_nodes)"
+            )
     results.write_pvd(outdir / "results.pvd", datasets)
     files.append("results.pvd")
     summary["files"] = sorted(files)
     return summary
+
+
+def uncovered(c) -> list[int]:
+    """Slave node ids without the master behind their whole support (no multiplier)."""
+    return [int(n) for n in c.surf.nodes[~c.master.covered]]
 
 
 def _warnings(st: dict) -> list[str]:
