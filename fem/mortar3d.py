@@ -298,14 +298,10 @@ def triangle_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
     return pts, (np.outer(w, w) * (1 - a)).ravel()
 
 
-def _shape(face_type: str, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Values (..., m) and reference gradients (..., m, 2) at reference points xi (..., 2)."""
+def _values(face_type: str, xi: np.ndarray) -> np.ndarray:
+    """Shape function values (..., m) at reference points xi (..., 2)."""
     ref = reference_element(face_type)
-    flat = xi.reshape(-1, 2)
-    m = ref.n_loc
-    return ref.values(flat).reshape(*xi.shape[:-1], m), ref.gradients(flat).reshape(
-        *xi.shape[:-1], m, 2
-    )
+    return ref.values(xi.reshape(-1, 2)).reshape(*xi.shape[:-1], ref.n_loc)
 
 
 def _solve2(J: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -434,7 +430,7 @@ def cells(s: Faces, m: Faces, reach: float = 1.0):
     Y = m.points[m.faces[f]]  # (n_p, m_m, 3)
     xi = inverse_map(s.face_type, S, np.einsum("pai,pij->paj", Y - x0[e][:, None], E[e]))
     xi = _rays(s.face_type, Xs, Y, xi, normals=s.normals[s.faces[e]])  # (n_p, m_m, 2)
-    phi, _ = _shape(s.face_type, xi)  # (n_p, m_m, m_s)
+    phi = _values(s.face_type, xi)  # (n_p, m_m, m_s)
     foot = np.einsum("pba,pai->pbi", phi, Xs)  # (n_p, m_m, 3) slave points below master nodes
     Mp = np.einsum("pai,pij->paj", foot - x0[e][:, None], E[e])  # (n_p, m_m, 2)
     Mp = Mp[:, ::-1]  # the master face is counterclockwise about −n0: reverse it
@@ -488,7 +484,7 @@ def couple(s: Faces, m: Faces, quad_order: int | None = None, reach: float = 1.0
     Ps = np.einsum("tai,tij->taj", Xs - x0[et][:, None], E[et])  # (n_t, m_s, 2)
     Pm = np.einsum("tai,tij->taj", Xm - x0[et][:, None], E[et])  # (n_t, m_m, 2)
     xs = inverse_map(s.face_type, Ps, y)  # (n_t, q, 2) slave points below y
-    phi_s, _ = _shape(s.face_type, xs)  # (n_t, q, m_s)
+    phi_s = _values(s.face_type, xs)  # (n_t, q, m_s)
     x = np.einsum("tqa,tai->tqi", phi_s, Xs)  # (n_t, q, 3)
     n = np.einsum("tqa,tai->tqi", phi_s, s.normals[s.faces[et]])  # (n_t, q, 3)
     xm = _rays(m.face_type, Xm, x, inverse_map(m.face_type, Pm, y), dirs=n)  # (n_t, q, 2)
@@ -496,7 +492,7 @@ def couple(s: Faces, m: Faces, quad_order: int | None = None, reach: float = 1.0
     ratio = np.linalg.norm(Ns, axis=2) / np.abs(np.einsum("tqi,ti->tq", Ns, n0[et]))
     wt = area2[:, None] * wq[None, :] * ratio  # (n_t, q) slave-surface weights
     psi = np.einsum("tqb,tab->tqa", phi_s, s.dual[et])  # (n_t, q, m_s)
-    phi_m, _ = _shape(m.face_type, xm)  # (n_t, q, m_m)
+    phi_m = _values(m.face_type, xm)  # (n_t, q, m_m)
     loc = _local(wt, psi, phi_m)  # (n_t, m_s, m_m)
     ms = s.faces.shape[1]
     rows = np.broadcast_to((ms * et[:, None] + np.arange(ms))[:, :, None], loc.shape)
