@@ -244,7 +244,7 @@ def _candidates(s: Faces, m: Faces, x0, n0, reach: float) -> tuple[np.ndarray, n
     return e[facing], f[facing]
 
 
-def clip(subject: np.ndarray, count: np.ndarray, window: np.ndarray, tol: float = 1e-13):
+def clip(subject: np.ndarray, count: np.ndarray, window: np.ndarray, tol: float = 1e-15):
     """Sutherland–Hodgman, vectorised over polygons: each subject polygon (n, K, 2) with
     count (n,) vertices clipped against a convex counterclockwise window (n, w, 2).
 
