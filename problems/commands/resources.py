@@ -23,6 +23,9 @@ over- rather than underestimates). Peaks: RSS of `mixvi solve SCENE --level L` i
 process (`/usr/bin/time -f %M`); `mixvi bench` prints its measured peak beside the estimate.
 Re-measure them here when the memory per unknown changes.
 
+In 3D (the model's `dimension` 3) the fill of a sparse factor grows faster: MEMORY_MODEL_3D,
+fitted on 3D runs (below), b ≈ 1.26 instead of ≈ 1.
+
 Caps. A level whose upper estimate (the estimate divided by the smallest estimate / measured
 ratio seen for that solver, WORST_RATIO) exceeds the machine's memory (physical, cgroup or
 RLIMIT_AS) is above the scene's cap; a level whose upper estimate exceeds the memory available
@@ -52,6 +55,18 @@ MEMORY_MODEL = {  # linear solver → (predictor, base [bytes], a, b)
 # the smallest estimate / measured peak seen per solver: refusals and caps use the estimate
 # divided by it (the most a level can need as far as the measurements go)
 WORST_RATIO = {"splu": 0.71, "pardiso": 0.54}
+# 3D (contact3d): a sparse factor of a 3D mesh fills far more (nested dissection: memory
+# ~ n^(4/3) against n log n in 2D), so the 2D fit would underestimate a 3D level about 3.6×
+# (block3d level 3: 0.93 GB estimated, 3.33 GB measured). PARDISO fitted through block3d
+# levels 2 and 3 (10,115 and 72,963 unknowns: 437 MB and 3.33 GB, `/usr/bin/time -f %M mixvi
+# solve block3d --level L`): b = 1.259 on the unknowns. SuperLU: one point (level 2, nnz(A) =
+# 845,152: 389 MB) with PARDISO's exponent on nnz(A) (level 3 with SuperLU was not run: its
+# fill grows at least as fast). Two and one measurements only: the margin is an assumed 0.5.
+MEMORY_MODEL_3D = {
+    "splu": ("nnz", 115e6, 9.506, 1.2585),
+    "pardiso": ("unknowns", 175e6, 2388.2, 1.2585),
+}
+WORST_RATIO_3D = {"splu": 0.5, "pardiso": 0.5}
 
 
 @dataclass(frozen=True)
@@ -63,17 +78,20 @@ class Estimate:
     unknowns: int
     solver: str  # the linear solver the estimate is for ("splu" or "pardiso")
     peak_bytes: float
+    dimension: int = 2
 
     @property
     def upper_bytes(self) -> float:
         """The most this level may need: the estimate over the worst ratio measured."""
-        return self.peak_bytes / WORST_RATIO[self.solver]
+        worst = WORST_RATIO_3D if self.dimension == 3 else WORST_RATIO
+        return self.peak_bytes / worst[self.solver]
 
 
-def peak_bytes(unknowns: float, nnz: float, solver: str) -> float:
+def peak_bytes(unknowns: float, nnz: float, solver: str, dimension: int = 2) -> float:
     """The modelled peak resident memory of a solve with `unknowns` unknowns whose matrix A
-    has `nnz` entries, with the linear solver `solver`."""
-    predictor, base, a, b = MEMORY_MODEL[solver]
+    has `nnz` entries, with the linear solver `solver`, on a mesh of `dimension` 2 or 3."""
+    model = MEMORY_MODEL_3D if dimension == 3 else MEMORY_MODEL
+    predictor, base, a, b = model[solver]
     x = float(nnz if predictor == "nnz" else unknowns)
     return base + a * x**b
 
@@ -153,7 +171,8 @@ class Sizes:
         """Unknowns and peak memory of `level` with the linear solver `auto` would choose."""
         N, nnz, n = self._at(level)
         solver = resolve_backend("auto", n)
-        return Estimate(self.scene.name, level, N, solver, peak_bytes(N, nnz, solver))
+        dim = self.dimension
+        return Estimate(self.scene.name, level, N, solver, peak_bytes(N, nnz, solver, dim), dim)
 
     def cap(self, total: float) -> int:
         """The largest level (≤ MAX_LEVEL) whose upper estimate fits in `total` bytes (0 at

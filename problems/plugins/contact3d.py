@@ -8,8 +8,8 @@ triangles, `fem.surface3d`), so that ∫ψ̃_k φ_j = δ_kj W_k with W_k = ∫_�
 block D = diag(W) is diagonal. g_k = ∫g φ_k / W_k. Frames (t1, t2, n) are right-handed and
 continuous on curved surfaces (`fem.surface3d.frames`). With a rigid foundation (the slave
 surface itself, flat or curved: bilateral contact has no initial gap) the rows are
-W_k n_kᵀu_k and W_k t_kᵀu_k; a master body adds −Σ_j M_kj (·)ᵀu_m,j (a `Coupling`, e.g. the
-3D dual mortar of `fem.mortar3d`; docs/fem3d.md "Contact").
+W_k n_kᵀu_k and W_k t_kᵀu_k; a master body adds −Σ_j M_kj (·)ᵀu_m,j (a `Coupling`: the 3D dual
+mortar of `fem.mortar3d`, `mortar_coupling`; docs/fem3d.md "Two bodies in contact3d").
 
 Multiplier order: the normal rows, then the disc nodes (t1, t2 per node), then the nodes that
 keep one tangent only. Crosspoint rules (per node, from its prescribed displacement
@@ -151,7 +151,8 @@ class Model:
 
 class ContactSection3(Section):
     """[contact]: the slave boundary (BODY.BOUNDARY), the master ("rigid": a rigid foundation
-    along the slave surface) and the friction bound g (Pa, a field ≥ 0 of x, y, z)."""
+    along the slave surface, or BODY.BOUNDARY of another body: the 3D dual mortar) and the
+    friction bound g (Pa, a field ≥ 0 of x, y, z)."""
 
     slave: str
     master: str = "rigid"
@@ -229,7 +230,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         if ct.master != "rigid":
             mname, mpart = ct.master.split(".", 1)
             master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
-        contact = rigid_contact(bodies[sname], part, ct.g, n_full, master)
+        contact = slave_contact(bodies[sname], part, ct.g, n_full, master)
     A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
     f_full = np.concatenate([b.f for b in bodies.values()])
     fixed = np.concatenate([b.fixed for b in bodies.values()])
@@ -382,9 +383,9 @@ def contact_rows(
 def mortar_coupling(slave: Body3D, part: str, master: Body3D, mpart: str) -> Coupling:
     """The master side of a two-body interface: the 3D dual mortar (`fem.mortar3d`) in the
     nodal rows of the slave surface (D = diag(W)); nodes without the master behind their whole
-    support carry no multiplier (`covered`); patch_defect is set by `rigid_contact`."""
+    support carry no multiplier (`covered`); patch_defect is set by `slave_contact`."""
     try:
-        order = SURFACE_ORDER[slave.mesh.cell_type]  # that of W = diag(D) in rigid_contact
+        order = SURFACE_ORDER[slave.mesh.cell_type]  # that of W = diag(D) in slave_contact
         mo = mortar_coupling3d(slave.mesh, part, master.mesh, mpart, face_order=order)
     except ValueError as err:
         raise SceneError(
@@ -394,7 +395,7 @@ def mortar_coupling(slave: Body3D, part: str, master: Body3D, mpart: str) -> Cou
     return Coupling(master, mpart, nodal_rows(mo), dofs, np.nan, covered_nodes(mo), mo.n_cells)
 
 
-def rigid_contact(
+def slave_contact(
     slave: Body3D, part: str, gfun, n_full: int, master: Coupling | None = None
 ) -> Contact3D:
     """The contact of `slave`'s boundary `part` (a rigid foundation along it, or `master`):
@@ -554,8 +555,10 @@ def contact_state(model: Model, sol: Solution) -> dict:
     has_t = np.zeros(k, dtype=bool)
     has_t[c.disc] = has_t[c.line] = True
     mag = np.linalg.norm(vec, axis=1)
-    gmax = float(c.g.max(initial=0.0))
-    slip = has_t & (mag >= c.g - 1e-9 * max(gmax, 1e-300))
+    # slip where |λ_t| reaches g up to the solver's accuracy, which is relative to the whole λ
+    # (with g ≪ λ_n a rounding-level shortfall of |λ_t| must not read as stick)
+    scale = max(float(c.g.max(initial=0.0)), float(np.abs(lam).max(initial=0.0)), 1e-300)
+    slip = has_t & (mag >= c.g - 1e-9 * scale)
     state = np.full(k, "no_multiplier", dtype=object)
     state[has_t] = np.where(slip[has_t], "slip", "stick")
     state[~has_t & np.isin(np.arange(k), c.rows_n)] = "normal_only"

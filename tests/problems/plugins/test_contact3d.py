@@ -140,6 +140,30 @@ def test_tetrahedra_converge_to_the_2d_solution():
     assert eu1 < 0.03 and ep1 < 0.03
 
 
+@pytest.mark.slow
+def test_table_of_the_extruded_scene_against_2d_level_4():
+    """docs/fem3d.md's table: hexahedra and tetrahedra, levels 0–2, against 2D level 4."""
+    m2, s2 = _solve2d(4)
+    b2 = m2.bodies[0]
+    u2, p2 = b2.split(m2.full(s2.u))
+    at = {(round(x, 9), round(y, 9)): i for i, (x, y) in enumerate(b2.mesh.points)}
+    print("\n| mesh | level | unknowns | u (nodal RMS, rel.) | phi | Newton steps |")
+    for element in ("tetra", "hexahedron"):
+        errs = []
+        for level in (0, 1, 2):
+            m3, s3 = _solve3d(EXTRUDED, level, [f"bodies.block.geometry.element={element}"])
+            u3, p3 = m3.bodies[0].split(m3.full(s3.u))
+            pts = m3.bodies[0].mesh.points
+            idx = np.array([at[(round(x, 9), round(y, 9))] for x, y, _ in pts])
+            du = u3[:, :2] - u2[idx]
+            eu = np.sqrt(np.mean(np.sum(du**2, axis=1)) / np.mean(np.sum(u2**2, axis=1)))
+            ep = np.sqrt(np.mean((p3 - p2[idx]) ** 2) / np.mean(p2**2))
+            errs.append(eu)
+            n = m3.vi.n + m3.vi.m
+            print(f"| {element} | {level} | {n} | {eu:.3e} | {ep:.3e} | {s3.iterations} |")
+        assert errs[0] / errs[1] > 2.0 and errs[1] / errs[2] > 2.0, errs
+
+
 # ------------------------------------------------------------------ independent checks
 def _transpose_node_blocks(model):
     """The fault: each contact node's 3×3 frame block of B written transposed."""
