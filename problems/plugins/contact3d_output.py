@@ -242,7 +242,6 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             "force_units": "N",
             "master": "rigid" if c.master is None else c.master.body.name,
             "mortar_patch_defect": 0.0 if c.master is None else c.master.patch_defect,
-            "uncovered_nodes": [] if c.master is None else uncovered(c),
             "multipliers": {
                 "normal": int(c.rows_n.size),
                 "disc": int(c.disc.size),
@@ -252,12 +251,13 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
         }
         summary["lemma_4_2"] = st["lemma_4_2"]
         summary["warnings"] = _warnings(st)
-        if c.master is not None and summary["contact"]["uncovered_nodes"]:
-            summary["warnings"].append(
-                f"{len(summary['contact']['uncovered_nodes'])} node(s) of {c.slave.name}."
-                f"{c.slave_part} have no master behind their whole support and carry no "
-                "multiplier (contact.uncovered_nodes)"
-            )
+        if c.master is not None:
+            summary["contact"]["uncovered_nodes"] = missing = uncovered(c)
+            if missing:
+                summary["warnings"].append(
+                    f"{len(missing)} node(s) of {c.slave.name}.{c.slave_part} have no master "
+                    "behind their whole support and carry no multiplier (contact.uncovered_nodes)"
+                )
     results.write_pvd(outdir / "results.pvd", datasets)
     files.append("results.pvd")
     summary["files"] = sorted(files)
