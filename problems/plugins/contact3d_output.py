@@ -9,7 +9,7 @@
 - `contact.csv`: one row per surface node, `#` lines with units; columns x, y, z, normal_*,
   tangent1_*, tangent2_*, lambda_n, lambda_t (along t1), lambda_t2, jump_t, jump_t2, g, state.
 - `contact_map.png`: the stick/slip map on the contact surface and |λ_t|/g.
-- `results.pvd`: the body files and the contact surface.
+(`mixvi solve` collects the .vtu files into `results.pvd`.)
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ import numpy as np
 
 from fem import assembly3d
 from fem.surface3d import frames
-from problems.output import results
 
 STATES = ("stick", "slip", "normal_only", "no_multiplier")
 VTK_ORDER = [0, 1, 2, 5, 3, 4]  # Voigt (xx, yy, zz, yz, xz, xy) → VTK (XX, YY, ZZ, XY, YZ, XZ)
@@ -212,13 +211,12 @@ def frame_checks(model) -> dict:
 def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
     """All result files of a solve; the summary entries."""
     x_full = model.full(sol.u)
-    files, datasets = [], []
+    files = []
     for b in model.bodies:
         point, cell = body_fields3(b, x_full[b.offset : b.offset + b.size])
         fn = f"{b.name}.vtu"
         write_body_vtu(outdir / fn, b.mesh, point, cell)
         files.append(fn)
-        datasets.append((model.level, len(datasets), fn))
     summary: dict = {}
     if model.contact is not None:
         c = model.contact
@@ -228,7 +226,6 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
         write_surface_vtu(outdir / "contact.vtu", model, st)
         contact_map(outdir / "contact_map.png", model, st, title=model.scene.name)
         files += ["contact.csv", "contact.vtu", "contact_map.png"]
-        datasets.append((model.level, len(datasets), "contact.vtu"))
         lam = np.nan_to_num(st["lam_n"])[:, None] * c.normals + st["lam_t_vec"]  # (k, 3)
         force = -(c.W[:, None] * lam).sum(axis=0)
         counts = {s: int((st["state"] == s).sum()) for s in STATES}
@@ -258,8 +255,6 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
                     f"{len(missing)} node(s) of {c.slave.name}.{c.slave_part} have no master "
                     "behind their whole support and carry no multiplier (contact.uncovered_nodes)"
                 )
-    results.write_pvd(outdir / "results.pvd", datasets)
-    files.append("results.pvd")
     summary["files"] = sorted(files)
     return summary
 

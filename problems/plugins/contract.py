@@ -34,6 +34,20 @@ declaration it needs with exit status 2, naming the declaration):
                          -> dict               initial guess (keyword arguments of solve)
     count(scene, level) -> (unknowns, nnz, n)  level caps and memory estimates: the sizes of
                                                a level without building it (else it is built)
+    incremental(model, previous, previous_sol) load paths (`[load_path]`, mixvi solve and
+                         -> None               `problems.solve_scene`): make `model`, the next
+                                               load step just built, act on the increments
+                                               since `previous` (the step before, solved as
+                                               `previous_sol`) before it is solved — e.g. a
+                                               friction law on the slip increment: shift the
+                                               tangential gap by B_t x_prev (replace model.vi
+                                               by model.vi.with_rhs(gap=...)). Without it
+                                               every step is solved in total form (path-
+                                               independent; the summary says so)
+    step_output(model, sol, outdir) -> dict    load paths: the files of one load step (cheap:
+                                               VTU datasets, tables; no plots) and the summary
+                                               entries "files" and "contact" (counts per state:
+                                               stick, slip, open); default: postprocess
 
 and the `Model` it returns carries
 
@@ -218,6 +232,8 @@ def conforms(obj: Any) -> list[str]:
         "extremes",
         "warm_start",
         "count",
+        "incremental",
+        "step_output",
     )
     for attr in optional:
         if hasattr(obj, attr) and not callable(getattr(obj, attr)):

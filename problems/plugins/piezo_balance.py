@@ -65,8 +65,8 @@ def _multiplier_at_gauss(model: Any, lam: np.ndarray):
     P = c.slave.mesh.points[c.tr.nodes]  # (k, 2)
     seg = c.tr.segments  # (n_seg, 2)
     L, n, tau = _frames(P, seg)
-    n_n, _ = c.sizes
-    vec = c.Q_n.T @ (lam[:n_n, None] * n[c.rows_n]) + c.Q_t.T @ (lam[n_n:, None] * tau[c.rows_t])
+    lam_n, lam_t = c.normal(lam)[:, None], c.tangential(lam)[:, None]  # (N_n, 1), (N_t, 1)
+    vec = c.Q_n.T @ (lam_n * n[c.rows_n]) + c.Q_t.T @ (lam_t * tau[c.rows_t])
     vec = np.asarray(vec).reshape(seg.shape[0], 2, 2)  # (n_seg, end a, component)
     psi, phi = _psi_phi()
     lam_q = np.einsum("qa,eai->eqi", psi, vec)  # (n_seg, 6, 2)
@@ -121,7 +121,8 @@ def _friction_bound(model: Any):
 
 def lemma_4_2(model: Any, sol: Any) -> dict | None:
     """Lemma 4.2 by quadrature for a rigid foundation: {"b_uh_lam", "int_g_abs_u", "gap"}
-    with gap = |b − ∫g|u_τ|_h| / ∫g|u_τ|_h (None for two bodies or without contact).
+    with gap = |b − ∫g|u_τ|_h| / ∫g|u_τ|_h (None for two bodies, unilateral contact or
+    without contact).
 
     b(u_h, λ_h) = ∫_Γ3 λ_h·u_h ds; ∫g|u_τ|_h = Σ_k ∫gφ̃_k |τ_k·ū_k| over the tangential
     multipliers, ū_k = ∫ψ̃_k u_h ds / ∫ψ̃_k ds the dual-weighted mean of u_h on the support of
@@ -129,7 +130,7 @@ def lemma_4_2(model: Any, sol: Any) -> dict | None:
     φ̃_k = Σ_(e,a) Q_t[k, 2e+a] φ_{e,a}; every integral by 6-point Gauss.
     """
     c = model.contact
-    if c is None or c.master is not None:
+    if c is None or c.master is not None or c.law != "bilateral":
         return None
     x_q, lam_q, w_q, seg, (_, tau) = _multiplier_at_gauss(model, sol.lam)
     psi, phi = _psi_phi()

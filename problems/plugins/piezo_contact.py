@@ -41,7 +41,7 @@ from problems.scene.exact import ExactSection, split_exact
 from problems.scene.fields import NonNegativeExpr, Text
 from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
-from vi_core import Box, Free, MixedVI, Solution, product
+from vi_core import Box, Coulomb, Free, MixedVI, NonNegative, Solution, UnilateralTresca, product
 
 from . import piezo_balance, piezo_errors, piezo_extremes
 from .bodies import Body, BodySection, build_body
@@ -71,6 +71,8 @@ ALIGN_TOL = 1e-10
 # to ~1e-16 (`fem.mortar`).
 COVER_TOL = 1e-12
 PATCH_DEFECT_LIMIT = 1e-8  # above it `mixvi solve` warns and exits 1 (unless --allow-defect)
+LAWS = ("bilateral", "unilateral")  # [contact] law
+FRICTIONS = ("tresca", "coulomb")  # [contact] friction
 
 
 @dataclass
@@ -100,11 +102,38 @@ class Contact:
     patch_defect: float  # max_k |Σ_j Ds_kj − Σ_j M_kj| / Σ_j Ds_kj (0 for a rigid master)
     uncovered: np.ndarray  # trace indices left without multiplier: no master behind them
     master_proj: sp.csr_matrix | None = None  # (N_t, n_full): u ↦ mortar-mean u_m·τ_k
+    law: str = LAWS[0]  # "bilateral" or "unilateral"
+    friction: str = FRICTIONS[0]  # "tresca" or "coulomb"
+    F: np.ndarray | None = None  # (N_t,) Coulomb F_k = ∫Fφ̃_k / ∫φ̃_k (friction = "coulomb")
+    gap0: np.ndarray | None = None  # (N_n,) initial gap rows Σ_j Ds_kj gap(x_j) (unilateral)
+    idx_n: np.ndarray | None = None  # (N_n,) row of B_full (and λ) holding each normal row
+    idx_t: np.ndarray | None = None  # (N_t,) the same for the tangential rows
+    pairs: int = 0  # unilateral: rows 0 … 2·pairs − 1 of B_full are nodes [n, τ] interleaved
 
     @property
     def sizes(self) -> tuple[int, int]:
         """(N_n, N_t): numbers of normal and tangential multipliers."""
         return self.rows_n.size, self.rows_t.size
+
+    def normal(self, v: np.ndarray) -> np.ndarray:
+        """The normal rows (N_n,) of a vector in the row order of B_full (λ, B u)."""
+        return v[self.idx_n]
+
+    def tangential(self, v: np.ndarray) -> np.ndarray:
+        """The tangential rows (N_t,) of a vector in the row order of B_full (λ, B u)."""
+        return v[self.idx_t]
+
+    def bound(self, lam: np.ndarray) -> np.ndarray:
+        """(N_t,) the friction radius at the multiplier λ (B_full's row order): g (bilateral),
+        g where λ_n > 0 and 0 elsewhere (unilateral Tresca), F·max(λ_n, 0) (Coulomb)."""
+        if self.law == "bilateral":
+            return self.g
+        lam_n = np.zeros(self.tr.size)
+        lam_n[self.rows_n] = self.normal(lam)
+        lam_n = lam_n[self.rows_t]  # (N_t,) every tangential row has a normal one (unilateral)
+        if self.friction == "coulomb":
+            return self.F * np.maximum(lam_n, 0.0)
+        return self.g * (lam_n > 0)
 
 
 @dataclass
@@ -120,6 +149,9 @@ class Model:
     values: np.ndarray  # (n_full,) prescribed values (fixed entries)
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
+    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
+    slip_origin: np.ndarray | None = None
 
     def unknown_fields(self) -> dict[str, np.ndarray]:
         """Boolean masks over the unknowns: which are displacement, which potential."""
@@ -141,12 +173,44 @@ class Model:
 
 class ContactSection(Section):
     """[contact]: slave and master boundaries (BODY.BOUNDARY, master "rigid" for a rigid
-    foundation), the friction bound g (Pa, a field ≥ 0 on Γ3) and the multiplier end rule."""
+    foundation), the contact law (docs/coulomb.md, "Contact laws of the plug-ins"), and the
+    multiplier end rule.
+
+    law = "bilateral" (the paper's: the bodies stay in contact, λ_n of any sign) or
+    "unilateral" (λ_n ≥ 0, gap ≥ 0, λ_n·gap = 0); friction = "tresca" (bound g, a field ≥ 0
+    in Pa; with law = "unilateral" it acts only where the bodies touch) or "coulomb" (bound
+    F·λ_n, F a field ≥ 0; unilateral only); gap = the initial normal distance to a rigid
+    foundation (m, a field ≥ 0; unilateral only; two bodies take theirs from the geometry).
+    """
 
     slave: Text
     master: Text = "rigid"
-    g: NonNegativeExpr
+    law: Literal[LAWS] = LAWS[0]
+    friction: Literal[FRICTIONS] = FRICTIONS[0]
+    g: NonNegativeExpr | None = None
+    F: NonNegativeExpr | None = None
+    gap: NonNegativeExpr | None = None
     ends: Literal[ENDS] = ENDS[0]
+
+    @model_validator(mode="after")
+    def _law(self) -> ContactSection:
+        need, other = ("g", "F") if self.friction == "tresca" else ("F", "g")
+        if getattr(self, need) is None:
+            raise refuse([need], None, f"required with friction = {self.friction!r}")
+        if getattr(self, other) is not None:
+            raise refuse(
+                [other], getattr(self, other).source, f"absent with friction = {self.friction!r}"
+            )
+        if self.law == "bilateral":
+            if self.friction == "coulomb":
+                raise refuse(["friction"], "coulomb", "'tresca' with law = 'bilateral'")
+            if self.gap is not None:
+                raise refuse(["gap"], self.gap.source, "absent with law = 'bilateral'")
+        if self.gap is not None and self.master != "rigid":
+            raise refuse(
+                ["gap"], self.gap.source, "absent for two bodies (their gap is the geometry's)"
+            )
+        return self
 
 
 class OutputSection(Section):
@@ -239,9 +303,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         for key, b, part in refs:
             check_meshed(b.mesh, [(key, part)])
             require_curve(b.mesh, part, key, f"{b.name}.{part}")
-        contact = _contact(
-            slave, slave_part, master, mpart, ct.g, ct.g.path, ct.ends, n_full, level
-        )
+        contact = _contact(slave, slave_part, master, mpart, ct, n_full, level)
     options = {"potential_along": None, **spec.options()}
     if spec.output is not None and spec.output.potential_along is not None:
         bname, part = spec.output.potential_along.split(".", 1)
@@ -292,7 +354,11 @@ def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None
     """Refuse data that overflow in assembly (each number finite, their products not)."""
     parts = {"stiffness (materials)": A_full.data, "loads": f_full, "Dirichlet values": values}
     if contact is not None:
-        parts["friction bound g"] = contact.g_weights
+        parts["friction bound g" if contact.F is None else "friction coefficient F"] = (
+            contact.g_weights if contact.F is None else contact.F
+        )
+        if contact.gap0 is not None:
+            parts["gap"] = contact.gap0
     for what, arr in parts.items():
         if not np.isfinite(arr).all():
             raise SceneError(
@@ -305,12 +371,22 @@ def _contact_rows(contact: Contact, free, fixed, values):
     B = contact.B_full[:, free]
     gap = -(contact.B_full[:, fixed] @ values[fixed])
     tr = contact.tr
-    n_n, _ = contact.sizes
-    Lam = product(Free(n_n), Box(-contact.g, contact.g))
+    n_n, n_t = contact.sizes
+    if contact.law == "bilateral":
+        Lam = product(Free(n_n), Box(-contact.g, contact.g))
+    else:
+        gap[contact.idx_n] += contact.gap0
+        p = contact.pairs  # every tangential row is paired with its node's normal row
+        if contact.friction == "coulomb":
+            pair_set = Coulomb(contact.F, dim=2)
+        else:
+            pair_set = UnilateralTresca(contact.g, dim=2, contact_only=True)
+        Lam = product(pair_set, NonNegative(n_n - p)) if n_n > p else product(pair_set)
     h_i = np.zeros(tr.size)
     np.maximum.at(h_i, tr.segments[:, 0], tr.lengths)
     np.maximum.at(h_i, tr.segments[:, 1], tr.lengths)
-    rows = np.concatenate([contact.rows_n, contact.rows_t])
+    rows = np.empty(n_n + n_t, dtype=int)  # trace index of each row of B_full
+    rows[contact.idx_n], rows[contact.idx_t] = contact.rows_n, contact.rows_t
     Y = sp.diags(h_i[rows] * tr.weights[rows])  # mesh-dependent H^{-1/2} stand-in
     return B, gap, Lam, Y
 
@@ -361,18 +437,29 @@ def _contact(
     part: str,
     master: Body | None,
     mpart: str | None,
-    g_fun,
-    gkey: str,
-    ends: str,
+    ct: ContactSection,
     n_full: int,
     level: int = 0,
 ) -> Contact:
     """The contact rows: normal Σ_j Ds_kj n_kᵀu_s,j − Σ_j M_kj n_kᵀu_m,j (M = 0 for a rigid
-    foundation), then the same with τ_k, for the multiplier rows of each component."""
+    foundation), then the same with τ_k, for the multiplier rows of each component; with
+    law = "unilateral" the rows of a node are put side by side [n, τ] (vi_core.coulomb) and the
+    initial gap rows Σ_j Ds_kj gap(x_j) are built (gap: the scene's field for a rigid
+    foundation, the distance along n_j to the master polyline for two bodies)."""
     from fem.mortar import mortar_coupling, patch_defect
 
+    unilateral = ct.law == "unilateral"
     tr = trace(slave.mesh, part)
     carry = _carrying(slave, part, tr)
+    if unilateral and (carry[1] & ~carry[0]).any():
+        i = int(np.flatnonzero(carry[1] & ~carry[0])[0])
+        raise SceneError(
+            "contact.law",
+            "unilateral",
+            f"contact nodes free to separate; {_where(slave, tr, i)} has its normal "
+            "displacement prescribed (a roller across Γ3): with unilateral contact prescribe "
+            "both components there or none (or use law = 'bilateral')",
+        )
     if not (carry[0] | carry[1]).any():
         raise SceneError(
             "contact.slave",
@@ -383,19 +470,30 @@ def _contact(
         )
     n_seg = tr.segments.shape[0]
     uncovered_local = np.zeros(2 * n_seg, dtype=bool)
+    gap_nodes = np.zeros(tr.size)  # (N,) initial normal gap at the slave nodes
     if master is not None:
-        _check_separation(slave, part, tr, tr.normals, master, mpart, level)
-        mort = mortar_coupling(slave.mesh, part, master.mesh, mpart)
+        if unilateral:
+            gap_nodes = _initial_gap(slave, part, tr, tr.normals, master, mpart, level)
+        else:
+            _check_separation(slave, part, tr, tr.normals, master, mpart, level)
+        reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.lengths.min())
+        mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, reach=reach)
         assert np.array_equal(tr.nodes, mort.slave_nodes)
         uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,)
         mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
+    elif ct.gap is not None:
+        x, y = slave.mesh.points[tr.nodes].T  # (N,) each
+        gap_nodes = np.broadcast_to(np.asarray(ct.gap(x, y), float), x.shape).copy()
+        if (gap_nodes < 0).any():
+            raise SceneError(ct.gap.path, ct.gap.source, "a distance ≥ 0 at every node of Γ3")
     Dloc = dual_mass(tr)  # (2 n_seg, N)
-    gloc = _friction_local(slave.mesh, tr, g_fun, gkey).ravel()  # (2 n_seg,)
+    bfun = ct.g if ct.friction == "tresca" else ct.F
+    gloc = _friction_local(slave.mesh, tr, bfun, bfun.path).ravel()  # (2 n_seg,)
     sdofs = slave.u_dofs(tr.nodes)  # (N, 2)
     uncovered = np.zeros(tr.size, dtype=bool)
     blocks, rows_c, Q_c, defects, offset = [], [], [], [0.0], 0
     for comp, vec in ((0, tr.normals), (1, tr.tangents)):
-        Q = multiplier_basis(tr, carry[comp], ends)
+        Q = multiplier_basis(tr, carry[comp], ct.ends)
         rows = np.flatnonzero(carry[comp])
         bad = (Q @ uncovered_local) > 0  # some of the row's support has no master behind it
         uncovered[rows[bad]] = True
@@ -424,9 +522,30 @@ def _contact(
         )
     r, c, v = (np.concatenate(x) for x in zip(*blocks, strict=True))
     B = sp.csr_matrix((v, (r, c)), shape=(offset, n_full))
-    Q_t, rows_t = Q_c[1], rows_c[1]
+    Q_t, rows_n, rows_t = Q_c[1], rows_c[0], rows_c[1]
+    if unilateral and not np.isin(rows_t, rows_n).all():
+        i = int(rows_t[~np.isin(rows_t, rows_n)][0])
+        raise SceneError(
+            "contact.master",
+            f"{master.name}.{mpart}" if master is not None else "rigid",
+            f"a master behind the normal multiplier of every slave node with a tangential one "
+            f"(unilateral contact); {_where(slave, tr, i)} has none",
+        )
     W_n, W_t = (np.asarray((Q @ Dloc).sum(axis=1)).ravel() for Q in Q_c)  # ∫φ̃_k per row
-    gw = Q_t @ gloc  # (N_t,) ∫gφ̃_k
+    gw = Q_t @ gloc  # (N_t,) ∫gφ̃_k (Coulomb: ∫Fφ̃_k)
+    n_n, n_t = rows_n.size, rows_t.size
+    idx_n, idx_t, pairs = np.arange(n_n), n_n + np.arange(n_t), 0
+    if unilateral:  # nodes [n, τ] side by side, then the nodes with a normal row only
+        paired = np.isin(rows_n, rows_t)  # (N_n,); every tangential row is paired (above)
+        pairs = n_t
+        idx_n = np.empty(n_n, dtype=int)
+        idx_n[paired] = 2 * np.arange(pairs)
+        idx_n[~paired] = 2 * pairs + np.arange(n_n - pairs)
+        idx_t = 2 * np.arange(pairs) + 1
+        order = np.empty(n_n + n_t, dtype=int)  # B_full row → row of B built above
+        order[idx_n], order[idx_t] = np.arange(n_n), n_n + np.arange(n_t)
+        B = B[order]
+    gap0 = (Q_c[0] @ Dloc) @ gap_nodes if unilateral else None  # (N_n,)
     proj = None
     if master is not None:  # mortar mean of u_m·τ_k over the row's support
         M = (Q_t @ mort.M).tocoo()
@@ -444,29 +563,38 @@ def _contact(
         tr=tr,
         master=master,
         master_part=mpart,
-        ends=ends,
-        rows_n=rows_c[0],
+        ends=ct.ends,
+        rows_n=rows_n,
         rows_t=rows_t,
         Q_n=Q_c[0],
         Q_t=Q_t,
         W_n=W_n,
         W_t=W_t,
-        g=gw / W_t,
+        g=gw / W_t if ct.friction == "tresca" else np.zeros(n_t),
         B_full=B,
-        g_weights=gw,
+        g_weights=gw if ct.friction == "tresca" else np.zeros(n_t),
         patch_defect=max(defects),
         uncovered=np.flatnonzero(uncovered),
         master_proj=proj,
+        law=ct.law,
+        friction=ct.friction,
+        F=gw / W_t if ct.friction == "coulomb" else None,
+        gap0=gap0,
+        idx_n=idx_n,
+        idx_t=idx_t,
+        pairs=pairs,
     )
 
 
 def _friction_local(mesh: Mesh, tr: Trace, gfun, key: str) -> np.ndarray:
-    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point)."""
+    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point; g is the
+    Tresca bound or the Coulomb coefficient F, named by `key`)."""
+    what = "a friction bound g" if key.endswith(".g") else "a friction coefficient F"
 
     def g_checked(x, y):
         gv = gfun(x, y)
         if (gv < 0).any():
-            raise SceneError(key, float(gv.min()), "a friction bound g ≥ 0 everywhere on Γ3")
+            raise SceneError(key, float(gv.min()), f"{what} ≥ 0 everywhere on Γ3")
         return gv
 
     return segment_loads(mesh, tr, g_checked)
@@ -500,12 +628,10 @@ def _normal_distances(
     return out, seg
 
 
-def _check_separation(
-    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
-) -> None:
-    """SceneError if the interfaces overlap or stand apart by more than SEPARATION_TOL·h
-    (h: the longer of the slave node's adjacent segments and the master segment hit, times
-    2^level: the level-0 mesh size)."""
+def _separation(slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int):
+    """(t, h): the signed distance (N,) of each slave node along its normal to the master
+    polyline (NaN where it misses) and h (N,), the longer of the node's adjacent segments and
+    the master segment hit, times 2^level (the level-0 mesh size)."""
     mtr = trace(master.mesh, mpart)
     P = master.mesh.points[mtr.nodes]
     t, k = _normal_distances(
@@ -514,81 +640,135 @@ def _check_separation(
     h = mtr.lengths[k]
     np.maximum.at(h, tr.segments[:, 0], tr.lengths)
     np.maximum.at(h, tr.segments[:, 1], tr.lengths)
-    h = h * 2.0**level  # the size at level 0, where the interface geometry was given
-    rel = t / h
-    bad = np.flatnonzero(np.abs(np.nan_to_num(rel)) > SEPARATION_TOL)
+    return t, h * 2.0**level  # the size at level 0, where the interface geometry was given
+
+
+def _refuse_separation(slave, part, master, mpart, tr, t, h, bad, where) -> None:
+    rel = np.nan_to_num(t / h)
+    i = bad[np.argmax(np.abs(rel[bad]))]
+    what = "overlap the slave body" if rel[i] < 0 else "stand apart from it"
+    raise SceneError(
+        "contact.master",
+        f"{master.name}.{mpart}",
+        f"a master boundary {where} {slave.name}.{part} in the "
+        f"reference configuration: it would {what} by {abs(t[i]):.3g} "
+        f"({abs(rel[i]):.2f} × the local level-0 mesh size {h[i]:.3g}; allowed "
+        f"{SEPARATION_TOL:g}) at slave node {slave.mesh.points[tr.nodes[i]].tolist()}",
+    )
+
+
+def _check_separation(
+    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
+) -> None:
+    """SceneError if the interfaces overlap or stand apart by more than SEPARATION_TOL·h
+    (`_separation`): bilateral contact needs coincident interfaces."""
+    t, h = _separation(slave, part, tr, normals, master, mpart, level)
+    bad = np.flatnonzero(np.abs(np.nan_to_num(t / h)) > SEPARATION_TOL)
     if bad.size:
-        i = bad[np.argmax(np.abs(rel[bad]))]
-        what = "overlap the slave body" if rel[i] < 0 else "stand apart from it"
-        raise SceneError(
-            "contact.master",
-            f"{master.name}.{mpart}",
-            f"a master boundary that coincides with {slave.name}.{part} in the "
-            f"reference configuration: it would {what} by {abs(t[i]):.3g} "
-            f"({abs(rel[i]):.2f} × the local level-0 mesh size {h[i]:.3g}; allowed "
-            f"{SEPARATION_TOL:g}) at slave node {slave.mesh.points[tr.nodes[i]].tolist()}",
-        )
+        _refuse_separation(slave, part, master, mpart, tr, t, h, bad, "that coincides with")
+
+
+def _initial_gap(
+    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
+) -> np.ndarray:
+    """The initial normal gap (N,) of unilateral contact between two bodies: the distance
+    along each slave normal to the master (0 where the normal misses it). The bodies may
+    start apart; an overlap beyond SEPARATION_TOL·h (`_separation`) is refused."""
+    t, h = _separation(slave, part, tr, normals, master, mpart, level)
+    bad = np.flatnonzero(-np.nan_to_num(t / h) > SEPARATION_TOL)
+    if bad.size:
+        _refuse_separation(slave, part, master, mpart, tr, t, h, bad, "facing")
+    return np.nan_to_num(t)
 
 
 def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     """Initial guess for `fine` from the solution on the coarser level (nested iteration).
 
     Along Γ3 (the same curve on every level, parametrised by normalised arc length) the normal
-    coefficients are interpolated, and the tangential ones through their ratio r = α/g to the
-    friction bound: a fine node between two coarse slip nodes gets |r| = 1, i.e. it starts on
-    the bound even where g varies, and the first Newton step starts from the coarse
-    stick/slip partition instead of rediscovering it.
+    coefficients are interpolated, and the tangential ones through their ratio r = α/ρ to the
+    friction radius ρ (g; Coulomb: F·λ_n): a fine node between two coarse slip nodes gets
+    |r| = 1, i.e. it starts on the bound even where g varies, and the first Newton step starts
+    from the coarse stick/slip partition instead of rediscovering it.
     """
     if coarse.contact is None or fine.contact is None:
         return {}
     cc, fc = coarse.contact, fine.contact
     sc, sf = cc.tr.s / cc.tr.s[-1], fc.tr.s / fc.tr.s[-1]
-    n_c, _ = cc.sizes
-    lam_n = np.interp(sf[fc.rows_n], sc[cc.rows_n], coarse_sol.lam[:n_c])
-    gc, g = cc.g, fc.g
-    ratio_c = np.divide(coarse_sol.lam[n_c:], gc, out=np.zeros(gc.size), where=gc > 0)
+    lam_c = coarse_sol.lam
+    lam_n = np.interp(sf[fc.rows_n], sc[cc.rows_n], cc.normal(lam_c))
+    rc = cc.bound(lam_c)
+    ratio_c = np.divide(cc.tangential(lam_c), rc, out=np.zeros(rc.size), where=rc > 0)
     ratio = np.clip(np.interp(sf[fc.rows_t], sc[cc.rows_t], ratio_c), -1.0, 1.0)
     on_bound = np.abs(ratio) >= 1.0 - 1e-9
     ratio[on_bound] = np.sign(ratio[on_bound])
-    return {"lam0": np.concatenate([lam_n, ratio * g])}
+    lam0 = np.zeros(fc.B_full.shape[0])
+    lam0[fc.idx_n] = lam_n
+    lam0[fc.idx_t] = ratio * fc.bound(lam0)
+    return {"lam0": lam0}
 
 
 # ------------------------------------------------------------------ post-processing
 def contact_state(model: Model, sol: Solution) -> dict:
     """Per-node contact quantities along Γ3 and the Lemma 4.2 check.
 
-    The arrays "s", "points", "lam_t", "g", "jump_t", "ut_slave", "slip" (and "ut_master") are
-    per tangential multiplier row (`Contact.rows_t`), "s_n", "lam_n" per normal row.
+    The arrays "s", "points", "lam_t", "g", "jump_t", "ut_slave", "slip", "touch_t" (and
+    "ut_master") are per tangential multiplier row (`Contact.rows_t`), "s_n", "lam_n",
+    "touch", "gap" per normal row. "g" is the friction radius of the solution (g; unilateral
+    Tresca: g where the node touches, 0 elsewhere; Coulomb: F·λ_n); "slip" marks touching
+    nodes whose |λ_τ| reaches it; "touch" is True everywhere for bilateral contact and where
+    λ_n exceeds 1e-9 of its largest value for unilateral contact; "gap" (unilateral only) is
+    the remaining normal gap gap₀ − [u]_n. Lemma 4.2 reads λᵀ(B u − gap₀) = Σ_k ρ_k W_k|[u]_τ,k|
+    (normal complementarity makes the normal part 0).
     """
     c = model.contact
-    n_n, _ = c.sizes
     x_full = model.full(sol.u)
-    lam_n, lam_t = sol.lam[:n_n], sol.lam[n_n:]
-    Bu = c.B_full @ x_full  # (N_n + N_t,) = W_k·[u]_n, W_k·[u]_τ
-    jump_t = Bu[n_n:] / c.W_t  # nodal tangential (mortar) jump
+    lam_n, lam_t = c.normal(sol.lam), c.tangential(sol.lam)
+    Bu = c.B_full @ x_full  # W_k·[u]_n, W_k·[u]_τ in B_full's row order
+    jump_t = c.tangential(Bu) / c.W_t  # nodal tangential (mortar) jump
     nodes = c.tr.nodes[c.rows_t]
     u_s = x_full[c.slave.u_dofs(nodes)]  # (N_t, 2)
     ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents[c.rows_t])
-    gmax = float(c.g.max(initial=0.0))
-    slip = np.abs(lam_t) >= c.g - 1e-9 * max(gmax, 1e-300)
-    b_uh_lam = float(sol.lam @ Bu)
-    g_abs = float(np.sum(c.g_weights * np.abs(jump_t)))
-    tiny = np.finfo(float).eps * float(np.sum(c.g_weights)) * max(np.abs(x_full).max(), 1e-300)
-    lemma = abs(b_uh_lam - g_abs) / max(g_abs, tiny, 1e-300)
+    gap_rows = np.zeros(Bu.size)
+    if c.law == "bilateral":
+        touch = np.ones(lam_n.size, dtype=bool)
+    else:
+        gap_rows[c.idx_n] = c.gap0
+        # beyond rounding of the largest pressure: λ_n, or the elastic nodal forces per length
+        # (all of λ is rounding when the bodies are apart)
+        disp = model.unknown_fields()["displacement"]
+        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / c.W_n.min()
+        touch = lam_n > 1e-9 * max(float(lam_n.max(initial=0.0)), force, 1e-300)
+    touch_t = np.zeros(c.tr.size, dtype=bool)
+    touch_t[c.rows_n] = touch
+    touch_t = touch_t[c.rows_t] if c.law == "unilateral" else np.ones(c.rows_t.size, dtype=bool)
+    rho = c.bound(sol.lam) * touch_t  # (N_t,); a rounding-level λ_n does not touch
+    rmax = float(rho.max(initial=0.0))
+    slip = touch_t & (np.abs(lam_t) >= rho - 1e-9 * max(rmax, 1e-300))
+    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    b_uh_lam = float(sol.lam @ (Bi - gap_rows))
+    weights = rho * c.W_t  # (N_t,) ∫ρφ̃_k (bilateral: g_weights)
+    g_abs = float(np.sum(weights * np.abs(c.tangential(Bi) / c.W_t)))
+    tiny = np.finfo(float).eps * float(np.sum(weights)) * max(np.abs(x_full).max(), 1e-300)
+    scale = g_abs if c.law == "bilateral" else g_abs + float(np.abs(sol.lam) @ np.abs(gap_rows))
+    lemma = abs(b_uh_lam - g_abs) / max(scale, tiny, 1e-300)
     state = {
         "s": c.tr.s[c.rows_t],
         "points": c.slave.mesh.points[nodes],
         "s_n": c.tr.s[c.rows_n],
         "lam_n": lam_n,
         "lam_t": lam_t,
-        "g": c.g,
+        "g": rho,
         "jump_t": jump_t,
         "ut_slave": ut_s,
         "slip": slip,
+        "touch": touch,
+        "touch_t": touch_t,
         "b_uh_lam": b_uh_lam,
         "int_g_abs_u": g_abs,
         "lemma_4_2": float(lemma),
     }
+    if c.law == "unilateral":
+        state["gap"] = (c.gap0 - c.normal(Bu)) / c.W_n
     if c.master_proj is not None:
         state["ut_master"] = c.master_proj @ x_full
     return state
@@ -633,8 +813,10 @@ def interface_warnings(contact: Contact) -> list[str]:
 def contact_warnings(state: dict) -> list[str]:
     """What a user must know about the friction bound of this solution."""
     g, lam_t = state["g"], state["lam_t"]
+    if not state["touch"].any():
+        return ["no node of Γ3 touches: the bodies are apart (λ = 0)"]
     if not g.any():
-        return ["g = 0 on Γ3: frictionless sliding (a linear problem)"]
+        return ["zero friction on Γ3: frictionless sliding"]
     if not state["slip"].any():
         used = float(np.max(np.abs(lam_t) / np.where(g > 0, g, np.inf)))
         return [
@@ -642,6 +824,16 @@ def contact_warnings(state: dict) -> list[str]:
             "bound, so the problem is tied (g above every tangential stress)"
         ]
     return []
+
+
+def _unilateral_summary(contact: Contact, state: dict) -> dict:
+    """The summary entries only unilateral contact has: open nodes, the law and friction."""
+    return {
+        "open": int((~state["touch"]).sum()),
+        "law": contact.law,
+        "friction": contact.friction,
+        "min_gap": float(state["gap"].min(initial=np.inf)),
+    }
 
 
 def contact_table(model: Model, sol: Solution) -> ContactTable:
@@ -657,6 +849,11 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
     jump_t[c.rows_t] = st["jump_t"]
     state = np.full(k, "no_multiplier", dtype=object)
     state[c.rows_t] = np.where(st["slip"], "slip", "stick")
+    gap = None
+    if c.law == "unilateral":
+        state[c.rows_n[~st["touch"]]] = "open"
+        gap = np.full(k, np.nan)
+        gap[c.rows_n] = np.maximum(st["gap"], 0.0)
     return ContactTable(
         points=c.slave.mesh.points[tr.nodes],
         normals=tr.normals,
@@ -666,6 +863,7 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
         lambda_t=lam_t,
         jump_t=jump_t,
         state=state.astype(str),
+        gap=gap,
     )
 
 
@@ -683,23 +881,22 @@ def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """Write VTU fields (one per body, the contact line, a .pvd), contact.csv and PNG plots
+    """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
     into `outdir`; return the summary entries."""
     from fem.io import write_vtu
 
     x_full = model.full(sol.u)
-    files, notes, datasets = [], [], []
+    files, notes = [], []
     for b in model.bodies:
         point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
         fn = f"{b.name}.vtu"
         write_vtu(outdir / fn, b.mesh, point, cell)
         files.append(fn)
-        datasets.append((model.level, len(datasets), fn))
         if note:
             notes.append(note)
     summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
     if model.contact is not None:
-        quad = piezo_balance.lemma_4_2(model, sol)
+        quad = piezo_balance.lemma_4_2(model, sol) if model.slip_origin is None else None
         if quad is not None:
             summary["lemma_4_2_quadrature"] = quad
         state = contact_state(model, sol)
@@ -708,20 +905,23 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         results.write_contact_csv(outdir / "contact.csv", table)
         results.write_contact_vtu(outdir / "contact.vtu", table)
         files += ["contact.csv", "contact.vtu"]
-        datasets.append((model.level, len(datasets), "contact.vtu"))
         n_slip = int(state["slip"].sum())
+        n_touch = int(state["touch_t"].sum())
         summary["contact"] = {
             "nodes": int(state["slip"].size),
-            "stick": int(state["slip"].size - n_slip),
+            "stick": n_touch - n_slip,
             "slip": n_slip,
+            **(
+                _unilateral_summary(model.contact, state)
+                if model.contact.law != "bilateral"
+                else {}
+            ),
             **table.totals(),
             **interface_summary(model.contact),
             "table": table.records(),
         }
         summary["lemma_4_2"] = state["lemma_4_2"]
         summary["warnings"] = contact_warnings(state)
-    results.write_pvd(outdir / "results.pvd", datasets)
-    files.append("results.pvd")
     if notes:
         summary["notes"] = notes
     along = model.options.get("potential_along")
@@ -761,6 +961,41 @@ def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
     """The NORMS against the scene's [exact] table (None without one)."""
     _, exact = split_exact(model.scene)
     return None if exact is None else piezo_errors.exact_errors(model, sol.u, sol.lam, exact)
+
+
+def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
+    """One load step's files (no plots): a VTU per body, contact.vtu and contact.csv; the
+    summary entries "files" and "contact" (the counts per state)."""
+    from fem.io import write_vtu
+
+    x_full = model.full(sol.u)
+    files = []
+    for b in model.bodies:
+        point, cell, _ = body_fields(b, x_full[b.offset : b.offset + b.size])
+        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
+        files.append(f"{b.name}.vtu")
+    out: dict = {"files": files}
+    if model.contact is not None:
+        table = contact_table(model, sol)
+        results.write_contact_csv(outdir / "contact.csv", table)
+        results.write_contact_vtu(outdir / "contact.vtu", table)
+        files += ["contact.csv", "contact.vtu"]
+        out["contact"] = table.totals()["counts"]
+    return out
+
+
+def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
+    """Load paths: the friction law of the next step `model` acts on the slip since the
+    previous step, [u]_τ − [u_prev]_τ: the tangential rows of the gap are shifted by
+    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
+    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
+    c = model.contact
+    if c is None:
+        return
+    origin = c.B_full @ previous.full(previous_sol.u)  # (N_n + N_t,) in B_full's row order
+    origin[c.idx_n] = 0.0
+    model.slip_origin = origin
+    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
 
 
 def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:

@@ -46,9 +46,8 @@ def _multiplier(model: Any, lam: np.ndarray):
     """(trace, γ, α) of the contact multiplier as segment-local dual coefficients (n_seg, 2):
     λ·n = Σ_(e,a) γ[e, a] ψ_{e,a} (the multiplier basis, end treatment included)."""
     c = model.contact
-    n_n, _ = c.sizes
-    gam = (c.Q_n.T @ lam[:n_n]).reshape(-1, 2)  # (n_seg, 2)
-    alp = (c.Q_t.T @ lam[n_n:]).reshape(-1, 2)  # (n_seg, 2)
+    gam = (c.Q_n.T @ c.normal(lam)).reshape(-1, 2)  # (n_seg, 2)
+    alp = (c.Q_t.T @ c.tangential(lam)).reshape(-1, 2)  # (n_seg, 2)
     return c.tr, gam, alp
 
 

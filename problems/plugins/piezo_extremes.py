@@ -76,8 +76,7 @@ def locking(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
     for lev in (row.level, row.level + 1, row.level + 2):
         m = model if lev == row.level else plugin.build(row.load(), lev)
         s = sol if lev == row.level else vi_core.solve(m.vi, "ssn")
-        n_n, _ = m.contact.sizes
-        forces.append(float(np.sum(s.lam[:n_n] * m.contact.W_n)))
+        forces.append(float(np.sum(m.contact.normal(s.lam) * m.contact.W_n)))
     over = forces[0] / forces[-1] - 1.0
     note = (
         f"locking: normal force {100 * over:.1f}% above the level {row.level + 2} value "

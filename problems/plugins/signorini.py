@@ -33,6 +33,7 @@ from problems.output import plots, results
 from problems.output.results import ContactTable
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import NonNegativeExpr, Text
+from problems.scene.imported import require_curve
 from problems.scene.model import head
 from vi_core import Box, MixedVI, NonNegative, Solution, product
 
@@ -128,6 +129,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     ct = spec.contact
     part, gap_fun, g_fun = ct.boundary, ct.gap, ct.g
     check_meshed(body.mesh, [(ct.key("boundary"), part)])
+    require_curve(body.mesh, part, ct.key("boundary"), part)
     options = spec.options()
 
     mesh = body.mesh
@@ -232,9 +234,6 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     table = contact_table(model, sol)
     results.write_contact_csv(outdir / "contact.csv", table)
     results.write_contact_vtu(outdir / "contact.vtu", table)
-    results.write_pvd(
-        outdir / "results.pvd", [(model.level, 0, "signorini.vtu"), (model.level, 1, "contact.vtu")]
-    )
     st = contact_state(model, sol)
     files = plots.contact_plots(st, outdir, title=f"{model.scene.name} (tangential)")
     files.append(_normal_plot(st, outdir, model.scene.name))
@@ -251,7 +250,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         "signorini": {"nodes": n, "in_contact": n_touch, "separated": n - n_touch},
         "lemma_4_2": lemma,
         "complementarity": lemma,
-        "files": sorted([*files, "signorini.vtu", "contact.csv", "contact.vtu", "results.pvd"]),
+        "files": sorted([*files, "signorini.vtu", "contact.csv", "contact.vtu"]),
     }
     if note:
         out["notes"] = [note]

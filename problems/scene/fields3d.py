@@ -18,8 +18,8 @@ from problems.errors import SceneError
 from .expressions import ALLOWED, MAX_MAGNITUDE, ExpressionError, compile_expression
 from .fields import Expression, Integer, Number, number_value
 
-VARIABLES = ("x", "y", "z")
-ALLOWED_3D = ALLOWED.replace("expression of x, y", "expression of x, y, z")
+VARIABLES = ("x", "y", "z", "t")  # t: the load parameter (scenes with a [load_path] only)
+ALLOWED_3D = ALLOWED.replace("of x, y", "of x, y, z")
 
 
 class Expression3(Expression):
@@ -28,8 +28,10 @@ class Expression3(Expression):
     def __init__(self, source: float | str):
         self.source = source
         self.path = "(expression)"
+        self.t_end: float | None = None
         self.constant = not isinstance(source, str)
         self._fn = None if self.constant else compile_expression(source, VARIABLES)
+        self.uses_t = not self.constant and "t" in _names(source)
 
     def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:  # type: ignore[override]
         """Values at the points (x, y, z): an array of their broadcast shape (SceneError if a
@@ -37,7 +39,7 @@ class Expression3(Expression):
         shape = np.broadcast_shapes(np.shape(x), np.shape(y), np.shape(z))
         if self._fn is None:
             return np.full(shape, float(self.source))
-        out = self._fn(x, y, z)
+        out = self._fn(x, y, z, np.float64(self.load_t()))
         bad = ~(np.isfinite(out) & (np.abs(out) <= MAX_MAGNITUDE))
         if bad.any():
             i = np.unravel_index(int(np.argmax(bad)), shape)
@@ -69,7 +71,7 @@ class Expression3(Expression):
                     "{why}; allowed: {allowed}",
                     {"allowed": ALLOWED_3D, "why": str(err)},
                 ) from None
-            val = e._fn(np.zeros(1), np.zeros(1), np.zeros(1))
+            val = e._fn(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1))
             if not set(VARIABLES) & _names(v) and not (
                 np.isfinite(val).all() and (np.abs(val) <= MAX_MAGNITUDE).all()
             ):
