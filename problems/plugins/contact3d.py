@@ -40,18 +40,21 @@ from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, MixedVI, Solution, product
 
 from . import contact3d_checks, contact3d_extremes, contact3d_output
-from .contact3d_bodies import Body3D, BodySection3, build_body3, count3, dirichlet3, field_data3
+from .contact3d_bodies import (
+    SURFACE_ORDER,
+    Body3D,
+    BodySection3,
+    build_body3,
+    count3,
+    dirichlet3,
+    field_data3,
+)
 from .contract import Sweep
 
 NAME = "contact3d"
 DESCRIPTION = "elastic/piezoelectric 3D bodies in bilateral Tresca contact (friction discs)"
 CONTRACT = 2
 ALIGN_TOL = 1e-10  # sine of the angle under which a prescribed direction counts as n or ⟂ n
-# Quadrature order of the contact surface integrals (W, normals, g_k, the dual basis of the
-# mortar): Q1 faces of a curved surface are not planar and |∂x/∂ξ × ∂x/∂η| is not polynomial
-# (order 4 leaves 7e-11 in the rigid-body rows of spherical_cap, order 8 3e-15); P1 faces are
-# flat (order 4 exact).
-SURFACE_ORDER = {"hexahedron": 8, "tetra": 4}
 
 
 @dataclass
