@@ -118,3 +118,20 @@ def test_mutation_a_3d_model_claiming_2d_is_caught():
     with pytest.raises(AssertionError):
         e4, e5 = sizes.estimate(4), sizes.estimate(5)
         assert e5.peak_bytes / e4.peak_bytes > 8.5
+
+
+def test_the_amg_path_is_guarded_by_its_own_memory_model(monkeypatch):
+    """At a level where the AMG path's upper estimate fits in the memory available and the
+    direct solver's does not, `--linear-solver amg` is let through and the direct solve is
+    refused (mutation: check_levels ignoring linear_solver refuses both)."""
+    scene = load_scene("paper_two_body")
+    plugin = registry.for_scene(scene)
+    amg = Sizes(plugin, scene, "amg").estimate(6)
+    direct = Sizes(plugin, scene, "splu").estimate(6)
+    assert amg.solver == "amg" and direct.solver == "splu"
+    assert amg.upper_bytes < direct.upper_bytes
+    between = 0.5 * (amg.upper_bytes + direct.upper_bytes)
+    monkeypatch.setattr(resources, "memory", lambda: (64e9, between))
+    check_levels(plugin, scene, (6, 6), "--level", "6", linear_solver="amg")
+    with pytest.raises(SceneError, match="available"):
+        check_levels(plugin, scene, (6, 6), "--level", "6", linear_solver="splu")
