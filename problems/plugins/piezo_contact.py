@@ -733,8 +733,9 @@ def contact_state(model: Model, sol: Solution) -> dict:
     nodes whose |λ_τ| reaches it; "touch" is True everywhere for bilateral contact and where
     λ_n exceeds 1e-9 of its largest value for unilateral contact; "u_n" and "gap" (unilateral
     only) are the normal jump [u]_n and the initial gap gap₀ (the remaining gap is their
-    difference). Lemma 4.2 reads λᵀ(B u − gap₀) = Σ_k ρ_k W_k|[u]_τ,k|
-    (normal complementarity makes the normal part 0).
+    difference), "pressure" the pressure scale (largest λ_n or elastic stress). Lemma 4.2
+    reads λᵀ(B u − gap₀) = Σ_k ρ_k W_k|[u]_τ,k| (normal complementarity makes the normal part
+    0).
     """
     c = model.contact
     x_full = model.full(sol.u)
@@ -787,6 +788,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "lemma_4_2": float(lemma),
     }
     if c.law == "unilateral":
+        state["pressure"] = max(float(lam_n.max(initial=0.0)), force)  # the pressure scale
         state["u_n"] = c.normal(Bu) / c.W_n  # (N_n,) normal (mortar) jump [u]_n
         state["gap"] = c.gap0 / c.W_n  # (N_n,) initial gap
     if c.master_proj is not None:
