@@ -16,7 +16,7 @@ from itertools import permutations
 import numpy as np
 
 from .elements3d import CELL_TYPES, FACES, reference_element3d
-from .mesh import CellMesh
+from .mesh import CellMesh, Mesh
 
 SIDES = ("left", "right", "front", "back", "bottom", "top")  # x0, x1, y0, y1, z0, z1
 
@@ -315,3 +315,43 @@ def refine(mesh: Mesh3D, times: int = 1) -> Mesh3D:
         mesh = _refine_once(mesh)
         check_cells(mesh)
     return mesh
+
+
+END_PARTS = ("z0", "z1")  # the end faces of an extruded mesh
+
+
+def extrude(mesh2d: Mesh, z: tuple[float, float], layers: int = 1) -> Mesh3D:
+    """The 2D quadrilateral mesh `mesh2d` (x–y plane) extruded over [z0, z1] in `layers` layers
+    of hexahedra.
+
+    Node (i, layer l) is i + l·n (the 2D numbering repeated per layer); a 2D boundary part
+    becomes the quadrilaterals [a, b, b', a'] over its edges (a, b) (outward, as the 2D edges
+    have the domain on their left); the end faces are the parts "z0" (z = z0) and "z1".
+    ValueError for triangles, a part named like an end, or bad z/layers.
+    """
+    if mesh2d.cells.shape[1] != 4:
+        raise ValueError(f"extrude needs quadrilateral cells, got {mesh2d.cells.shape[1]} nodes")
+    if int(layers) != layers or layers < 1:
+        raise ValueError(f"layers must be a positive integer, got {layers!r}")
+    if not z[0] < z[1]:
+        raise ValueError(f"need z0 < z1, got z={z!r}")
+    clash = sorted(set(END_PARTS) & set(mesh2d.boundaries))
+    if clash:
+        raise ValueError(f"the 2D mesh has parts named {clash}, reserved for the end faces")
+    n, L = mesh2d.points.shape[0], int(layers)
+    zs = np.linspace(z[0], z[1], L + 1)  # (L + 1,)
+    points = np.concatenate([np.column_stack([mesh2d.points, np.full(n, zk)]) for zk in zs])
+    off = n * np.arange(L)[:, None, None]  # (L, 1, 1)
+    q = mesh2d.cells  # (n_c, 4) counterclockwise seen from +z
+    cells = np.concatenate([q + off, q + off + n], axis=2).reshape(-1, 8)  # (L n_c, 8)
+    boundaries = {
+        name: np.concatenate(
+            [np.stack([e[:, 0], e[:, 1], e[:, 1] + n, e[:, 0] + n], 1) + k * n for k in range(L)]
+        )  # (L n_e, 4) layer by layer
+        for name, e in mesh2d.boundaries.items()
+    }
+    boundaries[END_PARTS[0]] = q[:, ::-1].copy()
+    boundaries[END_PARTS[1]] = q + L * n
+    out = Mesh3D(points, cells, boundaries)
+    check_cells(out)
+    return out

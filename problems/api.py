@@ -67,7 +67,20 @@ def solve_scene(
     **overrides: Any,
 ) -> pipeline.Results:
     """Validate, build and solve a scene; its fields, contact state and info as objects.
-    `linear_solver`: auto|splu|pardiso|amg for the Newton steps."""
+    `linear_solver`: auto|splu|pardiso|amg for the Newton steps. A scene with a [load_path] is
+    solved step by step (`problems.pipeline.load_path`): the answer is the last step's, with
+    info["steps"] (per step: t, Newton steps, residual, converged, times) and
+    info["converged"] true only if every step converged."""
     loaded = _loaded(path_or_model, overrides)
+    if loaded.spec.load_path is not None:
+        from problems.pipeline.load_path import solve_path
+
+        path = solve_path(loaded, level, solver, tol, cold, linear_solver)
+        res = pipeline.results(loaded, path.run)
+        res.info["steps"] = path.steps
+        res.info["converged"] = path.converged and len(path.steps) == len(
+            loaded.spec.load_path.values()
+        )
+        return res
     run = pipeline.solve(loaded, level, solver, tol, cold, linear_solver)
     return pipeline.results(loaded, run)

@@ -77,12 +77,19 @@ def _strip(value):
 
 
 def run_case(name: str, level: int, overrides: tuple[str, ...] = ()) -> dict:
-    """Build, solve (ssn, cold start, tol TOL) and post-process one scene at one level."""
+    """Build, solve (ssn, cold start, tol TOL) and post-process one scene at one level. A
+    scene with a [load_path] is solved step by step (`problems.pipeline.load_path`, every step
+    cold); its last step is the case, and the norms of u and λ of every step are compared too
+    (summary "steps"), with the largest residual and condition estimate over the steps."""
     scene = load_scene(name, list(overrides))
     plugin = registry.for_scene(scene)
-    model = plugin.build(scene, level)
+    steps = None
+    if scene.validated(plugin.SCENE_MODEL).load_path is not None:
+        model, sol, steps = _path(scene, level)
+    else:
+        model = plugin.build(scene, level)
+        sol = vi_core.solve(model.vi, "ssn", tol=TOL, estimate_condition=True)
     vi = model.vi
-    sol = vi_core.solve(vi, "ssn", tol=TOL, estimate_condition=True)
     with tempfile.TemporaryDirectory() as tmp:
         extras = plugin.postprocess(model, sol, Path(tmp))
     fields = model.unknown_fields() if hasattr(model, "unknown_fields") else {"u": slice(None)}
@@ -90,20 +97,52 @@ def run_case(name: str, level: int, overrides: tuple[str, ...] = ()) -> dict:
     norms["lambda"] = float(np.linalg.norm(sol.lam))
     norms["energy"] = float(sol.u @ (vi.A @ sol.u))
     norms["slack"] = float(np.linalg.norm(vi.B @ sol.u - vi.gap)) if vi.m else 0.0
+    summary = json.loads(json.dumps(_strip(extras), default=_jsonable))
+    residual, condition = sol.residual, sol.info.get("condition_estimate") or 0.0
+    if steps is not None:
+        summary["steps"] = [{k: s[k] for k in ("t", "u", "lambda")} for s in steps]
+        residual = max(s["residual"] for s in steps)
+        condition = max(s["condition"] for s in steps)
     return {
         "plugin": plugin.NAME,
         "level": int(model.level),
         "dofs": {k: int(v) for k, v in model.dofs.items()},
         "norms": norms,
-        "summary": json.loads(json.dumps(_strip(extras), default=_jsonable)),
-        "converged": bool(sol.converged),
-        "residual": float(sol.residual),
-        "condition": float(sol.info.get("condition_estimate") or 0.0),
+        "summary": summary,
+        "converged": bool(sol.converged) and all(s["converged"] for s in steps or []),
+        "residual": float(residual),
+        "condition": float(condition),
         # the size of the terms that cancel in Bu − gap: the rounding scale of norms.slack
         "slack_scale": float(np.linalg.norm(abs(vi.B) @ abs(sol.u)) + np.linalg.norm(vi.gap))
         if vi.m
         else 0.0,
     }
+
+
+def _path(scene, level: int):
+    """The load path of `scene` at `level`: the last step's model and solution, and per step
+    t, ‖u‖, ‖λ‖, residual, condition estimate and converged."""
+    from problems.pipeline import validated
+    from problems.pipeline.load_path import solve_path
+
+    steps, last = [], {}
+
+    def keep(step):
+        sol = step.solution
+        last.update(model=step.model, sol=sol)
+        steps.append(
+            {
+                "t": float(step.t),
+                "u": float(np.linalg.norm(sol.u)),
+                "lambda": float(np.linalg.norm(sol.lam)),
+                "residual": float(sol.residual),
+                "condition": float(sol.info.get("condition_estimate") or 0.0),
+                "converged": bool(sol.converged),
+            }
+        )
+
+    solve_path(validated(scene), level, "ssn", TOL, cold=True, on_step=keep)
+    return last["model"], last["sol"], steps
 
 
 def _jsonable(x):

@@ -13,6 +13,8 @@ import math
 import sys
 from pathlib import Path
 
+from tqdm import tqdm
+
 import vi_core
 from problems.errors import SceneError
 from problems.output import plots
@@ -43,6 +45,14 @@ def sweep_values(sweep: Sweep, scene: Scene) -> list[float]:
     return [float(node) * f for f in sweep.factors]
 
 
+def panel_heading(label: str, value: float) -> str:
+    """'friction bound g [Pa]', 1.5e8 → 'friction bound g = 1.5e+08 Pa' (the unit of the
+    label's brackets after the value; '[1]' is dimensionless)."""
+    name, _, unit = label.partition(" [")
+    unit = unit.rstrip("]")
+    return f"{name} = {value:.3g}" + (f" {unit}" if unit and unit != "1" else "")
+
+
 def cmd_figures(args: argparse.Namespace) -> int:
     """Solve the scene for each value of the plug-in's SWEEP and plot them side by side."""
     name = args.scene or DEFAULT_SCENE
@@ -58,7 +68,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("out") / f"{probe.name}_figures"
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
         panels = []
-        for v in values:
+        for v in tqdm(values, desc=f"solving for each {sweep.path}", unit="solve", disable=None):
             scene = load_scene(name, [*(args.set or []), f"{sweep.path}={v!r}"])
             model = plugin.build(scene, level)
             sol = vi_core.solve(model.vi, method="ssn")
@@ -68,10 +78,11 @@ def cmd_figures(args: argparse.Namespace) -> int:
                     file=sys.stderr,
                 )
                 return 1
-            panels.append((f"{sweep.label.split(' [')[0]} = {v:.3g}", model, sol))
+            panels.append((panel_heading(sweep.label, v), model, sol))
         with folder.staging() as tmp:
+            title = probe.data.get("scene", {}).get("title") or probe.name
             titles = plots.sweep_figure(
-                panels, draw, tmp / sweep.file, title=f"{probe.name}: {sweep.label}"
+                panels, draw, tmp / sweep.file, title=f"{title}\n(one panel per {sweep.label})"
             )
     for t in titles:
         print(t)

@@ -27,8 +27,9 @@ from .check import cmd_check
 from .figures import cmd_figures
 from .options import DEFAULT_SCENE
 from .scenes import cmd_scenes
-from .schema import cmd_schema, cmd_validate
+from .schema import cmd_schema
 from .solve import ACCURACY, cmd_solve
+from .validate import cmd_validate
 
 SET_HELP = "override a scene value, e.g. contact.g=5e7 (repeatable)"
 
@@ -114,6 +115,12 @@ def parser() -> argparse.ArgumentParser:
         help="no nested iteration: start Newton from λ = 0 on the requested level only",
     )
     s.add_argument(
+        "--write-levels",
+        action="store_true",
+        help="also write the results of every coarser level of the nested iteration into "
+        "levels/L/ and add their VTU files to results.pvd (one time step per level)",
+    )
+    s.add_argument(
         "--allow-defect",
         action="store_true",
         help="exit 0 even if a contact interface's mortar patch defect exceeds 1e-8",
@@ -128,13 +135,23 @@ def parser() -> argparse.ArgumentParser:
         help="print the scene reference (Markdown tables) generated from the schema instead",
     )
     sh.set_defaults(func=cmd_schema)
-    v = sub.add_parser("validate", help="check a scene and its --set overrides without solving")
+    v = sub.add_parser(
+        "validate",
+        help="check a scene, its --set overrides and its mesh files without solving",
+        description="Check a scene, its overrides and the mesh files it names (groups, cells, "
+        "contact curves) as a solve's build would, at level 0; nothing is solved or written.",
+    )
     v.add_argument("scene", help="scene file or shipped name")
     v.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
     v.set_defaults(func=cmd_validate)
     for name, fn, helptext in (
         ("check", cmd_check, "solve with every applicable method and compare"),
-        ("figures", cmd_figures, "the scene for each value of its plug-in's SWEEP, one panel each"),
+        (
+            "figures",
+            cmd_figures,
+            "solve for a few values of one scene parameter (the friction bound g: Fig. 5.4) "
+            "and plot them side by side",
+        ),
     ):
         c = sub.add_parser(name, help=helptext, description=helptext[0].upper() + helptext[1:])
         c.add_argument("scene", nargs="?", help=f"scene (default {DEFAULT_SCENE})")

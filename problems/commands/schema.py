@@ -1,6 +1,6 @@
 """`mixvi schema`: the JSON Schema of scenes (every installed plug-in's scene model), for
-editors that complete and check TOML/JSON scenes; `mixvi validate SCENE [--set k=v ...]`:
-check a scene and its overrides without building or solving anything (exit 0 or 2)."""
+editors that complete and check TOML/JSON scenes (`mixvi validate` checks one scene:
+problems.commands.validate)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,6 @@ import sys
 
 from problems.plugins import registry
 from problems.scene.model import json_schema
-
-from .solve import load
 
 
 def scene_schema() -> dict:
@@ -110,14 +108,3 @@ def scene_reference(schema: dict) -> str:
             )
         lines.append("")
     return "\n".join(lines)
-
-
-def cmd_validate(args: argparse.Namespace) -> int:
-    """Validate a scene and its overrides (SceneError → exit 2); nothing is built."""
-    loaded = load(args)
-    head = loaded.spec.scene
-    print(
-        f"{loaded.scene.path}: valid {loaded.plugin.NAME} scene (format "
-        f"{loaded.spec.format}, level {head.level}){': ' + head.title if head.title else ''}"
-    )
-    return 0

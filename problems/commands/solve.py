@@ -8,13 +8,16 @@ import sys
 import time
 from pathlib import Path
 
+from tqdm import tqdm
+
 import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
+from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import jsonable, output_folder
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 
-from . import resources
+from . import load_path, resources
 from .options import DEFAULT_SCENE
 
 # --accuracy presets: (level, tol); measured time and error on the paper scene in the README
@@ -39,19 +42,51 @@ def cmd_solve(args: argparse.Namespace) -> int:
     resources.check_levels(plugin, scene, (level, level), option, str(level), args.force)
     out = Path(args.out) if args.out else Path("out") / scene.name
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
+        if loaded.spec.load_path is not None:  # one solve per load step
+            return load_path.run(args, t0, loaded, level, folder, console_summary)
         return _solve(args, t0, loaded, level, folder)
 
 
 def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     plugin = loaded.plugin
-    run = pipeline.solve(loaded, level, args.solver, args.tol, args.cold, args.linear_solver)
-    model, sol, nested = run.model, run.solution, run.nested
     out = folder.path
     with folder.staging() as tmp:
+        coarse: dict[int, list[str]] = {}  # level → its files under levels/L/
+
+        # a progress bar over the levels of the nested iteration (on a terminal only)
+        bar = tqdm(total=level + 1, unit="level", desc="solving", disable=None, leave=False)
+
+        def on_level(model, sol) -> None:  # a coarse level is solved
+            bar.update(1)
+            if args.write_levels:  # its results, under levels/L/
+                sub = Path("levels") / str(model.level)
+                (tmp / sub).mkdir(parents=True)
+                written = plugin.postprocess(model, sol, tmp / sub).get("files", [])
+                coarse[model.level] = [(sub / f).as_posix() for f in written]
+
+        with bar:
+            run = pipeline.solve(
+                loaded,
+                level,
+                args.solver,
+                args.tol,
+                args.cold,
+                args.linear_solver,
+                on_level=on_level,
+            )
+            bar.update(bar.total - bar.n)
+        model, sol, nested = run.model, run.solution, run.nested
         extras = plugin.postprocess(model, sol, tmp)
+        files = [*extras.get("files", [])]
+        per_level = [*sorted(coarse.items()), (model.level, files)]
+        datasets = [d for lev, fs in per_level for d in vtu_datasets(lev, fs)]
+        if datasets:
+            write_pvd(tmp / "results.pvd", datasets)
+            files.append("results.pvd")
         summary = {
             **pipeline.info(loaded, run),
             **extras,
+            "files": files,
             "scaling": pipeline.scaling_summary(model),
             "condition_estimate": sol.info.get("condition_estimate"),
             "solver_info": sol.info,
@@ -63,13 +98,21 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
                 "total": time.perf_counter() - t0,
             },
         }
+        if coarse:
+            summary["levels_written"] = {str(lev): fs for lev, fs in sorted(coarse.items())}
         (tmp / "summary.json").write_text(json.dumps(jsonable(summary), indent=2) + "\n")
     for line in console_summary(
         summary, nested or [pipeline.level_record(model.level, model, sol)]
     ):
         print(line)
-    files = ["summary.json", *summary.get("files", [])]
-    print(f"  wrote {out}/: {', '.join(files)}")
+    print(f"  wrote {out}/: {', '.join(['summary.json', *files])}")
+    if coarse:
+        print(f"  and the coarse levels' results in {out}/levels/{{{','.join(map(str, coarse))}}}/")
+    elif args.write_levels:
+        print(
+            "  note: --write-levels: no coarse level was solved (only the nested ssn solve "
+            "of a level above 0 has them)"
+        )
     defect = summary.get("contact", {}).get("mortar_patch_defect")
     if defect is not None and defect > PATCH_DEFECT_LIMIT and not args.allow_defect:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
@@ -78,7 +121,7 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
 
 
 def _vec(v) -> str:
-    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+    return "(" + ", ".join(f"{x + 0.0:.4g}" for x in v) + ")"  # + 0.0: no "-0"
 
 
 def console_summary(summary: dict, levels: list[dict]) -> list[str]:
@@ -120,6 +163,9 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         if "stick_length" in c:
             parts[1] += f" ({c['stick_length']:.4g} m)"
             parts[2] += f" ({c['slip_length']:.4g} m)"
+        bare = c.get("counts", {}).get("no_multiplier")
+        if bare:
+            parts.append(f"{bare} node{'s' if bare > 1 else ''} without multiplier")
         line = "  contact: " + ", ".join(parts)
         if "force_on_slave" in c:
             line += f"; force on the slave {_vec(c['force_on_slave'])} N/m"

@@ -1,7 +1,7 @@
 """`mixvi study`: accuracy and cost of every solver over a range of refinement levels.
 
     mixvi study SCENE [--levels A..B] [--solvers ssn,conic,homotopy] [--tols 1e-6,1e-8,1e-10]
-                      [--set KEY=VALUE ...] [--out DIR] [--no-progress]
+                      [--set KEY=VALUE ...] [--out DIR] [--no-progress] [--vtu]
                       [--workers N | --scheduler ADDRESS]
 
 Defaults: levels 0..3, all three solvers, tolerances 1e-6, 1e-8, 1e-10.
@@ -32,7 +32,8 @@ Output (committed into DIR, default out/SCENE_study, by problems.output.files): 
 
 (rates: slope of np.polyfit(log h, log err) over the last three levels with an error, at the
 tightest tolerance; null when fewer than two levels), `errors_vs_h.png` and
-`errors_vs_time.png`.
+`errors_vs_time.png`; with `--vtu` also each level's results at the tightest tolerance in
+SOLVER/level_L/ and a ParaView collection SOLVER.pvd per solver (time step = level).
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ from tqdm import tqdm
 
 import vi_core
 from problems.errors import SceneError
+from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import output_folder
 from problems.plugins import registry
 from problems.plugins.contract import needs
@@ -130,12 +132,15 @@ def run_study(
     progress: bool = True,
     plugin: Any = None,
     client: Any = None,
+    solutions: dict | None = None,
 ) -> dict:
     """Solve every (level, solver, tol) and measure errors; returns the study.json content.
 
     client : a `dask.distributed.Client`: the (level, solver) tasks run on its workers
         (`run_case`); None runs them one after the other here. Every number but the times and
-        memory peaks is the same either way."""
+        memory peaks is the same either way.
+    solutions : a dict to receive the solutions, {(level, solver, tol): Solution or None}
+        (`mixvi study --vtu` writes the results of the tightest tolerance from them)."""
     plugin = registry.for_scene(scene) if plugin is None else plugin
     needs(plugin, "mixvi study", *STUDY_NEEDS)
     tols = sorted(tols, reverse=True)
@@ -165,6 +170,8 @@ def run_study(
         for record, sol in done[level, solver]:
             records.append(record)
             runs[level, solver, record["tol"]] = sol
+    if solutions is not None:
+        solutions.update(runs)
     solved = [r for r in records if "error" not in r]
     exact = bool(solved) and all(r["err"] is not None for r in solved)
     if not exact:
@@ -284,14 +291,41 @@ def table(result: dict) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(result: dict, folder) -> None:
-    """study.json and the two figures, committed into the claimed output folder."""
+def write_outputs(result: dict, folder, series: tuple | None = None) -> None:
+    """study.json and the two figures, committed into the claimed output folder; with
+    `series` = (plugin, scene, solutions) also the results per solver and level
+    (`write_series`)."""
     from problems.output.study_plots import plot_errors_vs_h, plot_errors_vs_time
 
     with folder.staging() as tmp:
         (tmp / "study.json").write_text(json.dumps(result, indent=2) + "\n")
         plot_errors_vs_h(result, tmp / "errors_vs_h.png")
         plot_errors_vs_time(result, tmp / "errors_vs_time.png")
+        if series is not None:
+            write_series(*series, tmp)
+
+
+def write_series(plugin: Any, scene: Scene, solutions: dict, tmp: Path) -> list[str]:
+    """`--vtu`: each level's results at the tightest tolerance (the plug-in's postprocess:
+    VTU files, contact.csv, plots) in SOLVER/level_L/, and per solver a ParaView collection
+    SOLVER.pvd over the levels (time = level); returns the collections written. Failed cases
+    have no solution and are left out."""
+    tight = min(t for _, _, t in solutions)
+    series: dict[str, list] = {}
+    for (level, solver, tol), sol in sorted(solutions.items()):
+        if tol != tight or sol is None:
+            continue
+        sub = Path(solver) / f"level_{level}"
+        (tmp / sub).mkdir(parents=True)
+        with threadpool_limits(1):
+            model = plugin.build(scene, level)
+            files = plugin.postprocess(model, sol, tmp / sub).get("files", [])
+        series.setdefault(solver, []).extend(
+            vtu_datasets(level, [(sub / f).as_posix() for f in files])
+        )
+    for solver, datasets in series.items():
+        write_pvd(tmp / f"{solver}.pvd", datasets)
+    return [f"{solver}.pvd" for solver in series]
 
 
 def parser() -> argparse.ArgumentParser:
@@ -303,6 +337,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
     p.add_argument("--out", default=None, help="output directory (default out/SCENE_study)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--vtu",
+        action="store_true",
+        help="also write each level's results at the tightest tolerance into SOLVER/level_L/ "
+        "and per solver a ParaView collection SOLVER.pvd over the levels",
+    )
     where = p.add_mutually_exclusive_group()
     where.add_argument(
         "--workers",
@@ -381,9 +421,12 @@ def study_main(argv: list[str] | None = None) -> int:
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_study"
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
         levels = list(range(a, b + 1))
+        solutions: dict | None = {} if args.vtu else None
         with _client(args) as client:
-            result = run_study(scene, levels, solvers, tols, not args.no_progress, plugin, client)
-        write_outputs(result, folder)
+            result = run_study(
+                scene, levels, solvers, tols, not args.no_progress, plugin, client, solutions
+            )
+        write_outputs(result, folder, (plugin, scene, solutions) if args.vtu else None)
     print(table(result))
     print(f"wrote {out}/")
     return 0 if all(r["converged"] for r in result["records"]) else 1

@@ -116,6 +116,18 @@ def _remove_empty(created: list[Path]) -> None:
             d.rmdir()
 
 
+def _prune(root: Path, rel: Path) -> None:
+    """Remove the folder `root/rel` and its parents below `root` while they are empty (the
+    subfolders of a run's files, e.g. levels/1/, once those files are gone); a folder that
+    holds anything stays."""
+    while rel.parts:
+        try:
+            (root / rel).rmdir()
+        except OSError:  # not empty (or already gone): stop
+            return
+        rel = rel.parent
+
+
 def _iter_files(root: Path) -> Iterator[str]:
     """Relative paths of the non-folder entries under `root`, top level first (mixvi's own
     bookkeeping and staging entries left out)."""
@@ -297,6 +309,7 @@ class OutputFolder:
                 if p.is_file() or p.is_symlink():
                     with suppress(OSError):
                         p.unlink()
+                    _prune(self.path, Path(f).parent)
             self.earlier = [f for f in self.earlier if f not in new and (self.path / f).exists()]
             self._write_marker(new, complete=True)
         except OSError as err:

@@ -1,4 +1,11 @@
-"""PNG figures of contact results (matplotlib, Agg backend: no screen needed)."""
+"""PNG figures of contact results (matplotlib, Agg backend: no screen needed).
+
+Every axis says what it shows in words with its unit; panels of one figure that show the same
+quantity (the same axis label, or mappables with the same label) share one scale, so sizes
+compare at a glance (`share_scales`); a figure with tangential quantities states the sign
+convention of the tangent at its foot. A plug-in whose tangent is not τ (antiplane: e_z) gives
+its own labels and note in the contact state ("tangent_note", "lam_label", "jump_label",
+"ut_label")."""
 
 from __future__ import annotations
 
@@ -12,15 +19,85 @@ import numpy as np  # noqa: E402
 
 # the sign convention of every tangential quantity, printed under the contact plots
 TAU_NOTE = (
-    r"$\tau = (-n_y, n_x)$: the slave's outward normal $n$ turned 90° counterclockwise; "
-    r"arc length runs along $\tau$ (the slave body on the left)"
+    r"sign convention: $\tau = (-n_y, n_x)$, the slave's outward normal $n$ turned 90° "
+    r"counterclockwise; arc length runs along $\tau$ (the slave body on the left); "
+    r"$\lambda\cdot\tau > 0$: the slave is pulled along $-\tau$"
 )
+NOTE_GID = "mixvi-tangent-note"  # the gid of the note's text (one per figure)
+LABELS = {
+    "lam_label": r"tangential multiplier $\lambda\cdot\tau$ [Pa]",
+    "jump_label": r"tangential jump $[u]\cdot\tau$ [m]",
+    "ut_label": r"tangential displacement $u\cdot\tau$ [m]",
+    "s_label": r"arc length along the contact boundary $\Gamma_3$ [m]",
+}
 
 
-def _note(fig) -> None:
-    """The τ sign convention at the foot of a figure."""
-    fig.text(0.5, 0.01, TAU_NOTE, ha="center", va="bottom", fontsize=7, color="0.3")
-    fig.tight_layout(rect=(0, 0.04, 1, 1))
+def _label(state: dict, key: str) -> str:
+    return state.get(key, LABELS[key])
+
+
+def add_note(fig, text: str) -> None:
+    """The sign convention `text` at the foot of `fig` (once, however many panels ask)."""
+    if not any(t.get_gid() == NOTE_GID for t in fig.texts):
+        fig.text(0.5, 0.01, text, ha="center", va="bottom", fontsize=7, color="0.3", gid=NOTE_GID)
+
+
+def _finish(fig) -> None:
+    """Shared scales, and room at the foot for the note if there is one."""
+    share_scales(fig)
+    noted = any(t.get_gid() == NOTE_GID for t in fig.texts)
+    fig.tight_layout(rect=(0, 0.05 if noted else 0, 1, 1))
+
+
+def _data_range(ax, which: str, log: bool = False) -> tuple[float, float] | None:
+    """The range of the finite (on a log axis: positive) data of `ax`'s lines along `which`
+    (None: no data)."""
+    vals = [
+        np.asarray(line.get_ydata() if which == "y" else line.get_xdata(), dtype=float)
+        for line in ax.get_lines()
+    ]
+    vals = [v[np.isfinite(v) & ((v > 0) if log else True)] for v in vals if v.size]
+    vals = [v for v in vals if v.size]
+    if not vals:
+        return None
+    return min(float(v.min()) for v in vals), max(float(v.max()) for v in vals)
+
+
+def share_scales(fig) -> None:
+    """One scale per quantity across the panels of `fig`: axes with the same y label get one
+    y range, the union of their data with a 5 % margin (twin axes included), those with the
+    same x label one x range, and colour-mapped artists with the same label one colour
+    range."""
+    for which in ("y", "x"):
+        groups: dict[str, list] = {}
+        for ax in fig.axes:
+            label = ax.get_ylabel() if which == "y" else ax.get_xlabel()
+            if label:
+                groups.setdefault(label, []).append(ax)
+        for axes in groups.values():
+            log = {(ax.get_yscale() if which == "y" else ax.get_xscale()) == "log" for ax in axes}
+            ranges = [r for r in (_data_range(ax, which, log == {True}) for ax in axes) if r]
+            if len(axes) < 2 or not ranges or len(log) > 1:
+                continue
+            lo, hi = min(r[0] for r in ranges), max(r[1] for r in ranges)
+            if log == {True}:  # a factor of margin on a log axis
+                lo, hi = lo / 1.2, hi * 1.2
+            else:
+                pad = 0.05 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.05
+                lo, hi = lo - pad, hi + pad
+            for ax in axes:
+                (ax.set_ylim if which == "y" else ax.set_xlim)(lo, hi)
+    mappables: dict[str, list] = {}
+    for ax in fig.axes:
+        for m in [*ax.images, *ax.collections]:
+            label = m.get_label()
+            if m.get_array() is not None and label and not label.startswith("_"):
+                mappables.setdefault(label, []).append(m)
+    for ms in mappables.values():
+        lo = min(float(np.nanmin(m.get_array())) for m in ms)
+        hi = max(float(np.nanmax(m.get_array())) for m in ms)
+        for m in ms:
+            m.set_clim(lo, hi)
 
 
 def _shade_slip(ax, s: np.ndarray, slip: np.ndarray) -> None:
@@ -38,33 +115,35 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
     s, slip = state["s"], state["slip"]
     fig, ax = plt.subplots(figsize=(7, 4))
     _shade_slip(ax, s, slip)
-    ax.plot(s, state["lam_t"], "o-", ms=3, color="tab:blue", label=r"$\lambda\cdot\tau$")
-    ax.plot(s, state["g"], "k--", lw=1, label=r"$\pm g$")
+    ax.plot(s, state["lam_t"], "o-", ms=3, color="tab:blue", label="multiplier")
+    ax.plot(s, state["g"], "k--", lw=1, label=r"friction bound $\pm g$")
     ax.plot(s, -state["g"], "k--", lw=1)
-    ax.set_xlabel("arc length along $\\Gamma_3$ [m]")
-    ax.set_ylabel(r"tangential multiplier $\lambda\cdot\tau$ [Pa]")
+    ax.set_xlabel(_label(state, "s_label"))
+    ax.set_ylabel(_label(state, "lam_label"))
     ax2 = ax.twinx()
-    ax2.plot(s, state["jump_t"], "s-", ms=2, color="tab:orange", label=r"$[u]\cdot\tau$")
-    ax2.set_ylabel(r"tangential jump $[u]\cdot\tau$ [m]", color="tab:orange")
+    ax2.plot(s, state["jump_t"], "s-", ms=2, color="tab:orange", label="jump")
+    ax2.set_ylabel(_label(state, "jump_label"), color="tab:orange")
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=8)
     n_slip = int(slip.sum())
     ax.set_title(f"{title}: stick {slip.size - n_slip}, slip {n_slip} nodes")
-    _note(fig)
+    add_note(fig, state.get("tangent_note", TAU_NOTE))
+    _finish(fig)
     fig.savefig(outdir / "contact_multiplier.png", dpi=120)
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(7, 4))
     _shade_slip(ax, s, slip)
-    ax.plot(s, state["ut_slave"], "o-", ms=3, label=r"$u_s\cdot\tau$ (slave)")
+    ax.plot(s, state["ut_slave"], "o-", ms=3, label="slave")
     if "ut_master" in state:
-        ax.plot(s, state["ut_master"], "s-", ms=3, label=r"$u_m\cdot\tau$ (master)")
-    ax.set_xlabel("arc length along $\\Gamma_3$ [m]")
-    ax.set_ylabel(r"tangential displacement $u\cdot\tau$ [m]")
+        ax.plot(s, state["ut_master"], "s-", ms=3, label="master (projected)")
+    ax.set_xlabel(_label(state, "s_label"))
+    ax.set_ylabel(_label(state, "ut_label"))
     ax.legend(loc="best", fontsize=8)
     ax.set_title(title)
-    _note(fig)
+    add_note(fig, state.get("tangent_note", TAU_NOTE))
+    _finish(fig)
     fig.savefig(outdir / "contact_displacement.png", dpi=120)
     plt.close(fig)
     return ["contact_multiplier.png", "contact_displacement.png"]
@@ -87,33 +166,38 @@ def potential_plot(
 
 
 def friction_panel(ax, st: dict) -> str:
-    """One panel of a friction sweep: λ·τ with ±g and the slip zones, and the tangential jump
-    on a twin axis (`st` in the layout of `contact_plots`); returns "stick N, slip M"."""
+    """One panel of a friction sweep: the tangential multiplier with ±g and the slip zones,
+    and the tangential jump on a twin axis (`st` in the layout of `contact_plots`); puts the
+    tangent's sign convention under the figure; returns "stick N, slip M"."""
     _shade_slip(ax, st["s"], st["slip"])
-    ax.plot(st["s"], st["lam_t"], "o-", ms=2, label=r"$\lambda\cdot\tau$")
+    ax.plot(st["s"], st["lam_t"], "o-", ms=2, label="multiplier")
     ax.plot(st["s"], st["g"], "k--", lw=1, label=r"$\pm g$")
     ax.plot(st["s"], -st["g"], "k--", lw=1)
-    ax.set_xlabel("arc length along $\\Gamma_3$ [m]")
-    ax.set_ylabel(r"$\lambda\cdot\tau$ [Pa]")
+    ax.set_xlabel(_label(st, "s_label"))
+    ax.set_ylabel(_label(st, "lam_label"))
     ax2 = ax.twinx()
-    ax2.plot(st["s"], st["jump_t"], "s-", ms=2, color="tab:orange", label=r"$[u]\cdot\tau$")
-    ax2.set_ylabel(r"$[u]\cdot\tau$ [m]", color="tab:orange")
-    ax.legend(loc="best", fontsize=8)
+    ax2.plot(st["s"], st["jump_t"], "s-", ms=2, color="tab:orange", label="jump")
+    ax2.set_ylabel(_label(st, "jump_label"), color="tab:orange")
+    h1, l1 = ax.get_legend_handles_labels()
+    h2, l2 = ax2.get_legend_handles_labels()
+    ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=7)
+    add_note(ax.figure, st.get("tangent_note", TAU_NOTE))
     n_slip = int(st["slip"].sum())
     return f"stick {st['slip'].size - n_slip}, slip {n_slip}"
 
 
 def sweep_figure(panels: list, draw, path: Path, title: str = "") -> list[str]:
     """One panel per (heading, model, sol) of `panels`, each drawn by draw(ax, model, sol),
-    which returns a note appended to the heading; returns the panels' titles."""
-    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4), squeeze=False)
+    which returns a note appended to the heading; the same quantity on one scale across the
+    panels (`share_scales`); returns the panels' titles."""
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4.3), squeeze=False)
     titles = []
     for ax, (heading, model, sol) in zip(axes[0], panels, strict=True):
         note = draw(ax, model, sol)
         titles.append(f"{heading}: {note}" if note else heading)
         ax.set_title(titles[-1], fontsize=9)
     fig.suptitle(title)
-    fig.tight_layout()
+    _finish(fig)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return titles

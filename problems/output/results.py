@@ -1,5 +1,6 @@
 """Results as data: the contact table (contact.csv, contact.vtu, summary entries), named VTU
-tensors, von Mises, and the .pvd collection — the files a ParaView or pandas user reads.
+tensors, von Mises — the files a ParaView or pandas user reads (the .pvd collection:
+`problems.output.collection`).
 
 Conventions (docs/design.md, "Results"): lengths in m, multipliers (contact tractions) in Pa,
 forces per unit thickness in N/m. The multiplier λ = λ_n n + λ_t τ enters the equations as
@@ -10,27 +11,19 @@ bilateral contact of piezo_contact λ_n > 0 is compression, and for unilateral c
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 STATES = ("stick", "slip", "open", "no_multiplier")
-UNITS = {
-    "x": "m",
-    "y": "m",
-    "normal_x": "1",
-    "normal_y": "1",
-    "lambda_n": "Pa",
-    "lambda_t": "Pa",
-    "jump_t": "m",
-    "gap": "m",
-    "state": "-",
-}
+AXES = "xyz"
+UNITS = {"lambda_n": "Pa", "lambda_t": "Pa", "jump_t": "m", "gap": "m", "state": "-"}
 MEANING = {
     "x": "node position",
     "normal_x": "outward unit normal n of the slave body",
+    "tangent_x": "unit tangent t of the multiplier lambda_t",
+    "tangent2_x": "second unit tangent t2 of the multiplier lambda_t2 (t2 = n x t)",
     "lambda_n": "normal multiplier (contact traction on the slave is -lambda; "
     "lambda_n > 0: compression); empty where the node carries none",
     "lambda_t": "tangential multiplier along tau = (-n_y, n_x); |lambda_t| <= g",
@@ -40,56 +33,119 @@ MEANING = {
     "state": "stick (|lambda_t| < g), slip (|lambda_t| = g), open (not touching; unilateral "
     "only), no_multiplier (crosspoint or uncovered node)",
 }
+# with explicit tangent columns the tangential quantities are along them, not along τ
+MEANING_WITH_TANGENTS = {
+    "lambda_t": "tangential multiplier along t (the tangent_* columns); |lambda_t| <= g",
+    "lambda_t2": "tangential multiplier along t2 (the tangent2_* columns)",
+    "jump_t": "tangential jump [u].t (slave minus master; slave displacement for a rigid "
+    "foundation)",
+    "jump_t2": "tangential jump [u].t2",
+}
 
 
 @dataclass(frozen=True)
 class ContactTable:
-    """One row per node of the slave contact boundary, in order along it.
+    """One row per node of the slave contact boundary, in order along it; the columns are
+    those that apply to the contact law (`columns`).
 
-    points, normals : (k, 2).  weights : (k,) ∫φ_k ds (the node's share of the length).
+    points : (k, d) positions, d = 2 or 3.  normals : (k, d) outward unit normals of the slave.
+    weights : (k,) ∫φ_k ds (the node's share of the boundary's length or area).
     segments : (n_seg, 2) row indices of the boundary's segments (for the polyline VTU).
-    lambda_n, lambda_t, jump_t : (k,), NaN where the node carries no such multiplier.
+    lambda_n : (k,) or None (a law without a normal multiplier, e.g. antiplane friction).
+    lambda_t, jump_t : (k,) or (k, d_t) per tangent; NaN where the node carries none.
+    tangents : None (2D: τ = (−n_y, n_x), no columns) or (k, d_t, D) unit tangents, D ≥ d
+        (D = 3 with d = 2: antiplane, whose tangent is e_z), written as tangent_*, tangent2_*.
     state : (k,) one of STATES.  gap : (k,) or None (bilateral contact has none).
+    meanings : column name → meaning, replacing MEANING's line for a plug-in's own law.
     """
 
     points: np.ndarray
     normals: np.ndarray
     weights: np.ndarray
     segments: np.ndarray
-    lambda_n: np.ndarray
+    lambda_n: np.ndarray | None
     lambda_t: np.ndarray
     jump_t: np.ndarray
     state: np.ndarray
     gap: np.ndarray | None = None
+    tangents: np.ndarray | None = None
+    meanings: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def tangent_frame(self) -> np.ndarray:
+        """(k, d_t, D) the unit tangents (2D default: τ = (−n_y, n_x), d_t = 1, D = 2)."""
+        if self.tangents is not None:
+            return self.tangents
+        n = self.normals
+        return np.stack([-n[:, 1], n[:, 0]], axis=1)[:, None, :]
+
+    @staticmethod
+    def _split(name: str, v: np.ndarray) -> dict[str, np.ndarray]:
+        """(k,) → {name}; (k, j) → {name, name2, …}."""
+        if v.ndim == 1:
+            return {name: v}
+        return {name + ("" if j == 0 else str(j + 1)): v[:, j] for j in range(v.shape[1])}
 
     @property
     def columns(self) -> dict[str, np.ndarray]:
-        """The CSV columns, in order."""
-        cols = {
-            "x": self.points[:, 0],
-            "y": self.points[:, 1],
-            "normal_x": self.normals[:, 0],
-            "normal_y": self.normals[:, 1],
-            "lambda_n": self.lambda_n,
-            "lambda_t": self.lambda_t,
-            "jump_t": self.jump_t,
-        }
+        """The CSV columns, in order: x, y[, z], normal_*, [tangent_*, tangent2_*,] lambda_n,
+        lambda_t[, lambda_t2], jump_t[, jump_t2][, gap], state (those that apply)."""
+        d = self.points.shape[1]
+        cols = {AXES[i]: self.points[:, i] for i in range(d)}
+        cols |= {f"normal_{AXES[i]}": self.normals[:, i] for i in range(d)}
+        if self.tangents is not None:
+            dim = self.tangents.shape[2]
+            for j in range(self.tangents.shape[1]):
+                name = "tangent" if j == 0 else f"tangent{j + 1}"
+                cols |= {f"{name}_{AXES[i]}": self.tangents[:, j, i] for i in range(dim)}
+        if self.lambda_n is not None:
+            cols["lambda_n"] = self.lambda_n
+        cols |= self._split("lambda_t", self.lambda_t)
+        cols |= self._split("jump_t", self.jump_t)
         if self.gap is not None:
             cols["gap"] = self.gap
         cols["state"] = self.state
         return cols
 
+    def unit(self, column: str) -> str:
+        """The unit of a column."""
+        if column in AXES:
+            return "m"
+        if column.startswith(("normal_", "tangent")):
+            return "1"
+        return UNITS[column.rstrip("0123456789")]
+
+    def meaning(self, column: str) -> str:
+        """The header comment's meaning of a column (one line for x, y, z and for the
+        components of a vector: normal_y and normal_z read normal_x's)."""
+        if column in AXES:
+            column = "x"
+        elif column.endswith(("_y", "_z")):
+            column = column[:-1] + "x"
+        if column in self.meanings:
+            return self.meanings[column]
+        if self.tangents is not None and column in MEANING_WITH_TANGENTS:
+            return MEANING_WITH_TANGENTS[column]
+        return MEANING.get(column, "")
+
     def totals(self) -> dict:
-        """Contact force on the slave body −∫λ ds (N/m) and the lengths per state (m)."""
-        n = self.normals
-        t = np.stack([-n[:, 1], n[:, 0]], axis=1)  # (k, 2) tangents
-        lam = np.nan_to_num(self.lambda_n)[:, None] * n + np.nan_to_num(self.lambda_t)[:, None] * t
-        force = -(self.weights[:, None] * lam).sum(axis=0)  # (2,)
+        """Contact force on the slave body −∫λ ds (N/m; 3D: N), with the components of the
+        tangents' space (x, y in plane; x, y, z for antiplane and 3D), and the lengths per
+        state (m)."""
+        t = self.tangent_frame  # (k, d_t, D)
+        dim = t.shape[2]
+        n = np.zeros((self.normals.shape[0], dim))  # (k, D) the normal, padded to D
+        n[:, : self.normals.shape[1]] = self.normals
+        lam_t = np.nan_to_num(self.lambda_t).reshape(t.shape[0], -1)  # (k, d_t)
+        lam = np.einsum("kj,kjd->kd", lam_t, t)  # (k, D)
+        if self.lambda_n is not None:
+            lam = lam + np.nan_to_num(self.lambda_n)[:, None] * n
+        force = -(self.weights[:, None] * lam).sum(axis=0)  # (D,)
         lengths = {f"{s}_length": float(self.weights[self.state == s].sum()) for s in STATES}
         counts = {s: int((self.state == s).sum()) for s in STATES}
         return {
             "force_on_slave": force.tolist(),
-            "force_units": "N/m (per unit thickness)",
+            "force_units": "N/m (per unit thickness)" if self.points.shape[1] == 2 else "N",
             **lengths,
             "counts": counts,
         }
@@ -106,14 +162,24 @@ class ContactTable:
             out.append(row)
         return out
 
+    def summary(self) -> dict:
+        """summary.json's `contact` entries of the table: `nodes` (those carrying a
+        multiplier), the stick/slip (and, for unilateral contact, open) counts, the totals
+        and the rows."""
+        totals = self.totals()
+        counts = {k: totals["counts"][k] for k in ("stick", "slip", "open")}
+        if self.gap is None:
+            del counts["open"]
+        nodes = int((self.state != "no_multiplier").sum())
+        return {"nodes": nodes, **counts, **totals, "table": self.records()}
+
 
 def write_contact_csv(path: Path, table: ContactTable) -> None:
     """contact.csv: '#' comment lines with units and meanings, a header row, one row a node."""
     cols = table.columns
     lines = ["# mixvi contact results, one row per node of the slave contact boundary"]
     for k in cols:
-        meaning = MEANING.get(k) or MEANING.get(k.replace("y", "x"), "")
-        lines.append(f"# {k} [{UNITS[k]}]: {meaning}")
+        lines.append(f"# {k} [{table.unit(k)}]: {table.meaning(k)}".rstrip(": "))
     lines.append(",".join(cols))
     for i in range(table.points.shape[0]):
         cells = []
@@ -124,27 +190,39 @@ def write_contact_csv(path: Path, table: ContactTable) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+def _pad3(v: np.ndarray) -> np.ndarray:
+    """(k, d) → (k, 3) with zeros (VTK vectors are 3D)."""
+    return np.concatenate([v, np.zeros((v.shape[0], 3 - v.shape[1]))], axis=1)
+
+
 def write_contact_vtu(path: Path, table: ContactTable) -> None:
     """The contact boundary as a polyline VTU with λ, the jump, the state (code: index in
-    STATES, and per state a 0/1 field) and the normal as point data."""
+    STATES, and per state a 0/1 field), the normal and the explicit tangents as point data."""
     import meshio
 
-    k = table.points.shape[0]
-    pts = np.concatenate([table.points, np.zeros((k, 1))], axis=1)  # (k, 3)
     code = np.array([STATES.index(s) for s in table.state], dtype=np.int32)
-    point_data = {
-        "normal": np.concatenate([table.normals, np.zeros((k, 1))], axis=1),
-        "lambda_n": table.lambda_n,
-        "lambda_t": table.lambda_t,
-        "jump_t": table.jump_t,
-        "state": code,
-        **{f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)},
-    }
+    point_data = {"normal": _pad3(table.normals)}
+    if table.tangents is not None:
+        for j in range(table.tangents.shape[1]):
+            point_data["tangent" if j == 0 else f"tangent{j + 1}"] = _pad3(table.tangents[:, j])
+    if table.lambda_n is not None:
+        point_data["lambda_n"] = table.lambda_n
+    point_data |= table._split("lambda_t", table.lambda_t)
+    point_data |= table._split("jump_t", table.jump_t)
+    point_data["state"] = code
+    point_data |= {f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)}
     if table.gap is not None:
         point_data["gap"] = table.gap
-    meshio.Mesh(pts, [("line", table.segments)], point_data=point_data).write(
+    meshio.Mesh(_pad3(table.points), [("line", table.segments)], point_data=point_data).write(
         str(path), file_format="vtu"
     )
+
+
+def write_contact(outdir: Path, table: ContactTable) -> tuple[list[str], dict]:
+    """contact.csv and contact.vtu in `outdir`; returns (the file names, table.summary())."""
+    write_contact_csv(outdir / "contact.csv", table)
+    write_contact_vtu(outdir / "contact.vtu", table)
+    return ["contact.csv", "contact.vtu"], table.summary()
 
 
 def symmetric_tensor(sxx, syy, szz, sxy) -> np.ndarray:
@@ -157,16 +235,3 @@ def symmetric_tensor(sxx, syy, szz, sxy) -> np.ndarray:
 def von_mises(sxx, syy, szz, sxy) -> np.ndarray:
     """√(½[(σxx−σyy)² + (σyy−σzz)² + (σzz−σxx)²] + 3σxy²)."""
     return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2) + 3.0 * sxy**2)
-
-
-def write_pvd(path: Path, entries: list[tuple[float, int, str]]) -> None:
-    """A ParaView collection: (timestep, part, file name relative to the .pvd) per dataset."""
-    rows = "\n".join(
-        f"    <DataSet timestep={quoteattr(repr(float(t)))} part={quoteattr(str(p))} "
-        f"file={quoteattr(f)}/>"
-        for t, p, f in entries
-    )
-    path.write_text(
-        '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
-        f"{rows}\n  </Collection>\n</VTKFile>\n"
-    )

@@ -10,11 +10,17 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .plots import share_scales  # noqa: E402
+
 LABELS = {
     "u_H1": r"$\|u-u_h\|_{H^1(\Omega)}$ [m]",
     "phi_H1": r"$\|\varphi-\varphi_h\|_{H^1(\Omega)}$ [V]",
     "phi_L2": r"$\|\varphi-\varphi_h\|_{L^2(\Omega)}$ [V m]",
     "lam": r"$(\sum_E h_E\|\lambda-\lambda_h\|^2_{L^2(E)})^{1/2}$ [Pa m]",
+    "u_L2": r"$\|u-u_h\|_{L^2(\Omega)}$ [m²]",
+    # the scalar plug-ins (antiplane: w in m; obstacle: u in the scene's units)
+    "h1": r"$|u-u_h|_{H^1(\Omega)}$ [unit of u]",
+    "l2": r"$\|u-u_h\|_{L^2(\Omega)}$ [unit of u · m]",
 }
 UNITS_NOTE = "H¹ norms mix L² (× m) and gradient parts; lengths in m"
 
@@ -58,6 +64,7 @@ def plot_errors_vs_h(result: dict, path: Path) -> None:
         f"{result['scene']}: errors against {result['reference']} (tol {tight:g}); {UNITS_NOTE}",
         fontsize=9,
     )
+    share_scales(fig)  # one mesh-size axis for every panel
     fig.savefig(path, dpi=120)
     plt.close(fig)
 

@@ -12,6 +12,7 @@ Nothing here writes files: `mixvi solve` (problems.commands.solve) adds the outp
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -71,12 +72,14 @@ def solve(
     tol: float | None = None,
     cold: bool = False,
     linear_solver: str = "auto",
+    on_level: Callable[[Any, vi_core.Solution], None] | None = None,
 ) -> Run:
     """Build `loaded` at `level` (None: the scene's) and solve it with `method` and `tol`
     (None: the scene's [solver], else ssn and 1e-10). With ssn and a plug-in that has
     `warm_start`, levels 0 … L−1 are solved first, each warm-starting the next (unless
     `cold`). `linear_solver` (auto|splu|pardiso|amg) solves the Newton steps, coarse levels
-    included."""
+    included. `on_level(model, solution)` is called for each coarse level of the nested
+    iteration while it is alive (mixvi solve --write-levels writes its results)."""
     scene, plugin = loaded.scene, loaded.plugin
     t0 = time.perf_counter()
     model = plugin.build(scene, level)
@@ -88,7 +91,7 @@ def solve(
     nested: list[dict] = []
     warm: dict = {}
     if method == "ssn" and hasattr(plugin, "warm_start") and model.level > 0 and not cold:
-        nested, warm = _nested(plugin, scene, model, tol, linear_solver)
+        nested, warm = _nested(plugin, scene, model, tol, linear_solver, on_level)
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
         warm["estimate_condition"] = True
     sol = vi_core.solve(model.vi, method=method, tol=tol, linear_solver=linear_solver, **warm)
@@ -99,7 +102,12 @@ def solve(
 
 
 def _nested(
-    plugin: Any, scene: Scene, model: Any, tol: float, linear_solver: str
+    plugin: Any,
+    scene: Scene,
+    model: Any,
+    tol: float,
+    linear_solver: str,
+    on_level: Callable[[Any, vi_core.Solution], None] | None = None,
 ) -> tuple[list[dict], dict]:
     """Nested iteration: levels 0 … L−1 solved first, each warm-starting the next; returns
     their records and the warm start of `model`. The coarse models are gone when it returns
@@ -111,6 +119,8 @@ def _nested(
         prev = None  # the level before is no longer needed
         csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, linear_solver=linear_solver, **kw)
         nested.append(level_record(lev, coarse, csol))
+        if on_level is not None:
+            on_level(coarse, csol)
         prev = (coarse, csol)
     return nested, plugin.warm_start(*prev, model)
 

@@ -29,10 +29,12 @@ from fem import assembly
 from fem.boundary import Trace, trace
 from fem.mesh import Mesh
 from problems.errors import SceneError
-from problems.output import plots
+from problems.output import plots, results
+from problems.output.results import ContactTable
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import Expression, NonNegativeExpr, Number, Text
 from problems.scene.geometry import Geometry
+from problems.scene.imported import require_curve
 from problems.scene.model import head, one_or_many
 from vi_core import Box, MixedVI, Solution
 
@@ -158,6 +160,9 @@ def build(scene: Scene, level: int | None = None) -> Model:
             for b in d.boundary
         ]
         check_meshed(mesh, [*refs, (spec.friction.key("boundary"), spec.friction.boundary)])
+    require_curve(
+        mesh, spec.friction.boundary, spec.friction.key("boundary"), spec.friction.boundary
+    )
     mu = spec.domain.shear_modulus
     F = assembly.volume_load(mesh, spec.domain.load, 1)  # (n_nodes,)
     fixed, values = dirichlet(spec.dirichlet, mesh)
@@ -207,7 +212,19 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "jump_t": w3,
         "ut_slave": w3,
         "slip": slip,
+        **PLOT_LABELS,
     }
+
+
+# the plots' words for antiplane: the friction acts along e_z, not along an in-plane tangent
+PLOT_LABELS = {
+    "lam_label": r"friction traction $\lambda = -\mu\,\partial w/\partial n$ [Pa]",
+    "jump_label": "out-of-plane displacement (slip) w [m]",
+    "ut_label": "out-of-plane displacement w [m]",
+    "tangent_note": r"sign convention: $w$ and $\lambda$ point along $e_z$, out of the plane; "
+    r"$\lambda > 0$: the foundation pulls the body along $-e_z$; arc length runs with the body "
+    "on the left",
+}
 
 
 def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
@@ -215,21 +232,56 @@ def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
     return {"w": model.full(sol.u)}
 
 
+# the columns of antiplane's contact.csv in its own terms (the tangent is e_z, out of plane)
+CONTACT_MEANINGS = {
+    "tangent_x": "the friction direction: e_z, out of the plane (antiplane shear)",
+    "lambda_t": "friction traction lambda = -mu dw/dn along e_z (the foundation's traction "
+    "on the body is -lambda e_z); |lambda_t| <= g; empty where w is prescribed",
+    "jump_t": "slip: the out-of-plane displacement w against the rigid foundation",
+}
+
+
+def contact_table(model: Model, sol: Solution) -> ContactTable:
+    """One row per node of Γ3 (problems.output.results): λ and w along e_z, stick or slip;
+    nodes with prescribed w carry no multiplier (state no_multiplier, λ empty)."""
+    tr, k = model.tr, model.tr.size
+    st = contact_state(model, sol)
+    lam = np.full(k, np.nan)  # (k,)
+    lam[model.rows] = st["lam_t"]
+    state = np.full(k, "no_multiplier", dtype=object)
+    state[model.rows] = np.where(st["slip"], "slip", "stick")
+    tangents = np.zeros((k, 1, 3))  # (k, 1, 3): e_z at every node
+    tangents[:, 0, 2] = 1.0
+    return ContactTable(
+        points=model.mesh.points[tr.nodes],
+        normals=tr.normals,
+        weights=tr.weights,
+        segments=tr.segments,
+        lambda_n=None,
+        lambda_t=lam,
+        jump_t=model.full(sol.u)[tr.nodes],
+        state=state.astype(str),
+        tangents=tangents,
+        meanings=CONTACT_MEANINGS,
+    )
+
+
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """antiplane.vtu (w) and the friction plots along Γ3 (multiplier with ±g, w)."""
+    """antiplane.vtu (w), the friction line (contact.csv, contact.vtu) and the friction plots
+    along Γ3 (multiplier with ±g, w)."""
     from fem.io import write_vtu
 
     w = model.full(sol.u)  # (n_nodes,)
     write_vtu(outdir / "antiplane.vtu", model.mesh, {"w": w})
     state = contact_state(model, sol)
     files = plots.contact_plots(state, outdir, title=f"{model.scene.name} (antiplane: w)")
-    n, n_slip = state["slip"].size, int(state["slip"].sum())
+    written, contact = results.write_contact(outdir, contact_table(model, sol))
     lemma = model.complementarity(sol)
     summary = {
-        "contact": {"nodes": n, "stick": n - n_slip, "slip": n_slip},
+        "contact": contact,
         "lemma_4_2": lemma,
         "complementarity": lemma,
-        "files": sorted([*files, "antiplane.vtu"]),
+        "files": sorted([*files, *written, "antiplane.vtu"]),
     }
     if model.exact is not None:
         summary["errors"] = model.errors(sol)

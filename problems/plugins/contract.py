@@ -32,6 +32,20 @@ declaration it needs with exit status 2, naming the declaration):
     extremes() -> list[ExtremeRow]             `mixvi extremes`: this plug-in's extreme rows
     warm_start(coarse, coarse_sol, fine)       `mixvi solve`, `bench`: nested iteration's
                          -> dict               initial guess (keyword arguments of solve)
+    incremental(model, previous, previous_sol) load paths (`[load_path]`, mixvi solve and
+                         -> None               `problems.solve_scene`): make `model`, the next
+                                               load step just built, act on the increments
+                                               since `previous` (the step before, solved as
+                                               `previous_sol`) before it is solved — e.g. a
+                                               friction law on the slip increment: shift the
+                                               tangential gap by B_t x_prev (replace model.vi
+                                               by model.vi.with_rhs(gap=...)). Without it
+                                               every step is solved in total form (path-
+                                               independent; the summary says so)
+    step_output(model, sol, outdir) -> dict    load paths: the files of one load step (cheap:
+                                               VTU datasets, tables; no plots) and the summary
+                                               entries "files" and "contact" (counts per state:
+                                               stick, slip, open); default: postprocess
 
 and the `Model` it returns carries
 
@@ -208,7 +222,16 @@ def conforms(obj: Any) -> list[str]:
     sm = getattr(obj, "SCENE_MODEL", None)
     if not (isinstance(sm, type) and issubclass(sm, SceneModel)):
         missing.append("SCENE_MODEL (a subclass of problems.scene.SceneModel; contract 2)")
-    optional = ("draw", "mesh_size", "exact_errors", "reference_errors", "extremes", "warm_start")
+    optional = (
+        "draw",
+        "mesh_size",
+        "exact_errors",
+        "reference_errors",
+        "extremes",
+        "warm_start",
+        "incremental",
+        "step_output",
+    )
     for attr in optional:
         if hasattr(obj, attr) and not callable(getattr(obj, attr)):
             missing.append(f"{attr}() (a function, when declared)")

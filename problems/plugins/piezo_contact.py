@@ -149,6 +149,9 @@ class Model:
     values: np.ndarray  # (n_full,) prescribed values (fixed entries)
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
+    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
+    slip_origin: np.ndarray | None = None
 
     def unknown_fields(self) -> dict[str, np.ndarray]:
         """Boolean masks over the unknowns: which are displacement, which potential."""
@@ -762,14 +765,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
     rho = c.bound(sol.lam) * touch_t  # (N_t,); a rounding-level λ_n does not touch
     rmax = float(rho.max(initial=0.0))
     slip = touch_t & (np.abs(lam_t) >= rho - 1e-9 * max(rmax, 1e-300))
-    b_uh_lam = float(sol.lam @ (Bu - gap_rows))
+    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    b_uh_lam = float(sol.lam @ (Bi - gap_rows))
     weights = rho * c.W_t  # (N_t,) ∫ρφ̃_k (bilateral: g_weights)
-    g_abs = float(np.sum(weights * np.abs(jump_t)))
+    g_abs = float(np.sum(weights * np.abs(c.tangential(Bi) / c.W_t)))
     tiny = np.finfo(float).eps * float(np.sum(weights)) * max(np.abs(x_full).max(), 1e-300)
     scale = g_abs
     if c.law == "unilateral":  # the pressure scale P times the slack: rounding when apart
         pressure = max(float(lam_n.max(initial=0.0)), force)
-        scale = max(g_abs, pressure * float(np.abs(Bu - gap_rows).sum()))
+        scale = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))
     lemma = abs(b_uh_lam - g_abs) / max(scale, tiny, 1e-300)
     state = {
         "s": c.tr.s[c.rows_t],
@@ -903,23 +907,22 @@ def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """Write VTU fields (one per body, the contact line, a .pvd), contact.csv and PNG plots
+    """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
     into `outdir`; return the summary entries."""
     from fem.io import write_vtu
 
     x_full = model.full(sol.u)
-    files, notes, datasets = [], [], []
+    files, notes = [], []
     for b in model.bodies:
         point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
         fn = f"{b.name}.vtu"
         write_vtu(outdir / fn, b.mesh, point, cell)
         files.append(fn)
-        datasets.append((model.level, len(datasets), fn))
         if note:
             notes.append(note)
     summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
     if model.contact is not None:
-        quad = piezo_balance.lemma_4_2(model, sol)
+        quad = piezo_balance.lemma_4_2(model, sol) if model.slip_origin is None else None
         if quad is not None:
             summary["lemma_4_2_quadrature"] = quad
         state = contact_state(model, sol)
@@ -928,7 +931,6 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         results.write_contact_csv(outdir / "contact.csv", table)
         results.write_contact_vtu(outdir / "contact.vtu", table)
         files += ["contact.csv", "contact.vtu"]
-        datasets.append((model.level, len(datasets), "contact.vtu"))
         n_slip = int(state["slip"].sum())
         n_touch = int(state["touch_t"].sum())
         summary["contact"] = {
@@ -946,8 +948,6 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         }
         summary["lemma_4_2"] = state["lemma_4_2"]
         summary["warnings"] = contact_warnings(state)
-    results.write_pvd(outdir / "results.pvd", datasets)
-    files.append("results.pvd")
     if notes:
         summary["notes"] = notes
     along = model.options.get("potential_along")
@@ -987,6 +987,41 @@ def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
     """The NORMS against the scene's [exact] table (None without one)."""
     _, exact = split_exact(model.scene)
     return None if exact is None else piezo_errors.exact_errors(model, sol.u, sol.lam, exact)
+
+
+def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
+    """One load step's files (no plots): a VTU per body, contact.vtu and contact.csv; the
+    summary entries "files" and "contact" (the counts per state)."""
+    from fem.io import write_vtu
+
+    x_full = model.full(sol.u)
+    files = []
+    for b in model.bodies:
+        point, cell, _ = body_fields(b, x_full[b.offset : b.offset + b.size])
+        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
+        files.append(f"{b.name}.vtu")
+    out: dict = {"files": files}
+    if model.contact is not None:
+        table = contact_table(model, sol)
+        results.write_contact_csv(outdir / "contact.csv", table)
+        results.write_contact_vtu(outdir / "contact.vtu", table)
+        files += ["contact.csv", "contact.vtu"]
+        out["contact"] = table.totals()["counts"]
+    return out
+
+
+def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
+    """Load paths: the friction law of the next step `model` acts on the slip since the
+    previous step, [u]_τ − [u_prev]_τ: the tangential rows of the gap are shifted by
+    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
+    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
+    c = model.contact
+    if c is None:
+        return
+    origin = c.B_full @ previous.full(previous_sol.u)  # (N_n + N_t,) in B_full's row order
+    origin[c.idx_n] = 0.0
+    model.slip_origin = origin
+    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
 
 
 def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:

@@ -118,13 +118,18 @@ def piezo_spec(spec: SignoriniScene) -> pc.PiezoScene:
 
 def build(scene: Scene, level: int | None = None) -> Model:
     """Scene → the piezo_contact Model of its preset (module docstring)."""
+    spec = scene.validated(SCENE_MODEL)
     try:
-        return pc.build_model(piezo_spec(scene.validated(SCENE_MODEL)), scene, level, Model)
+        return pc.build_model(piezo_spec(spec), scene, level, Model)
     except pc.SceneError as err:
+        if err.key == "contact.slave":  # the preset's slave is signorini's contact.boundary
+            err = pc.SceneError("contact.boundary", spec.contact.boundary, err.allowed, err.file)
         raise (err if err.file else err.in_file(scene.path)) from None
 
 
 warm_start = pc.warm_start
+incremental = pc.incremental  # load paths: friction on the slip since the previous step
+step_output = pc.step_output
 
 
 contact_state = pc.contact_state

@@ -8,14 +8,19 @@ turns the first one into a SceneError naming the field path, the value and what 
 - `Expression`: a number or an expression string (`problems.scene.expressions`), compiled
   once; called as f(x, y) it refuses a non-finite or oversized result
   with its field path and text (`NonNegativeExpr`: constants also checked ≥ 0 when read).
-  `Vector` is a pair of them.
+  `Vector` is a pair of them. An expression may use the load parameter t when the scene has
+  a `[load_path]` (checked by `problems.scene.model.validate`); it is evaluated at the t of
+  the enclosing `load_parameter(t)` block (a load step), and outside one at the path's last t
+  (`Expression.t_end`, set by validation).
 - `Interval`, `IntPair`, `Point`: [a, b] pairs.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Annotated, Any
 
 import numpy as np
@@ -70,22 +75,53 @@ Integer = Annotated[int, BeforeValidator(integer_value)]
 Text = Annotated[str, BeforeValidator(text_value)]
 
 
+VARIABLES = ("x", "y", "t")  # t: the load parameter (scenes with a [load_path] only)
+_LOAD_T: ContextVar[float | None] = ContextVar("load_parameter", default=None)
+
+
+@contextmanager
+def load_parameter(t: float) -> Iterator[None]:
+    """Inside the block every scene expression is evaluated at load parameter `t` (one step of
+    a load path: `problems.pipeline.load_path`)."""
+    token = _LOAD_T.set(float(t))
+    try:
+        yield
+    finally:
+        _LOAD_T.reset(token)
+
+
 class Expression:
     """A compiled scalar field f(x, y) of a scene: a constant or an expression text.
 
     `path` (the dotted scene field, set by `problems.scene.model.validate`) and `source` name
-    it in every refusal. Calling it never changes its arguments.
+    it in every refusal. Calling it never changes its arguments. `uses_t`: the text names the
+    load parameter t, taken from the enclosing `load_parameter` block, else `t_end` (the last
+    t of the scene's load path, set by validation; None: the scene has no load path).
     """
 
     def __init__(self, source: float | str):
         self.source = source
         self.path = "(expression)"
+        self.t_end: float | None = None
         if isinstance(source, str):
-            self._fn = compile_expression(source)
+            self._fn = compile_expression(source, VARIABLES)
             self.constant = False
+            self.uses_t = "t" in _names(source)
         else:
             self._fn = None
             self.constant = True
+            self.uses_t = False
+
+    def load_t(self) -> float:
+        """The load parameter this expression is evaluated at now (0 if it does not use t;
+        SceneError if it does and the scene has no load path)."""
+        if not self.uses_t:
+            return 0.0
+        t = _LOAD_T.get()
+        t = self.t_end if t is None else t
+        if t is None:
+            raise SceneError(self.path, self.source, NO_LOAD_PATH)
+        return t
 
     def __call__(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Values at the points (x, y): an array of their broadcast shape (SceneError if any
@@ -93,17 +129,19 @@ class Expression:
         shape = np.broadcast_shapes(np.shape(x), np.shape(y))
         if self._fn is None:
             return np.full(shape, float(self.source))
-        out = self._fn(x, y)
+        t = self.load_t()
+        out = self._fn(x, y, np.float64(t))
         bad = ~(np.isfinite(out) & (np.abs(out) <= MAX_MAGNITUDE))
         if bad.any():
             i = np.unravel_index(int(np.argmax(bad)), shape)
             xi, yi = (float(np.broadcast_to(a, shape)[i]) for a in (x, y))
+            at_t = f", t = {t:.6g}" if self.uses_t else ""
             raise SceneError(
                 self.path,
                 self.source,
                 f"an expression whose values are finite and of size ≤ {MAX_MAGNITUDE:g} on the "
-                f"domain (at (x, y) = ({xi:.6g}, {yi:.6g}) it is {float(out[i])!r}: a division "
-                "by zero, an overflow or a function outside its domain)",
+                f"domain (at (x, y) = ({xi:.6g}, {yi:.6g}){at_t} it is {float(out[i])!r}: a "
+                "division by zero, an overflow or a function outside its domain)",
             )
         return out
 
@@ -127,8 +165,8 @@ class Expression:
                 raise PydanticCustomError(
                     "expression", "{why}; allowed: {allowed}", {"allowed": ALLOWED, "why": str(err)}
                 ) from None
-            if not ({"x", "y"} & _names(v)):  # a constant expression: evaluate it now
-                val = e._fn(np.zeros(1), np.zeros(1))
+            if not (set(VARIABLES) & _names(v)):  # a constant expression: evaluate it now
+                val = e._fn(np.zeros(1), np.zeros(1), np.zeros(1))
                 if not (np.isfinite(val).all() and (np.abs(val) <= MAX_MAGNITUDE).all()):
                     raise PydanticCustomError(
                         "expression",
@@ -162,6 +200,12 @@ class Expression:
             ],
             "description": ALLOWED,
         }
+
+
+NO_LOAD_PATH = (
+    "an expression of x and y: t is the load parameter of a load path, and this scene has no "
+    "[load_path] section (add one, e.g. `[load_path]` with `steps = 10`, docs/load_paths.md)"
+)
 
 
 def _names(text: str) -> set[str]:

@@ -22,10 +22,11 @@ from pydantic_core import PydanticCustomError
 
 from problems.errors import SceneError
 
-from .fields import Expression, Integer, Number, Text
+from .fields import NO_LOAD_PATH, Expression, Integer, Number, Text
 
 FORMAT = 2  # the current scene format; format 1 (no `format` key) is migrated on loading
 MAX_LEVEL = 12
+MAX_STEPS = 1000  # load steps of a [load_path]: each one is a full solve
 METHODS = ("auto", "ssn", "conic", "homotopy")  # vi_core.METHODS (a test keeps them equal)
 
 
@@ -102,12 +103,63 @@ class Solver(Section):
         return {k: v for k, v in (("method", self.method), ("tol", self.tol)) if v is not None}
 
 
+Step = Annotated[Number, Field(ge=0.0)]
+
+
+class LoadPath(Section):
+    """The optional [load_path] table: the load steps of a quasi-static path (docs/load_paths.md).
+
+    Every expression of the scene may then use the load parameter t. The path starts from the
+    unloaded reference state and solves one state per value of t, each warm-started from the
+    one before and, with a plug-in that declares `incremental`, in the incremental form (a
+    friction law acts on the slip since the previous step). Either `steps = N`: t = end·k/N
+    for k = 1 … N (end = 1 unless given), or `t = [t1, t2, ...]`: increasing values ≥ 0.
+    """
+
+    steps: Annotated[Integer, Field(ge=1, le=MAX_STEPS)] | None = Field(
+        None, description="number of equal steps from t = 0 to t = end"
+    )
+    end: Annotated[Number, Field(gt=0.0)] | None = Field(
+        None, description="the last t with `steps` (default 1)"
+    )
+    t: Annotated[list[Step], Field(min_length=1, max_length=MAX_STEPS)] | None = Field(
+        None, description="the values of t, increasing (instead of `steps`)"
+    )
+
+    @model_validator(mode="after")
+    def _one_form(self) -> LoadPath:
+        if self.steps is None and self.t is None:
+            raise refuse(["steps"], None, "required: `steps = N` or `t = [t1, t2, ...]`")
+        if self.steps is not None and self.t is not None:
+            raise refuse(["t"], self.t, "absent with `steps = N` (give one of the two)")
+        if self.t is not None:
+            if self.end is not None:
+                raise refuse(
+                    ["end"], self.end, "absent with `t = [...]` (its last value is the end)"
+                )
+            for i in range(1, len(self.t)):
+                if self.t[i] <= self.t[i - 1]:
+                    raise refuse(
+                        ["t", i], self.t[i], f"a value above the one before ({self.t[i - 1]!r})"
+                    )
+        return self
+
+    def values(self) -> list[float]:
+        """The load parameter of each step, in order."""
+        if self.t is not None:
+            return [float(v) for v in self.t]
+        end = 1.0 if self.end is None else float(self.end)
+        return [end * k / self.steps for k in range(1, self.steps + 1)]
+
+
 class SceneModel(Section):
-    """The root of a scene: format, [scene], [solver]; plug-ins add their sections."""
+    """The root of a scene: format, [scene], [solver], [load_path]; plug-ins add their
+    sections."""
 
     format: Literal[2] = Field(description="the scene format (2)")
     scene: Head
     solver: Solver | None = None
+    load_path: LoadPath | None = None
 
     def options(self) -> dict:
         """Solver options from the scene (only the keys it gives)."""
@@ -140,7 +192,34 @@ def validate(
             root = {p: root}
         raise _scene_error(e, root, file, overrides or {}) from None
     assign_paths(model, path_text(prefix))
+    if isinstance(model, SceneModel):
+        _load_parameter(model, file, overrides or {})
     return model
+
+
+def expressions(obj: Any) -> list[Expression]:
+    """Every expression of a validated model (or part of one), in field order."""
+    if isinstance(obj, Expression):
+        return [obj]
+    if isinstance(obj, BaseModel):
+        return [e for name in type(obj).model_fields for e in expressions(getattr(obj, name))]
+    if isinstance(obj, list | tuple):
+        return [e for v in obj for e in expressions(v)]
+    if isinstance(obj, dict):
+        return [e for v in obj.values() for e in expressions(v)]
+    return []
+
+
+def _load_parameter(model: SceneModel, file: str | None, overrides: dict[str, str]) -> None:
+    """Refuse t in an expression of a scene without [load_path] (naming the field); with one,
+    tell every expression the path's last t (its value outside a load step)."""
+    path = model.load_path
+    t_end = path.values()[-1] if path is not None else None
+    for e in expressions(model):
+        if e.uses_t and path is None:
+            err = SceneError(e.path, e.source, NO_LOAD_PATH, file)
+            raise _with_override(err, e.path, overrides)
+        e.t_end = t_end
 
 
 def path_text(loc: Sequence[str | int]) -> str:
@@ -219,17 +298,19 @@ def _scene_error(e: dict, data: dict, file: str | None, overrides: dict[str, str
         loc.append("kind")
         value = _at(data, loc)
         msg = "one of " + ctx.get("expected_tags", "")
-        return _with_override(SceneError(path_text(loc), value, msg, file), loc, overrides)
+        return _with_override(
+            SceneError(path_text(loc), value, msg, file), path_text(loc), overrides
+        )
     elif t == "missing":
         value = None
     if isinstance(value, dict | list) and t not in ("unknown_key", "scene_value"):
         shown = _at(data, loc)
         value = shown if shown is not None else value
-    return _with_override(SceneError(path_text(loc), value, _allowed(e), file), loc, overrides)
+    err = SceneError(path_text(loc), value, _allowed(e), file)
+    return _with_override(err, path_text(loc), overrides)
 
 
-def _with_override(err: SceneError, loc: list, overrides: dict[str, str]) -> SceneError:
-    path = path_text(loc)
+def _with_override(err: SceneError, path: str, overrides: dict[str, str]) -> SceneError:
     for key, text in overrides.items():
         if path == key or path.startswith(key + ".") or path.startswith(key + "["):
             return SceneError(err.key, err.value, f"{err.allowed} (set by --set {text})", err.file)

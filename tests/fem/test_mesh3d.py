@@ -6,12 +6,14 @@ import pytest
 from fem.elements3d import FACES
 from fem.mesh3d import (
     EDGES,
+    END_PARTS,
     SIDES,
     Mesh3D,
     box,
     check_cells,
     cofactors,
     exterior_faces,
+    extrude,
     jacobian_determinants,
     refine,
     transform,
@@ -237,3 +239,39 @@ def test_refine_check_catches_a_fixed_octahedron_diagonal(monkeypatch):
     monkeypatch.setattr(mesh3d, "_octahedron", lambda d: good(1))
     fine = refine(box(*BOUNDS, (2, 1, 3), "tetra"))
     assert fine.h > 1.5 * box(*BOUNDS, (2, 1, 3), "tetra", level=1).h
+
+
+@pytest.mark.parametrize("layers", [1, 3])
+def test_extrude_a_2d_mesh(layers):
+    """The paper's cradle extruded: volume = area × thickness, every exterior face in exactly
+    one part and outward (same orientation as the cells' own exterior faces)."""
+    from fem.shapes import cradle
+
+    m2 = cradle(level=1)
+    mesh = extrude(m2, (-0.1, 0.2), layers)
+    X = m2.points[m2.cells]  # (n_c, 4, 2) counterclockwise quadrilaterals
+    area = 0.5 * np.sum(
+        X[:, :, 0] * np.roll(X[:, :, 1], -1, 1) - np.roll(X[:, :, 0], -1, 1) * X[:, :, 1]
+    )
+    np.testing.assert_allclose(cell_volumes(mesh).sum(), 0.3 * area, rtol=1e-13)
+    ext = exterior_faces(mesh.cells, "hexahedron")
+    parts = np.concatenate(list(mesh.boundaries.values()))
+    assert parts.shape[0] == ext.shape[0] == len({tuple(sorted(f)) for f in parts})
+    own = {tuple(sorted(f)): list(f) for f in ext}
+    for f in parts:  # the same cyclic order as the cell's outward face
+        g = own[tuple(sorted(f))]
+        assert list(np.roll(g, -g.index(f[0]))) == list(f)
+    assert set(mesh.boundaries) == set(m2.boundaries) | set(END_PARTS)
+
+
+def test_extrude_refuses_bad_input():
+    from fem.mesh import Mesh
+    from fem.shapes import cradle
+
+    tri = Mesh(np.array([[0.0, 0], [1, 0], [0, 1]]), np.array([[0, 1, 2]]), {})
+    with pytest.raises(ValueError, match="quadrilateral"):
+        extrude(tri, (0.0, 1.0))
+    with pytest.raises(ValueError, match="layers"):
+        extrude(cradle(), (0.0, 1.0), 0)
+    with pytest.raises(ValueError, match="z0 < z1"):
+        extrude(cradle(), (1.0, 1.0))

@@ -335,3 +335,21 @@ def test_mutation_staging_mkdir_outside_the_cleanup_is_caught(tmp_path, monkeypa
     monkeypatch.setattr(files.OutputFolder, "staging", leaky_staging)
     with pytest.raises(CAUGHT):
         test_a_signal_right_after_any_creation_leaves_nothing_behind(tmp_path, monkeypatch, "mkdir")
+
+
+def test_a_later_run_removes_the_subfolders_it_emptied_and_keeps_the_rest(tmp_path):
+    out = tmp_path / "out"
+    run(out, {n: n for n in ["summary.json", "levels/0/a.vtu", "levels/1/a.vtu", "levels/1/b"]})
+    (out / "levels" / "1" / "mine.txt").write_text("the user's")
+    run(out, {"summary.json": "{}"}, overwrite=True)
+    assert not (out / "levels" / "0").exists()  # emptied by this run: gone
+    assert (out / "levels" / "1" / "mine.txt").read_text() == "the user's"  # kept, and its folder
+    assert not (out / "levels" / "1" / "a.vtu").exists()
+
+
+def test_mutation_without_pruning_empty_subfolders_stay(tmp_path, monkeypatch):
+    monkeypatch.setattr(files, "_prune", lambda root, rel: None)
+    out = tmp_path / "out"
+    run(out, {"summary.json": "{}", "levels/0/a.vtu": ""})
+    run(out, {"summary.json": "{}"})
+    assert (out / "levels" / "0").is_dir()

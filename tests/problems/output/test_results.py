@@ -161,3 +161,122 @@ def test_von_mises_of_uniaxial_tension_and_pure_shear():
     assert von_mises(one, one, one, zero)[0] == pytest.approx(0.0)  # hydrostatic
     t = symmetric_tensor(np.array([1.0]), np.array([2.0]), np.array([3.0]), np.array([4.0]))
     np.testing.assert_array_equal(t, [[1, 2, 3, 4, 0, 0]])
+
+
+# ------------------------------------------------------------------ antiplane's friction line
+def _antiplane_balance(model, sol):
+    """−(load + Dirichlet reactions) on the body: by equilibrium the force the foundation
+    exerts, computed from the assembled system at every node (not from the multipliers)."""
+    import problems.plugins.antiplane as ap
+    from fem import assembly
+
+    spec = model.scene.validated(ap.SCENE_MODEL)
+    w = model.full(sol.u)
+    F = assembly.volume_load(model.mesh, spec.domain.load, 1)
+    for t in spec.traction:
+        for part in t.boundary:
+            F = F + assembly.boundary_load(model.mesh, part, t.value, 1)
+    K = spec.domain.shear_modulus * assembly.stiffness_matrix(model.mesh)
+    fixed = np.setdiff1d(np.arange(model.mesh.n_nodes), model.free)
+    reaction = float((K @ w - F)[fixed].sum())  # support reaction at the prescribed nodes
+    return -(float(F.sum()) + reaction)
+
+
+@pytest.mark.parametrize("scene", ["antiplane", "antiplane_manufactured"])
+def test_antiplane_writes_its_friction_line(tmp_path, scene):
+    out = _solve_cli(tmp_path, scene)
+    summary = json.loads((out / "summary.json").read_text())
+    comments, rows = _csv(out / "contact.csv")
+    assert list(rows[0])[:7] == [
+        "x",
+        "y",
+        "normal_x",
+        "normal_y",
+        "tangent_x",
+        "tangent_y",
+        "tangent_z",
+    ]
+    assert list(rows[0])[7:] == ["lambda_t", "jump_t", "state"]  # no normal multiplier
+    assert any("lambda_t [Pa]" in c and "e_z" in c for c in comments)
+    assert all(float(r["tangent_z"]) == 1.0 for r in rows)
+    c = summary["contact"]
+    assert len(rows) == len(c["table"]) == c["nodes"] + c["counts"]["no_multiplier"]
+    assert c["stick"] + c["slip"] == c["nodes"] and "open" not in c
+    assert len(c["force_on_slave"]) == 3 and c["force_on_slave"][:2] == [0.0, 0.0]
+    line = meshio.read(out / "contact.vtu")
+    assert line.point_data["tangent"].shape == (len(rows), 3)
+    assert "lambda_n" not in line.point_data
+    files = [d.get("file") for d in ET.parse(out / "results.pvd").getroot().iter("DataSet")]
+    assert files == ["antiplane.vtu", "contact.vtu"]
+
+
+def _antiplane(level=1):
+    import problems.plugins.antiplane as ap
+
+    model = ap.build(load_scene("antiplane"), level)
+    return ap, model, solve(model.vi, "ssn", tol=1e-12)
+
+
+def test_antiplane_contact_force_is_the_load_and_reaction_balance():
+    """−∫λ ds from the multipliers against equilibrium of the assembled system: two ways."""
+    ap, model, sol = _antiplane()
+    fz = ap.contact_table(model, sol).totals()["force_on_slave"][2]
+    assert fz == pytest.approx(_antiplane_balance(model, sol), rel=1e-10)
+    assert fz < 0  # the top is sheared along +z, the foundation holds it back
+
+
+def test_mutation_antiplane_a_flipped_tangent_breaks_the_balance():
+    ap, model, sol = _antiplane()
+    table = ap.contact_table(model, sol)
+    flipped = type(table)(**{**table.__dict__, "tangents": -table.tangents})
+    assert flipped.totals()["force_on_slave"][2] != pytest.approx(
+        _antiplane_balance(model, sol), rel=1e-6
+    )
+
+
+def test_mutation_antiplane_dropped_weights_break_the_balance():
+    ap, model, sol = _antiplane()
+    table = ap.contact_table(model, sol)
+    unweighted = type(table)(**{**table.__dict__, "weights": np.ones_like(table.weights)})
+    assert unweighted.totals()["force_on_slave"][2] != pytest.approx(
+        _antiplane_balance(model, sol), rel=1e-6
+    )
+
+
+# ------------------------------------------------------------------ the .pvd of a nested solve
+def test_write_levels_puts_every_level_in_the_collection(tmp_path):
+    out = tmp_path / "nested"
+    assert (
+        main(["solve", "rigid_foundation", "--level", "2", "--write-levels", "--out", str(out)])
+        == 0
+    )
+    steps = [
+        (float(d.get("timestep")), d.get("file"))
+        for d in ET.parse(out / "results.pvd").getroot().iter("DataSet")
+    ]
+    assert steps == [
+        (0.0, "levels/0/block.vtu"),
+        (0.0, "levels/0/contact.vtu"),
+        (1.0, "levels/1/block.vtu"),
+        (1.0, "levels/1/contact.vtu"),
+        (2.0, "block.vtu"),
+        (2.0, "contact.vtu"),
+    ]
+    sizes = [len(meshio.read(out / f).points) for _, f in steps[::2]]
+    assert sizes[0] < sizes[1] < sizes[2]  # each level refines the one before
+    # the coarse level written during the nested solve is the level-0 solve on its own
+    alone = _solve_cli(tmp_path, "rigid_foundation")
+    _, nested0 = _csv(out / "levels" / "0" / "contact.csv")
+    _, direct0 = _csv(alone / "contact.csv")
+    for a, b in zip(nested0, direct0, strict=True):
+        assert a["state"] == b["state"]
+        assert float(a["lambda_t"]) == pytest.approx(float(b["lambda_t"]), rel=1e-9, abs=1e-3)
+    marker = json.loads((out / ".mixvi-run.json").read_text())
+    assert "levels/1/contact.csv" in marker["files"]
+
+
+def test_without_write_levels_the_collection_holds_the_solved_level(tmp_path):
+    out = tmp_path / "plain"
+    assert main(["solve", "rigid_foundation", "--level", "1", "--out", str(out)]) == 0
+    steps = [d.get("timestep") for d in ET.parse(out / "results.pvd").getroot().iter("DataSet")]
+    assert steps == ["1.0", "1.0"] and not (out / "levels").exists()

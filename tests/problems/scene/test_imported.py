@@ -5,6 +5,8 @@ import copy
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fem import shapes
 from fem.mesh_import import write_msh
@@ -231,3 +233,33 @@ def test_mutation_gmsh_not_refining_is_caught(monkeypatch):
     with pytest.raises(AssertionError):
         test_a_geo_file_refined_by_gmsh_keeps_the_hole_round()
     imported._geo.cache_clear()
+
+
+# ------------------------------------------------------------------ separately meshed bodies
+def _strip_with_gap(tmp_path, gap: float, level: int = 0):
+    """shear_strip_two_body from two gmsh files, the block (slave) lifted by `gap` (negative:
+    pushed into the base); its level-0 mesh size on the interface is h0 = 0.4 (the base's
+    segments, longer than the block's 0.25)."""
+    meshes = {
+        "block": rectangle((0.0, 2.0), (gap, 1.0 + gap), (8, 4), "quad"),
+        "base": rectangle((0.0, 2.0), (-0.5, 0.0), (5, 2), "quad"),
+    }
+    return pc.build(_imported("shear_strip_two_body", meshes, tmp_path), level)
+
+
+@settings(max_examples=8)
+@given(frac=st.floats(-0.095, 0.095), level=st.integers(0, 1))
+def test_a_gap_or_overlap_within_the_tolerance_is_accepted(tmp_path_factory, frac, level):
+    """|gap| ≤ SEPARATION_TOL · h0 (0.1 × the local level-0 mesh size, docs/design.md §6): the
+    two files are one interface, at every level."""
+    model = _strip_with_gap(tmp_path_factory.mktemp("gap"), frac * 0.4, level)
+    sol = solve(model.vi, "ssn", tol=1e-10)
+    assert sol.converged and model.contact.patch_defect < 1e-12
+
+
+@settings(max_examples=8)
+@given(frac=st.floats(0.105, 0.5), sign=st.sampled_from([-1.0, 1.0]))
+def test_a_gap_or_overlap_beyond_the_tolerance_is_refused(tmp_path_factory, frac, sign):
+    with pytest.raises(SceneError, match="overlap the slave" if sign < 0 else "stand apart") as e:
+        _strip_with_gap(tmp_path_factory.mktemp("gap"), sign * frac * 0.4)
+    assert e.value.key == "contact.master" and "× the local level-0 mesh size 0.4" in str(e.value)
