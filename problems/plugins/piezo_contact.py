@@ -170,6 +170,10 @@ class Model:
         """Unknowns → full vector including Dirichlet values."""
         return expand(u, self.free, self.values)
 
+    def contact_state(self, sol: Solution) -> dict:
+        """`contact_state(self, sol)` (for modules that this one imports)."""
+        return contact_state(self, sol)
+
 
 class FrictionLaw(Section):
     """The friction of a contact section (shared by piezo_contact and signorini): friction =

@@ -113,9 +113,7 @@ def _scaled(f: float) -> tuple[str, ...]:
 
 def counts(model: Any, sol: vi_core.Solution) -> dict[str, int]:
     """Touching, open, stick and slip nodes along Γ3 (`piezo_contact.contact_state`)."""
-    from .piezo_contact import contact_state
-
-    st = contact_state(model, sol)
+    st = model.contact_state(sol)
     return {
         "touching": int(st["touch"].sum()),
         "open": int((~st["touch"]).sum()),
