@@ -16,15 +16,32 @@ from .mesh import Mesh
 _ELEMENTS = ("quad", "triangle")
 
 
+def graded(t: np.ndarray, lo: float, hi: float, c: float, p: float) -> np.ndarray:
+    """Coordinates t in [lo, hi] moved towards c ∈ [lo, hi] by the power p ≥ 1:
+    c + (t − c)·(|t − c| / D)^(p−1), D = hi − c above c and c − lo below (ends and c fixed,
+    monotone; the spacing near c shrinks like h^p). p = 1 is the identity."""
+    t = np.asarray(t, dtype=float)
+    if p == 1.0:
+        return t
+    D = np.where(t >= c, hi - c, c - lo)  # (len(t),)
+    r = np.divide(np.abs(t - c), D, out=np.zeros_like(t), where=D > 0)
+    return c + (t - c) * r ** (p - 1.0)
+
+
 def rectangle(
     x: tuple[float, float],
     y: tuple[float, float],
     cells: tuple[int, int],
     element: str = "quad",
+    focus: tuple[float, float] | None = None,
+    grading: tuple[float, float] = (1.0, 1.0),
 ) -> Mesh:
     """Structured mesh of [x0, x1] × [y0, y1] with nx × ny cells ("quad" Q1 or "triangle" P1).
 
-    Triangles: each square is split along its lower-left → upper-right diagonal.
+    Triangles: each square is split along its lower-left → upper-right diagonal. With `focus`
+    (a point of the rectangle) the node lines are graded towards it, coordinate by coordinate
+    (`graded` with the powers `grading`); refinement levels built with 2^L × the cells are
+    then nested (the map is applied to nested uniform grids).
 
     Boundary parts "bottom" (left → right), "right" (bottom → top), "top" (right → left) and
     "left" (top → bottom): counterclockwise, with the domain on the left of each edge.
@@ -37,7 +54,15 @@ def rectangle(
     if not (x0 < x1 and y0 < y1):
         raise ValueError(f"need x0 < x1 and y0 < y1, got x={x!r}, y={y!r}")
     nx, ny = int(nx), int(ny)
-    X, Y = np.meshgrid(np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1))  # (ny+1, nx+1)
+    xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
+    if focus is not None:
+        (fx, fy), (px, py) = focus, grading
+        if not (x0 <= fx <= x1 and y0 <= fy <= y1) or min(px, py) < 1.0:
+            raise ValueError(
+                f"focus {focus!r} inside the rectangle and grading ≥ 1, got {grading!r}"
+            )
+        xs, ys = graded(xs, x0, x1, fx, px), graded(ys, y0, y1, fy, py)
+    X, Y = np.meshgrid(xs, ys)  # (ny+1, nx+1)
     points = np.stack([X.ravel(), Y.ravel()], axis=1)  # (n_nodes, 2)
     idx = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)  # idx[j, i]
     ll, lr = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()  # (nx ny,) lower-left / lower-right

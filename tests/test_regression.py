@@ -36,11 +36,13 @@ def _scaled_solve(factor):
     return solve
 
 
-@pytest.mark.parametrize("name", ["rigid_foundation", "obstacle", "antiplane", "signorini"])
+@pytest.mark.parametrize(
+    "name", ["rigid_foundation", "obstacle", "antiplane", "signorini", "electrical_block"]
+)
 def test_a_perturbed_multiplier_is_caught(name, monkeypatch):
     """λ scaled by 1 + 1e-6 (far above rounding, far below anything a plot would show)."""
     base = regression.baseline(name)["0"]
-    monkeypatch.setattr(regression.vi_core, "solve", _scaled_solve(1 + 1e-6))
+    monkeypatch.setattr(vi_core, "solve", _scaled_solve(1 + 1e-6))
     diffs = regression.check_case(name, 0, base, regression.run_case(name, 0))
     assert any(".norms.lambda" in d for d in diffs), diffs
 
@@ -65,7 +67,7 @@ def test_a_changed_count_is_caught():
 def test_rounding_is_not_a_difference(monkeypatch):
     """λ moved by 10 ε: within tolerance (the check does not fail on rounding alone)."""
     base = regression.baseline("rigid_foundation")["0"]
-    monkeypatch.setattr(regression.vi_core, "solve", _scaled_solve(1 + 10 * regression.EPS))
+    monkeypatch.setattr(vi_core, "solve", _scaled_solve(1 + 10 * regression.EPS))
     assert (
         regression.check_case(
             "rigid_foundation", 0, base, regression.run_case("rigid_foundation", 0)

@@ -39,6 +39,7 @@ from .krylov import (
     ETA_MAX_WARM,
     LINEAR_SOLVERS,
     KrylovSolver,
+    bodies,
     forcing_term,
     thread_settings,
 )
@@ -154,7 +155,9 @@ class _Stepper:
         self.tol = tol
         self.krylov = None  # the iterative path (condensed steps only)
         if iterative and self.cond is not None:
-            self.krylov = KrylovSolver(self.cond.R, self.cond.S, e.fields, e.near_null)
+            self.krylov = KrylovSolver(
+                self.cond.R, self.cond.S, e.fields, e.near_null, parts=bodies(e.A)
+            )
         G = _block_structure(e.Lambda.block_sizes())  # (m, m) structure of J and W
         if self.cond is not None:
             c = self.cond

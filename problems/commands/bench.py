@@ -29,6 +29,7 @@ import queue
 import resource
 import signal
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -40,7 +41,7 @@ from vi_core import Free, MixedVI
 from vi_core.krylov import LINEAR_SOLVERS, thread_settings
 from vi_core.linalg import resolve_backend
 
-from . import options, resources
+from . import bench_scaling, options, resources
 
 DEFAULT = {"paper_two_body": (2, 5), "rigid_foundation": (3, 6)}
 DEFAULT_TIMEOUT = 3600.0  # seconds per (scene, level): the paper scene at level 5 takes ~5 min
@@ -237,7 +238,7 @@ HEAD = (
     f"{'nonlinear [s]':>15}{'linear [s]':>12}{'ratio':>8}{'peak [MB]':>11}{'B/unknown':>11}"
 )
 MEMORY_HEAD = (
-    f"{'scene':<18}{'level':>6}{'unknowns':>10}{'peak [MB]':>11}{'B/unknown':>11}"
+    f"{'scene':<18}{'level':>6}{'linear':>9}{'unknowns':>10}{'peak [MB]':>11}{'B/unknown':>11}"
     f"{'est. [MB]':>11}{'est./peak':>11}"
 )
 
@@ -262,7 +263,7 @@ def memory_table(records: list[dict]) -> list[dict]:
     `resources` made before the case and their ratio estimate / measured."""
     rows, seen = [], set()
     for r in records:
-        key = (r["scene"], r["level"])
+        key = (r["scene"], r["level"], r.get("linear_solver"))
         if r.get("error") or key in seen:
             continue
         seen.add(key)
@@ -270,6 +271,7 @@ def memory_table(records: list[dict]) -> list[dict]:
             {
                 "scene": r["scene"],
                 "level": r["level"],
+                "linear_solver": r.get("linear_solver"),
                 "unknowns": r["unknowns"],
                 "peak_mem_mb": r["peak_mem_mb"],
                 "bytes_per_unknown": r["bytes_per_unknown"],
@@ -282,7 +284,8 @@ def memory_table(records: list[dict]) -> list[dict]:
 
 def _memory_line(m: dict) -> str:
     return (
-        f"{m['scene']:<18}{m['level']:>6}{m['unknowns']:>10}{m['peak_mem_mb']:>11.0f}"
+        f"{m['scene']:<18}{m['level']:>6}{m['linear_solver'] or '-':>9}{m['unknowns']:>10}"
+        f"{m['peak_mem_mb']:>11.0f}"
         f"{m['bytes_per_unknown']:>11.0f}{m['estimate_mem_mb']:>11.0f}{m['estimate_ratio']:>11.2f}"
     )
 
@@ -310,6 +313,12 @@ def bench_main(argv: list[str] | None = None) -> int:
         help=f"seconds per case before its child is killed (default {DEFAULT_TIMEOUT:g})",
     )
     p.add_argument("--out", default="bench.json", help="JSON file (default bench.json)")
+    p.add_argument(
+        "--figure",
+        default=None,
+        help="scaling figure, SVG: time and memory against unknowns, log-log with the fitted "
+        "exponents (default: --out with the suffix .svg)",
+    )
     p.add_argument("--force", action="store_true", help="skip the memory estimate's refusal")
     args = p.parse_args(argv)
     solvers = options.names(args.solvers, "--solvers", ("ssn", "conic", "homotopy"))
@@ -327,9 +336,12 @@ def bench_main(argv: list[str] | None = None) -> int:
         else:
             a, b = DEFAULT.get(name, (0, 3))
             text = f"{a}..{b}"
-        sizes = resources.check_levels(plugin, scene, (a, b), "--levels", text, args.force)
-        jobs += [(name, lev, sizes.estimate(lev), ls) for lev in range(a, b + 1) for ls in linear]
-    with output_file(args.out, "--out") as target:
+        for ls in linear:  # each linear solver's own memory model (resources.MEMORY_MODEL)
+            sizes = resources.check_levels(plugin, scene, (a, b), "--levels", text, args.force, ls)
+            jobs += [(name, lev, sizes.estimate(lev), ls) for lev in range(a, b + 1)]
+        jobs.sort(key=lambda j: (j[0], j[1]))  # every solver of a level before the next level
+    figure = args.figure or str(Path(args.out).with_suffix(".svg"))
+    with output_file(args.out, "--out") as target, output_file(figure, "--figure") as fig:
         records = _run(jobs, solvers, args)
         machine = {
             "platform": platform.platform(),
@@ -343,9 +355,19 @@ def bench_main(argv: list[str] | None = None) -> int:
         print(MEMORY_HEAD)
         for m in memory:
             print(_memory_line(m))
-        data = {"machine": machine, "records": records, "memory": memory}
+        fitted = bench_scaling.fits(records)
+        if fitted:
+            print("\nfitted exponents b of a·N^b (least squares over the sizes that converged)")
+            for f in fitted:
+                ex = f["exponent"]
+                print(
+                    f"{f['scene']:<18}{f['linear_solver']:>9}  nonlinear {ex['time_nonlinear']:.2f}"
+                    f"  linear {ex['time_linear']:.2f}  peak memory {ex['peak_mem']:.2f}"
+                )
+        data = {"machine": machine, "records": records, "memory": memory, "fits": fitted}
         target.write(json.dumps(data, indent=2))
-    print(f"wrote {args.out}")
+        fig.write(bench_scaling.figure_svg(records))
+    print(f"wrote {args.out} and {figure}")
     ok = all(not r.get("error") and r.get("converged") for r in records)
     return 0 if ok else 1
 

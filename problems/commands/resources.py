@@ -16,7 +16,11 @@ unknowns: with b fixed at 1 (a free fit gives b = 0.89, which would extrapolate 
 while the factor's fill grows faster than N), a = 245.4 bytes per stored entry, within
 ×0.71 … ×1.20 of the measurements. PARDISO: x = the unknowns n + m (within ×0.54 … ×1.73),
 measured before issue 16 item 1 and not refitted (the changes only removed copies, so it
-over- rather than underestimates). Peaks: RSS of `mixvi solve SCENE --level L` in a fresh
+over- rather than underestimates). AMG (`--linear-solver amg`): x = nnz(A), b = 1, a = 179 bytes
+per stored entry, fitted to the peaks `mixvi bench --scenes paper_two_body --levels 2..5
+--linear-solvers splu,amg` measured (149, 221, 547, 1626 MB; estimate / measured 0.89 … 1.00);
+it has its own model so that the guard neither refuses an AMG run by the direct solver's
+larger peak nor lets one through by it. Peaks: RSS of `mixvi solve SCENE --level L` in a fresh
 process (`/usr/bin/time -f %M`); `mixvi bench` prints its measured peak beside the estimate.
 Re-measure them here when the memory per unknown changes.
 
@@ -45,10 +49,11 @@ from .options import MAX_LEVEL
 MEMORY_MODEL = {  # linear solver → (predictor, base [bytes], a, b)
     "splu": ("nnz", 115e6, 245.4, 1.0),
     "pardiso": ("unknowns", 175e6, 5851.0, 1.0481),
+    "amg": ("nnz", 115e6, 179.0, 1.0),
 }
 # the smallest estimate / measured peak seen per solver: refusals and caps use the estimate
 # divided by it (the most a level can need as far as the measurements go)
-WORST_RATIO = {"splu": 0.71, "pardiso": 0.54}
+WORST_RATIO = {"splu": 0.71, "pardiso": 0.54, "amg": 0.85}
 
 
 @dataclass(frozen=True)
@@ -113,8 +118,9 @@ def memory() -> tuple[float, float]:
 class Sizes:
     """Unknowns and nonzeros of every level of one scene, fitted through the levels 0 … d."""
 
-    def __init__(self, plugin, scene):
+    def __init__(self, plugin, scene, linear_solver: str = "auto"):
         self.scene = scene
+        self.linear_solver = linear_solver  # as asked: auto|splu|pardiso|amg
         counts, dim = [], 2
         for lev in range(4):  # levels 0 … d (d read from the level-0 model)
             model = plugin.build(scene, lev)
@@ -143,9 +149,11 @@ class Sizes:
         return self._at(level)[1]
 
     def estimate(self, level: int) -> Estimate:
-        """Unknowns and peak memory of `level` with the linear solver `auto` would choose."""
+        """Unknowns and peak memory of `level` with the linear solver asked for (amg, or the
+        direct backend `auto`/splu/pardiso resolves to)."""
         N, nnz, n = self._at(level)
-        solver = resolve_backend("auto", n)
+        ls = self.linear_solver
+        solver = "amg" if ls == "amg" else resolve_backend(ls, n)
         return Estimate(self.scene.name, level, N, solver, peak_bytes(N, nnz, solver))
 
     def cap(self, total: float) -> int:
@@ -174,13 +182,14 @@ def check_levels(
     option: str,
     text: str,
     force: bool = False,
+    linear_solver: str = "auto",
 ) -> Sizes:
     """Refuse (SceneError naming `option` and its value `text`) a level range A..B outside
     0 ≤ A ≤ B ≤ the scene's cap, or whose largest level does not fit in the memory available
     now; `force` skips the memory checks (the range must still be ordered, ≤ MAX_LEVEL)."""
     a, b = levels
     total, available = memory()
-    sizes = Sizes(plugin, scene)
+    sizes = Sizes(plugin, scene, linear_solver)
     cap = MAX_LEVEL if force else sizes.cap(total)
     if not 0 <= a <= b <= cap:
         why = (

@@ -39,7 +39,9 @@ def cmd_solve(args: argparse.Namespace) -> int:
         raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
     level = args.level if args.level is not None else resources.default_level(plugin, scene)
     option = "--level" if args.level is not None else "scene.level"  # where the level came from
-    resources.check_levels(plugin, scene, (level, level), option, str(level), args.force)
+    resources.check_levels(
+        plugin, scene, (level, level), option, str(level), args.force, args.linear_solver
+    )
     out = Path(args.out) if args.out else Path("out") / scene.name
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
         if loaded.spec.load_path is not None:  # one solve per load step

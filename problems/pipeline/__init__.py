@@ -94,7 +94,7 @@ def solve(
         nested, warm = _nested(plugin, scene, model, tol, linear_solver, on_level)
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
         warm["estimate_condition"] = True
-    sol = vi_core.solve(model.vi, method=method, tol=tol, linear_solver=linear_solver, **warm)
+    sol = solve_model(plugin, model, method=method, tol=tol, linear_solver=linear_solver, **warm)
     if nested:
         nested.append(level_record(model.level, model, sol))
     t_solve = sum(r["time_s"] for r in nested) if nested else sol.time
@@ -117,12 +117,20 @@ def _nested(
         coarse = plugin.build(scene, lev)
         kw = plugin.warm_start(*prev, coarse) if prev else {}
         prev = None  # the level before is no longer needed
-        csol = vi_core.solve(coarse.vi, method="ssn", tol=tol, linear_solver=linear_solver, **kw)
+        csol = solve_model(plugin, coarse, method="ssn", tol=tol, linear_solver=linear_solver, **kw)
         nested.append(level_record(lev, coarse, csol))
         if on_level is not None:
             on_level(coarse, csol)
         prev = (coarse, csol)
     return nested, plugin.warm_start(*prev, model)
+
+
+def solve_model(plugin: Any, model: Any, **options: Any) -> vi_core.Solution:
+    """The plug-in's `solve(model, **options)` if it has one (an outer iteration around the
+    VI), else `vi_core.solve(model.vi, **options)`."""
+    if hasattr(plugin, "solve"):
+        return plugin.solve(model, **options)
+    return vi_core.solve(model.vi, **options)
 
 
 def level_record(level: int, model: Any, sol: vi_core.Solution) -> dict:

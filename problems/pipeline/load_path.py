@@ -26,7 +26,7 @@ import vi_core
 from problems.errors import SceneError
 from problems.scene.fields import load_parameter
 
-from . import CONDITION_LIMIT, Loaded, Run, _nested, level_record
+from . import CONDITION_LIMIT, Loaded, Run, _nested, level_record, solve_model
 
 
 @dataclass
@@ -110,7 +110,7 @@ def solve_path(
                     nested, warm = _nested(plugin, scene, model, tl, linear_solver)
         if m == "ssn" and model.vi.n <= CONDITION_LIMIT:
             warm["estimate_condition"] = True
-        sol = vi_core.solve(model.vi, method=m, tol=tl, linear_solver=linear_solver, **warm)
+        sol = solve_model(plugin, model, method=m, tol=tl, linear_solver=linear_solver, **warm)
         sol.info["warm_start"] = "u0" in warm
         rec = step_record(index, t, model, sol, build_s)
         if nested:

@@ -32,6 +32,11 @@ declaration it needs with exit status 2, naming the declaration):
     extremes() -> list[ExtremeRow]             `mixvi extremes`: this plug-in's extreme rows
     warm_start(coarse, coarse_sol, fine)       `mixvi solve`, `bench`: nested iteration's
                          -> dict               initial guess (keyword arguments of solve)
+    solve(model, **options) -> Solution       `mixvi solve`, the Python API, the regression
+                                               baselines: an outer iteration around model.vi
+                                               (e.g. piezo_contact's electrical contact fixed
+                                               point); default vi_core.solve(model.vi, **options)
+                                               (`problems.pipeline.solve_model`)
     incremental(model, previous, previous_sol) load paths (`[load_path]`, mixvi solve and
                          -> None               `problems.solve_scene`): make `model`, the next
                                                load step just built, act on the increments
@@ -65,8 +70,9 @@ and optionally
                                                λᵀ(Bu − gap) = (support function term), 0 exactly
 
 `mixvi solve` calls exactly: build → `vi_core.solve(model.vi, method=options.get("method",
-"ssn"), tol=options.get("tol", 1e-10))` → postprocess, and merges the returned dict into
-summary.json; the keys "contact" ({"nodes", "stick", "slip"}, optionally
+"ssn"), tol=options.get("tol", 1e-10))` (or the plug-in's `solve`) →
+postprocess, and merges the returned dict into summary.json; the keys "contact" ({"nodes",
+"stick", "slip"}, optionally
 "mortar_patch_defect": above 1e-8 `mixvi solve` exits 1 unless --allow-defect) and "lemma_4_2"
 (a float) are also printed. Before anything is built the scene is validated by SCENE_MODEL
 (`mixvi validate`, `mixvi schema` shows the JSON Schema); `build` reads the scene only through

@@ -30,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 from pydantic import Field, model_validator
 
+import vi_core
 from fem.boundary import ENDS, Trace, dual_mass, multiplier_basis, segment_loads, trace
 from fem.dirichlet import expand, reduce_dirichlet
 from fem.mesh import Mesh
@@ -43,7 +44,7 @@ from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
 from vi_core import Box, Coulomb, Free, MixedVI, NonNegative, Solution, UnilateralTresca, product
 
-from . import piezo_balance, piezo_errors, piezo_extremes
+from . import electrical_contact, piezo_balance, piezo_errors, piezo_extremes
 from .bodies import Body, BodySection, build_body
 from .body_output import body_fields
 from .contract import Sweep, check_meshed
@@ -149,6 +150,7 @@ class Model:
     values: np.ndarray  # (n_full,) prescribed values (fixed entries)
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    electrical: electrical_contact.Coupling | None = None  # [contact.electrical], if given
     # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
     # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
     slip_origin: np.ndarray | None = None
@@ -213,6 +215,7 @@ class ContactSection(FrictionLaw):
     law: Literal[LAWS] = LAWS[0]
     gap: NonNegativeExpr | None = None
     ends: Literal[ENDS] = ENDS[0]
+    electrical: electrical_contact.ElectricalSection | None = None
 
     @model_validator(mode="after")
     def _law(self) -> ContactSection:
@@ -255,6 +258,19 @@ class PiezoScene(SceneModel):
                 master = _ref(self, ["contact", "master"], c.master)
                 if master[0] == slave[0]:
                     raise refuse(["contact", "master"], c.master, "a body other than the slave")
+            e = c.electrical
+            if e is not None:
+                if not self.bodies[slave[0]].material.material().piezoelectric:
+                    raise refuse(
+                        ["contact", "electrical"], e.kind, "only with a piezoelectric slave body"
+                    )
+                if e.kind != "insulating" and c.master != "rigid":
+                    raise refuse(
+                        ["contact", "electrical", "kind"],
+                        e.kind,
+                        "insulating with a master body (conductive and grounded need "
+                        'master = "rigid")',
+                    )
         if self.output is not None and self.output.potential_along is not None:
             field = ["output", "potential_along"]
             body, _ = _ref(self, field, self.output.potential_along)
@@ -359,6 +375,8 @@ def build_model(
         **field_data(list(bodies.values()), free, n_full),  # for the iterative linear path
     )
     model = model_class(scene, level, list(bodies.values()), contact, vi, free, values, options)
+    if ct is not None and ct.electrical is not None:
+        model.electrical = _electrical(ct.electrical, contact, vi, free)
     if contact is not None:
         model.warnings += interface_warnings(contact)
     for b in model.bodies:
@@ -370,6 +388,39 @@ def build_model(
                 "displacements are underestimated on coarse meshes"
             )
     return model
+
+
+def _electrical(
+    e: electrical_contact.ElectricalSection, contact: Contact, vi: MixedVI, free: np.ndarray
+) -> electrical_contact.Coupling:
+    """The fixed point's data: φ unknowns and normal multipliers of the slave trace nodes."""
+    tr, slave = contact.tr, contact.slave
+    nodes = contact.rows_n  # trace indices carrying λ_n (index j of λ)
+    full = slave.phi_dofs(tr.nodes[nodes])  # (N,)
+    pos = np.searchsorted(free, full)
+    found = (pos < free.size) & (free[np.minimum(pos, free.size - 1)] == full)
+    kappa_max = float(np.linalg.eigvalsh(slave.material.kappa)[-1])
+    return electrical_contact.Coupling(
+        vi0=vi,
+        phi=np.where(found, pos, -1),
+        normal=contact.idx_n,
+        weights=tr.weights[nodes],
+        law=e.law_of(kappa_max, float(tr.lengths.max())),
+        phi_F=float(e.phi_F),
+        max_iter=int(e.max_iter),
+        tol=float(e.tol),
+    )
+
+
+def solve(model: Model, **options) -> Solution:
+    """`vi_core.solve(model.vi, **options)`, or with a conductive or grounded
+    [contact.electrical] the outer fixed point on k (`electrical_contact.solve_coupled`);
+    model.vi becomes the last frozen problem."""
+    c = model.electrical
+    if c is None or c.law.kind == "none":
+        return vi_core.solve(model.vi, **options)
+    sol, model.vi = electrical_contact.solve_coupled(c, **options)
+    return sol
 
 
 def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None) -> None:
@@ -951,6 +1002,8 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
             "table": table.records(),
         }
         summary["lemma_4_2"] = state["lemma_4_2"]
+        if model.electrical is not None:
+            summary["electrical"] = electrical_contact.report(model.electrical, sol)
         summary["warnings"] = contact_warnings(state)
     if notes:
         summary["notes"] = notes

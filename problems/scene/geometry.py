@@ -16,22 +16,40 @@ from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BeforeValidator, Discriminator, Field, Tag, ValidationInfo, model_validator
+from pydantic import (
+    AfterValidator,
+    BeforeValidator,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationInfo,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
 
 from fem.boundary import trace
 from fem.mesh import Mesh
 from fem.meshing import rectangle
 from problems.errors import SceneError
 
-from .fields import Cells, Integer, Interval, Number, Point, Text
+from .fields import Cells, Integer, Interval, Number, Pair, Point, Text
 from .imported import geo_mesh, imported_mesh, resolve
 from .model import UNION_TAGS, Section, refuse
 
+
+def _grading(v: list) -> list:
+    if any(p < 1.0 or p > 4.0 for p in v):
+        raise PydanticCustomError("grading", "powers in [1, 4] (1: uniform)")
+    return v
+
+
+Grading = Annotated[Pair, AfterValidator(_grading)]
 MAX_CELLS = 4_000_000  # cells of one body at the requested level (≈ 12M piezo unknowns)
 
 
 class Rectangle(Section):
-    """[x0, x1] × [y0, y1] in nx × ny cells (quads, or each split into two triangles)."""
+    """[x0, x1] × [y0, y1] in nx × ny cells (quads, or each split into two triangles),
+    optionally graded towards a point (`focus`, powers `grading`: `fem.meshing.graded`)."""
 
     BOUNDARIES: ClassVar[tuple[str, ...]] = ("bottom", "right", "top", "left")
     kind: Literal["rectangle"]
@@ -39,14 +57,37 @@ class Rectangle(Section):
     y: Interval
     cells: Cells
     element: Literal["quad", "triangle"] = "quad"
+    focus: Point | None = Field(
+        None, description="a point of the rectangle the node lines are graded towards"
+    )
+    grading: Grading = Field(
+        [1.0, 1.0], description="powers p_x, p_y ≥ 1 of the grading (1: uniform); with focus"
+    )
+
+    @model_validator(mode="after")
+    def _focus_inside(self) -> Rectangle:
+        f = self.focus
+        if f is not None and not (
+            self.x[0] <= f[0] <= self.x[1] and self.y[0] <= f[1] <= self.y[1]
+        ):
+            raise refuse(["focus"], f, "a point of the rectangle x × y")
+        return self
 
     def mesh(self, level: int) -> Mesh:
         """The structured mesh at refinement `level` (each level halves the cells' size)."""
         s = 2**level
         nx, ny = self.cells
         _check_size(self, "cells", self.cells, nx * ny * s**2)
+        focus = None if self.focus is None else tuple(self.focus)
         return _meshed(
-            self, rectangle, tuple(self.x), tuple(self.y), (nx * s, ny * s), self.element
+            self,
+            rectangle,
+            tuple(self.x),
+            tuple(self.y),
+            (nx * s, ny * s),
+            self.element,
+            focus,
+            tuple(self.grading),
         )
 
 

@@ -2,7 +2,10 @@
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
+from fem import meshing
 from fem.mesh import Mesh
 from fem.meshing import rectangle, refine
 
@@ -127,3 +130,29 @@ def test_refine_times():
     assert refine(mesh, 0) is mesh
     with pytest.raises(ValueError):
         refine(mesh, -1)
+
+
+@given(
+    c=st.floats(0.0, 1.0),
+    p=st.floats(1.0, 4.0),
+    n=st.integers(2, 40),
+)
+def test_graded_keeps_ends_and_focus_and_is_monotone(c, p, n):
+    t = np.linspace(0.0, 1.0, n + 1)
+    x = meshing.graded(t, 0.0, 1.0, c, p)
+    assert x[0] == 0.0 and x[-1] == pytest.approx(1.0, abs=1e-15)
+    assert (np.diff(x) > 0).all()
+    assert meshing.graded(np.array([c]), 0.0, 1.0, c, p)[0] == c
+    assert np.array_equal(meshing.graded(t, 0.0, 1.0, c, 1.0), t)
+
+
+def test_graded_rectangle_levels_are_nested_and_finer_at_the_focus():
+    coarse = meshing.rectangle((-1, 1), (0, 1), (8, 4), focus=(0.0, 1.0), grading=(2.0, 1.5))
+    fine = meshing.rectangle((-1, 1), (0, 1), (16, 8), focus=(0.0, 1.0), grading=(2.0, 1.5))
+    fine_set = {tuple(np.round(p, 14)) for p in fine.points}
+    assert all(tuple(np.round(p, 14)) in fine_set for p in coarse.points)
+    x = np.unique(coarse.points[:, 0])
+    dx = np.diff(x)
+    assert dx[len(dx) // 2] < dx[0] / 4  # cells at x = 0 much narrower than at the ends
+    with pytest.raises(ValueError, match="focus"):
+        meshing.rectangle((0, 1), (0, 1), (2, 2), focus=(2.0, 0.5), grading=(2.0, 2.0))

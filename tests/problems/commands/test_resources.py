@@ -95,3 +95,20 @@ def test_memory_reads_the_process_limit(monkeypatch):
     assert 0 < available <= total
     monkeypatch.setattr(resource, "getrlimit", lambda which: (10**9, resource.RLIM_INFINITY))
     assert resources.memory() == (1e9, min(available, 1e9))
+
+
+def test_the_amg_path_is_guarded_by_its_own_memory_model(monkeypatch):
+    """At a level where the AMG path's upper estimate fits in the memory available and the
+    direct solver's does not, `--linear-solver amg` is let through and the direct solve is
+    refused (mutation: check_levels ignoring linear_solver refuses both)."""
+    scene = load_scene("paper_two_body")
+    plugin = registry.for_scene(scene)
+    amg = Sizes(plugin, scene, "amg").estimate(6)
+    direct = Sizes(plugin, scene, "splu").estimate(6)
+    assert amg.solver == "amg" and direct.solver == "splu"
+    assert amg.upper_bytes < direct.upper_bytes
+    between = 0.5 * (amg.upper_bytes + direct.upper_bytes)
+    monkeypatch.setattr(resources, "memory", lambda: (64e9, between))
+    check_levels(plugin, scene, (6, 6), "--level", "6", linear_solver="amg")
+    with pytest.raises(SceneError, match="available"):
+        check_levels(plugin, scene, (6, 6), "--level", "6", linear_solver="splu")

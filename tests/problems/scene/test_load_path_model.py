@@ -9,7 +9,7 @@ import re
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from problems.errors import SceneError
@@ -46,6 +46,7 @@ WITHOUT_PATH = [n for n in SHIPPED if "load_path" not in load_scene(n).data]
 CASES = [(name, path) for name in WITHOUT_PATH for path in _expression_paths(name)]
 
 
+@settings(max_examples=40)
 @given(st.sampled_from(CASES), st.integers(0, 2**32 - 1))
 def test_t_without_a_load_path_is_refused_naming_the_field(case, seed):
     """Any expression field of any shipped scene rewritten to use t: refused at exactly that
