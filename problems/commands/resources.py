@@ -3,8 +3,11 @@
 Unknowns. A level refines every cell into 2^d (d = the geometry's dimension: the model's
 optional `dimension`, 2 if absent), so with s = 2^level the number of unknowns is a polynomial
 of degree d in s (cells ~ s^d, boundary and contact nodes ~ s^(d-1), corners ~ 1). It is
-fitted exactly through the levels 0 … d, which are cheap to build; in 2D a level multiplies
-the unknowns by about 4, in 3D by 8.
+fitted exactly through the levels 0 … d; in 2D a level multiplies the unknowns by about 4,
+in 3D by 8. Level 0 is built (its model tells d); the levels 1 … d are built too, unless the
+plug-in declares `count(scene, level) -> (unknowns, nnz(A), n)`, which counts them from the
+meshes, Dirichlet data and contact rows without assembling (contact3d: level 3 of a 3D scene
+is 512 times level 0).
 
 Peak memory. peak ≈ base + a · x^b per linear solver (MEMORY_MODEL), where x is whichever
 quantity predicts that solver's measured peaks better. SuperLU: x = nnz(A), the stored entries
@@ -23,6 +26,9 @@ it has its own model so that the guard neither refuses an AMG run by the direct 
 larger peak nor lets one through by it. Peaks: RSS of `mixvi solve SCENE --level L` in a fresh
 process (`/usr/bin/time -f %M`); `mixvi bench` prints its measured peak beside the estimate.
 Re-measure them here when the memory per unknown changes.
+
+In 3D (the model's `dimension` 3) the fill of a sparse factor grows faster: MEMORY_MODEL_3D,
+fitted on 3D runs (below), b ≈ 1.26 instead of ≈ 1.
 
 Caps. A level whose upper estimate (the estimate divided by the smallest estimate / measured
 ratio seen for that solver, WORST_RATIO) exceeds the machine's memory (physical, cgroup or
@@ -54,6 +60,21 @@ MEMORY_MODEL = {  # linear solver → (predictor, base [bytes], a, b)
 # the smallest estimate / measured peak seen per solver: refusals and caps use the estimate
 # divided by it (the most a level can need as far as the measurements go)
 WORST_RATIO = {"splu": 0.71, "pardiso": 0.54, "amg": 0.85}
+# 3D (contact3d): a sparse factor of a 3D mesh fills far more (nested dissection: memory
+# ~ n^(4/3) against n log n in 2D), so the 2D fit would underestimate a 3D level about 3.6×
+# (block3d level 3: 0.93 GB estimated, 3.33 GB measured). PARDISO fitted through block3d
+# levels 2 and 3 (10,115 and 72,963 unknowns: 437 MB and 3.33 GB, `/usr/bin/time -f %M mixvi
+# solve block3d --level L`): b = 1.259 on the unknowns. SuperLU: one point (level 2, nnz(A) =
+# 845,152: 389 MB) with PARDISO's exponent on nnz(A) (level 3 with SuperLU was not run: its
+# fill grows at least as fast). Two and one measurements only: the margin is an assumed 0.5.
+MEMORY_MODEL_3D = {
+    "splu": ("nnz", 115e6, 9.506, 1.2585),
+    "pardiso": ("unknowns", 175e6, 2388.2, 1.2585),
+    # no factor: the 2D AMG fit (per stored entry); block3d level 3 with cells [6, 6, 4]
+    # (314,531 unknowns) measured 4.92 GB (README, "3D contact")
+    "amg": MEMORY_MODEL["amg"],
+}
+WORST_RATIO_3D = {"splu": 0.5, "pardiso": 0.5, "amg": 0.5}
 
 
 @dataclass(frozen=True)
@@ -65,17 +86,20 @@ class Estimate:
     unknowns: int
     solver: str  # the linear solver the estimate is for ("splu" or "pardiso")
     peak_bytes: float
+    dimension: int = 2
 
     @property
     def upper_bytes(self) -> float:
         """The most this level may need: the estimate over the worst ratio measured."""
-        return self.peak_bytes / WORST_RATIO[self.solver]
+        worst = WORST_RATIO_3D if self.dimension == 3 else WORST_RATIO
+        return self.peak_bytes / worst[self.solver]
 
 
-def peak_bytes(unknowns: float, nnz: float, solver: str) -> float:
+def peak_bytes(unknowns: float, nnz: float, solver: str, dimension: int = 2) -> float:
     """The modelled peak resident memory of a solve with `unknowns` unknowns whose matrix A
-    has `nnz` entries, with the linear solver `solver`."""
-    predictor, base, a, b = MEMORY_MODEL[solver]
+    has `nnz` entries, with the linear solver `solver`, on a mesh of `dimension` 2 or 3."""
+    model = MEMORY_MODEL_3D if dimension == 3 else MEMORY_MODEL
+    predictor, base, a, b = model[solver]
     x = float(nnz if predictor == "nnz" else unknowns)
     return base + a * x**b
 
@@ -121,13 +145,17 @@ class Sizes:
     def __init__(self, plugin, scene, linear_solver: str = "auto"):
         self.scene = scene
         self.linear_solver = linear_solver  # as asked: auto|splu|pardiso|amg
-        counts, dim = [], 2
-        for lev in range(4):  # levels 0 … d (d read from the level-0 model)
+        model = plugin.build(scene, 0)
+        dim = int(getattr(model, "dimension", 2))  # the level-0 model tells d
+        counts = [(model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n)]
+        del model
+        for lev in range(1, dim + 1):  # levels 1 … d: counted without assembly where the
+            if hasattr(plugin, "count"):  # plug-in can (a 3D level 3 is 512 × level 0)
+                counts.append(tuple(int(v) for v in plugin.count(scene, lev)))
+                continue
             model = plugin.build(scene, lev)
-            dim = int(getattr(model, "dimension", 2))
             counts.append((model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n))
-            if lev >= dim:
-                break
+            del model
         self.dimension = dim
         s = 2.0 ** np.arange(len(counts))  # (d+1,)
         v = np.array(counts, float)  # (d+1, 3): unknowns, nnz(A), n
@@ -154,7 +182,8 @@ class Sizes:
         N, nnz, n = self._at(level)
         ls = self.linear_solver
         solver = "amg" if ls == "amg" else resolve_backend(ls, n)
-        return Estimate(self.scene.name, level, N, solver, peak_bytes(N, nnz, solver))
+        dim = self.dimension
+        return Estimate(self.scene.name, level, N, solver, peak_bytes(N, nnz, solver, dim), dim)
 
     def cap(self, total: float) -> int:
         """The largest level (≤ MAX_LEVEL) whose upper estimate fits in `total` bytes (0 at

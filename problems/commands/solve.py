@@ -165,12 +165,16 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         if "stick_length" in c:
             parts[1] += f" ({c['stick_length']:.4g} m)"
             parts[2] += f" ({c['slip_length']:.4g} m)"
+        if "stick_area" in c:  # a 3D contact surface
+            parts[1] += f" ({c['stick_area']:.4g} m²)"
+            parts[2] += f" ({c['slip_area']:.4g} m²)"
         bare = c.get("counts", {}).get("no_multiplier")
         if bare:
             parts.append(f"{bare} node{'s' if bare > 1 else ''} without multiplier")
         line = "  contact: " + ", ".join(parts)
         if "force_on_slave" in c:
-            line += f"; force on the slave {_vec(c['force_on_slave'])} N/m"
+            unit = c.get("force_units", "N/m").split(" ")[0]
+            line += f"; force on the slave {_vec(c['force_on_slave'])} {unit}"
         if c.get("mortar_patch_defect") is not None:
             line += f"; mortar patch defect {c['mortar_patch_defect']:.1e}"
         out.append(line)

@@ -32,6 +32,8 @@ declaration it needs with exit status 2, naming the declaration):
     extremes() -> list[ExtremeRow]             `mixvi extremes`: this plug-in's extreme rows
     warm_start(coarse, coarse_sol, fine)       `mixvi solve`, `bench`: nested iteration's
                          -> dict               initial guess (keyword arguments of solve)
+    count(scene, level) -> (unknowns, nnz, n)  level caps and memory estimates: the sizes of
+                                               a level without building it (else it is built)
     solve(model, **options) -> Solution       `mixvi solve`, the Python API, the regression
                                                baselines: an outer iteration around model.vi
                                                (e.g. piezo_contact's electrical contact fixed
@@ -235,6 +237,7 @@ def conforms(obj: Any) -> list[str]:
         "reference_errors",
         "extremes",
         "warm_start",
+        "count",
         "incremental",
         "step_output",
     )

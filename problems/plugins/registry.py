@@ -28,6 +28,7 @@ BUILTIN = {
     "obstacle": "problems.plugins.obstacle",
     "antiplane": "problems.plugins.antiplane",
     "signorini": "problems.plugins.signorini",
+    "contact3d": "problems.plugins.contact3d",
 }
 GROUP = "mixvi.plugins"
 

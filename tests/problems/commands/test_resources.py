@@ -14,9 +14,11 @@ from problems.plugins import registry
 from problems.scene import SCENES_DIR, load_scene
 
 SHIPPED = sorted(p.stem for p in SCENES_DIR.glob("*.toml"))  # every shipped scene
+PLANAR = [n for n in SHIPPED if load_scene(n).data["scene"]["plugin"] != "contact3d"]
+# the 3D scenes: tests/problems/plugins/test_contact3d.py (count = the built sizes, ×8 a level)
 
 
-@pytest.mark.parametrize("name", SHIPPED)
+@pytest.mark.parametrize("name", PLANAR)
 def test_unknowns_and_nonzeros_above_the_built_levels_are_exact(name):
     scene = load_scene(name)
     plugin = registry.for_scene(scene)
@@ -95,6 +97,27 @@ def test_memory_reads_the_process_limit(monkeypatch):
     assert 0 < available <= total
     monkeypatch.setattr(resource, "getrlimit", lambda which: (10**9, resource.RLIM_INFINITY))
     assert resources.memory() == (1e9, min(available, 1e9))
+
+
+def test_a_3d_level_is_estimated_by_the_3d_memory_model():
+    """In 3D a level multiplies the unknowns by about 8 and the modelled peak by more (the fill
+    of a 3D factor); the 2D model would give a 3D level far less memory than it needs."""
+    sizes = Sizes(Cubes(3), SimpleNamespace(name="cubes", data={}))
+    e4, e5 = sizes.estimate(4), sizes.estimate(5)
+    assert e4.dimension == e5.dimension == 3
+    assert 7.8 < e5.unknowns / e4.unknowns < 8.1  # (129/65)^3 = 7.82
+    assert e5.peak_bytes / e4.peak_bytes > 8.5
+    flat = resources.peak_bytes(e5.unknowns, sizes.nonzeros(5), e5.solver, dimension=2)
+    assert e5.peak_bytes > 3 * flat
+    assert e5.upper_bytes == e5.peak_bytes / resources.WORST_RATIO_3D[e5.solver]
+
+
+def test_mutation_a_3d_model_claiming_2d_is_caught():
+    sizes = Sizes(Cubes(2), SimpleNamespace(name="cubes", data={}))
+    assert sizes.estimate(5).dimension == 2  # the 2D model: the assertion above would fail
+    with pytest.raises(AssertionError):
+        e4, e5 = sizes.estimate(4), sizes.estimate(5)
+        assert e5.peak_bytes / e4.peak_bytes > 8.5
 
 
 def test_the_amg_path_is_guarded_by_its_own_memory_model(monkeypatch):

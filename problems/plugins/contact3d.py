@@ -1,0 +1,622 @@
+"""Plug-in: elastic or piezoelectric 3D bodies in bilateral contact with Tresca friction.
+
+Per contact node k of the slave surface Γ3 (a boundary part of a 3D body): a normal multiplier
+λ_n,k (free: bilateral contact) and a tangential one λ_t,k in the tangent plane with the
+friction disc |λ_t,k| ≤ g_k (`vi_core.Ball(g, 2)`); λ_h = Σ_k (λ_n,k n_k + λ_t1,k t1_k +
+λ_t2,k t2_k) ψ̃_k with the dual basis ψ̃_k of the contact faces (Q1 quadrilaterals or P1
+triangles, `fem.surface3d`), so that ∫ψ̃_k φ_j = δ_kj W_k with W_k = ∫_Γ3 φ_k and the slave
+block D = diag(W) is diagonal. g_k = ∫g φ_k / W_k. Frames (t1, t2, n) are right-handed and
+continuous on curved surfaces (`fem.surface3d.frames`). With a rigid foundation (the slave
+surface itself, flat or curved: bilateral contact has no initial gap) the rows are
+W_k n_kᵀu_k and W_k t_kᵀu_k; a master body adds −Σ_j M_kj (·)ᵀu_m,j (a `Coupling`, e.g. the
+3D dual mortar of `fem.mortar3d`; docs/fem3d.md "Contact").
+
+Multiplier order: the normal rows, then the disc nodes (t1, t2 per node), then the nodes that
+keep one tangent only. Crosspoint rules (per node, from its prescribed displacement
+components, which must span a sub-frame of (n, t1, t2) after turning the tangents): nothing
+prescribed → n, t1, t2; all prescribed → no multiplier; one component e_c with e_c ⟂ n → n and
+the tangent n × e_c (a line |λ_t| ≤ g); e_c ∥ n → the two tangents only (a disc); two
+components with the free one e_f ∥ n → n only; with e_f ⟂ n → the tangent e_f only; anything
+else is refused (SceneError naming the nodes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import scipy.sparse as sp
+from pydantic import Field, model_validator
+
+from fem.dirichlet import expand, reduce_dirichlet
+from fem.surface3d import Surface, face_integrals, frames, surface
+from problems.errors import SceneError
+from problems.scene import Scene, SceneModel, Section
+from problems.scene.fields3d import NonNegativeExpr3
+from problems.scene.model import head, refuse
+from vi_core import Ball, Box, Free, MixedVI, Solution, product
+
+from . import contact3d_checks, contact3d_extremes, contact3d_output
+from .contact3d_bodies import Body3D, BodySection3, build_body3, count3, dirichlet3, field_data3
+from .contract import Sweep
+
+NAME = "contact3d"
+DESCRIPTION = "elastic/piezoelectric 3D bodies in bilateral Tresca contact (friction discs)"
+CONTRACT = 2
+ALIGN_TOL = 1e-10  # sine of the angle under which a prescribed direction counts as n or ⟂ n
+
+
+@dataclass
+class Coupling:
+    """The master side of a two-body interface (`None` in `Contact3D` = rigid foundation).
+
+    M (k_slave, n_master_nodes): the mortar matrix Σ_j M_kj u_m,j of each slave node's row
+    (in the same dual basis as D = diag(W)); dofs (n_master_nodes, 3) the master's full
+    displacement dofs; `patch_defect` max_k |W_k − Σ_j M_kj| / W_k.
+    """
+
+    body: Body3D
+    part: str
+    M: sp.csr_matrix
+    dofs: np.ndarray
+    patch_defect: float
+
+
+@dataclass
+class Contact3D:
+    """The contact interface Γ3 of a 3D scene: slave surface, frames, multiplier rows, bounds.
+
+    Surface arrays are per slave surface node (k); rows_n (N_n,), disc (N_b,) and line (N_l,)
+    index the nodes carrying a normal multiplier, two tangential ones, one tangential one.
+    A `line` node keeps the tangent t1 (line_slot 0) or t2 (line_slot 1): `line_dir`.
+    """
+
+    slave: Body3D
+    slave_part: str
+    surf: Surface
+    normals: np.ndarray  # (k, 3)
+    t1: np.ndarray  # (k, 3)
+    t2: np.ndarray  # (k, 3)
+    rows_n: np.ndarray  # (N_n,)
+    disc: np.ndarray  # (N_b,)
+    line: np.ndarray  # (N_l,)
+    line_slot: np.ndarray  # (N_l,) 0: the kept tangent is t1, 1: it is t2
+    g: np.ndarray  # (k,) g_k = ∫gφ_k / W_k
+    B_full: sp.csr_matrix  # (N_n + 2 N_b + N_l, n_full)
+    master: Coupling | None = None
+
+    @property
+    def W(self) -> np.ndarray:
+        """(k,) W_k = ∫_Γ3 φ_k dA, the diagonal of D."""
+        return self.surf.weights
+
+    @property
+    def line_dir(self) -> np.ndarray:
+        """(N_l, 3) the tangent each line node keeps."""
+        return np.where(self.line_slot[:, None] == 0, self.t1[self.line], self.t2[self.line])
+
+    @property
+    def sizes(self) -> tuple[int, int, int]:
+        """(N_n, N_b, N_l)."""
+        return self.rows_n.size, self.disc.size, self.line.size
+
+    def Lambda(self):
+        """Λ_h = Free(N_n) × Ball(g, 2) over the disc nodes × Box(−g, g) over the line nodes."""
+        gb, gl = self.g[self.disc], self.g[self.line]
+        return product(Free(self.rows_n.size), Ball(gb, 2), Box(-gl, gl))
+
+
+@dataclass
+class Model:
+    """A built 3D scene: the mixed VI plus what post-processing needs."""
+
+    scene: Scene
+    level: int
+    bodies: list[Body3D]
+    contact: Contact3D | None
+    vi: MixedVI
+    free: np.ndarray  # (n_free,) full indices of the unknowns
+    values: np.ndarray  # (n_full,) prescribed values (fixed entries)
+    options: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    dimension: int = 3
+
+    def unknown_fields(self) -> dict[str, np.ndarray]:
+        """Boolean masks over the unknowns: which are displacement, which potential."""
+        is_disp = np.zeros(self.values.size, dtype=bool)
+        for b in self.bodies:
+            is_disp[b.offset : b.offset + 3 * b.n_nodes] = True
+        return {"displacement": is_disp[self.free], "potential": ~is_disp[self.free]}
+
+    @property
+    def dofs(self) -> dict[str, int]:
+        """Number of unknowns per field."""
+        counts = {k: int(v.sum()) for k, v in self.unknown_fields().items()}
+        return {**counts, "multiplier": self.vi.m}
+
+    def full(self, u: np.ndarray) -> np.ndarray:
+        """Unknowns → full vector including Dirichlet values."""
+        return expand(u, self.free, self.values)
+
+
+class ContactSection3(Section):
+    """[contact]: the slave boundary (BODY.BOUNDARY), the master ("rigid": a rigid foundation
+    along the slave surface) and the friction bound g (Pa, a field ≥ 0 of x, y, z)."""
+
+    slave: str
+    master: str = "rigid"
+    g: NonNegativeExpr3
+
+
+Head = head(NAME, 1)
+
+
+class Contact3DScene(SceneModel):
+    """A contact3d scene: 3D bodies and an optional contact interface."""
+
+    scene: Head
+    bodies: Annotated[dict[str, BodySection3], Field(min_length=1)]
+    contact: ContactSection3 | None = None
+
+    @model_validator(mode="after")
+    def _references(self) -> Contact3DScene:
+        c = self.contact
+        if c is not None:
+            _ref(self, ["contact", "slave"], c.slave)
+            if c.master != "rigid":
+                raise refuse(
+                    ["contact", "master"],
+                    c.master,
+                    '"rigid" (a rigid foundation along the slave surface; two-body 3D '
+                    "contact is fem.mortar3d's, not yet in this plug-in)",
+                )
+        return self
+
+
+def _ref(scene: Contact3DScene, field_: list[str], ref: str) -> tuple[str, str]:
+    """BODY.BOUNDARY → (body, boundary), checked against the scene's bodies and geometries."""
+    bname, dot, part = ref.partition(".")
+    if not dot:
+        raise refuse(field_, ref, "BODY.BOUNDARY, e.g. block.bottom")
+    if bname not in scene.bodies:
+        raise refuse(
+            field_, ref, f"BODY.BOUNDARY with a body of this scene: {', '.join(scene.bodies)}"
+        )
+    names = scene.bodies[bname].geometry.BOUNDARIES
+    if part not in names:
+        raise refuse(field_, ref, f"BODY.BOUNDARY with a boundary of {bname!r}: {', '.join(names)}")
+    return bname, part
+
+
+SCENE_MODEL = Contact3DScene
+
+
+def build(scene: Scene, level: int | None = None) -> Model:
+    """Scene → Model (meshes, assembly, Dirichlet reduction, contact rows, MixedVI); a
+    SceneError raised while building names the scene file."""
+    try:
+        with np.errstate(all="ignore"):
+            return _build(scene, level)
+    except SceneError as err:
+        raise (err if err.file else err.in_file(scene.path)) from None
+
+
+def _build(scene: Scene, level: int | None) -> Model:
+    spec = scene.validated(SCENE_MODEL)
+    level = spec.scene.level if level is None else level
+    bodies: dict[str, Body3D] = {}
+    offset = 0
+    for name, tb in spec.bodies.items():
+        bodies[name] = build_body3(name, tb, level, offset)
+        offset += bodies[name].size
+    n_full = offset
+    contact = None
+    if spec.contact is not None:
+        ct = spec.contact
+        sname, part = ct.slave.split(".", 1)
+        contact = slave_contact(bodies[sname], part, ct.g, n_full)
+    A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
+    f_full = np.concatenate([b.f for b in bodies.values()])
+    fixed = np.concatenate([b.fixed for b in bodies.values()])
+    values = np.concatenate([b.values for b in bodies.values()])
+    X_full = sp.block_diag([b.X for b in bodies.values()], format="csr")
+    for b in bodies.values():
+        b.X = None
+    A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
+    if contact is None:
+        B, gap, Lam, Y = sp.csr_matrix((0, free.size)), None, product(), sp.csr_matrix((0, 0))
+    else:
+        B = contact.B_full[:, free]
+        gap = -(contact.B_full[:, fixed] @ values[fixed])
+        Lam = contact.Lambda()
+        Y = sp.diags(row_nodes_weights(contact))
+    vi = MixedVI(
+        A=A,
+        B=B,
+        f=f,
+        Lambda=Lam,
+        gap=gap,
+        X=sp.csr_matrix(X_full[free][:, free]),
+        Y=Y,
+        info={"scene": scene.name, "level": level},
+        **field_data3(list(bodies.values()), free, n_full),
+    )
+    return Model(scene, level, list(bodies.values()), contact, vi, free, values, spec.options())
+
+
+def count(scene: Scene, level: int) -> tuple[int, int, int]:
+    """(unknowns n + m, stored entries of A, n) of `level` without assembling it (meshes,
+    Dirichlet data and the contact rows only): `problems.commands.resources.Sizes` fits its
+    polynomial in 2^level through these, so a 3D level above the one solved is never built."""
+    spec = scene.validated(SCENE_MODEL)
+    n = nnz = m = 0
+    bodies = {}
+    for name, tb in spec.bodies.items():
+        body = Body3D(name, tb.geometry.mesh(level), tb.material.material(), 0)
+        bodies[name] = (tb, body)
+        dn, dnnz = count3(tb, body)
+        n, nnz = n + dn, nnz + dnnz
+    if spec.contact is not None:
+        sname, part = spec.contact.slave.split(".", 1)
+        tb, body = bodies[sname]
+        surf = surface(body.mesh, part)
+        t1, t2 = frames(surf.normals)
+        fixed = dirichlet3(tb, body)[0][: 3 * body.n_nodes].reshape(-1, 3)[surf.nodes]
+        carry_n, n_tan, *_ = carrying(fixed, surf.normals, t1, t2)
+        m = int(carry_n.sum() + n_tan.sum())
+    return n + m, nnz, n
+
+
+def row_nodes(c: Contact3D) -> np.ndarray:
+    """(m,) the surface node of every multiplier row, in row order."""
+    return np.concatenate([c.rows_n, np.repeat(c.disc, 2), c.line])
+
+
+def row_nodes_weights(c: Contact3D) -> np.ndarray:
+    """(m,) h_k W_k per multiplier row: the mesh-dependent H^{-1/2} Gram stand-in (Y)."""
+    k = row_nodes(c)
+    return c.surf.node_sizes()[k] * c.W[k]
+
+
+def _where(body: Body3D, surf: Surface, i: int) -> str:
+    node = int(surf.nodes[i])
+    return f"node {node} at {body.mesh.points[node].tolist()}"
+
+
+def carrying(
+    fixed: np.ndarray, normals: np.ndarray, t1: np.ndarray, t2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[int]]:
+    """The crosspoint rules (module docstring) per surface node.
+
+    fixed (k, 3) which displacement components are prescribed; normals, t1, t2 (k, 3) the
+    surface frames. Returns carry_n (k,) bool, n_tan (k,) 0/1/2, the frames (t1, t2) turned
+    about n where one tangent is kept so that the kept one is the frame vector nearest to it,
+    slot (k,) (0/1: the kept tangent is t1/t2; −1 elsewhere) and the refused nodes.
+    """
+    k = fixed.shape[0]
+    t1, t2 = t1.copy(), t2.copy()
+    n_pres = fixed.sum(axis=1)  # (k,)
+    carry_n = n_pres == 0
+    n_tan = np.where(n_pres == 0, 2, 0)
+    slot = np.full(k, -1)
+    bad = []
+    eye = np.eye(3)
+    for i in np.flatnonzero((n_pres > 0) & (n_pres < 3)):
+        n = normals[i]
+        if n_pres[i] == 1:
+            d = eye[int(np.flatnonzero(fixed[i])[0])]
+            if abs(n @ d) >= 1 - ALIGN_TOL:  # the prescribed direction is the normal
+                n_tan[i] = 2
+                continue
+            if abs(n @ d) > ALIGN_TOL:
+                bad.append(i)
+                continue
+            keep, carry_n[i] = np.cross(n, d), True
+        else:
+            f = eye[int(np.flatnonzero(~fixed[i])[0])]
+            if abs(n @ f) >= 1 - ALIGN_TOL:  # only the normal is free
+                carry_n[i] = True
+                continue
+            if abs(n @ f) > ALIGN_TOL:
+                bad.append(i)
+                continue
+            keep = f
+        keep = keep / np.linalg.norm(keep)
+        n_tan[i] = 1
+        if abs(keep @ t1[i]) >= abs(keep @ t2[i]):
+            t1[i] = keep * np.sign(keep @ t1[i])
+            t2[i] = np.cross(n, t1[i])
+            slot[i] = 0
+        else:
+            t2[i] = keep * np.sign(keep @ t2[i])
+            t1[i] = np.cross(t2[i], n)  # (t1, t2, n) stays right-handed
+            slot[i] = 1
+    return carry_n, n_tan, t1, t2, slot, bad
+
+
+def contact_rows(
+    W: np.ndarray,
+    dirs: list[tuple[np.ndarray, np.ndarray]],
+    slave_dofs: np.ndarray,
+    n_full: int,
+    master: Coupling | None = None,
+) -> sp.csr_matrix:
+    """Rows W_k d_rᵀu_s,k − Σ_j M_kj d_rᵀu_m,j for each (nodes (r,), directions (r, 3)) of
+    `dirs`, in order. slave_dofs (k, 3) full dofs of the surface nodes."""
+    rows, cols, vals, offset = [], [], [], 0
+    for nodes, d in dirs:
+        r = offset + np.arange(nodes.size)
+        for c in range(3):
+            rows.append(r)
+            cols.append(slave_dofs[nodes, c])
+            vals.append(W[nodes] * d[:, c])
+        if master is not None:
+            M = sp.csr_matrix(master.M)[nodes].tocoo()
+            for c in range(3):
+                rows.append(offset + M.row)
+                cols.append(master.dofs[M.col, c])
+                vals.append(-M.data * d[M.row, c])
+        offset += nodes.size
+    B = sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(offset, n_full)
+    )
+    B.eliminate_zeros()
+    return B
+
+
+def slave_contact(
+    slave: Body3D, part: str, gfun, n_full: int, master: Coupling | None = None
+) -> Contact3D:
+    """The contact of `slave`'s boundary `part` (a rigid foundation along it, or `master`):
+    surface, frames, crosspoint rules, g_k and the rows."""
+    key = "contact.slave"
+    try:
+        surf = surface(slave.mesh, part)
+        t1, t2 = frames(surf.normals)
+    except ValueError as err:
+        raise SceneError(
+            key, f"{slave.name}.{part}", f"a contact surface with valid faces ({err})"
+        ) from None
+    fixed = slave.fixed[slave.u_dofs(surf.nodes) - slave.offset]  # (k, 3) body-local dofs
+    carry_n, n_tan, t1, t2, slot, bad = carrying(fixed, surf.normals, t1, t2)
+    if bad:
+        where = "; ".join(_where(slave, surf, i) for i in bad[:6])
+        raise SceneError(
+            key,
+            f"{slave.name}.{part}",
+            "contact nodes whose prescribed displacement components span the contact normal, "
+            "the tangent plane, or a normal–tangent pair (a roller across or along Γ3); "
+            f"{len(bad)} node(s) have a prescribed direction at an angle to the surface: {where}",
+        )
+    if not (carry_n | (n_tan > 0)).any():
+        raise SceneError(
+            key,
+            f"{slave.name}.{part}",
+            "a contact boundary with nodes whose displacement is not fully prescribed",
+        )
+
+    def g_checked(x, y, z):
+        gv = gfun(x, y, z)
+        if (gv < 0).any():
+            raise SceneError(
+                "contact.g", float(gv.min()), "a friction bound g ≥ 0 everywhere on Γ3"
+            )
+        return gv
+
+    g = face_integrals(slave.mesh, surf, g_checked) / surf.weights
+    rows_n = np.flatnonzero(carry_n)
+    disc = np.flatnonzero(n_tan == 2)
+    line = np.flatnonzero(n_tan == 1)
+    # disc rows interleaved (t1, t2) per node: rows 2j, 2j+1 of the disc block
+    disc_nodes = np.repeat(disc, 2)
+    disc_dirs = np.stack([t1[disc], t2[disc]], axis=1).reshape(-1, 3)
+    dirs = [
+        (rows_n, surf.normals[rows_n]),
+        (disc_nodes, disc_dirs),
+        (line, np.where(slot[line, None] == 0, t1[line], t2[line])),
+    ]
+    B = contact_rows(surf.weights, dirs, slave.u_dofs(surf.nodes), n_full, master)
+    return Contact3D(
+        slave=slave,
+        slave_part=part,
+        surf=surf,
+        normals=surf.normals,
+        t1=t1,
+        t2=t2,
+        rows_n=rows_n,
+        disc=disc,
+        line=line,
+        line_slot=slot[line],
+        g=g,
+        B_full=B,
+        master=master,
+    )
+
+
+# ------------------------------------------------------------------ nested iteration
+def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
+    """Initial guess for `fine` from the coarser level's solution: λ_n and the friction ratio
+    r = λ_t/g (as a 3-vector, then in the fine frames, clipped to |r| ≤ 1 and put on the
+    bound where it reaches it) interpolated linearly over the contact surface."""
+    if coarse.contact is None or fine.contact is None:
+        return {}
+    from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
+
+    cc, fc = coarse.contact, fine.contact
+    st = contact_state(coarse, coarse_sol)
+    n_mean = cc.normals.sum(axis=0)
+    a, b = frames(n_mean[None, :] / np.linalg.norm(n_mean))
+    P = cc.slave.mesh.points[cc.surf.nodes]
+    Q = fc.slave.mesh.points[fc.surf.nodes]
+    uv_c = np.stack([P @ a[0], P @ b[0]], axis=1)  # (k_c, 2) chart coordinates
+    uv_f = np.stack([Q @ a[0], Q @ b[0]], axis=1)  # (k_f, 2)
+
+    def interp(vals: np.ndarray, known: np.ndarray) -> np.ndarray:
+        pts, v = uv_c[known], vals[known]
+        out = LinearNDInterpolator(pts, v)(uv_f)
+        miss = np.isnan(out).any(axis=-1) if out.ndim > 1 else np.isnan(out)
+        if miss.any():
+            out[miss] = NearestNDInterpolator(pts, v)(uv_f[miss])
+        return out
+
+    lam_n_c = np.zeros(cc.surf.size)
+    lam_n_c[cc.rows_n] = st["lam_n"][cc.rows_n]
+    lam_n = interp(lam_n_c, np.isin(np.arange(cc.surf.size), cc.rows_n))[fc.rows_n]
+    has_t = np.isin(np.arange(cc.surf.size), np.concatenate([cc.disc, cc.line]))
+    ratio_c = np.divide(
+        st["lam_t_vec"], cc.g[:, None], out=np.zeros((cc.surf.size, 3)), where=cc.g[:, None] > 0
+    )
+    r = interp(ratio_c, has_t)  # (k_f, 3)
+    r1 = np.einsum("ij,ij->i", r, fc.t1)
+    r2 = np.einsum("ij,ij->i", r, fc.t2)
+    rd = np.stack([r1[fc.disc], r2[fc.disc]], axis=1)  # (N_b, 2)
+    norm = np.linalg.norm(rd, axis=1)
+    rd = np.where((norm >= 1.0 - 1e-9)[:, None], rd / np.maximum(norm, 1e-300)[:, None], rd)
+    rl = np.clip(np.einsum("ij,ij->i", r[fc.line], fc.line_dir), -1.0, 1.0)
+    rl = np.where(np.abs(rl) >= 1.0 - 1e-9, np.sign(rl), rl)
+    lam0 = np.concatenate([lam_n, (rd * fc.g[fc.disc, None]).ravel(), rl * fc.g[fc.line]])
+    return {"lam0": lam0}
+
+
+# ------------------------------------------------------------------ post-processing
+def contact_state(model: Model, sol: Solution) -> dict:
+    """Per surface node (k): lam_n, lam_t1, lam_t2 (NaN where not carried), lam_t_vec (k, 3),
+    jump_n, jump_t1, jump_t2 ((Bu)/W in the frame: the slave displacement for a rigid
+    foundation, the mortar jump with a master), g, slip (k,) bool and state; the Lemma 4.2
+    identity b(u_h, λ_h) = Σ_k g_k W_k |[u]_t,k| and its relative defect."""
+    c = model.contact
+    k = c.surf.size
+    N_n, N_b, N_l = c.sizes
+    x_full = model.full(sol.u)
+    Bu = c.B_full @ x_full  # (m,)
+    lam = sol.lam
+    out = {
+        key: np.full(k, np.nan)
+        for key in ("lam_n", "lam_t1", "lam_t2", "jump_n", "jump_t1", "jump_t2")
+    }
+    W = c.W
+    out["lam_n"][c.rows_n] = lam[:N_n]
+    out["jump_n"][c.rows_n] = Bu[:N_n] / W[c.rows_n]
+    lb = lam[N_n : N_n + 2 * N_b].reshape(-1, 2)
+    jb = Bu[N_n : N_n + 2 * N_b].reshape(-1, 2) / W[c.disc, None]
+    out["lam_t1"][c.disc], out["lam_t2"][c.disc] = lb[:, 0], lb[:, 1]
+    out["jump_t1"][c.disc], out["jump_t2"][c.disc] = jb[:, 0], jb[:, 1]
+    ll, jl = lam[N_n + 2 * N_b :], Bu[N_n + 2 * N_b :] / W[c.line]
+    for slot, (lk, jk) in enumerate((("lam_t1", "jump_t1"), ("lam_t2", "jump_t2"))):
+        sel = c.line_slot == slot
+        out[lk][c.line[sel]] = ll[sel]
+        out[jk][c.line[sel]] = jl[sel]
+    # the tangential multiplier as a vector: disc nodes t1, t2; line nodes their kept tangent
+    vec = np.zeros((k, 3))
+    vec[c.disc] = lb[:, :1] * c.t1[c.disc] + lb[:, 1:] * c.t2[c.disc]
+    vec[c.line] = ll[:, None] * c.line_dir
+    jvec = np.zeros((k, 3))
+    jvec[c.disc] = jb[:, :1] * c.t1[c.disc] + jb[:, 1:] * c.t2[c.disc]
+    jvec[c.line] = jl[:, None] * c.line_dir
+    has_t = np.zeros(k, dtype=bool)
+    has_t[c.disc] = has_t[c.line] = True
+    mag = np.linalg.norm(vec, axis=1)
+    # slip where |λ_t| reaches g up to the solver's accuracy, which is relative to the whole λ
+    # (with g ≪ λ_n a rounding-level shortfall of |λ_t| must not read as stick)
+    scale = max(float(c.g.max(initial=0.0)), float(np.abs(lam).max(initial=0.0)), 1e-300)
+    slip = has_t & (mag >= c.g - 1e-9 * scale)
+    state = np.full(k, "no_multiplier", dtype=object)
+    state[has_t] = np.where(slip[has_t], "slip", "stick")
+    state[~has_t & np.isin(np.arange(k), c.rows_n)] = "normal_only"
+    b_uh_lam = float(lam @ Bu)
+    jt = np.linalg.norm(jvec, axis=1)
+    g_abs = float(np.sum((c.g * W * jt)[has_t]))
+    tiny = np.finfo(float).eps * float(np.sum(c.g * W)) * max(np.abs(x_full).max(), 1e-300)
+    return {
+        **out,
+        "lam_t_vec": vec,
+        "jump_t_vec": jvec,
+        "g": c.g,
+        "has_t": has_t,
+        "slip": slip,
+        "state": state.astype(str),
+        "b_uh_lam": b_uh_lam,
+        "int_g_abs_u": g_abs,
+        "lemma_4_2": abs(b_uh_lam - g_abs) / max(g_abs, tiny, 1e-300),
+    }
+
+
+def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields by name: "BODY.displacement" (N, 3) and "BODY.potential" (N,)."""
+    x_full = model.full(sol.u)
+    out = {}
+    for b in model.bodies:
+        u, phi = b.split(x_full[b.offset : b.offset + b.size])
+        out[f"{b.name}.displacement"] = u
+        if phi is not None:
+            out[f"{b.name}.potential"] = phi
+    return out
+
+
+def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
+    """Write the body VTUs, the contact surface (contact.vtu), contact.csv, results.pvd and
+    the stick/slip map into `outdir`; return the summary entries."""
+    summary = contact3d_output.write(model, sol, outdir, contact_state)
+    summary["checks"] = contact3d_checks.checks(model)
+    return summary
+
+
+def mesh_size(model: Model) -> float:
+    """h of the built level: the largest cell diameter over the bodies."""
+    return max(b.mesh.h for b in model.bodies)
+
+
+# ------------------------------------------------------------------ contract v2 declarations
+SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
+NORMS = ("u_nodes", "phi_nodes", "lam_nodes")
+extremes = contact3d_extremes.rows
+
+
+def draw(ax, model: Model, sol: Solution) -> str:
+    """A panel of `mixvi figures`: the stick/slip map of the contact surface."""
+    if model.contact is None:
+        return "no contact interface"
+    st = contact_state(model, sol)
+    uv, _, _ = contact3d_output.chart(model)
+    for s, col in (("stick", "tab:blue"), ("slip", "tab:red")):
+        sel = st["state"] == s
+        ax.scatter(uv[sel, 0], uv[sel, 1], s=8, color=col, label=f"{s} ({int(sel.sum())})")
+    ax.set_aspect("equal")
+    ax.legend(fontsize=7)
+    return f"slip {int(st['slip'].sum())} of {int(st['has_t'].sum())} nodes"
+
+
+def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
+    """The NORMS against a finer level `ref` of the same scene, at the coarse level's nodes
+    (nested: every coarse node is a fine node): relative RMS of u and φ over the nodes and of
+    λ (all its components) over the coarse contact nodes, weighted by W_k."""
+    out = {}
+
+    def matched(points_c: np.ndarray, points_f: np.ndarray) -> np.ndarray:
+        at = {tuple(np.round(p, 10)): i for i, p in enumerate(points_f)}
+        return np.array([at[tuple(np.round(p, 10))] for p in points_c])
+
+    fc, ff = fields(model, sol), fields(ref, ref_sol)
+    for b, bf in zip(model.bodies, ref.bodies, strict=True):
+        idx = matched(b.mesh.points, bf.mesh.points)
+        for key, norm in (("displacement", "u_nodes"), ("potential", "phi_nodes")):
+            name = f"{b.name}.{key}"
+            if name in fc:
+                d, r = fc[name] - ff[name][idx], ff[name][idx]
+                out[norm] = float(np.sqrt(np.sum(d**2) / max(np.sum(r**2), 1e-300)))
+    if model.contact is not None:
+        c, cf = model.contact, ref.contact
+        idx = matched(c.slave.mesh.points[c.surf.nodes], cf.slave.mesh.points[cf.surf.nodes])
+        s, sf = contact_state(model, sol), contact_state(ref, ref_sol)
+
+        def lam(st: dict, normals: np.ndarray) -> np.ndarray:
+            return np.nan_to_num(st["lam_n"])[:, None] * normals + st["lam_t_vec"]
+
+        d = lam(s, c.normals) - lam(sf, cf.normals)[idx]
+        r = lam(sf, cf.normals)[idx]
+        out["lam_nodes"] = float(
+            np.sqrt(np.sum(c.W[:, None] * d**2) / max(np.sum(c.W[:, None] * r**2), 1e-300))
+        )
+    return out

@@ -1,0 +1,270 @@
+"""Result files of the 3D contact plug-in (docs/fem3d.md, "Contact: results").
+
+- `BODY.vtu`: point data displacement (m, 3 components), electric_potential (V); cell data at
+  the centroids: stress (Pa, symmetric tensor in VTK order XX, YY, ZZ, XY, YZ, XZ), von_mises
+  (Pa), electric_field = −∇φ (V/m), electric_displacement (C/m²).
+- `contact.vtu`: the slave contact surface (its quadrilaterals or triangles) with point data
+  normal, tangent1, tangent2, lambda_n, lambda_t (the tangential multiplier as a 3-vector),
+  lambda_t1, lambda_t2, jump_t (3-vector), g, state (index into STATES) and is_STATE (0/1).
+- `contact.csv`: one row per surface node, `#` lines with units; columns x, y, z, normal_*,
+  tangent1_*, tangent2_*, lambda_n, lambda_t (along t1), lambda_t2, jump_t, jump_t2, g, state.
+- `contact_map.png`: the stick/slip map on the contact surface and |λ_t|/g.
+(`mixvi solve` collects the .vtu files into `results.pvd`.)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from fem import assembly3d
+from fem.surface3d import frames
+
+STATES = ("stick", "slip", "normal_only", "no_multiplier")
+VTK_ORDER = [0, 1, 2, 5, 3, 4]  # Voigt (xx, yy, zz, yz, xz, xy) → VTK (XX, YY, ZZ, XY, YZ, XZ)
+UNITS = {"x": "m", "normal": "1", "tangent": "1", "lambda": "Pa", "jump": "m", "g": "Pa"}
+CSV_NOTES = [
+    "x, y, z [m]: node position",
+    "normal_* [1]: outward unit normal n of the slave body; tangent1_*, tangent2_* [1]: the "
+    "tangent frame (t1, t2, n right-handed); a node keeping one tangent only has its lambda in "
+    "one of the two columns",
+    "lambda_n [Pa]: normal multiplier (the traction on the slave is -lambda; lambda_n > 0: "
+    "compression); lambda_t, lambda_t2 [Pa]: tangential multiplier along t1, t2, "
+    "|(lambda_t, lambda_t2)| <= g; empty where the node carries none",
+    "jump_t, jump_t2 [m]: tangential jump along t1, t2 (slave displacement for a rigid foundation)",
+    "g [Pa]: friction bound g_k = int g phi_k / int phi_k",
+    "state: stick (|lambda_t| < g), slip (|lambda_t| = g), normal_only (tangents prescribed), "
+    "no_multiplier (clamped node)",
+]
+
+
+def von_mises3(s: np.ndarray) -> np.ndarray:
+    """(n,) von Mises stress of Voigt stresses s (n, 6)."""
+    xx, yy, zz, yz, xz, xy = s.T
+    return np.sqrt(
+        0.5 * ((xx - yy) ** 2 + (yy - zz) ** 2 + (zz - xx) ** 2) + 3 * (xy**2 + yz**2 + xz**2)
+    )
+
+
+def body_fields3(body, x_body: np.ndarray) -> tuple[dict, dict]:
+    """(point_data, cell_data) of one 3D body from its full vector."""
+    u, phi = body.split(x_body)  # (N, 3), (N,) or None
+    m = body.material
+    sigma, D = assembly3d.cell_fields(
+        body.mesh, u.ravel(), phi, m.C, m.e, m.kappa
+    )  # (nc, 6), (nc, 3)
+    point = {"displacement": u}
+    cell = {"stress": sigma[:, VTK_ORDER], "von_mises": von_mises3(sigma)}
+    if phi is not None:
+        grad = assembly3d.cell_geometry(body.mesh, 0).grad[:, 0]  # (nc, n_loc, 3) at centroids
+        point["electric_potential"] = phi
+        cell["electric_field"] = -np.einsum("ca,cai->ci", phi[body.mesh.cells], grad)
+        cell["electric_displacement"] = D
+    return point, cell
+
+
+def write_body_vtu(path: Path, mesh, point: dict, cell: dict) -> None:
+    """A 3D mesh with point and cell data as .vtu."""
+    import meshio
+
+    meshio.Mesh(
+        mesh.points,
+        [(mesh.cell_type, mesh.cells)],
+        point_data=point,
+        cell_data={k: [v] for k, v in cell.items()},
+    ).write(str(path), file_format="vtu")
+
+
+def table(model, st: dict) -> dict[str, np.ndarray]:
+    """The contact.csv columns, in order."""
+    c = model.contact
+    P = c.slave.mesh.points[c.surf.nodes]
+    cols = {a: P[:, i] for i, a in enumerate("xyz")}
+    for name, v in (("normal", c.normals), ("tangent1", c.t1), ("tangent2", c.t2)):
+        cols |= {f"{name}_{a}": v[:, i] for i, a in enumerate("xyz")}
+    cols |= {
+        "lambda_n": st["lam_n"],
+        "lambda_t": st["lam_t1"],
+        "lambda_t2": st["lam_t2"],
+        "jump_t": st["jump_t1"],
+        "jump_t2": st["jump_t2"],
+        "g": st["g"],
+        "state": st["state"],
+    }
+    return cols
+
+
+def write_csv(path: Path, cols: dict[str, np.ndarray]) -> None:
+    """contact.csv: '#' lines with units and meanings, a header, one row per node."""
+    lines = ["# mixvi contact3d results, one row per node of the slave contact surface"]
+    lines += [f"# {n}" for n in CSV_NOTES]
+    lines.append(",".join(cols))
+    k = len(cols["x"])
+    for i in range(k):
+        cells = []
+        for name, v in cols.items():
+            x = v[i]
+            cells.append(str(x) if name == "state" else ("" if np.isnan(x) else repr(float(x))))
+        lines.append(",".join(cells))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def write_surface_vtu(path: Path, model, st: dict) -> None:
+    """The contact surface with the contact quantities as point data."""
+    import meshio
+
+    c = model.contact
+    code = np.array([STATES.index(s) for s in st["state"]], dtype=np.int32)
+    point = {
+        "normal": c.normals,
+        "tangent1": c.t1,
+        "tangent2": c.t2,
+        "lambda_n": st["lam_n"],
+        "lambda_t": st["lam_t_vec"],
+        "lambda_t1": st["lam_t1"],
+        "lambda_t2": st["lam_t2"],
+        "jump_t": st["jump_t_vec"],
+        "g": st["g"],
+        "state": code,
+        **{f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)},
+    }
+    meshio.Mesh(
+        c.slave.mesh.points[c.surf.nodes], [(c.surf.face_type, c.surf.faces)], point_data=point
+    ).write(str(path), file_format="vtu")
+
+
+def chart(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Plane coordinates (k, 2) of the contact surface nodes in the frame (a, b) of the mean
+    normal, and a, b (3,)."""
+    c = model.contact
+    n = c.normals.sum(axis=0)
+    a, b = frames(n[None, :] / np.linalg.norm(n))
+    P = c.slave.mesh.points[c.surf.nodes]
+    return np.stack([P @ a[0], P @ b[0]], axis=1), a[0], b[0]
+
+
+def contact_map(path: Path, model, st: dict, title: str = "") -> None:
+    """Two panels on the contact surface (seen along −n): the stick/slip state with the
+    tangential traction −λ_t as arrows, and |λ_t|/g."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.tri import Triangulation
+
+    c = model.contact
+    uv, a, b = chart(model)
+    faces = c.surf.faces
+    tris = (
+        faces if faces.shape[1] == 3 else np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
+    )
+    tri = Triangulation(uv[:, 0], uv[:, 1], tris)
+    ratio = np.divide(
+        np.linalg.norm(st["lam_t_vec"], axis=1),
+        st["g"],
+        out=np.zeros(c.surf.size),
+        where=st["g"] > 0,
+    )
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
+    ax = axes[0]
+    colors = {"stick": "tab:blue", "slip": "tab:red", "normal_only": "0.6", "no_multiplier": "k"}
+    ax.triplot(tri, color="0.85", lw=0.4)
+    for s, col in colors.items():
+        sel = st["state"] == s
+        if sel.any():
+            ax.scatter(uv[sel, 0], uv[sel, 1], s=14, color=col, label=f"{s} ({int(sel.sum())})")
+    lt = -st["lam_t_vec"]  # the traction the foundation exerts on the slave
+    ax.quiver(uv[:, 0], uv[:, 1], lt @ a, lt @ b, color="0.3", width=0.003)
+    ax.set_title("stick/slip state, arrows: tangential traction $-\\lambda_t$")
+    ax.legend(fontsize=7, loc="upper right")
+    ax2 = axes[1]
+    im = ax2.tripcolor(tri, ratio, shading="gouraud", vmin=0.0, vmax=1.0, cmap="viridis")
+    ax2.tricontour(tri, ratio, levels=[1.0 - 1e-6], colors="r", linewidths=1.0)
+    fig.colorbar(im, ax=ax2, label="$|\\lambda_t|/g$ (1: slip)")
+    ax2.set_title("$|\\lambda_t|/g$")
+    for axx in axes:
+        axx.set_aspect("equal")
+        axx.set_xlabel(f"[{a[0]:.2g}, {a[1]:.2g}, {a[2]:.2g}]·x [m]")
+        axx.set_ylabel(f"[{b[0]:.2g}, {b[1]:.2g}, {b[2]:.2g}]·x [m]")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def frame_checks(model) -> dict:
+    """Orthonormality defect of the frames and the largest angle (degrees) between the t1 of
+    two nodes sharing a face edge (small on a smooth surface: the frames are continuous)."""
+    c = model.contact
+    F = np.stack([c.t1, c.t2, c.normals], axis=1)  # (k, 3, 3)
+    ortho = float(np.abs(F @ F.transpose(0, 2, 1) - np.eye(3)).max())
+    hand = float(np.abs(np.cross(c.t1, c.t2) - c.normals).max())
+    e = c.surf.edges()
+    interior = np.isin(e, c.disc).all(axis=1)
+    cosang = np.einsum("ij,ij->i", c.t1[e[interior, 0]], c.t1[e[interior, 1]])
+    jump = float(np.degrees(np.arccos(np.clip(cosang, -1, 1))).max(initial=0.0))
+    return {"orthonormality_defect": ortho, "handedness_defect": hand, "max_t1_turn_deg": jump}
+
+
+def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
+    """All result files of a solve; the summary entries."""
+    x_full = model.full(sol.u)
+    files = []
+    for b in model.bodies:
+        point, cell = body_fields3(b, x_full[b.offset : b.offset + b.size])
+        fn = f"{b.name}.vtu"
+        write_body_vtu(outdir / fn, b.mesh, point, cell)
+        files.append(fn)
+    summary: dict = {}
+    if model.contact is not None:
+        c = model.contact
+        st = contact_state(model, sol)
+        cols = table(model, st)
+        write_csv(outdir / "contact.csv", cols)
+        write_surface_vtu(outdir / "contact.vtu", model, st)
+        contact_map(outdir / "contact_map.png", model, st, title=model.scene.name)
+        files += ["contact.csv", "contact.vtu", "contact_map.png"]
+        lam = np.nan_to_num(st["lam_n"])[:, None] * c.normals + st["lam_t_vec"]  # (k, 3)
+        force = -(c.W[:, None] * lam).sum(axis=0)
+        counts = {s: int((st["state"] == s).sum()) for s in STATES}
+        summary["contact"] = {
+            "nodes": int(st["has_t"].sum()),
+            "stick": counts["stick"],
+            "slip": counts["slip"],
+            "counts": counts,
+            **{f"{s}_area": float(c.W[st["state"] == s].sum()) for s in STATES},
+            "force_on_slave": force.tolist(),
+            "force_units": "N",
+            "master": "rigid" if c.master is None else c.master.body.name,
+            "mortar_patch_defect": 0.0 if c.master is None else c.master.patch_defect,
+            "multipliers": {
+                "normal": int(c.rows_n.size),
+                "disc": int(c.disc.size),
+                "line": int(c.line.size),
+            },
+            "frames": frame_checks(model),
+        }
+        summary["lemma_4_2"] = st["lemma_4_2"]
+        summary["warnings"] = _warnings(st)
+    summary["files"] = sorted(files)
+    return summary
+
+
+def _warnings(st: dict) -> list[str]:
+    g, has_t = st["g"], st["has_t"]
+    if not g[has_t].any():
+        return ["g = 0 on Γ3: frictionless sliding (a linear problem)"]
+    if not st["slip"].any():
+        used = float(
+            np.max(
+                np.linalg.norm(st["lam_t_vec"][has_t], axis=1)
+                / np.where(g[has_t] > 0, g[has_t], np.inf)
+            )
+        )
+        return [
+            f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
+            "bound (the problem is tied)"
+        ]
+    return []

@@ -1,0 +1,132 @@
+"""Value types of 3D scenes: expressions of (x, y, z), 3-vectors, 3D intervals and cell counts.
+
+`Expression3` is an `Expression` (same grammar, limits, refusals and field paths) whose
+variables are x, y and z; it is called as f(x, y, z). `Vector3` is three of them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Annotated, Any
+
+import numpy as np
+from pydantic import AfterValidator, Field
+from pydantic_core import PydanticCustomError
+
+from problems.errors import SceneError
+
+from .expressions import ALLOWED, MAX_MAGNITUDE, ExpressionError, compile_expression
+from .fields import Expression, Integer, Number, number_value
+
+VARIABLES = ("x", "y", "z", "t")  # t: the load parameter (scenes with a [load_path] only)
+ALLOWED_3D = ALLOWED.replace("of x, y", "of x, y, z")
+
+
+class Expression3(Expression):
+    """A compiled scalar field f(x, y, z) of a 3D scene: a constant or an expression text."""
+
+    def __init__(self, source: float | str):
+        self.source = source
+        self.path = "(expression)"
+        self.t_end: float | None = None
+        self.constant = not isinstance(source, str)
+        self._fn = None if self.constant else compile_expression(source, VARIABLES)
+        self.uses_t = not self.constant and "t" in _names(source)
+
+    def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:  # type: ignore[override]
+        """Values at the points (x, y, z): an array of their broadcast shape (SceneError if a
+        value is not finite or larger than MAX_MAGNITUDE)."""
+        shape = np.broadcast_shapes(np.shape(x), np.shape(y), np.shape(z))
+        if self._fn is None:
+            return np.full(shape, float(self.source))
+        out = self._fn(x, y, z, np.float64(self.load_t()))
+        bad = ~(np.isfinite(out) & (np.abs(out) <= MAX_MAGNITUDE))
+        if bad.any():
+            i = np.unravel_index(int(np.argmax(bad)), shape)
+            p = [float(np.broadcast_to(a, shape)[i]) for a in (x, y, z)]
+            raise SceneError(
+                self.path,
+                self.source,
+                f"an expression whose values are finite and of size ≤ {MAX_MAGNITUDE:g} on the "
+                f"domain (at (x, y, z) = ({p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g}) it is "
+                f"{float(out[i])!r}: a division by zero, an overflow or a function outside its "
+                "domain)",
+            )
+        return out
+
+    def __repr__(self) -> str:
+        return f"Expression3({self.source!r})"
+
+    @classmethod
+    def parse(cls, v: Any) -> Expression3:
+        """A number or an expression text of x, y, z → Expression3 (pydantic error otherwise)."""
+        if isinstance(v, Expression3):
+            return v
+        if isinstance(v, str):
+            try:
+                e = cls(v)
+            except ExpressionError as err:
+                raise PydanticCustomError(
+                    "expression",
+                    "{why}; allowed: {allowed}",
+                    {"allowed": ALLOWED_3D, "why": str(err)},
+                ) from None
+            val = e._fn(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1))
+            if not set(VARIABLES) & _names(v) and not (
+                np.isfinite(val).all() and (np.abs(val) <= MAX_MAGNITUDE).all()
+            ):
+                raise PydanticCustomError(
+                    "expression",
+                    "an expression with a finite value of size ≤ {limit} (this one is {val})",
+                    {"limit": f"{MAX_MAGNITUDE:g}", "val": repr(float(val[0]))},
+                )
+            return e
+        try:
+            number_value(v)
+        except PydanticCustomError:
+            raise PydanticCustomError("expression", "{allowed}", {"allowed": ALLOWED_3D}) from None
+        return cls(v)
+
+
+def _names(text: str) -> set[str]:
+    import ast
+
+    return {n.id for n in ast.walk(ast.parse(text.strip(), mode="eval")) if isinstance(n, ast.Name)}
+
+
+def _nonnegative(e: Expression3) -> Expression3:
+    if e.constant and float(e.source) < 0:
+        raise PydanticCustomError("expression", "a field ≥ 0 (a number or expression)")
+    return e
+
+
+NonNegativeExpr3 = Annotated[Expression3, AfterValidator(_nonnegative)]
+Vector3 = Annotated[list[Expression3], Field(min_length=3, max_length=3)]
+
+
+def evaluate3(components: Sequence[Expression3], x, y, z) -> np.ndarray:
+    """A vector field's values: (..., len(components)) at the points (x, y, z)."""
+    return np.stack([c(x, y, z) for c in components], axis=-1)
+
+
+def _increasing(v: list) -> list:
+    if v[0] >= v[1]:
+        raise PydanticCustomError("interval", "an interval [a, b] with a < b")
+    return v
+
+
+def _positive_ints(v: list) -> list:
+    if min(v) < 1:
+        raise PydanticCustomError("cells", "three positive integers [nx, ny, nz]")
+    return v
+
+
+def _unit(v: list) -> list:
+    if not np.linalg.norm(np.asarray(v, float)) > 0:
+        raise PydanticCustomError("direction", "a non-zero direction [dx, dy, dz]")
+    return v
+
+
+Interval = Annotated[list[Number], Field(min_length=2, max_length=2), AfterValidator(_increasing)]
+Cells3 = Annotated[list[Integer], Field(min_length=3, max_length=3), AfterValidator(_positive_ints)]
+Direction = Annotated[list[Number], Field(min_length=3, max_length=3), AfterValidator(_unit)]

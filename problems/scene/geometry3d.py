@@ -1,0 +1,72 @@
+"""Geometry tables of 3D scenes → `fem.mesh3d.Mesh3D` at a refinement level.
+
+Kind "box": [x0, x1] × [y0, y1] × [z0, z1] in nx × ny × nz hexahedra (Q1) or 6 tetrahedra each
+(P1), each level halving the cells' size (8 times the cells). Boundary parts "left"/"right"
+(x), "front"/"back" (y), "bottom"/"top" (z). An optional `bottom_lift` = h(x, y) curves the
+bottom into the surface z = z0 + h(x, y): every node moves up by h(x, y)·(z1 − z)/(z1 − z0)
+(nodes on the true surface at every level; the top stays flat). A mesh of more than MAX_CELLS
+cells, or one the map inverts, is a SceneError naming the key.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar, Literal
+
+import numpy as np
+
+from fem.mesh3d import Mesh3D, box, transform
+from problems.errors import SceneError
+
+from .fields3d import Cells3, Expression3, Interval
+from .model import Section
+
+MAX_CELLS = 4_000_000  # cells of one body at the requested level
+
+
+class Box(Section):
+    """A box of hexahedra or tetrahedra, optionally with a curved bottom (`bottom_lift`)."""
+
+    BOUNDARIES: ClassVar[tuple[str, ...]] = ("left", "right", "front", "back", "bottom", "top")
+    kind: Literal["box"]
+    x: Interval
+    y: Interval
+    z: Interval
+    cells: Cells3
+    element: Literal["hexahedron", "tetra"] = "hexahedron"
+    bottom_lift: Expression3 | None = None
+
+    def n_cells(self, level: int) -> int:
+        """Cells of the mesh at `level`."""
+        return int(np.prod(self.cells)) * 8**level * (6 if self.element == "tetra" else 1)
+
+    def mesh(self, level: int) -> Mesh3D:
+        """The mesh at refinement `level`."""
+        n = self.n_cells(level)
+        if n > MAX_CELLS:
+            raise SceneError(
+                self.key("cells"),
+                self.cells,
+                f"a mesh of at most {MAX_CELLS:,} cells per body at the requested level "
+                f"(this geometry would have {n:,} at level {level})",
+            )
+        try:
+            mesh = box(
+                tuple(self.x), tuple(self.y), tuple(self.z), tuple(self.cells), self.element, level
+            )
+            if self.bottom_lift is not None:
+                lift, (z0, z1) = self.bottom_lift, self.z
+
+                def curved(p: np.ndarray) -> np.ndarray:
+                    h = lift(p[:, 0], p[:, 1], np.full(len(p), z0))  # (n,)
+                    p[:, 2] += h * (z1 - p[:, 2]) / (z1 - z0)
+                    return p
+
+                mesh = transform(mesh, curved)
+        except ValueError as err:
+            raise SceneError(
+                self._path, self.model_dump(), f"a geometry that meshes into valid cells ({err})"
+            ) from None
+        return mesh
+
+
+Geometry3 = Box
