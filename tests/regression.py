@@ -54,7 +54,8 @@ LEVELS = (0, 1)
 # The two Hertz scenes likewise: their graded meshes (cells down to h^1.5-size at the first
 # contact point) give κ ≈ 1e4 at level 1 and a derived tolerance of 1.2e-8 / 8.3e-9 there.
 # The 3D scenes too (the CI budget of the 3D tests; their level 1 is compared with the 2D
-# plug-in and the other methods in tests/problems/plugins/test_contact3d.py and test_check3d.py).
+# plug-in and the other methods in tests/problems/plugins/test_contact3d.py and test_check3d.py;
+# the two-body ones in test_contact3d_two_body.py).
 LEVEL_0_ONLY = (
     "plate_with_hole",
     "wavy_two_body",
@@ -62,6 +63,8 @@ LEVEL_0_ONLY = (
     "hertz_piezo",
     "block3d",
     "rigid_foundation_extruded",
+    "paper_two_body_extruded",
+    "spherical_cap",
 )
 # Scenes whose Newton iteration stops just below TOL, one (quadratic) step short of rounding, so
 # that their derived tolerance exceeds the 1e-8 rounding bound of test_regression: compared at

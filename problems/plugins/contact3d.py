@@ -8,8 +8,8 @@ triangles, `fem.surface3d`), so that ∫ψ̃_k φ_j = δ_kj W_k with W_k = ∫_�
 block D = diag(W) is diagonal. g_k = ∫g φ_k / W_k. Frames (t1, t2, n) are right-handed and
 continuous on curved surfaces (`fem.surface3d.frames`). With a rigid foundation (the slave
 surface itself, flat or curved: bilateral contact has no initial gap) the rows are
-W_k n_kᵀu_k and W_k t_kᵀu_k; a master body adds −Σ_j M_kj (·)ᵀu_m,j (a `Coupling`, e.g. the
-3D dual mortar of `fem.mortar3d`; docs/fem3d.md "Contact").
+W_k n_kᵀu_k and W_k t_kᵀu_k; a master body adds −Σ_j M_kj (·)ᵀu_m,j (a `Coupling`: the 3D dual
+mortar of `fem.mortar3d`, `mortar_coupling`; docs/fem3d.md "Two bodies in contact3d").
 
 Multiplier order: the normal rows, then the disc nodes (t1, t2 per node), then the nodes that
 keep one tangent only. Crosspoint rules (per node, from its prescribed displacement
@@ -31,6 +31,7 @@ import scipy.sparse as sp
 from pydantic import Field, model_validator
 
 from fem.dirichlet import expand, reduce_dirichlet
+from fem.mortar3d import covered_nodes, mortar_coupling3d, nodal_rows
 from fem.surface3d import Surface, face_integrals, frames, surface
 from problems.errors import SceneError
 from problems.scene import Scene, SceneModel, Section
@@ -39,7 +40,15 @@ from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, MixedVI, Solution, product
 
 from . import contact3d_checks, contact3d_extremes, contact3d_output
-from .contact3d_bodies import Body3D, BodySection3, build_body3, count3, dirichlet3, field_data3
+from .contact3d_bodies import (
+    SURFACE_ORDER,
+    Body3D,
+    BodySection3,
+    build_body3,
+    count3,
+    dirichlet3,
+    field_data3,
+)
 from .contract import Sweep
 
 NAME = "contact3d"
@@ -62,6 +71,8 @@ class Coupling:
     M: sp.csr_matrix
     dofs: np.ndarray
     patch_defect: float
+    covered: np.ndarray | None = None  # (k_slave,) the master is behind the node's support
+    n_cells: int = 0  # integration cells of the mortar
 
 
 @dataclass
@@ -143,7 +154,8 @@ class Model:
 
 class ContactSection3(Section):
     """[contact]: the slave boundary (BODY.BOUNDARY), the master ("rigid": a rigid foundation
-    along the slave surface) and the friction bound g (Pa, a field ≥ 0 of x, y, z)."""
+    along the slave surface, or BODY.BOUNDARY of another body: the 3D dual mortar) and the
+    friction bound g (Pa, a field ≥ 0 of x, y, z)."""
 
     slave: str
     master: str = "rigid"
@@ -164,14 +176,15 @@ class Contact3DScene(SceneModel):
     def _references(self) -> Contact3DScene:
         c = self.contact
         if c is not None:
-            _ref(self, ["contact", "slave"], c.slave)
+            sbody, _ = _ref(self, ["contact", "slave"], c.slave)
             if c.master != "rigid":
-                raise refuse(
-                    ["contact", "master"],
-                    c.master,
-                    '"rigid" (a rigid foundation along the slave surface; two-body 3D '
-                    "contact is fem.mortar3d's, not yet in this plug-in)",
-                )
+                mbody, _ = _ref(self, ["contact", "master"], c.master)
+                if mbody == sbody:
+                    raise refuse(
+                        ["contact", "master"],
+                        c.master,
+                        '"rigid" or BODY.BOUNDARY of another body than the slave',
+                    )
         return self
 
 
@@ -216,7 +229,11 @@ def _build(scene: Scene, level: int | None) -> Model:
     if spec.contact is not None:
         ct = spec.contact
         sname, part = ct.slave.split(".", 1)
-        contact = slave_contact(bodies[sname], part, ct.g, n_full)
+        master = None
+        if ct.master != "rigid":
+            mname, mpart = ct.master.split(".", 1)
+            master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
+        contact = slave_contact(bodies[sname], part, ct.g, n_full, master)
     A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
     f_full = np.concatenate([b.f for b in bodies.values()])
     fixed = np.concatenate([b.fixed for b in bodies.values()])
@@ -261,7 +278,7 @@ def count(scene: Scene, level: int) -> tuple[int, int, int]:
     if spec.contact is not None:
         sname, part = spec.contact.slave.split(".", 1)
         tb, body = bodies[sname]
-        surf = surface(body.mesh, part)
+        surf = surface(body.mesh, part, SURFACE_ORDER[body.mesh.cell_type])
         t1, t2 = frames(surf.normals)
         fixed = dirichlet3(tb, body)[0][: 3 * body.n_nodes].reshape(-1, 3)[surf.nodes]
         carry_n, n_tan, *_ = carrying(fixed, surf.normals, t1, t2)
@@ -366,6 +383,21 @@ def contact_rows(
     return B
 
 
+def mortar_coupling(slave: Body3D, part: str, master: Body3D, mpart: str) -> Coupling:
+    """The master side of a two-body interface: the 3D dual mortar (`fem.mortar3d`) in the
+    nodal rows of the slave surface (D = diag(W)); nodes without the master behind their whole
+    support carry no multiplier (`covered`); patch_defect is set by `slave_contact`."""
+    try:
+        order = SURFACE_ORDER[slave.mesh.cell_type]  # that of W = diag(D) in slave_contact
+        mo = mortar_coupling3d(slave.mesh, part, master.mesh, mpart, face_order=order)
+    except ValueError as err:
+        raise SceneError(
+            "contact.master", f"{master.name}.{mpart}", f"a master surface facing the slave ({err})"
+        ) from None
+    dofs = master.u_dofs(mo.master.nodes)  # (k_m, 3)
+    return Coupling(master, mpart, nodal_rows(mo), dofs, np.nan, covered_nodes(mo), mo.n_cells)
+
+
 def slave_contact(
     slave: Body3D, part: str, gfun, n_full: int, master: Coupling | None = None
 ) -> Contact3D:
@@ -373,7 +405,7 @@ def slave_contact(
     surface, frames, crosspoint rules, g_k and the rows."""
     key = "contact.slave"
     try:
-        surf = surface(slave.mesh, part)
+        surf = surface(slave.mesh, part, SURFACE_ORDER[slave.mesh.cell_type])
         t1, t2 = frames(surf.normals)
     except ValueError as err:
         raise SceneError(
@@ -381,6 +413,13 @@ def slave_contact(
         ) from None
     fixed = slave.fixed[slave.u_dofs(surf.nodes) - slave.offset]  # (k, 3) body-local dofs
     carry_n, n_tan, t1, t2, slot, bad = carrying(fixed, surf.normals, t1, t2)
+    if master is not None:  # uncovered nodes carry nothing; the rigid-body rows of the others
+        carry_n &= master.covered
+        n_tan = np.where(master.covered, n_tan, 0)
+        rows = carry_n | (n_tan > 0)
+        sums = np.asarray(master.M.sum(axis=1)).ravel()  # (k,)
+        rel = np.abs(surf.weights - sums) / surf.weights
+        master.patch_defect = float(rel[rows].max(initial=0.0))
     if bad:
         where = "; ".join(_where(slave, surf, i) for i in bad[:6])
         raise SceneError(
@@ -405,7 +444,8 @@ def slave_contact(
             )
         return gv
 
-    g = face_integrals(slave.mesh, surf, g_checked) / surf.weights
+    order = SURFACE_ORDER[slave.mesh.cell_type]
+    g = face_integrals(slave.mesh, surf, g_checked, order) / surf.weights
     rows_n = np.flatnonzero(carry_n)
     disc = np.flatnonzero(n_tan == 2)
     line = np.flatnonzero(n_tan == 1)

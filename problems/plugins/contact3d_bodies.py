@@ -27,6 +27,11 @@ from problems.scene.model import one_or_many, refuse
 
 from .contract import check_boundaries
 
+# Quadrature order of the contact surface integrals (W, normals, g_k, the dual basis of the
+# mortar): Q1 faces of a curved surface are not planar and |∂x/∂ξ × ∂x/∂η| is not polynomial
+# (order 4 leaves 7e-11 in the rigid-body rows of spherical_cap, order 8 3e-15); P1 faces are
+# flat (order 4 exact).
+SURFACE_ORDER = {"hexahedron": 8, "tetra": 4}
 COMPONENTS = {c: tuple("xyz".index(a) for a in c) for c in ("x", "y", "z", "xy", "xz", "yz", "xyz")}
 
 

@@ -20,6 +20,8 @@ import numpy as np
 
 from fem import assembly3d
 
+from .contact3d_bodies import SURFACE_ORDER
+
 
 def rigid_body_defect(body) -> float:
     """max over the six modes of ‖K r‖_∞ / (‖K‖_∞ ‖r‖_∞) of the body's elasticity block."""
@@ -38,7 +40,8 @@ def rigid_body_defect(body) -> float:
 
 def _independent_weights(mesh, part: str) -> tuple[np.ndarray, np.ndarray]:
     """(N,) ∫φ_i dA and (N, 3) ∫φ_i n dA over boundary `part`, by fem.assembly3d's quadrature."""
-    _, w, phi, n = assembly3d.face_geometry(mesh, part)  # (n_f, q), (q, k), (n_f, q, 3)
+    order = SURFACE_ORDER[mesh.cell_type]  # the plug-in's order (its own rule, not its code)
+    _, w, phi, n = assembly3d.face_geometry(mesh, part, order)  # (n_f, q), (q, k), (n_f, q, 3)
     faces = mesh.boundaries[part]  # (n_f, k)
     W = np.zeros(mesh.n_nodes)
     np.add.at(W, faces.ravel(), (w @ phi).ravel())

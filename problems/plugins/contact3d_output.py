@@ -248,8 +248,20 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
         }
         summary["lemma_4_2"] = st["lemma_4_2"]
         summary["warnings"] = _warnings(st)
+        if c.master is not None:
+            summary["contact"]["uncovered_nodes"] = missing = uncovered(c)
+            if missing:
+                summary["warnings"].append(
+                    f"{len(missing)} node(s) of {c.slave.name}.{c.slave_part} have no master "
+                    "behind their whole support and carry no multiplier (contact.uncovered_nodes)"
+                )
     summary["files"] = sorted(files)
     return summary
+
+
+def uncovered(c) -> list[int]:
+    """Slave node ids without the master behind their whole support (no multiplier)."""
+    return [int(n) for n in c.surf.nodes[~c.master.covered]]
 
 
 def _warnings(st: dict) -> list[str]:

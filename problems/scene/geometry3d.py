@@ -4,20 +4,27 @@ Kind "box": [x0, x1] × [y0, y1] × [z0, z1] in nx × ny × nz hexahedra (Q1) or
 (P1), each level halving the cells' size (8 times the cells). Boundary parts "left"/"right"
 (x), "front"/"back" (y), "bottom"/"top" (z). An optional `bottom_lift` = h(x, y) curves the
 bottom into the surface z = z0 + h(x, y): every node moves up by h(x, y)·(z1 − z)/(z1 − z0)
-(nodes on the true surface at every level; the top stays flat). A mesh of more than MAX_CELLS
-cells, or one the map inverts, is a SceneError naming the key.
+(nodes on the true surface at every level; the top stays flat); `top_lift` likewise curves the
+top (nodes move by h(x, y)·(z − z0)/(z1 − z0)). Kind "extruded": a built-in 2D geometry table
+(`section`: rectangle, half_disc or cradle, in the x–y plane) extruded over z in `layers`
+layers of hexahedra (`fem.mesh3d.extrude`; a level refines the section and doubles the
+layers); its parts are the section's (surfaces over its curves) and "z0"/"z1" (the ends). A mesh
+of more than MAX_CELLS cells, or one the map inverts, is a SceneError naming the key.
 """
 
 from __future__ import annotations
 
-from typing import ClassVar, Literal
+from typing import Annotated, ClassVar, Literal
 
 import numpy as np
+from pydantic import Field
 
-from fem.mesh3d import Mesh3D, box, transform
+from fem.mesh3d import END_PARTS, Mesh3D, box, extrude, transform
 from problems.errors import SceneError
 
+from .fields import Integer
 from .fields3d import Cells3, Expression3, Interval
+from .geometry import Cradle, HalfDisc, Rectangle
 from .model import Section
 
 MAX_CELLS = 4_000_000  # cells of one body at the requested level
@@ -34,6 +41,7 @@ class Box(Section):
     cells: Cells3
     element: Literal["hexahedron", "tetra"] = "hexahedron"
     bottom_lift: Expression3 | None = None
+    top_lift: Expression3 | None = None
 
     def n_cells(self, level: int) -> int:
         """Cells of the mesh at `level`."""
@@ -62,6 +70,15 @@ class Box(Section):
                     return p
 
                 mesh = transform(mesh, curved)
+            if self.top_lift is not None:
+                top, (z0, z1) = self.top_lift, self.z
+
+                def dished(p: np.ndarray) -> np.ndarray:
+                    h = top(p[:, 0], p[:, 1], np.full(len(p), z1))  # (n,)
+                    p[:, 2] += h * (p[:, 2] - z0) / (z1 - z0)
+                    return p
+
+                mesh = transform(mesh, dished)
         except ValueError as err:
             raise SceneError(
                 self._path, self.model_dump(), f"a geometry that meshes into valid cells ({err})"
@@ -69,4 +86,36 @@ class Box(Section):
         return mesh
 
 
-Geometry3 = Box
+class Extruded(Section):
+    """A built-in 2D geometry extruded along z in layers of hexahedra (plane-strain scenes)."""
+
+    kind: Literal["extruded"]
+    section: Annotated[Rectangle | HalfDisc | Cradle, Field(discriminator="kind")]
+    z: Interval
+    layers: Annotated[Integer, Field(ge=1)] = 1
+
+    @property
+    def BOUNDARIES(self) -> tuple[str, ...]:  # noqa: N802 (the name every geometry has)
+        """The section's parts and the two ends."""
+        return (*self.section.BOUNDARIES, *END_PARTS)
+
+    def mesh(self, level: int) -> Mesh3D:
+        """The section's mesh at `level` extruded in layers·2^level layers."""
+        m2 = self.section.mesh(level)
+        layers = self.layers * 2**level
+        n = m2.cells.shape[0] * layers
+        if n > MAX_CELLS:
+            raise SceneError(
+                self.key("layers"),
+                self.layers,
+                f"a mesh of at most {MAX_CELLS:,} cells per body at the requested level "
+                f"(this geometry would have {n:,} at level {level})",
+            )
+        if m2.cells.shape[1] != 4:
+            raise SceneError(
+                self.key("section"), self.section.model_dump(), "a section of quadrilaterals"
+            )
+        return extrude(m2, tuple(self.z), layers)
+
+
+Geometry3 = Annotated[Box | Extruded, Field(discriminator="kind")]
