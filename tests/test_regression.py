@@ -61,7 +61,7 @@ def test_a_changed_count_is_caught():
     now = regression.run_case("signorini", 0)
     now["summary"]["contact"]["slip"] += 1
     assert regression.check_case("signorini", 0, base, now) == [
-        "signorini level 0: .summary.contact.slip: 2 → 3"
+        "signorini level 0: .summary.contact.slip: 3 → 4"
     ]
 
 

@@ -47,6 +47,8 @@ import scipy.sparse as sp
 
 from .sets import ConvexSet, _vector
 
+OPEN = 1e-10  # `tresca_bound`: λ_n ≤ OPEN · (largest λ_n) counts as apart (rounding)
+
 
 class ContactSet(ConvexSet):
     """k contact nodes in R^dim, node by node [λ_n, λ_t]; see the module docstring.
@@ -174,7 +176,12 @@ class UnilateralTresca(ContactSet):
         return r, np.zeros(self.k)
 
     def tresca_bound(self, lam_n):
-        return self.g * (np.asarray(lam_n, float) > 0) if self.contact_only else self.g.copy()
+        if not self.contact_only:
+            return self.g.copy()
+        # touching: λ_n above rounding of the largest pressure (a solver's λ_n at a node that is
+        # apart is rounding, 1e-15 of the largest, and must not switch the bound on)
+        lam_n = np.asarray(lam_n, float)
+        return self.g * (lam_n > OPEN * max(float(lam_n.max(initial=0.0)), 0.0))
 
     def scaled(self, t):
         return UnilateralTresca(self.g / self._node_scale(t), self.dim, self.contact_only)

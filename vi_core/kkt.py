@@ -35,6 +35,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 SAFETY = 10.0  # `compare`: allowance for the 1-norm estimate and for changes of active piece
+OPEN = (
+    1e-10  # a contact node with λ'_n ≤ OPEN · (largest λ'_n) is apart (counts, contact-only Tresca)
+)
 
 
 @dataclass(frozen=True)
@@ -100,11 +103,16 @@ def _scales(A: sp.csr_matrix, B: sp.csr_matrix, blocks: list[Block]):
 
 def _radius(blk: Block, lam_n: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Friction radius (k,) of a contact block at the equilibrated normal multipliers λ'_n
-    (t: the node scales s_λ): F·max(λ'_n, 0), g/t·[λ'_n > 0] or g/t."""
+    (t: the node scales s_λ): F·max(λ'_n, 0), g/t·[touching] or g/t. Contact-only Tresca
+    counts a node as touching where λ'_n > OPEN · (the block's largest λ'_n): its radius jumps
+    from 0 to g there, and a solver's rounding-level λ_n at a node that is apart (measured:
+    1e-15 of the largest pressure) must not switch the bound on."""
     if blk.law == "coulomb":
         return blk.friction * np.where(lam_n > 0, lam_n, 0.0)
     g = blk.friction / t
-    return np.where(lam_n > 0, g, 0.0) if blk.law == "tresca_contact" else g
+    if blk.law != "tresca_contact":
+        return g
+    return np.where(lam_n > OPEN * max(float(lam_n.max(initial=0.0)), 0.0), g, 0.0)
 
 
 def _project(blocks: list[Block], y: np.ndarray, s_lam: np.ndarray, lam: np.ndarray) -> np.ndarray:
@@ -306,7 +314,7 @@ class Checker:
                 align / (L * Z),
             ]
             worst = np.maximum(worst, [float(np.max(x, initial=0.0)) for x in measures])
-            is_open = ln <= 1e-10 * L
+            is_open = ln <= OPEN * L
             is_slip = ~is_open & (nzt > 1e-8 * Z)
             counts += [int(is_open.sum()), int((~is_open & ~is_slip).sum()), int(is_slip.sum())]
         return ContactKKT(*map(float, worst), *map(int, counts))

@@ -1,5 +1,10 @@
 """`mixvi check`: solve with every applicable method and compare their RAW answers.
 
+For a quasi-variational Λ (unilateral contact with Coulomb or contact-only Tresca friction)
+the methods are ssn on the combined map and the fixed point on Tresca problems
+(`vi_core.tresca_fixed_point`), whose Tresca problems are solved by conic (homotopy for a
+general A); conic and homotopy do not apply directly.
+
 Each method's own answer is compared, never a polished one: ssn as it stops, homotopy its last
 fixed-point iterate, conic as Clarabel returns it (`polish=0`). Homotopy is run only when A is
 not symmetric (for a symmetric A it is one call of its level-0 oracle, ssn: not an independent
@@ -39,6 +44,8 @@ POLISH_STEPS = 3  # the labelled polishing line (never compared)
 
 
 def _methods(vi) -> list[str]:
+    if vi.Lambda.quasi:  # Coulomb / contact-only Tresca: Newton and the Tresca fixed point
+        return ["ssn", "fixed_point"]
     methods = ["ssn"]
     if vi.structure != "symmetric":
         methods.append("homotopy")
@@ -48,7 +55,10 @@ def _methods(vi) -> list[str]:
 
 
 def _run(vi, meth: str, tol: float) -> vi_core.Solution:
-    extra = {"conic": {"polish": 0}}.get(meth, {})
+    # the fixed point's Tresca problems by an interior point method where it applies: a path
+    # independent of Newton's active sets (homotopy for a general A)
+    inner = "conic" if vi.structure != "general" else "homotopy"
+    extra = {"conic": {"polish": 0}, "fixed_point": {"inner": inner}}.get(meth, {})
     return vi_core.solve(vi, method=meth, tol=tol, **extra)
 
 
@@ -64,10 +74,10 @@ def _check_level(scene, plugin, level, tol) -> tuple[bool, dict]:
     checker = Checker.of(vi)
     methods = _methods(vi)
     print(f"\n{scene.name} level {model.level}: n = {vi.n}, m = {vi.m}, A {vi.structure}")
-    if vi.structure == "symmetric":
+    if vi.structure == "symmetric" and not vi.Lambda.quasi:
         print("homotopy not run: for a symmetric A it is one call of its oracle (ssn)")
     print(
-        f"{'method':<10}{'own test':>9}{'iter':>6}{'own res.':>11}{'checker':>11}{'time [s]':>10}"
+        f"{'method':<12}{'own test':>9}{'iter':>6}{'own res.':>11}{'checker':>11}{'time [s]':>10}"
     )
     sols, kkts, ok, reasons = {}, {}, True, []
     for meth in methods:
@@ -82,7 +92,7 @@ def _check_level(scene, plugin, level, tol) -> tuple[bool, dict]:
             reasons.append(f"{meth}: independent residual {k.relative:.1e} > {need:.0e}")
         label = "conic raw" if meth == "conic" else meth
         print(
-            f"{label:<10}{'pass' if own else 'FAIL':>9}{sol.iterations:>6}{sol.residual:>11.2e}"
+            f"{label:<12}{'pass' if own else 'FAIL':>9}{sol.iterations:>6}{sol.residual:>11.2e}"
             f"{k.relative:>11.2e}{sol.time:>10.2f}"
         )
     best = min(methods, key=lambda m: kkts[m].relative)

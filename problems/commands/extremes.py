@@ -2,7 +2,8 @@
 
 Every row (a `contract.ExtremeRow`: a shipped scene, `--set`-style overrides, a level) is
 built, solved with semismooth Newton and, where affordable, with the conic (Clarabel) and
-homotopy methods, and reports
+homotopy methods (for a quasi-variational Λ — Coulomb or contact-only Tresca friction — with
+the fixed point on Tresca problems instead, its Tresca problems solved by conic), and reports
 - the relative natural-map residual and Newton steps of ssn,
 - the largest relative difference of (u, λ) between ssn and the other methods' raw answers
   (conic without polishing),
@@ -105,13 +106,17 @@ def run_row(row: ExtremeRow) -> dict:
         "notes": [],
     }
     others = []
-    if vi.structure != "general" and n <= CONIC_MAX:
+    if vi.Lambda.quasi:  # Coulomb / contact-only Tresca: the fixed point on Tresca problems
+        others.append("fixed_point")
+    elif vi.structure != "general" and n <= CONIC_MAX:
         others.append("conic")
-    if n <= HOMOTOPY_MAX:
+    if n <= HOMOTOPY_MAX and not vi.Lambda.quasi:
         others.append("homotopy")
     for meth in others:
         # raw answers: the conic one as Clarabel returns it (polishing would make it ssn's)
         opts = {"max_levels": 12} if meth == "homotopy" else {"polish": 0}
+        if meth == "fixed_point":  # its Tresca problems by conic (homotopy for a general A)
+            opts = {"inner": "conic" if vi.structure != "general" else "homotopy"}
         other = vi_core.solve(vi, meth, **opts)
         rec["iterations"][meth] = other.iterations
         if meth == "homotopy":

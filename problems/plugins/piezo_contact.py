@@ -172,8 +172,33 @@ class Model:
         """Unknowns → full vector including Dirichlet values."""
         return expand(u, self.free, self.values)
 
+    def contact_state(self, sol: Solution) -> dict:
+        """`contact_state(self, sol)` (for modules that this one imports)."""
+        return contact_state(self, sol)
 
-class ContactSection(Section):
+
+class FrictionLaw(Section):
+    """The friction of a contact section (shared by piezo_contact and signorini): friction =
+    "tresca" (bound g, a field ≥ 0 in Pa) or "coulomb" (bound F·λ_n, F a field ≥ 0); exactly
+    the key of the chosen friction is given."""
+
+    friction: Literal[FRICTIONS] = FRICTIONS[0]
+    g: NonNegativeExpr | None = None
+    F: NonNegativeExpr | None = None
+
+    @model_validator(mode="after")
+    def _friction(self) -> FrictionLaw:
+        need, other = ("g", "F") if self.friction == "tresca" else ("F", "g")
+        if getattr(self, need) is None:
+            raise refuse([need], None, f"required with friction = {self.friction!r}")
+        if getattr(self, other) is not None:
+            raise refuse(
+                [other], getattr(self, other).source, f"absent with friction = {self.friction!r}"
+            )
+        return self
+
+
+class ContactSection(FrictionLaw):
     """[contact]: slave and master boundaries (BODY.BOUNDARY, master "rigid" for a rigid
     foundation), the contact law (docs/coulomb.md, "Contact laws of the plug-ins"), and the
     multiplier end rule.
@@ -188,22 +213,12 @@ class ContactSection(Section):
     slave: Text
     master: Text = "rigid"
     law: Literal[LAWS] = LAWS[0]
-    friction: Literal[FRICTIONS] = FRICTIONS[0]
-    g: NonNegativeExpr | None = None
-    F: NonNegativeExpr | None = None
     gap: NonNegativeExpr | None = None
     ends: Literal[ENDS] = ENDS[0]
     electrical: electrical_contact.ElectricalSection | None = None
 
     @model_validator(mode="after")
     def _law(self) -> ContactSection:
-        need, other = ("g", "F") if self.friction == "tresca" else ("F", "g")
-        if getattr(self, need) is None:
-            raise refuse([need], None, f"required with friction = {self.friction!r}")
-        if getattr(self, other) is not None:
-            raise refuse(
-                [other], getattr(self, other).source, f"absent with friction = {self.friction!r}"
-            )
         if self.law == "bilateral":
             if self.friction == "coulomb":
                 raise refuse(["friction"], "coulomb", "'tresca' with law = 'bilateral'")
@@ -297,7 +312,14 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
 
 def _build(scene: Scene, level: int | None) -> Model:
-    spec = scene.validated(SCENE_MODEL)
+    return build_model(scene.validated(SCENE_MODEL), scene, level)
+
+
+def build_model(
+    spec: PiezoScene, scene: Scene, level: int | None, model_class: type[Model] = Model
+) -> Model:
+    """The Model (of `model_class`, a subclass of Model) of a validated scene model `spec`
+    (of `scene`); signorini builds its scenes through it."""
     level = spec.scene.level if level is None else level
     bodies: dict[str, Body] = {}
     offset = 0
@@ -352,7 +374,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         info={"scene": scene.name, "level": level},
         **field_data(list(bodies.values()), free, n_full),  # for the iterative linear path
     )
-    model = Model(scene, level, list(bodies.values()), contact, vi, free, values, options)
+    model = model_class(scene, level, list(bodies.values()), contact, vi, free, values, options)
     if ct is not None and ct.electrical is not None:
         model.electrical = _electrical(ct.electrical, contact, vi, free)
     if contact is not None:
@@ -764,12 +786,14 @@ def contact_state(model: Model, sol: Solution) -> dict:
 
     The arrays "s", "points", "lam_t", "g", "jump_t", "ut_slave", "slip", "touch_t" (and
     "ut_master") are per tangential multiplier row (`Contact.rows_t`), "s_n", "lam_n",
-    "touch", "gap" per normal row. "g" is the friction radius of the solution (g; unilateral
+    "touch", "u_n", "gap" per normal row. "g" is the friction radius of the solution (g; unilateral
     Tresca: g where the node touches, 0 elsewhere; Coulomb: F·λ_n); "slip" marks touching
     nodes whose |λ_τ| reaches it; "touch" is True everywhere for bilateral contact and where
-    λ_n exceeds 1e-9 of its largest value for unilateral contact; "gap" (unilateral only) is
-    the remaining normal gap gap₀ − [u]_n. Lemma 4.2 reads λᵀ(B u − gap₀) = Σ_k ρ_k W_k|[u]_τ,k|
-    (normal complementarity makes the normal part 0).
+    λ_n exceeds 1e-9 of its largest value for unilateral contact; "u_n" and "gap" (unilateral
+    only) are the normal jump [u]_n and the initial gap gap₀ (the remaining gap is their
+    difference), "pressure" the pressure scale (largest λ_n or elastic stress). Lemma 4.2
+    reads λᵀ(B u − gap₀) = Σ_k ρ_k W_k|[u]_τ,k| (normal complementarity makes the normal part
+    0).
     """
     c = model.contact
     x_full = model.full(sol.u)
@@ -780,6 +804,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     u_s = x_full[c.slave.u_dofs(nodes)]  # (N_t, 2)
     ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents[c.rows_t])
     gap_rows = np.zeros(Bu.size)
+    force = 0.0
     if c.law == "bilateral":
         touch = np.ones(lam_n.size, dtype=bool)
     else:
@@ -800,7 +825,10 @@ def contact_state(model: Model, sol: Solution) -> dict:
     weights = rho * c.W_t  # (N_t,) ∫ρφ̃_k (bilateral: g_weights)
     g_abs = float(np.sum(weights * np.abs(c.tangential(Bi) / c.W_t)))
     tiny = np.finfo(float).eps * float(np.sum(weights)) * max(np.abs(x_full).max(), 1e-300)
-    scale = g_abs if c.law == "bilateral" else g_abs + float(np.abs(sol.lam) @ np.abs(gap_rows))
+    scale = g_abs
+    if c.law == "unilateral":  # the pressure scale P times the slack: rounding when apart
+        pressure = max(float(lam_n.max(initial=0.0)), force)
+        scale = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))
     lemma = abs(b_uh_lam - g_abs) / max(scale, tiny, 1e-300)
     state = {
         "s": c.tr.s[c.rows_t],
@@ -819,7 +847,9 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "lemma_4_2": float(lemma),
     }
     if c.law == "unilateral":
-        state["gap"] = (c.gap0 - c.normal(Bu)) / c.W_n
+        state["pressure"] = max(float(lam_n.max(initial=0.0)), force)  # the pressure scale
+        state["u_n"] = c.normal(Bu) / c.W_n  # (N_n,) normal (mortar) jump [u]_n
+        state["gap"] = c.gap0 / c.W_n  # (N_n,) initial gap
     if c.master_proj is not None:
         state["ut_master"] = c.master_proj @ x_full
     return state
@@ -883,7 +913,7 @@ def _unilateral_summary(contact: Contact, state: dict) -> dict:
         "open": int((~state["touch"]).sum()),
         "law": contact.law,
         "friction": contact.friction,
-        "min_gap": float(state["gap"].min(initial=np.inf)),
+        "min_gap": float((state["gap"] - state["u_n"]).min(initial=np.inf)),
     }
 
 
@@ -904,7 +934,7 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
     if c.law == "unilateral":
         state[c.rows_n[~st["touch"]]] = "open"
         gap = np.full(k, np.nan)
-        gap[c.rows_n] = np.maximum(st["gap"], 0.0)
+        gap[c.rows_n] = np.maximum(st["gap"] - st["u_n"], 0.0)
     return ContactTable(
         points=c.slave.mesh.points[tr.nodes],
         normals=tr.normals,

@@ -21,7 +21,7 @@ import numpy as np
 
 import vi_core
 
-from .contract import ExtremeRow
+from .contract import ExtremeRow, expect
 
 SIGMA_REF = {"rigid_foundation": 9.0e6, "paper_two_body": 1.0e8}
 HOMOGENEOUS = 1e-6  # relative deviation from degree-1 homogeneity that fails a row
@@ -40,10 +40,13 @@ def contact_checks(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Soluti
     g = st["g"]
     gmax = float(g.max(initial=0.0))
     excess = float(np.max(np.abs(st["lam_t"]) - g))
+    # the pressure scale: with unilateral contact also the elastic stress (when every node is
+    # apart λ is rounding of that size)
+    scale = max(gmax, float(np.abs(sol.lam).max(initial=0)), st.get("pressure", 0.0), 1e-300)
     rec = {
         "lemma_4_2": st["lemma_4_2"] if gmax > 0 else None,
-        "friction_excess": excess / max(gmax, float(np.abs(sol.lam).max(initial=0)), 1e-300),
-        "stick": int((~st["slip"]).sum()),
+        "friction_excess": excess / scale,
+        "stick": int((st["touch_t"] & ~st["slip"]).sum()),
         "slip": int(st["slip"].sum()),
     }
     notes = [f"stick {rec['stick']}, slip {rec['slip']}"]
@@ -108,10 +111,71 @@ def _scaled(f: float) -> tuple[str, ...]:
     return (LOAD_RF.format(a=2e-4 * f, b=-1e-4 * f), f"contact.g={S_RF * f!r}")
 
 
+def counts(model: Any, sol: vi_core.Solution) -> dict[str, int]:
+    """Touching, open, stick and slip nodes along Γ3 (`piezo_contact.contact_state`)."""
+    st = model.contact_state(sol)
+    return {
+        "touching": int(st["touch"].sum()),
+        "open": int((~st["touch"]).sum()),
+        "stick": int((st["touch_t"] & ~st["slip"]).sum()),
+        "slip": int(st["slip"].sum()),
+    }
+
+
+def _voltage(v: float) -> str:
+    return (
+        f"bodies.block.potential=[{{boundary='top', value={v!r}}}, "
+        "{boundary='bottom', value=0.0}]"
+    )
+
+
+CS, LO = "coulomb_slip", "piezo_liftoff"
+
+
+def unilateral_rows() -> list[ExtremeRow]:
+    """Unilateral contact with Coulomb friction: F over the range where Newton and the fixed
+    point agree (docs/coulomb.md, "Scenes"), gaps that close, voltages that close and open
+    the contact. A gap the block never closes is not a row: every λ is then rounding, and the
+    fixed point's conic λ (1e-5 of the answer's size, measured at gap 0.2–10 μm, while u agrees
+    to 1e-13) fails the generic agreement check; tests/problems/plugins/test_unilateral.py
+    checks that case directly."""
+    C = (contact_checks,)
+    return [
+        ExtremeRow("Coulomb F = 0", CS, ["contact.F=0.0"], checks=(*C, expect(counts, stick=0))),
+        ExtremeRow("Coulomb F = 0.3 (partial stick)", CS, ["contact.F=0.3"], checks=C),
+        ExtremeRow(
+            "Coulomb F = 10 (stick)", CS, ["contact.F=10.0"], checks=(*C, expect(counts, slip=0))
+        ),
+        ExtremeRow(
+            "Coulomb F = 1e6 (stick)", CS, ["contact.F=1e6"], checks=(*C, expect(counts, slip=0))
+        ),
+        ExtremeRow("gap = 0", LO, ["contact.gap=0.0"], checks=(*C, expect(counts, open=0))),
+        ExtremeRow(
+            "gap = 1e-8 m (closes)", LO, ["contact.gap=1e-8"], checks=(*C, expect(counts, open=0))
+        ),
+        ExtremeRow(
+            "V = −500 V (pressed)", LO, [_voltage(-500.0)], checks=(*C, expect(counts, open=0))
+        ),
+        ExtremeRow(
+            "V = 700 V (ends lift off)",
+            LO,
+            [_voltage(700.0)],
+            checks=(*C, expect(counts, open="> 0")),
+        ),
+        ExtremeRow(
+            "V = 1000 V (lifted off)",
+            LO,
+            [_voltage(1000.0)],
+            checks=(*C, expect(counts, touching=0)),
+        ),
+    ]
+
+
 def rows() -> list[ExtremeRow]:
     """The extreme cases, cheapest first within each group."""
     C = (contact_checks,)
     return [
+        *unilateral_rows(),
         ExtremeRow("g = 0 (frictionless)", RF, ["contact.g=0.0"], checks=C),
         ExtremeRow("g = 1e-6 σ_ref", RF, [f"contact.g={1e-6 * S_RF!r}"], checks=C),
         ExtremeRow("g = 1e6 σ_ref", RF, [f"contact.g={1e6 * S_RF!r}"], checks=C),

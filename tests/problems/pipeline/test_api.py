@@ -59,7 +59,7 @@ def test_a_model_and_keyword_overrides():
 
 
 def test_solver_and_tol_reach_the_solve():
-    run = solve(load("signorini"), level=0, method="conic", tol=1e-8)
+    run = solve(load("obstacle"), level=0, method="conic", tol=1e-8)
     assert run.method == "conic" and run.tol == 1e-8 and run.model.level == 0
     with pytest.raises(SceneError, match="--solver"):
         solve(load("signorini"), level=0, method="magic")

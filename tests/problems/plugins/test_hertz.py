@@ -35,8 +35,9 @@ def _measure(level, E_star=None):
     model, sol = _solved(level)
     lc = hertz.of_model(model, sol, R)
     if E_star is not None:  # a fault: the reference with another modulus
-        x = model.body.mesh.points[model.tr.nodes, 0]
-        lc = hertz.measure(x, model.tr.weights, sol.lam[: model.tr.size], R, E_star)
+        c = model.contact  # signorini is piezo_contact's preset (rows through c.normal)
+        x = model.bodies[0].mesh.points[c.tr.nodes[c.rows_n], 0]
+        lc = hertz.measure(x, c.W_n, c.normal(sol.lam), R, E_star)
     return lc
 
 

@@ -44,12 +44,20 @@ SCENES = [  # (scene, level)
 TOL = 1e-10
 ITERATE_ACCEPT = 10 * TOL  # ssn and homotopy iterate to TOL (same rule as `mixvi check`)
 # the checker's complementarity defect; largest measured over SCENES: 5e-16, 1e-16, 6e-11
-COMPLEMENTARITY = {"ssn": 1e-12, "homotopy": 1e-10, "conic": 1e-9}
+COMPLEMENTARITY = {"ssn": 1e-12, "homotopy": 1e-10, "conic": 1e-9, "fixed_point": 1e-10}
 
 
 def _solve_all(vi):
     """Raw answers: ssn; homotopy unless A is symmetric (then it is one ssn call); conic
-    without polishing unless A is general."""
+    without polishing unless A is general. A quasi-variational Λ (unilateral contact with
+    contact-only Tresca or Coulomb friction): ssn and the fixed point on Tresca problems, each
+    solved by conic (homotopy for a general A), as `mixvi check` does."""
+    if vi.Lambda.quasi:
+        inner = "conic" if vi.structure != "general" else "homotopy"
+        return {
+            m: vi_core.solve(vi, method=m, tol=TOL, **o)
+            for m, o in (("ssn", {}), ("fixed_point", {"inner": inner}))
+        }
     methods = {"ssn": {}}
     if vi.structure != "symmetric":
         methods["homotopy"] = {"report_constants": False}

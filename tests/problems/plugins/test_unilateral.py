@@ -165,3 +165,62 @@ def test_contact_law_options_are_checked(edit, field):
             ct[k] = v
     with pytest.raises(SceneError, match=field.replace(".", r"\.")):
         pc.build(scene, 0)
+
+
+GAP2 = 1e-4  # two bodies: the block starts this far above the base
+
+
+def _two_bodies(push: float, friction_g: float = 1e5, lift: float = GAP2):
+    """shear_strip_two_body made unilateral: matching meshes (8 cells on both sides of the
+    interface, so the mortar rows are nodal), the block lifted by `lift`, its top pushed down by
+    `push` and sideways by push/4, the base clamped at its bottom, no side conditions."""
+    from problems.scene.exact import split_exact
+
+    scene, _ = split_exact(load_scene("shear_strip_two_body"))
+    d = scene.data
+    block, base = d["bodies"]["block"], d["bodies"]["base"]
+    block["geometry"]["y"] = [lift, 1.0 + lift]
+    base["geometry"]["cells"] = [8, 2]
+    block["displacement"] = [{"boundary": "top", "value": [push / 4, -push]}]
+    base["displacement"] = [{"boundary": "bottom", "value": [0.0, 0.0]}]
+    d["contact"].update(law="unilateral", g=friction_g, ends="keep")
+    return pc.build(scene, 0)
+
+
+@pytest.mark.parametrize("push", [0.5 * GAP2, 0.99 * GAP2, 3 * GAP2, 20 * GAP2])
+def test_two_bodies_start_apart_and_close(push):
+    model = _two_bodies(push)
+    c = model.contact
+    np.testing.assert_allclose(c.gap0 / c.W_n, GAP2, rtol=1e-12)  # the geometry's gap
+    sol = _solve(model)
+    f = pc.fields(model, sol)
+    us = f["block.displacement"][c.tr.nodes]  # (N, 2) slave trace
+    mesh_m = model.bodies[1].mesh
+    top = np.flatnonzero(np.isclose(mesh_m.points[:, 1], 0.0))
+    xs = model.bodies[0].mesh.points[c.tr.nodes, 0]
+    um = np.interp(xs, mesh_m.points[top, 0], f["base.displacement"][top, 1])  # (N,)
+    room = GAP2 + us[:, 1] - um  # remaining gap at each slave node
+    lam_n = np.zeros(c.tr.size)
+    lam_n[c.rows_n] = c.normal(sol.lam)
+    p = max(float(lam_n.max()), 2.6e9 * push)  # or the stress of the push (E = 2.6e9 Pa)
+    carrying = np.zeros(c.tr.size, dtype=bool)
+    carrying[c.rows_n] = True
+    assert room[carrying].min() >= -1e-10 * push
+    assert (lam_n >= -1e-10 * p).all()
+    assert np.abs(lam_n * room)[carrying].max() <= 1e-9 * p * push
+    touching = pc.contact_state(model, sol)["touch"]
+    if push < GAP2:  # never reaches the base
+        assert not touching.any() and room.min() > 0
+    else:
+        assert touching.all()
+
+
+def test_two_bodies_that_overlap_are_refused():
+    with pytest.raises(SceneError, match="overlap"):
+        _two_bodies(GAP2, lift=-0.2)
+
+
+def test_a_roller_across_a_unilateral_contact_is_refused():
+    scene = load_scene("shear_strip_two_body", ["contact.law='unilateral'"])
+    with pytest.raises(SceneError, match="contact.law.*roller across"):
+        pc.build(scene, 0)

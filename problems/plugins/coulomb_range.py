@@ -1,0 +1,150 @@
+"""The range of the friction coefficient F over which the two Coulomb paths converge and agree
+on a scene (issue 17): semismooth Newton on the combined map and the fixed point on Tresca
+problems g ← F λ_n (vi_core.tresca_fixed_point), each Tresca problem solved by `inner`.
+
+    python -m problems.plugins.coulomb_range SCENE [--F 0,0.1,0.3] [--levels 0..2]
+        [--inner conic|ssn|homotopy] [--set KEY=VALUE ...] [--json FILE]
+
+For each level and F (the scene's [contact] F replaced by a constant) it prints one row: Newton
+steps and its residual by the independent checker (vi_core.kkt), the fixed-point iterations,
+inner Newton/interior-point steps and measured contraction, the Newton steps of the unilateral
+Tresca problem with the constant bound g = F·(mean Coulomb pressure), and the difference of
+the two Coulomb answers against what their residuals allow (`Checker.compare`). A row is
+"agree" when both converge (residual ≤ tol by the checker too) and differ within the allowed
+amount, else it says which path did not converge. Nothing is returned as an answer by a path
+that did not converge (vi_core says converged=False).
+
+Exit status 0 when every row agrees, 1 otherwise (the range is then the rows that agree).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import vi_core
+from problems.errors import SceneError
+from problems.scene import load_scene
+from vi_core.kkt import Checker
+
+from . import piezo_contact as pc
+
+ACCEPT = 10.0  # a path's independent residual must be ≤ ACCEPT · tol (as `mixvi check`)
+
+
+def _scene(name: str, overrides: list[str], F: float, friction: str = "coulomb", g: float = 0.0):
+    scene = load_scene(name, overrides)
+    ct = scene.data.get("contact")
+    if not ct or ct.get("law") != "unilateral":
+        raise SceneError("contact.law", (ct or {}).get("law"), "'unilateral' (a Coulomb scene)")
+    ct.pop("g", None)
+    ct.pop("F", None)
+    ct["friction"] = friction
+    ct["F" if friction == "coulomb" else "g"] = float(F if friction == "coulomb" else g)
+    return scene
+
+
+def measure(name: str, F: float, level: int, inner: str, overrides=(), tol=1e-10) -> dict:
+    """One row (module docstring) of scene `name` at friction coefficient F and `level`."""
+    model = pc.build(_scene(name, list(overrides), F), level)
+    vi = model.vi
+    check = Checker.of(vi)
+    newton = vi_core.solve(vi, "ssn", tol=tol)
+    fixed = vi_core.solve(vi, "fixed_point", tol=tol, inner=inner)
+    res_n, res_f = check(newton.u, newton.lam).relative, check(fixed.u, fixed.lam).relative
+    ok_n = newton.converged and res_n <= ACCEPT * tol
+    ok_f = fixed.converged and res_f <= ACCEPT * tol
+    row = {
+        "scene": name,
+        "level": model.level,
+        "F": F,
+        "unknowns": vi.n + vi.m,
+        "newton_converged": bool(ok_n),
+        "newton_steps": newton.iterations,
+        "newton_residual": res_n,
+        "fp_converged": bool(ok_f),
+        "fp_iterations": fixed.iterations,
+        "fp_inner_steps": int(sum(fixed.info.get("inner_iterations", []))),
+        "contraction": fixed.info.get("contraction"),
+        "fp_residual": res_f,
+    }
+    if ok_n:
+        st = pc.contact_state(model, newton)
+        touch = st["touch"]
+        row["open"] = int((~touch).sum())
+        row["slip"] = int(st["slip"].sum())
+        row["stick"] = int(st["touch_t"].sum()) - row["slip"]
+        mean_p = float(np.mean(st["lam_n"][touch])) if touch.any() else 0.0
+        tresca = pc.build(_scene(name, list(overrides), F, "tresca", F * mean_p), level)
+        t_sol = vi_core.solve(tresca.vi, "ssn", tol=tol)
+        row["tresca_newton_steps"] = t_sol.iterations if t_sol.converged else None
+    if ok_n and ok_f:
+        kappa = check.inverse_norm(newton.u, newton.lam)
+        c = check.compare((fixed.u, fixed.lam), (newton.u, newton.lam), kappa)
+        row.update(diff=max(c["diff_u"], c["diff_lam"]), allowed=c["allowed"])
+        row["verdict"] = "agree" if row["diff"] <= row["allowed"] else "DIFFER"
+    else:
+        which = [p for p, ok in (("ssn", ok_n), ("fixed point", ok_f)) if not ok]
+        row["verdict"] = "not converged: " + ", ".join(which)
+    return row
+
+
+def _print(rows: list[dict]) -> None:
+    print(
+        f"{'level':>5}{'F':>8}{'Newton':>7}{'Tresca':>7}{'FP it':>6}{'inner':>6}"
+        f"{'contr.':>8}{'open':>5}{'stick':>6}{'slip':>5}{'diff':>10}{'allowed':>10}  verdict"
+    )
+    for r in rows:
+
+        def f(k, fmt, r=r):
+            v = r.get(k)
+            return format(v, fmt) if v is not None else "–"
+
+        print(
+            f"{r['level']:>5}{r['F']:>8g}{r['newton_steps']:>7}{f('tresca_newton_steps', 'd'):>7}"
+            f"{r['fp_iterations']:>6}{r['fp_inner_steps']:>6}{f('contraction', '.3f'):>8}"
+            f"{f('open', 'd'):>5}{f('stick', 'd'):>6}{f('slip', 'd'):>5}{f('diff', '.1e'):>10}"
+            f"{f('allowed', '.1e'):>10}  {r['verdict']}"
+        )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line (module docstring); returns the exit status."""
+    p = argparse.ArgumentParser(prog="python -m problems.plugins.coulomb_range")
+    p.add_argument("scene")
+    p.add_argument("--F", default="0,0.1,0.3,1,3", help="comma-separated values of F")
+    p.add_argument("--levels", default="1", help="a level or LO..HI")
+    p.add_argument("--inner", default="conic", choices=["conic", "ssn", "homotopy"])
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--json", type=Path, default=None)
+    a = p.parse_args(argv)
+    try:
+        values = [float(v) for v in a.F.split(",")]
+        lo, _, hi = a.levels.partition("..")
+        levels = range(int(lo), int(hi or lo) + 1)
+    except ValueError:
+        print(f"--F {a.F!r} / --levels {a.levels!r}: numbers, e.g. 0,0.1 and 0..2", file=sys.stderr)
+        return 2
+    if any(v < 0 for v in values):
+        print(f"--F {a.F!r}: friction coefficients ≥ 0", file=sys.stderr)
+        return 2
+    try:
+        rows = [measure(a.scene, F, lev, a.inner, a.set) for lev in levels for F in values]
+    except SceneError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    _print(rows)
+    if a.json is not None:
+        if a.json.exists():
+            print(f"--json {a.json}: exists; not replaced", file=sys.stderr)
+            return 2
+        a.json.write_text(json.dumps(rows, indent=1) + "\n")
+    return 0 if all(r["verdict"] == "agree" for r in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
