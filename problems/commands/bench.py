@@ -336,10 +336,12 @@ def bench_main(argv: list[str] | None = None) -> int:
         else:
             a, b = DEFAULT.get(name, (0, 3))
             text = f"{a}..{b}"
+        mine = []
         for ls in linear:  # each linear solver's own memory model (resources.MEMORY_MODEL)
             sizes = resources.check_levels(plugin, scene, (a, b), "--levels", text, args.force, ls)
-            jobs += [(name, lev, sizes.estimate(lev), ls) for lev in range(a, b + 1)]
-        jobs.sort(key=lambda j: (j[0], j[1]))  # every solver of a level before the next level
+            mine += [(name, lev, sizes.estimate(lev), ls) for lev in range(a, b + 1)]
+        # scenes in the order given; within a scene every solver of a level before the next level
+        jobs += sorted(mine, key=lambda j: j[1])
     figure = args.figure or str(Path(args.out).with_suffix(".svg"))
     with output_file(args.out, "--out") as target, output_file(figure, "--figure") as fig:
         records = _run(jobs, solvers, args)

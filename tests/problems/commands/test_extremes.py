@@ -84,7 +84,7 @@ def test_thresholds_are_physical_checks():
 
 
 def test_command_writes_json(tmp_path, capsys):
-    rc = extremes_main(["--only", "PZT", "--out", str(tmp_path)])
+    rc = extremes_main(["--plugins", "piezo_contact", "--only", "PZT", "--out", str(tmp_path)])
     assert rc == 0
     assert "PZT-5H" in capsys.readouterr().out
     assert (tmp_path / "extremes.json").read_text().count('"row"') == 1
