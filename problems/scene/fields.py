@@ -99,6 +99,9 @@ class Expression:
     t of the scene's load path, set by validation; None: the scene has no load path).
     """
 
+    VARIABLES = VARIABLES  # the names an expression text may use, in call order
+    ALLOWED_TEXT = ALLOWED  # what a refusal lists as allowed
+
     def __init__(self, source: float | str):
         self.source = source
         self.path = "(expression)"
@@ -155,18 +158,21 @@ class Expression:
 
     @classmethod
     def parse(cls, v: Any) -> Expression:
-        """A number or an expression text → Expression (pydantic error otherwise)."""
-        if isinstance(v, Expression):
+        """A number or an expression text of the class's VARIABLES → an instance of the class
+        (pydantic error otherwise, listing what is allowed)."""
+        if isinstance(v, cls):
             return v
         if isinstance(v, str):
             try:
                 e = cls(v)
             except ExpressionError as err:
                 raise PydanticCustomError(
-                    "expression", "{why}; allowed: {allowed}", {"allowed": ALLOWED, "why": str(err)}
+                    "expression",
+                    "{why}; allowed: {allowed}",
+                    {"allowed": cls.ALLOWED_TEXT, "why": str(err)},
                 ) from None
-            if not (set(VARIABLES) & _names(v)):  # a constant expression: evaluate it now
-                val = e._fn(np.zeros(1), np.zeros(1), np.zeros(1))
+            if not (set(cls.VARIABLES) & _names(v)):  # a constant expression: evaluate it now
+                val = e._fn(*[np.zeros(1)] * len(cls.VARIABLES))
                 if not (np.isfinite(val).all() and (np.abs(val) <= MAX_MAGNITUDE).all()):
                     raise PydanticCustomError(
                         "expression",
@@ -177,7 +183,9 @@ class Expression:
         try:
             number_value(v)
         except PydanticCustomError:
-            raise PydanticCustomError("expression", "{allowed}", {"allowed": ALLOWED}) from None
+            raise PydanticCustomError(
+                "expression", "{allowed}", {"allowed": cls.ALLOWED_TEXT}
+            ) from None
         return cls(v)
 
     @classmethod

@@ -7,7 +7,7 @@ variables are x, y and z; it is called as f(x, y, z). `Vector3` is three of them
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Annotated, Any
+from typing import Annotated
 
 import numpy as np
 from pydantic import AfterValidator, Field
@@ -15,8 +15,8 @@ from pydantic_core import PydanticCustomError
 
 from problems.errors import SceneError
 
-from .expressions import ALLOWED, MAX_MAGNITUDE, ExpressionError, compile_expression
-from .fields import Expression, Integer, Number, number_value
+from .expressions import ALLOWED, MAX_MAGNITUDE, compile_expression
+from .fields import Expression, Integer, Number
 
 VARIABLES = ("x", "y", "z", "t")  # t: the load parameter (scenes with a [load_path] only)
 ALLOWED_3D = ALLOWED.replace("of x, y", "of x, y, z")
@@ -24,6 +24,9 @@ ALLOWED_3D = ALLOWED.replace("of x, y", "of x, y, z")
 
 class Expression3(Expression):
     """A compiled scalar field f(x, y, z) of a 3D scene: a constant or an expression text."""
+
+    VARIABLES = VARIABLES
+    ALLOWED_TEXT = ALLOWED_3D
 
     def __init__(self, source: float | str):
         self.source = source
@@ -56,36 +59,6 @@ class Expression3(Expression):
 
     def __repr__(self) -> str:
         return f"Expression3({self.source!r})"
-
-    @classmethod
-    def parse(cls, v: Any) -> Expression3:
-        """A number or an expression text of x, y, z → Expression3 (pydantic error otherwise)."""
-        if isinstance(v, Expression3):
-            return v
-        if isinstance(v, str):
-            try:
-                e = cls(v)
-            except ExpressionError as err:
-                raise PydanticCustomError(
-                    "expression",
-                    "{why}; allowed: {allowed}",
-                    {"allowed": ALLOWED_3D, "why": str(err)},
-                ) from None
-            val = e._fn(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1))
-            if not set(VARIABLES) & _names(v) and not (
-                np.isfinite(val).all() and (np.abs(val) <= MAX_MAGNITUDE).all()
-            ):
-                raise PydanticCustomError(
-                    "expression",
-                    "an expression with a finite value of size ≤ {limit} (this one is {val})",
-                    {"limit": f"{MAX_MAGNITUDE:g}", "val": repr(float(val[0]))},
-                )
-            return e
-        try:
-            number_value(v)
-        except PydanticCustomError:
-            raise PydanticCustomError("expression", "{allowed}", {"allowed": ALLOWED_3D}) from None
-        return cls(v)
 
 
 def _names(text: str) -> set[str]:
