@@ -42,11 +42,12 @@ from problems.scene.exact import ExactSection, split_exact
 from problems.scene.fields import NonNegativeExpr, Text
 from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
-from vi_core import Box, Coulomb, Free, MixedVI, NonNegative, Solution, UnilateralTresca, product
+from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
 
-from . import electrical_contact, piezo_balance, piezo_errors, piezo_extremes
+from . import contact_law, electrical_contact, piezo_balance, piezo_errors, piezo_extremes
 from .bodies import Body, BodySection, build_body
 from .body_output import body_fields
+from .contact_law import FRICTIONS, LAWS
 from .contract import Sweep, check_meshed
 from .fields import field_data
 
@@ -72,8 +73,6 @@ ALIGN_TOL = 1e-10
 # to ~1e-16 (`fem.mortar`).
 COVER_TOL = 1e-12
 PATCH_DEFECT_LIMIT = 1e-8  # above it `mixvi solve` warns and exits 1 (unless --allow-defect)
-LAWS = ("bilateral", "unilateral")  # [contact] law
-FRICTIONS = ("tresca", "coulomb")  # [contact] friction
 
 
 @dataclass
@@ -177,28 +176,10 @@ class Model:
         return contact_state(self, sol)
 
 
-class FrictionLaw(Section):
-    """The friction of a contact section (shared by piezo_contact and signorini): friction =
-    "tresca" (bound g, a field ≥ 0 in Pa) or "coulomb" (bound F·λ_n, F a field ≥ 0); exactly
-    the key of the chosen friction is given."""
-
-    friction: Literal[FRICTIONS] = FRICTIONS[0]
-    g: NonNegativeExpr | None = None
-    F: NonNegativeExpr | None = None
-
-    @model_validator(mode="after")
-    def _friction(self) -> FrictionLaw:
-        need, other = ("g", "F") if self.friction == "tresca" else ("F", "g")
-        if getattr(self, need) is None:
-            raise refuse([need], None, f"required with friction = {self.friction!r}")
-        if getattr(self, other) is not None:
-            raise refuse(
-                [other], getattr(self, other).source, f"absent with friction = {self.friction!r}"
-            )
-        return self
+FrictionLaw = contact_law.friction_law(NonNegativeExpr)  # signorini's [contact] keys
 
 
-class ContactSection(FrictionLaw):
+class ContactSection(contact_law.contact_law(NonNegativeExpr)):
     """[contact]: slave and master boundaries (BODY.BOUNDARY, master "rigid" for a rigid
     foundation), the contact law (docs/coulomb.md, "Contact laws of the plug-ins"), and the
     multiplier end rule.
@@ -212,23 +193,8 @@ class ContactSection(FrictionLaw):
 
     slave: Text
     master: Text = "rigid"
-    law: Literal[LAWS] = LAWS[0]
-    gap: NonNegativeExpr | None = None
     ends: Literal[ENDS] = ENDS[0]
     electrical: electrical_contact.ElectricalSection | None = None
-
-    @model_validator(mode="after")
-    def _law(self) -> ContactSection:
-        if self.law == "bilateral":
-            if self.friction == "coulomb":
-                raise refuse(["friction"], "coulomb", "'tresca' with law = 'bilateral'")
-            if self.gap is not None:
-                raise refuse(["gap"], self.gap.source, "absent with law = 'bilateral'")
-        if self.gap is not None and self.master != "rigid":
-            raise refuse(
-                ["gap"], self.gap.source, "absent for two bodies (their gap is the geometry's)"
-            )
-        return self
 
 
 class OutputSection(Section):
@@ -423,6 +389,17 @@ def solve(model: Model, **options) -> Solution:
     return sol
 
 
+def problem_at(model: Model, sol: Solution) -> MixedVI:
+    """The mixed VI `sol` must solve (`problems.pipeline.problem_at`): with a conductive or
+    grounded [contact.electrical] the insulating VI plus the Robin term frozen at the
+    conductances k(λ_n) of `sol` itself — a fixed point of the outer iteration solves it —
+    else `model.vi`."""
+    c = model.electrical
+    if c is None or c.law.kind == "none":
+        return model.vi
+    return c.frozen(c.conductances(sol.lam))
+
+
 def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None) -> None:
     """Refuse data that overflow in assembly (each number finite, their products not)."""
     parts = {"stiffness (materials)": A_full.data, "loads": f_full, "Dirichlet values": values}
@@ -450,11 +427,9 @@ def _contact_rows(contact: Contact, free, fixed, values):
     else:
         gap[contact.idx_n] += contact.gap0
         p = contact.pairs  # every tangential row is paired with its node's normal row
-        if contact.friction == "coulomb":
-            pair_set = Coulomb(contact.F, dim=2)
-        else:
-            pair_set = UnilateralTresca(contact.g, dim=2, contact_only=True)
-        Lam = product(pair_set, NonNegative(n_n - p)) if n_n > p else product(pair_set)
+        bound = contact.F if contact.friction == "coulomb" else contact.g
+        pairs = contact_law.pair_set(contact.friction, bound, dim=2)
+        Lam = product(pairs, NonNegative(n_n - p)) if n_n > p else product(pairs)
     h_i = np.zeros(tr.size)
     np.maximum.at(h_i, tr.segments[:, 0], tr.lengths)
     np.maximum.at(h_i, tr.segments[:, 1], tr.lengths)
