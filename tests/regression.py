@@ -65,6 +65,8 @@ LEVEL_0_ONLY = (
     "rigid_foundation_extruded",
     "paper_two_body_extruded",
     "spherical_cap",
+    "block3d_liftoff",
+    "coulomb_strip3d",
 )
 # Scenes whose Newton iteration stops just below TOL, one (quadratic) step short of rounding, so
 # that their derived tolerance exceeds the 1e-8 rounding bound of test_regression: compared at

@@ -12,9 +12,10 @@ active-set cycling.
 
 **Condensation.** When B has a block-diagonal "slave" part — columns S, each used by one
 small group of rows only, as with dual mortar multipliers — λ = D^{-T}(f_S − A_S u) with
-D = B[:, S], and the step is a linear system in u alone of size n. A row group with more private
-columns than rows (a master node coupled to a single slave node, e.g. next to a crosspoint)
-keeps the best-conditioned ones.
+D = B[:, S], and the step is a linear system in u alone of size n. A row group is the largest
+row set of its small columns (a column may touch only part of its node's rows: an exact zero in
+a 3D contact frame); a row group with more private columns than rows (a master node coupled to
+a single slave node, e.g. next to a crosspoint) keeps the best-conditioned ones.
 
 **Fixed sparsity pattern.** The Newton matrix (condensed or not) is stored on the pattern it has
 when every entry of J and W (block diagonal, blocks of Λ) is structurally present, explicit
@@ -69,10 +70,11 @@ class Condensation:
         counts = np.diff(Bc.indptr)  # (n,) nonzeros per column
         small = np.flatnonzero((counts >= 1) & (counts <= max_block))
         # group the small columns by their exact row set
-        groups: dict[tuple, list[int]] = {}
+        exact: dict[tuple, list[int]] = {}
         for j in small:
             rows = tuple(Bc.indices[Bc.indptr[j] : Bc.indptr[j + 1]].tolist())
-            groups.setdefault(rows, []).append(int(j))
+            exact.setdefault(rows, []).append(int(j))
+        groups = _merge_subsets(exact)
         S = -np.ones(m, dtype=int)
         inv_r, inv_c, inv_v = [], [], []  # D^{-T}, block by block, in row numbering
         for rows, cols in groups.items():
@@ -105,6 +107,31 @@ class Condensation:
         )
         R = np.setdiff1d(np.arange(n), S)
         return Condensation(S=S, R=R, D=D, Dt_inv=Dt_inv)
+
+
+def _merge_subsets(groups: dict[tuple, list[int]]) -> dict[tuple, list[int]]:
+    """Columns grouped by exact row set → grouped by the largest row set containing theirs.
+
+    A node's columns need not all touch all of its rows: where a frame vector of a 3D contact
+    node is orthogonal to a coordinate axis, that displacement component has an exact zero in
+    the tangential row (e.g. u_z of a node whose tangent t2 lies in the x-y plane touches the
+    normal row and t1 only). Its row set is then a proper subset of the node's, and on its own
+    it would be a group with fewer columns than rows. A row set joins a larger one only if all
+    of its rows belong to that one set (no chaining of two groups)."""
+    owner: dict[int, tuple] = {}  # row → the largest row set seen that holds it
+    merged: dict[tuple, list[int]] = {}
+    # the largest row sets first, and among equal ones those with more columns (a node's own
+    # columns before a single column reaching into two nodes)
+    for rows in sorted(groups, key=lambda r: (len(r), len(groups[r])), reverse=True):
+        owners = {owner.get(r) for r in rows}
+        into = owners.pop() if len(owners) == 1 else None
+        if into is not None:
+            merged[into].extend(groups[rows])
+            continue
+        merged[rows] = list(groups[rows])
+        for r in rows:
+            owner.setdefault(r, rows)
+    return merged
 
 
 def _structure(M: sp.spmatrix) -> sp.csr_matrix:

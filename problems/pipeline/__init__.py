@@ -133,6 +133,16 @@ def solve_model(plugin: Any, model: Any, **options: Any) -> vi_core.Solution:
     return vi_core.solve(model.vi, **options)
 
 
+def problem_at(plugin: Any, model: Any, sol: vi_core.Solution) -> vi_core.MixedVI:
+    """The mixed VI that `sol` must solve: the plug-in's `problem_at(model, sol)` where its
+    `solve` iterates around the VI (piezo_contact's electrical contact: the VI with the
+    conductances frozen at k(λ_n) of `sol`), else `model.vi`. Checkers judge an answer of
+    `solve_model` against this problem, never against the VI the solver was last given."""
+    if hasattr(plugin, "problem_at"):
+        return plugin.problem_at(model, sol)
+    return model.vi
+
+
 def level_record(level: int, model: Any, sol: vi_core.Solution) -> dict:
     """One level of a run: unknowns, Newton steps, time, residual, converged."""
     return {

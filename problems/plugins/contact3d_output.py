@@ -22,7 +22,7 @@ import numpy as np
 from fem import assembly3d
 from fem.surface3d import frames
 
-STATES = ("stick", "slip", "normal_only", "no_multiplier")
+STATES = ("stick", "slip", "normal_only", "open", "no_multiplier")
 VTK_ORDER = [0, 1, 2, 5, 3, 4]  # Voigt (xx, yy, zz, yz, xz, xy) → VTK (XX, YY, ZZ, XY, YZ, XZ)
 UNITS = {"x": "m", "normal": "1", "tangent": "1", "lambda": "Pa", "jump": "m", "g": "Pa"}
 CSV_NOTES = [

@@ -389,6 +389,17 @@ def solve(model: Model, **options) -> Solution:
     return sol
 
 
+def problem_at(model: Model, sol: Solution) -> MixedVI:
+    """The mixed VI `sol` must solve (`problems.pipeline.problem_at`): with a conductive or
+    grounded [contact.electrical] the insulating VI plus the Robin term frozen at the
+    conductances k(λ_n) of `sol` itself — a fixed point of the outer iteration solves it —
+    else `model.vi`."""
+    c = model.electrical
+    if c is None or c.law.kind == "none":
+        return model.vi
+    return c.frozen(c.conductances(sol.lam))
+
+
 def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None) -> None:
     """Refuse data that overflow in assembly (each number finite, their products not)."""
     parts = {"stiffness (materials)": A_full.data, "loads": f_full, "Dirichlet values": values}

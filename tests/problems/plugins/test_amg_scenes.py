@@ -19,11 +19,6 @@ pytest.importorskip("pyamg")
 
 SCENES = sorted(p.stem for p in Path(problems.scenes.__path__[0]).glob("*.toml"))
 TOL = 1e-10
-# On these levels of the 3D two-body mortar, vi_core's Condensation.detect finds no invertible
-# block-diagonal private part of B (cause not yet analysed), so
-# `--linear-solver amg` falls back to the direct solver, saying so. An open limitation of
-# the 3D mortar (issue 18); listed here so that a change either way is noticed.
-NOT_CONDENSED = {("paper_two_body_extruded", 1), ("spherical_cap", 0), ("spherical_cap", 1)}
 
 
 def _model(name: str, level: int):
@@ -41,10 +36,7 @@ def test_amg_agrees_with_direct_on_every_shipped_scene(name, level):
     s = vi.scaling.s_u
     diff = np.linalg.norm((a.u - d.u) / s) / max(np.linalg.norm(d.u / s), 1e-300)
     assert diff <= 2 * d.info["condition_estimate"] * TOL  # forward error ≤ κ · residual each
-    if (name, level) in NOT_CONDENSED:  # known limitation: said, and solved directly
-        assert a.info["linear_solver"] != "amg"
-        assert a.info["fallback"][0]["reason"].startswith("not condensable"), a.info
-    elif vi.m:  # every other contact scene condenses: the Krylov path ran, without fallback
+    if vi.m:  # every contact scene condenses: the Krylov path ran, without fallback
         assert a.info["linear_solver"] == "amg"
         assert len(a.info["krylov_iterations"]) == a.iterations
         assert a.info["fallback"] == []
