@@ -37,6 +37,7 @@ from fem.mortar3d import covered_nodes, mortar_coupling3d, nodal_rows
 from fem.surface3d import Surface, face_integrals, frames, surface
 from problems.errors import SceneError
 from problems.scene import Scene, SceneModel
+from problems.scene.exact import ExactSection3
 from problems.scene.fields3d import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, MixedVI, NonNegative, Solution, product
@@ -212,6 +213,7 @@ class Contact3DScene(SceneModel):
     scene: Head
     bodies: Annotated[dict[str, BodySection3], Field(min_length=1)]
     contact: ContactSection3 | None = None
+    exact: ExactSection3 | None = None  # a manufactured solution (contact3d_errors)
 
     @model_validator(mode="after")
     def _references(self) -> Contact3DScene:
