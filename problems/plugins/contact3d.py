@@ -43,15 +43,8 @@ from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, MixedVI, NonNegative, Solution, product
 
 from . import contact3d_checks, contact3d_extremes, contact3d_output, contact_law
-from .contact3d_bodies import (
-    SURFACE_ORDER,
-    Body3D,
-    BodySection3,
-    build_body3,
-    count3,
-    dirichlet3,
-    field_data3,
-)
+from .bodies import Body, build_body, dirichlet
+from .contact3d_bodies import SURFACE_ORDER, BodySection3, count3, field_data3
 from .contract import Sweep
 
 NAME = "contact3d"
@@ -73,7 +66,7 @@ class Coupling:
     displacement dofs; `patch_defect` max_k |W_k − Σ_j M_kj| / W_k.
     """
 
-    body: Body3D
+    body: Body
     part: str
     M: sp.csr_matrix
     dofs: np.ndarray
@@ -91,7 +84,7 @@ class Contact3D:
     A `line` node keeps the tangent t1 (line_slot 0) or t2 (line_slot 1): `line_dir`.
     """
 
-    slave: Body3D
+    slave: Body
     slave_part: str
     surf: Surface
     normals: np.ndarray  # (k, 3)
@@ -171,7 +164,7 @@ class Model:
 
     scene: Scene
     level: int
-    bodies: list[Body3D]
+    bodies: list[Body]
     contact: Contact3D | None
     vi: MixedVI
     free: np.ndarray  # (n_free,) full indices of the unknowns
@@ -269,10 +262,10 @@ def build(scene: Scene, level: int | None = None) -> Model:
 def _build(scene: Scene, level: int | None) -> Model:
     spec = scene.validated(SCENE_MODEL)
     level = spec.scene.level if level is None else level
-    bodies: dict[str, Body3D] = {}
+    bodies: dict[str, Body] = {}
     offset = 0
     for name, tb in spec.bodies.items():
-        bodies[name] = build_body3(name, tb, level, offset)
+        bodies[name] = build_body(name, tb, level, offset)
         offset += bodies[name].size
     n_full = offset
     contact = None
@@ -323,7 +316,7 @@ def count(scene: Scene, level: int) -> tuple[int, int, int]:
     n = nnz = m = 0
     bodies = {}
     for name, tb in spec.bodies.items():
-        body = Body3D(name, tb.geometry.mesh(level), tb.material.material(), 0)
+        body = Body(name, tb.geometry.mesh(level), tb.material.material(), 0)
         bodies[name] = (tb, body)
         dn, dnnz = count3(tb, body)
         n, nnz = n + dn, nnz + dnnz
@@ -332,7 +325,7 @@ def count(scene: Scene, level: int) -> tuple[int, int, int]:
         tb, body = bodies[sname]
         surf = surface(body.mesh, part, SURFACE_ORDER[body.mesh.cell_type])
         t1, t2 = frames(surf.normals)
-        fixed = dirichlet3(tb, body)[0][: 3 * body.n_nodes].reshape(-1, 3)[surf.nodes]
+        fixed = dirichlet(tb, body)[0][: 3 * body.n_nodes].reshape(-1, 3)[surf.nodes]
         carry_n, n_tan, *_ = carrying(fixed, surf.normals, t1, t2)
         m = int(carry_n.sum() + n_tan.sum())
     return n + m, nnz, n
@@ -349,7 +342,7 @@ def row_nodes_weights(c: Contact3D) -> np.ndarray:
     return c.surf.node_sizes()[k] * c.W[k]
 
 
-def _where(body: Body3D, surf: Surface, i: int) -> str:
+def _where(body: Body, surf: Surface, i: int) -> str:
     node = int(surf.nodes[i])
     return f"node {node} at {body.mesh.points[node].tolist()}"
 
@@ -435,7 +428,7 @@ def contact_rows(
     return B
 
 
-def mortar_coupling(slave: Body3D, part: str, master: Body3D, mpart: str) -> Coupling:
+def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Coupling:
     """The master side of a two-body interface: the 3D dual mortar (`fem.mortar3d`) in the
     nodal rows of the slave surface (D = diag(W)); nodes without the master behind their whole
     support carry no multiplier (`covered`); patch_defect is set by `slave_contact`."""
@@ -451,7 +444,7 @@ def mortar_coupling(slave: Body3D, part: str, master: Body3D, mpart: str) -> Cou
     return Coupling(master, mpart, nodal_rows(mo), dofs, np.nan, covered_nodes(mo), mo.n_cells)
 
 
-def _distance(slave: Body3D, part: str, master: Body3D, mpart: str) -> float:
+def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
     """How far the master surface stands from the slave one, in slave face sizes: the largest
     distance of a slave surface node to the nearest master surface node over the smallest
     slave face diameter (0 for coincident surfaces); it widens the mortar's candidate search
@@ -477,7 +470,7 @@ def _rigid_gap(gap, points: np.ndarray) -> np.ndarray:
     return gap_k
 
 
-def _positions(bodies: list[Body3D], n_full: int) -> np.ndarray:
+def _positions(bodies: list[Body], n_full: int) -> np.ndarray:
     """(n_full,) the nodal coordinates in the displacement dofs of every body, 0 elsewhere."""
     X = np.zeros(n_full)
     for b in bodies:
@@ -486,7 +479,7 @@ def _positions(bodies: list[Body3D], n_full: int) -> np.ndarray:
 
 
 def slave_contact(
-    slave: Body3D, part: str, law, n_full: int, master: Coupling | None = None, level: int = 0
+    slave: Body, part: str, law, n_full: int, master: Coupling | None = None, level: int = 0
 ) -> Contact3D:
     """The contact of `slave`'s boundary `part` (a rigid foundation along it, or `master`):
     surface, frames, crosspoint rules, g_k (or F_k) and the rows; `law` is the [contact]

@@ -30,7 +30,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from .fields import Expression, Text, Vector, evaluate
-from .fields3d import Expression3, Vector3, evaluate3
+from .fields3d import Expression3, Vector3
 from .model import Section, refuse, validate
 from .reader import Scene
 
@@ -118,14 +118,14 @@ class ExactSection3(Section):
         u, rows, lam, gp = self.u, self.grad_u, self.lam, self.grad_phi
 
         def grad_u(x, y, z):
-            return np.stack([evaluate3(r, x, y, z) for r in rows], axis=-2)  # (..., 3, 3)
+            return np.stack([evaluate(r, x, y, z) for r in rows], axis=-2)  # (..., 3, 3)
 
         return Exact3(
-            u=lambda x, y, z: evaluate3(u, x, y, z),
+            u=lambda x, y, z: evaluate(u, x, y, z),
             grad_u=grad_u,
             phi=self.phi,
-            grad_phi=None if gp is None else (lambda x, y, z: evaluate3(gp, x, y, z)),
-            lam=lambda x, y, z: evaluate3(lam, x, y, z),
+            grad_phi=None if gp is None else (lambda x, y, z: evaluate(gp, x, y, z)),
+            lam=lambda x, y, z: evaluate(lam, x, y, z),
         )
 
 

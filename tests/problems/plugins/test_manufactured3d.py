@@ -15,7 +15,7 @@ import pytest
 from fem.tensors import Material3D
 from problems.plugins import contact3d, contact3d_errors
 from problems.scene import load_scene
-from problems.scene.fields3d import evaluate3
+from problems.scene.fields import evaluate
 from problems.scene.manufactured3d import CENTRE, S0, SIDES
 from problems.scene.materials3d import NamedMaterial3
 from vi_core import solve
@@ -113,7 +113,7 @@ def test_body_force_and_free_charge_solve_the_pde(spec, exact):
     sigma = lambda *p: _fields(exact, *p)[0]  # noqa: E731
     D = lambda *p: _fields(exact, *p)[1]  # noqa: E731
     div_sigma = sum(_d(sigma, x, y, z, j)[:, :, j] for j in range(3))  # (n, 3)
-    f0 = evaluate3(blk.body_force, x, y, z)  # (n, 3)
+    f0 = evaluate(blk.body_force, x, y, z)  # (n, 3)
     np.testing.assert_allclose(f0, -div_sigma, rtol=1e-6, atol=1e-6 * np.abs(f0).max())
     div_D = sum(_d(D, x, y, z, j)[:, j] for j in range(3))  # (n,)
     q0 = blk.free_charge(x, y, z)
@@ -134,14 +134,14 @@ def test_boundary_data_match_the_exact_solution(spec, exact):
     for side in SIDES:
         p, n = on[side], np.array(normals[side], float)
         sig, D = _fields(exact, *p)
-        np.testing.assert_allclose(evaluate3(trac[side], *p), sig @ n, rtol=1e-9, atol=1e-3)
+        np.testing.assert_allclose(evaluate(trac[side], *p), sig @ n, rtol=1e-9, atol=1e-3)
         np.testing.assert_allclose(charge[side](*p), D @ n, rtol=1e-9, atol=1e-15)
     p = on["bottom"]
     sig, D = _fields(exact, *p)
     np.testing.assert_allclose(charge["bottom"](*p), -D[:, 2], rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(exact.lam(*p), -sig @ np.array([0.0, 0.0, -1.0]), atol=1e-3)
     p = on["top"]  # Dirichlet data = exact values
-    np.testing.assert_allclose(evaluate3(blk.displacement[0].value, *p), exact.u(*p))
+    np.testing.assert_allclose(evaluate(blk.displacement[0].value, *p), exact.u(*p))
     np.testing.assert_allclose(blk.potential[0].value(*p), exact.phi(*p))
 
 
