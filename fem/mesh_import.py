@@ -316,14 +316,16 @@ def write_msh(
     """Write meshes as one gmsh file (meshio's `file_format`: "gmsh22" = v2.2, "gmsh" = v4.1):
     each body a physical surface (2D `Mesh`) or volume (`Mesh3D`) named for it, each boundary
     part a physical curve (2D) or surface (3D) named `part` (`body_part` where two bodies have
-    a part of that name). Nodes of different bodies are not merged. Tests and examples use it to
-    hand built-in meshes to `body_mesh` / `fem.mesh_import3d.body_mesh3d`."""
+    a part of that name; 3D only as v2.2). Nodes of different bodies are not merged. Tests
+    and examples use it to hand built-in meshes to `body_mesh` / `mesh_import3d.body_mesh3d`."""
     import meshio
 
     dims = {m.points.shape[1] for m in bodies.values()}
     if len(dims) != 1:
         raise ValueError("write_msh: all bodies 2D or all 3D")
     dim = dims.pop()
+    if dim == 3 and file_format != "gmsh22":  # meshio's v4.1 writer drops entities without a
+        raise ValueError("write_msh: 3D meshes as gmsh22")  # node of their own (its reader fails)
     counts: dict[str, int] = {}
     for m in bodies.values():
         for p in m.boundaries:
