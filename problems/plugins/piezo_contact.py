@@ -958,9 +958,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         state = contact_state(model, sol)
         files += plots.contact_plots(state, outdir, title=model.scene.name)
         table = contact_table(model, sol)
-        results.write_contact_csv(outdir / "contact.csv", table)
-        results.write_contact_vtu(outdir / "contact.vtu", table)
-        files += ["contact.csv", "contact.vtu"]
+        files += results.write_contact(outdir, table)[0]
         n_slip = int(state["slip"].sum())
         n_touch = int(state["touch_t"].sum())
         summary["contact"] = {
@@ -1035,10 +1033,9 @@ def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
     out: dict = {"files": files}
     if model.contact is not None:
         table = contact_table(model, sol)
-        results.write_contact_csv(outdir / "contact.csv", table)
-        results.write_contact_vtu(outdir / "contact.vtu", table)
-        files += ["contact.csv", "contact.vtu"]
-        out["contact"] = table.totals()["counts"]
+        written, contact = results.write_contact(outdir, table)
+        files += written
+        out["contact"] = contact["counts"]
     return out
 
 

@@ -186,3 +186,108 @@ def test_a_roller_across_the_contact_surface_is_refused_for_unilateral_contact()
     top = "{boundary='top', value=[0.0, 0.0, -1e-6]}"
     with pytest.raises(SceneError, match="free to separate"):
         _model("block3d_liftoff", 0, f"bodies.block.displacement=[{top}, {roller}]")
+
+
+# ------------------------------------------------------------------ two bodies that start apart
+GAP = 1.0e-4
+TWO = """format = 2
+[scene]
+title = "two blocks, 1e-4 m apart"
+plugin = "contact3d"
+level = 0
+[bodies.top]
+material = {{ kind = "isotropic", E = 2.6e9, nu = 0.3 }}
+geometry = {{ kind = "box", x = [0.0, 1.0], y = [0.0, 1.0], z = [{z0}, 1.0], cells = [4, 4, 2] }}
+[[bodies.top.displacement]]
+boundary = "top"
+value = [2.0e-5, 1.0e-5, "-2.5e-4 + 2.5e-4*x"]
+[bodies.base]
+material = {{ kind = "isotropic", E = 2.6e9, nu = 0.3 }}
+geometry = {{ kind = "box", x = [-0.2, 1.2], y = [-0.2, 1.2], z = [0.0, 0.5], cells = [3, 3, 2] }}
+[[bodies.base.displacement]]
+boundary = "bottom"
+value = [0.0, 0.0, 0.0]
+[contact]
+slave = "top.bottom"
+master = "base.top"
+law = "unilateral"
+friction = "coulomb"
+F = 0.3
+"""
+
+
+def _two_bodies(tmp_path, z0: float = 0.5 + GAP):
+    path = tmp_path / "two.toml"
+    path.write_text(TWO.format(z0=z0))
+    return contact3d.build(load_scene(str(path)), 0)
+
+
+def _geometric_gap(model, sol) -> np.ndarray:
+    """(k,) the deformed slave surface above the deformed master one, node by node, from the
+    nodal positions alone (the master's top linearly interpolated): not from the mortar."""
+    from scipy.interpolate import LinearNDInterpolator
+
+    f = contact3d.fields(model, sol)
+    top, base = model.bodies
+    sn = model.contact.surf.nodes
+    xs = top.mesh.points[sn] + f["top.displacement"][sn]  # (k, 3)
+    mn = np.unique(base.mesh.boundaries["top"])
+    xm = base.mesh.points[mn] + f["base.displacement"][mn]
+    return xs[:, 2] - LinearNDInterpolator(xm[:, :2], xm[:, 2])(xs[:, :2])
+
+
+def test_two_bodies_that_start_apart(tmp_path):
+    """The weighted mortar gap of two parallel faces 1e-4 m apart is 1e-4 m at every node; the
+    tilted press closes it over part of the face: open and touching nodes, no penetration
+    beyond the mortar's weak (O(h²)) sense, and Newton and the fixed point agree."""
+    model = _two_bodies(tmp_path)
+    c = model.contact
+    assert np.abs(c.gap0 / c.W[c.rows_n] - GAP).max() <= 1e-10 * GAP
+    sol = _solve(model)
+    st = contact3d.contact_state(model, sol)
+    assert (st["state"] == "open").any() and st["touch"].any()
+    d = _geometric_gap(model, sol)
+    assert np.nanmin(d) >= -0.1 * GAP, np.nanmin(d)
+    assert np.abs(d[st["touch"]]).max() <= 0.1 * GAP
+    assert np.nanmin(st["gap"]) >= -1e-12 * GAP and st["lemma_4_2"] <= 1e-12
+    fp = vi_core.solve(model.vi, "fixed_point", inner="ssn", tol=1e-12)
+    assert fp.converged
+    assert np.abs(fp.lam - sol.lam).max() <= 1e-8 * np.abs(sol.lam).max()
+
+
+def test_the_geometric_gap_sees_a_wrong_sign_of_the_two_body_gap(tmp_path, monkeypatch):
+    real = contact3d._positions
+    monkeypatch.setattr(contact3d, "_positions", lambda *a: -real(*a))
+    model = _two_bodies(tmp_path)
+    sol = _solve(model)
+    d = _geometric_gap(model, sol)
+    touch = contact3d.contact_state(model, sol)["touch"]
+    # the bodies now press on each other while 2e-4 m apart (a gap of −1e-4 to close)
+    assert touch.any() and np.abs(d[touch]).max() > 0.5 * GAP
+
+
+def test_overlapping_bodies_are_refused(tmp_path):
+    with pytest.raises(SceneError, match="overlaps by 0.05"):
+        _two_bodies(tmp_path, z0=0.45)
+    _two_bodies(tmp_path, z0=0.5 - 1e-3)  # within OVERLAP_TOL: accepted
+
+
+def test_line_nodes_of_a_roller_side_carry_a_two_dimensional_contact_set():
+    """A roller on the left side (u_x = 0) leaves the bottom's left edge nodes one tangent
+    (y): vi_core's contact set with dim = 2 there, beside the discs; Newton and the fixed point
+    agree and the separation checks hold."""
+    roller = "{boundary='left', components='x', value=[0.0, 0.0, 0.0]}"
+    top = "{boundary='top', value=[0.0, '1.0e-7', '-1.0e-6 + 1.6e-6*x']}"
+    model = _model("block3d_liftoff", 0, f"bodies.block.displacement=[{top}, {roller}]")
+    c = model.contact
+    dims = sorted(b.dim for b in model.vi.Lambda.blocks() if hasattr(b, "dim"))
+    assert c.line.size > 0 and c.disc.size > 0 and dims == [2, 3]
+    sol = _solve(model)
+    sep = contact3d_checks.separation(model, sol)
+    assert max(sep.values()) <= 1e-10, sep
+    fp = vi_core.solve(model.vi, "fixed_point", inner="ssn", tol=1e-12)
+    assert fp.converged
+    assert np.abs(fp.lam - sol.lam).max() <= 1e-8 * np.abs(sol.lam).max()
+    st = contact3d.contact_state(model, sol)
+    line_lam = st["lam_t_vec"][c.line]  # along the kept tangent ±e_y only
+    assert np.abs(line_lam[:, [0, 2]]).max() <= 1e-12 * np.abs(sol.lam).max()
