@@ -46,7 +46,7 @@ from . import contact3d_checks, contact3d_extremes, contact3d_output, contact_la
 from .bodies import Body, build_body, dirichlet
 from .contact3d_bodies import SURFACE_ORDER, BodySection3, count3, field_data3
 from .contact_model import BodiesModel, reference
-from .contract import Sweep
+from .contract import Sweep, check_meshed
 
 NAME = "contact3d"
 DESCRIPTION = "elastic/piezoelectric 3D bodies in bilateral Tresca contact (friction discs)"
@@ -232,9 +232,11 @@ def _build(scene: Scene, level: int | None) -> Model:
     if spec.contact is not None:
         ct = spec.contact
         sname, part = ct.slave.split(".", 1)
+        check_meshed(bodies[sname].mesh, [("contact.slave", part)])
         master = None
         if ct.master != "rigid":
             mname, mpart = ct.master.split(".", 1)
+            check_meshed(bodies[mname].mesh, [("contact.master", mpart)])
             master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
         contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
     A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
