@@ -45,7 +45,7 @@ from vi_core import Ball, Box, Free, MixedVI, NonNegative, Solution, product
 from . import contact3d_checks, contact3d_extremes, contact3d_output, contact_law
 from .bodies import Body, build_body, dirichlet
 from .contact3d_bodies import SURFACE_ORDER, BodySection3, count3, field_data3
-from .contract import Sweep
+from .contract import Sweep, check_meshed
 
 NAME = "contact3d"
 DESCRIPTION = "elastic/piezoelectric 3D bodies in bilateral Tresca contact (friction discs)"
@@ -240,8 +240,8 @@ def _ref(scene: Contact3DScene, field_: list[str], ref: str) -> tuple[str, str]:
         raise refuse(
             field_, ref, f"BODY.BOUNDARY with a body of this scene: {', '.join(scene.bodies)}"
         )
-    names = scene.bodies[bname].geometry.BOUNDARIES
-    if part not in names:
+    names = scene.bodies[bname].geometry.BOUNDARIES  # None: a mesh file, checked once meshed
+    if names is not None and part not in names:
         raise refuse(field_, ref, f"BODY.BOUNDARY with a boundary of {bname!r}: {', '.join(names)}")
     return bname, part
 
@@ -272,9 +272,11 @@ def _build(scene: Scene, level: int | None) -> Model:
     if spec.contact is not None:
         ct = spec.contact
         sname, part = ct.slave.split(".", 1)
+        check_meshed(bodies[sname].mesh, [("contact.slave", part)])
         master = None
         if ct.master != "rigid":
             mname, mpart = ct.master.split(".", 1)
+            check_meshed(bodies[mname].mesh, [("contact.master", mpart)])
             master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
         contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
     A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")

@@ -270,3 +270,24 @@ def test_overlapping_bodies_are_refused(tmp_path):
     with pytest.raises(SceneError, match="overlaps by 0.05"):
         _two_bodies(tmp_path, z0=0.45)
     _two_bodies(tmp_path, z0=0.5 - 1e-3)  # within OVERLAP_TOL: accepted
+
+
+def test_line_nodes_of_a_roller_side_carry_a_two_dimensional_contact_set():
+    """A roller on the left side (u_x = 0) leaves the bottom's left edge nodes one tangent
+    (y): vi_core's contact set with dim = 2 there, beside the discs; Newton and the fixed point
+    agree and the separation checks hold."""
+    roller = "{boundary='left', components='x', value=[0.0, 0.0, 0.0]}"
+    top = "{boundary='top', value=[0.0, '1.0e-7', '-1.0e-6 + 1.6e-6*x']}"
+    model = _model("block3d_liftoff", 0, f"bodies.block.displacement=[{top}, {roller}]")
+    c = model.contact
+    dims = sorted(b.dim for b in model.vi.Lambda.blocks() if hasattr(b, "dim"))
+    assert c.line.size > 0 and c.disc.size > 0 and dims == [2, 3]
+    sol = _solve(model)
+    sep = contact3d_checks.separation(model, sol)
+    assert max(sep.values()) <= 1e-10, sep
+    fp = vi_core.solve(model.vi, "fixed_point", inner="ssn", tol=1e-12)
+    assert fp.converged
+    assert np.abs(fp.lam - sol.lam).max() <= 1e-8 * np.abs(sol.lam).max()
+    st = contact3d.contact_state(model, sol)
+    line_lam = st["lam_t_vec"][c.line]  # along the kept tangent ±e_y only
+    assert np.abs(line_lam[:, [0, 2]]).max() <= 1e-12 * np.abs(sol.lam).max()
