@@ -23,7 +23,7 @@ else is refused (SceneError naming the nodes).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from pydantic import Field, model_validator
 from scipy.spatial import cKDTree
 
-from fem.dirichlet import expand, reduce_dirichlet
+from fem.dirichlet import reduce_dirichlet
 from fem.mortar3d import covered_nodes, mortar_coupling3d, nodal_rows
 from fem.surface3d import Surface, face_integrals, frames, surface
 from problems.errors import SceneError
@@ -42,9 +42,10 @@ from problems.scene.fields3d import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, MixedVI, NonNegative, Solution, product
 
-from . import contact3d_checks, contact3d_extremes, contact3d_output, contact_law
+from . import contact3d_checks, contact3d_extremes, contact3d_output, contact_law, contact_model
 from .bodies import Body, build_body, dirichlet
 from .contact3d_bodies import SURFACE_ORDER, BodySection3, count3, field_data3
+from .contact_model import BodiesModel, reference
 from .contract import Sweep, check_meshed
 
 NAME = "contact3d"
@@ -159,36 +160,10 @@ class Contact3D:
 
 
 @dataclass
-class Model:
+class Model(BodiesModel):
     """A built 3D scene: the mixed VI plus what post-processing needs."""
 
-    scene: Scene
-    level: int
-    bodies: list[Body]
-    contact: Contact3D | None
-    vi: MixedVI
-    free: np.ndarray  # (n_free,) full indices of the unknowns
-    values: np.ndarray  # (n_full,) prescribed values (fixed entries)
-    options: dict = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
     dimension: int = 3
-
-    def unknown_fields(self) -> dict[str, np.ndarray]:
-        """Boolean masks over the unknowns: which are displacement, which potential."""
-        is_disp = np.zeros(self.values.size, dtype=bool)
-        for b in self.bodies:
-            is_disp[b.offset : b.offset + 3 * b.n_nodes] = True
-        return {"displacement": is_disp[self.free], "potential": ~is_disp[self.free]}
-
-    @property
-    def dofs(self) -> dict[str, int]:
-        """Number of unknowns per field."""
-        counts = {k: int(v.sum()) for k, v in self.unknown_fields().items()}
-        return {**counts, "multiplier": self.vi.m}
-
-    def full(self, u: np.ndarray) -> np.ndarray:
-        """Unknowns → full vector including Dirichlet values."""
-        return expand(u, self.free, self.values)
 
 
 class ContactSection3(contact_law.contact_law(NonNegativeExpr3)):
@@ -219,9 +194,9 @@ class Contact3DScene(SceneModel):
     def _references(self) -> Contact3DScene:
         c = self.contact
         if c is not None:
-            sbody, _ = _ref(self, ["contact", "slave"], c.slave)
+            sbody, _ = reference(self.bodies, ["contact", "slave"], c.slave)
             if c.master != "rigid":
-                mbody, _ = _ref(self, ["contact", "master"], c.master)
+                mbody, _ = reference(self.bodies, ["contact", "master"], c.master)
                 if mbody == sbody:
                     raise refuse(
                         ["contact", "master"],
@@ -229,21 +204,6 @@ class Contact3DScene(SceneModel):
                         '"rigid" or BODY.BOUNDARY of another body than the slave',
                     )
         return self
-
-
-def _ref(scene: Contact3DScene, field_: list[str], ref: str) -> tuple[str, str]:
-    """BODY.BOUNDARY → (body, boundary), checked against the scene's bodies and geometries."""
-    bname, dot, part = ref.partition(".")
-    if not dot:
-        raise refuse(field_, ref, "BODY.BOUNDARY, e.g. block.bottom")
-    if bname not in scene.bodies:
-        raise refuse(
-            field_, ref, f"BODY.BOUNDARY with a body of this scene: {', '.join(scene.bodies)}"
-        )
-    names = scene.bodies[bname].geometry.BOUNDARIES  # None: a mesh file, checked once meshed
-    if names is not None and part not in names:
-        raise refuse(field_, ref, f"BODY.BOUNDARY with a boundary of {bname!r}: {', '.join(names)}")
-    return bname, part
 
 
 SCENE_MODEL = Contact3DScene
@@ -757,18 +717,6 @@ def contact_state(model: Model, sol: Solution) -> dict:
     }
 
 
-def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
-    """Nodal fields by name: "BODY.displacement" (N, 3) and "BODY.potential" (N,)."""
-    x_full = model.full(sol.u)
-    out = {}
-    for b in model.bodies:
-        u, phi = b.split(x_full[b.offset : b.offset + b.size])
-        out[f"{b.name}.displacement"] = u
-        if phi is not None:
-            out[f"{b.name}.potential"] = phi
-    return out
-
-
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """Write the body VTUs, the contact surface (contact.vtu), contact.csv, results.pvd and
     the stick/slip map into `outdir`; return the summary entries."""
@@ -786,12 +734,9 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     return summary
 
 
-def mesh_size(model: Model) -> float:
-    """h of the built level: the largest cell diameter over the bodies."""
-    return max(b.mesh.h for b in model.bodies)
-
-
 # ------------------------------------------------------------------ contract v2 declarations
+fields = contact_model.fields  # nodal fields by name
+mesh_size = contact_model.mesh_size  # h of the built level
 SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")
 extremes = contact3d_extremes.rows
