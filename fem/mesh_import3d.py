@@ -25,7 +25,7 @@ import numpy as np
 
 from .elements3d import FACES
 from .mesh3d import Mesh3D, check_cells, exterior_faces, jacobian_determinants
-from .mesh_import import MeshFile, MeshImportError
+from .mesh_import import MeshFile, MeshImportError, _dim
 
 VOLUME_CELLS = {"tetra": 4, "hexahedron": 8}  # meshio cell types accepted in a body
 FACE_CELLS = {"tetra": "triangle", "hexahedron": "quad"}  # boundary faces of each body type
@@ -75,15 +75,6 @@ def body_mesh3d(mf: MeshFile, body: str | None = None) -> Mesh3D:
     points = mf.points[order]  # (n, 3)
     cells = _oriented(mf.path, where, points, new_id[cells_file], ctype)
     return Mesh3D(points, cells, _boundaries(mf, where, new_id, points, cells, ctype))
-
-
-def _dim(cell_type: str) -> int:
-    """Topological dimension of a meshio cell type (0 for vertices)."""
-    if cell_type.startswith(("tetra", "hexahedron", "wedge", "pyramid", "polyhedron")):
-        return 3
-    if cell_type.startswith(("triangle", "quad", "polygon")):
-        return 2
-    return 1 if cell_type.startswith("line") else 0
 
 
 def _oriented(path: str, where: str, points: np.ndarray, cells: np.ndarray, ctype: str):

@@ -34,19 +34,18 @@ from .fields3d import Expression3, Vector3
 from .model import Section, refuse, validate
 from .reader import Scene
 
-Field2 = Callable[[np.ndarray, np.ndarray], np.ndarray]
-Field3 = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+FieldN = Callable[..., np.ndarray]  # of (x, y) in 2D, of (x, y, z) in 3D
 
 
 @dataclass(frozen=True)
 class Exact:
-    """Compiled exact fields; each maps (x, y) arrays to x.shape + (components...)."""
+    """Compiled exact fields; each maps (x, y) arrays (3D: (x, y, z)) to x.shape + (...)."""
 
-    u: Field2  # → (..., 2)
-    grad_u: Field2  # → (..., 2, 2), [k, i] = ∂u_k/∂x_i
-    phi: Field2 | None  # → (...)
-    grad_phi: Field2 | None  # → (..., 2)
-    lam: Field2  # → (..., 2): (λ·n, λ·τ) on Γ3
+    u: FieldN  # → (..., d)
+    grad_u: FieldN  # → (..., d, d), [k, i] = ∂u_k/∂x_i
+    phi: FieldN | None  # → (...)
+    grad_phi: FieldN | None  # → (..., d)
+    lam: FieldN  # 2D → (..., 2): (λ·n, λ·τ) on Γ3; 3D → (..., 3): λ = −σn, Cartesian
 
 
 class ExactSection(Section):
@@ -61,72 +60,34 @@ class ExactSection(Section):
 
     @model_validator(mode="after")
     def _phi_pair(self) -> ExactSection:
-        return _phi_pair(self)
+        if (self.phi is None) != (self.grad_phi is None):
+            raise refuse(["phi"], self.phi and self.phi.source, "both phi and grad_phi, or neither")
+        return self
 
     def compiled(self) -> Exact:
-        """The fields as functions of (x, y)."""
+        """The fields as functions of the coordinates."""
         u, rows, lam, gp = self.u, self.grad_u, self.lam, self.grad_phi
 
-        def grad_u(x, y):
-            return np.stack([evaluate(r, x, y) for r in rows], axis=-2)  # (..., 2, 2)
+        def grad_u(*p):
+            return np.stack([evaluate(r, *p) for r in rows], axis=-2)  # (..., d, d)
 
         return Exact(
-            u=lambda x, y: evaluate(u, x, y),
+            u=lambda *p: evaluate(u, *p),
             grad_u=grad_u,
             phi=self.phi,
-            grad_phi=None if gp is None else (lambda x, y: evaluate(gp, x, y)),
-            lam=lambda x, y: evaluate(lam, x, y),
+            grad_phi=None if gp is None else (lambda *p: evaluate(gp, *p)),
+            lam=lambda *p: evaluate(lam, *p),
         )
 
 
-def _phi_pair(section):
-    """Refuse a table with only one of phi and grad_phi."""
-    if (section.phi is None) != (section.grad_phi is None):
-        raise refuse(
-            ["phi"], section.phi and section.phi.source, "both phi and grad_phi, or neither"
-        )
-    return section
+class ExactSection3(ExactSection):
+    """The [exact] table of a contact3d scene: fields of (x, y, z), lam the Cartesian λ."""
 
-
-@dataclass(frozen=True)
-class Exact3:
-    """Compiled exact fields of a 3D scene; each maps (x, y, z) arrays to x.shape + (...)."""
-
-    u: Field3  # → (..., 3)
-    grad_u: Field3  # → (..., 3, 3), [k, i] = ∂u_k/∂x_i
-    phi: Field3 | None  # → (...)
-    grad_phi: Field3 | None  # → (..., 3)
-    lam: Field3  # → (..., 3): λ = −σn on Γ3, Cartesian
-
-
-class ExactSection3(Section):
-    """The [exact] table of a contact3d scene (fields of x, y, z)."""
-
-    source: Text = ""
     u: Vector3
     grad_u: Annotated[list[Vector3], Field(min_length=3, max_length=3)]
     phi: Expression3 | None = None
     grad_phi: Vector3 | None = None
     lam: Vector3
-
-    @model_validator(mode="after")
-    def _phi_pair(self) -> ExactSection3:
-        return _phi_pair(self)
-
-    def compiled(self) -> Exact3:
-        """The fields as functions of (x, y, z)."""
-        u, rows, lam, gp = self.u, self.grad_u, self.lam, self.grad_phi
-
-        def grad_u(x, y, z):
-            return np.stack([evaluate(r, x, y, z) for r in rows], axis=-2)  # (..., 3, 3)
-
-        return Exact3(
-            u=lambda x, y, z: evaluate(u, x, y, z),
-            grad_u=grad_u,
-            phi=self.phi,
-            grad_phi=None if gp is None else (lambda x, y, z: evaluate(gp, x, y, z)),
-            lam=lambda x, y, z: evaluate(lam, x, y, z),
-        )
 
 
 def split_exact(scene: Scene) -> tuple[Scene, Exact | None]:

@@ -17,9 +17,12 @@ LEVELS = [
     pytest.param("rigid_foundation_extruded", 0),
     pytest.param("block3d_liftoff", 0),
     pytest.param("coulomb_strip3d", 0),
+    pytest.param("manufactured3d", 0),
+    pytest.param("bracket3d", 0),
     pytest.param("block3d_liftoff", 1),
     pytest.param("block3d", 1, marks=pytest.mark.slow),
     pytest.param("rigid_foundation_extruded", 1, marks=pytest.mark.slow),
+    pytest.param("manufactured3d", 1, marks=pytest.mark.slow),
 ]
 
 
@@ -31,4 +34,6 @@ def test_ssn_homotopy_and_conic_agree_on_a_3d_scene(name, level):
     assert ok, rec
     law = load_scene(name).data["contact"].get("law", "bilateral")
     want = {"ssn", "fixed_point"} if law == "unilateral" else {"ssn", "homotopy", "conic"}
+    if law != "unilateral" and contact3d.build(load_scene(name), 0).vi.structure == "symmetric":
+        want.discard("homotopy")  # an elastic body: homotopy is one call of ssn (not run)
     assert set(rec["methods"]) == want, rec

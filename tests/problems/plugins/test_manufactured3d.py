@@ -212,6 +212,21 @@ def _wrong_states(model, st) -> np.ndarray:
     return np.abs(r - np.sqrt(S0))[wrong]
 
 
+def test_clamped_sides_keep_the_rates():
+    """Crosspoints: the left and front sides clamped to the exact u (their contact nodes carry
+    no multiplier; the plug-in's "keep" basis drops their dual functions) — same rates."""
+    scene = load_scene(NAME)
+    blk = scene.data["bodies"]["block"]
+    u = blk["displacement"][0]["value"]
+    blk["traction"] = [t for t in blk["traction"] if t["boundary"] not in ("left", "front")]
+    blk["displacement"] += [{"boundary": b, "value": u} for b in ("left", "front")]
+    h, errs, states = _errors(scene, "hexahedron")
+    model, _ = states[-1]
+    c = model.contact
+    assert c.rows_n.size < c.surf.size  # crosspoint nodes without multipliers
+    assert slope_failures(slopes(h, errs)) == []
+
+
 def test_a_wrong_traction_sign_breaks_the_rates(monkeypatch):
     scene = load_scene(NAME)
     part = scene.data["bodies"]["block"]["traction"][1]  # the right side
