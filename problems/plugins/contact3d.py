@@ -1,4 +1,5 @@
-"""Plug-in: elastic or piezoelectric 3D bodies in bilateral contact with Tresca friction.
+"""Plug-in: elastic or piezoelectric 3D bodies in bilateral contact with Tresca friction, or in
+unilateral contact with Tresca (where touching) or Coulomb friction discs.
 
 Per contact node k of the slave surface Γ3 (a boundary part of a 3D body): a normal multiplier
 λ_n,k (free: bilateral contact) and a tangential one λ_t,k in the tangent plane with the
@@ -18,6 +19,15 @@ prescribed → n, t1, t2; all prescribed → no multiplier; one component e_c wi
 the tangent n × e_c (a line |λ_t| ≤ g); e_c ∥ n → the two tangents only (a disc); two
 components with the free one e_f ∥ n → n only; with e_f ⟂ n → the tangent e_f only; anything
 else is refused (SceneError naming the nodes).
+
+Unilateral contact (`[contact] law = "unilateral"`, the keys of `contact_law`): λ_n ≥ 0,
+gap ≥ 0, λ_n·gap = 0 and |λ_t| ≤ ρ with ρ = F_k λ_n (Coulomb, F_k = ∫Fφ_k / W_k) or g_k where
+the node touches (Tresca). The rows of a node are then side by side (`Contact3D.rows`):
+[n, t1, t2] per disc node (vi_core's contact set with dim 3), [n, t] per line node (dim 2),
+then the normal-only nodes (NonNegative); a node whose normal displacement is prescribed is
+refused. The initial gap is W_k·gap(x_k) for a rigid foundation (the scene's field) and the
+weighted mortar gap −n_k·(W_k x_s,k − Σ_j M_kj x_m,j) of the geometry for two bodies, which may
+start apart (an overlap beyond OVERLAP_TOL × the level-0 node size is refused).
 """
 
 from __future__ import annotations
@@ -49,7 +59,10 @@ from .contact_model import BodiesModel, reference
 from .contract import Sweep, check_meshed
 
 NAME = "contact3d"
-DESCRIPTION = "elastic/piezoelectric 3D bodies in bilateral Tresca contact (friction discs)"
+DESCRIPTION = (
+    "elastic/piezoelectric 3D bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
+    "(friction discs)"
+)
 CONTRACT = 2
 ALIGN_TOL = 1e-10  # sine of the angle under which a prescribed direction counts as n or ⟂ n
 # Unilateral contact of two bodies: the master may stand apart from the slave (an initial gap)
