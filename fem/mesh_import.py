@@ -86,8 +86,11 @@ class MeshFile:
         )
 
 
-def read_mesh(path: str | PathLike) -> MeshFile:
-    """Read a mesh file with meshio (format from the file name; gmsh .msh v2 or v4, ...)."""
+def read_mesh(path: str | PathLike, planar: bool = True) -> MeshFile:
+    """Read a mesh file with meshio (format from the file name; gmsh .msh v2 or v4, ...).
+
+    planar: a 2D mesh in the plane z = 0 (points (n, 2), refused otherwise); False keeps the
+    three coordinates (points (n, 3): `fem.mesh_import3d`)."""
     import meshio
 
     path = str(path)
@@ -102,7 +105,9 @@ def read_mesh(path: str | PathLike) -> MeshFile:
     pts = np.asarray(m.points, dtype=float)
     if pts.ndim != 2 or pts.shape[0] == 0:
         raise MeshImportError(path, "no nodes", "a mesh with nodes")
-    if pts.shape[1] == 3:
+    if not planar:
+        pts = np.pad(pts, ((0, 0), (0, 3 - pts.shape[1]))) if pts.shape[1] < 3 else pts
+    elif pts.shape[1] == 3:
         extent = float(np.ptp(pts[:, :2], axis=0).max()) if len(pts) > 1 else 1.0
         z = np.abs(pts[:, 2])
         if z.max() > Z_TOL * max(extent, 1e-300):
@@ -118,7 +123,7 @@ def read_mesh(path: str | PathLike) -> MeshFile:
         phys = np.asarray(tags[i], dtype=int) if tags is not None else np.full(len(block.data), -1)
         blocks.append((block.type, np.asarray(block.data, dtype=np.int64), phys))
     groups = {str(k): (int(v[1]), int(v[0])) for k, v in (m.field_data or {}).items()}
-    return MeshFile(path, pts[:, :2].copy(), blocks, groups)
+    return MeshFile(path, (pts[:, :2] if planar else pts).copy(), blocks, groups)
 
 
 def mesh_geo(path: str | PathLike, level: int = 0) -> MeshFile:
@@ -309,11 +314,18 @@ def write_msh(
     file_format: str = "gmsh22",
 ) -> None:
     """Write meshes as one gmsh file (meshio's `file_format`: "gmsh22" = v2.2, "gmsh" = v4.1):
-    each body a physical surface named for it, each boundary part a physical curve named
-    `part` (`body_part` where two bodies have a part of that name). Nodes of different bodies
-    are not merged. Tests and examples use it to hand built-in meshes to `body_mesh`."""
+    each body a physical surface (2D `Mesh`) or volume (`Mesh3D`) named for it, each boundary
+    part a physical curve (2D) or surface (3D) named `part` (`body_part` where two bodies have
+    a part of that name; 3D only as v2.2). Nodes of different bodies are not merged. Tests
+    and examples use it to hand built-in meshes to `body_mesh` / `mesh_import3d.body_mesh3d`."""
     import meshio
 
+    dims = {m.points.shape[1] for m in bodies.values()}
+    if len(dims) != 1:
+        raise ValueError("write_msh: all bodies 2D or all 3D")
+    dim = dims.pop()
+    if dim == 3 and file_format != "gmsh22":  # meshio's v4.1 writer drops entities without a
+        raise ValueError("write_msh: 3D meshes as gmsh22")  # node of their own (its reader fails)
     counts: dict[str, int] = {}
     for m in bodies.values():
         for p in m.boundaries:
@@ -321,25 +333,26 @@ def write_msh(
     points, cells, phys, geo, field, dim_tags = [], [], [], [], {}, []
     offset, tag = 0, 1
     for bname, m in bodies.items():
-        field[bname] = np.array([tag, 2])
-        dt = np.tile([2, tag], (m.n_nodes, 1))  # (n, 2) the entity each node is classified on
+        faces = "line" if dim == 2 else {4: "triangle", 8: "quad"}[m.cells.shape[1]]
+        field[bname] = np.array([tag, dim])
+        dt = np.tile([dim, tag], (m.n_nodes, 1))  # (n, 2) the entity each node is classified on
         cells.append((m.cell_type, m.cells + offset))
         phys.append(np.full(m.n_cells, tag))
         geo.append(np.full(m.n_cells, tag))
         tag += 1
         for p, e in m.boundaries.items():
             name = p if counts[p] == 1 else f"{bname}_{p}"
-            field[name] = np.array([tag, 1])
-            cells.append(("line", e + offset))
+            field[name] = np.array([tag, dim - 1])
+            cells.append((faces, e + offset))
             phys.append(np.full(len(e), tag))
             geo.append(np.full(len(e), tag))
-            dt[e.ravel()] = [1, tag]
+            dt[e.ravel()] = [dim - 1, tag]
             tag += 1
         points.append(m.points)
         dim_tags.append(dt)
         offset += m.n_nodes
     pts = np.concatenate(points)
-    pts3 = np.concatenate([pts, np.zeros((len(pts), 1))], axis=1)
+    pts3 = np.pad(pts, ((0, 0), (0, 3 - dim)))  # (n, 3)
     out = meshio.Mesh(
         pts3,
         cells,

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
 from problems.output import signals
@@ -55,7 +56,9 @@ def _nested_ssn(plugin, scene, level: int, tol: float, linear_solver: str = "aut
         model = plugin.build(scene, lev)
         t = time.perf_counter()
         kw = plugin.warm_start(*prev, model) if prev and warm else {}
-        sol = vi_core.solve(model.vi, "ssn", tol=tol, linear_solver=linear_solver, **kw)
+        sol = pipeline.solve_model(
+            plugin, model, method="ssn", tol=tol, linear_solver=linear_solver, **kw
+        )
         total += time.perf_counter() - t
         iters.append(sol.iterations)
         prev = (model, sol)
@@ -72,12 +75,12 @@ def _record(
     plugin = registry.for_scene(scene)
     out = []
     # warm-up (untimed): library loading and first-call costs must not land on either timing
-    for backend in ("splu", "auto"):
-        vi_core.solve(plugin.build(scene, 0).vi, "ssn", tol=tol, linear_solver=backend)
-    if linear_solver == "amg":
-        vi_core.solve(plugin.build(scene, 0).vi, "ssn", tol=tol, linear_solver="amg")
+    for backend in ("splu", "auto", *(("amg",) if linear_solver == "amg" else ())):
+        pipeline.solve_model(
+            plugin, plugin.build(scene, 0), method="ssn", tol=tol, linear_solver=backend
+        )
     model, sol, t_nl, iters = _nested_ssn(plugin, scene, level, tol, linear_solver)
-    vi = model.vi
+    vi = pipeline.problem_at(plugin, model, sol)  # the problem ssn's answer solves
     # the linear reference: same matrix size, same linear solver (for amg: hierarchy set-up
     # and one FGMRES solve to tol — ssn solves a linear VI's first step to tol at once)
     tied = MixedVI(
@@ -115,7 +118,7 @@ def _record(
     for meth in solvers:
         if meth == "ssn" or (meth == "conic" and vi.structure == "general"):
             continue
-        s = vi_core.solve(vi, meth, tol=tol)
+        s = pipeline.solve_model(plugin, model, method=meth, tol=tol)
         out.append(
             {
                 **base,

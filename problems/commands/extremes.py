@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
 from problems.output.files import output_folder
@@ -49,13 +50,13 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
 
 
-def _difference(model: Any, sol: vi_core.Solution, other: vi_core.Solution) -> float:
+def _difference(model: Any, vi: Any, sol: vi_core.Solution, other: vi_core.Solution) -> float:
     """The larger relative difference of u (with its Dirichlet values, `Model.full` where the
     model has it: the data's scale) and of λ between `other` and ssn's `sol`. A part that is
     (rounding) zero in ssn's answer — below INACTIVE of the answer's size ‖(u', λ')‖ in
     equilibrated variables — is measured relative to that size instead (a 0/0 would call the
-    1e-12 of an interior-point λ, or of a glued u, a disagreement)."""
-    vi = model.vi
+    1e-12 of an interior-point λ, or of a glued u, a disagreement). `vi`: the problem ssn's
+    answer solves (`pipeline.problem_at`), whose equilibration measures the difference."""
     checker = Checker.of(vi)
     u_s, lam_s = checker.scaled(sol.u, sol.lam)
     u_o, lam_o = checker.scaled(other.u, other.lam)
@@ -85,14 +86,15 @@ def rows(plugins: dict[str, Any] | None = None) -> list[ExtremeRow]:
 
 
 def run_row(row: ExtremeRow) -> dict:
-    """Solve one row with every affordable method and collect the checks."""
+    """Solve one row with every affordable method (`pipeline.solve_model`: the scene's problem,
+    with the plug-in's outer iteration, e.g. electrical contact) and collect the checks."""
     t0 = time.perf_counter()
     scene = row.load()
     plugin = registry.for_scene(scene)
     model = plugin.build(scene, row.level)
-    vi = model.vi
+    sol = pipeline.solve_model(plugin, model, method="ssn")
+    vi = pipeline.problem_at(plugin, model, sol)  # the problem ssn's answer must solve
     n = vi.n + vi.m
-    sol = vi_core.solve(vi, "ssn")
     rec: dict = {
         "row": row.name,
         "plugin": plugin.NAME,
@@ -117,7 +119,7 @@ def run_row(row: ExtremeRow) -> dict:
         opts = {"max_levels": 12} if meth == "homotopy" else {"polish": 0}
         if meth == "fixed_point":  # its Tresca problems by conic (homotopy for a general A)
             opts = {"inner": "conic" if vi.structure != "general" else "homotopy"}
-        other = vi_core.solve(vi, meth, **opts)
+        other = pipeline.solve_model(plugin, model, method=meth, **opts)
         rec["iterations"][meth] = other.iterations
         if meth == "homotopy":
             rec["rho"] = other.info.get("rho")
@@ -125,7 +127,7 @@ def run_row(row: ExtremeRow) -> dict:
         failed = other.info.get("status") != "optimal" if meth == "conic" else not other.converged
         if failed:
             rec["notes"].append(f"{meth} did not converge (residual {other.residual:.1e})")
-        rec["agreement"][meth] = _difference(model, sol, other)
+        rec["agreement"][meth] = _difference(model, vi, sol, other)
     lam = sol.lam
     rec["admissibility"] = _rel(vi.Lambda.project(lam), lam) if vi.m and lam.any() else 0.0
     if hasattr(model, "complementarity"):

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-import vi_core
+import problems.pipeline as pipeline
 from problems.errors import SceneError
 from problems.output import plots
 from problems.output.files import output_folder
@@ -71,7 +71,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
         for v in tqdm(values, desc=f"solving for each {sweep.path}", unit="solve", disable=None):
             scene = load_scene(name, [*(args.set or []), f"{sweep.path}={v!r}"])
             model = plugin.build(scene, level)
-            sol = vi_core.solve(model.vi, method="ssn")
+            sol = pipeline.solve_model(plugin, model, method="ssn")  # the scene's problem
             if not sol.converged:
                 print(
                     f"mixvi: {sweep.path} = {v:g} did not converge (residual {sol.residual:.2e})",

@@ -51,6 +51,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
+import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
 from problems.output.collection import vtu_datasets, write_pvd
@@ -85,11 +86,12 @@ def parse_tols(text: str) -> list[float]:
 
 
 # ------------------------------------------------------------------ the study
-def _solve(model: Any, solver: str, tol: float) -> tuple[vi_core.Solution, float]:
-    """Solve and return (solution, tracemalloc peak in MB during the solve)."""
+def _solve(plugin: Any, model: Any, solver: str, tol: float) -> tuple[vi_core.Solution, float]:
+    """Solve the scene's problem (`pipeline.solve_model`: with the plug-in's outer iteration)
+    and return (solution, tracemalloc peak in MB during the solve)."""
     tracemalloc.start()
     try:
-        sol = vi_core.solve(model.vi, method=solver, tol=tol)
+        sol = pipeline.solve_model(plugin, model, method=solver, tol=tol)
         peak = tracemalloc.get_traced_memory()[1] / 2**20
     finally:
         tracemalloc.stop()
@@ -111,7 +113,7 @@ def run_case(scene: Scene, level: int, solver: str, tols: list[float]) -> list[t
                 raise SceneError("--solvers", solver, "ssn or homotopy: A of this scene is general")
             out = []
             for tol in tols:
-                sol, peak = _solve(model, solver, tol)
+                sol, peak = _solve(plugin, model, solver, tol)
                 out.append(
                     (_record(plugin, model, solver, tol, sol, peak, exact_errors(model, sol)), sol)
                 )

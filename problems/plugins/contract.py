@@ -38,7 +38,14 @@ declaration it needs with exit status 2, naming the declaration):
                                                baselines: an outer iteration around model.vi
                                                (e.g. piezo_contact's electrical contact fixed
                                                point); default vi_core.solve(model.vi, **options)
-                                               (`problems.pipeline.solve_model`)
+                                               (`problems.pipeline.solve_model`: every
+                                               command solves through it)
+    problem_at(model, sol) -> MixedVI          with `solve`: the mixed VI the answer `sol`
+                                               must solve (e.g. the VI with the electrical
+                                               conductances frozen at k(λ_n) of `sol`),
+                                               which `mixvi check` and `extremes` judge it
+                                               against; default model.vi
+                                               (`problems.pipeline.problem_at`)
     incremental(model, previous, previous_sol) load paths (`[load_path]`, mixvi solve and
                          -> None               `problems.solve_scene`): make `model`, the next
                                                load step just built, act on the increments
@@ -238,6 +245,8 @@ def conforms(obj: Any) -> list[str]:
         "extremes",
         "warm_start",
         "count",
+        "solve",
+        "problem_at",
         "incremental",
         "step_output",
     )

@@ -212,7 +212,9 @@ def solve_coupled(
         "k_scale": c.law.scale,
         "time_s": time.perf_counter() - t0,
     }
-    info = {**sol.info, "electrical": record}
+    # "outer": what the commands print of any outer iteration around the VI
+    outer = {"what": "electrical contact fixed point on k", "iterations": len(steps)}
+    info = {**sol.info, "electrical": record, "outer": outer}
     warnings = list(sol.warnings)
     if not converged:
         why = "the inner solve did not converge" if not sol.converged else f"‖Δk‖ = {steps[-1]:.3g}"

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 import vi_core
+from problems.scene.contact_references import uniaxial_electrical_contact
 
 from .contract import ExtremeRow, expect
 
@@ -63,7 +64,7 @@ def homogeneity(factor: float) -> Callable:
     def check(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
         base = ExtremeRow(row.name, row.scene, (), row.level, row.edit).load()
         m0 = plugin.build(base, row.level)
-        s0 = vi_core.solve(m0.vi, "ssn")
+        s0 = plugin.solve(m0, method="ssn")
         du = _rel(model.full(sol.u) / factor, m0.full(s0.u))
         h = max(du, _rel(sol.lam / factor, s0.lam))
         verdict = "FAIL: not homogeneous" if h > HOMOGENEOUS else "homogeneous of degree 1"
@@ -78,7 +79,7 @@ def locking(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
     forces = []
     for lev in (row.level, row.level + 1, row.level + 2):
         m = model if lev == row.level else plugin.build(row.load(), lev)
-        s = sol if lev == row.level else vi_core.solve(m.vi, "ssn")
+        s = sol if lev == row.level else plugin.solve(m, method="ssn")
         forces.append(float(np.sum(m.contact.normal(s.lam) * m.contact.W_n)))
     over = forces[0] / forces[-1] - 1.0
     note = (
@@ -86,6 +87,48 @@ def locking(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
         "(lowest-order elements)"
     )
     return {"normal_force_levels": forces, "locking_overestimate": over}, [note]
+
+
+def uniaxial_electrical_defect(model: Any, sol: vi_core.Solution) -> dict[str, float]:
+    """A block in uniaxial strain on a conductive (or grounded) foundation (electrical_block):
+    the bottom potential φ and pressure λ_n of `sol` against the closed form
+    `contact_references.uniaxial_electrical_contact`, with the thickness H from the mesh and
+    the load δ and top potential V read from the model's prescribed values. Returns
+    {"phi": max|φ − φ0| / max(|φ0|, |φ_F|, |V|, 1), "lam": max|λ_n − λ_ref| / |λ_ref|}."""
+    body, c = model.bodies[0], model.electrical
+    top = np.unique(body.mesh.boundaries["top"])  # (k,) nodes of the top edges
+    x = model.full(sol.u)  # (n_full,) with the Dirichlet values
+    delta = -float(np.mean(x[body.u_dofs(top)[:, 1]]))
+    V = float(np.mean(x[body.phi_dofs(top)]))
+    H = float(np.ptp(body.mesh.points[:, 1]))
+    M = body.material
+    ref = uniaxial_electrical_contact(
+        M.C[1, 1], M.e[1, 1], M.kappa[1, 1], H, delta, V, c.phi_F,
+        lambda lam: float(c.law(np.array([lam]))[0]),
+    )  # fmt: skip
+    scale = max(abs(ref.phi0), abs(c.phi_F), abs(V), 1.0)
+    return {
+        "phi": float(np.abs(sol.u[c.phi] - ref.phi0).max()) / scale,
+        "lam": float(np.abs(sol.lam[c.normal] - ref.lam_n).max()) / max(abs(ref.lam_n), 1e-300),
+    }
+
+
+ELECTRICAL_MATCH = 1e-8  # Q1 holds the uniaxial fields exactly: rounding and tol 1e-10
+
+
+def electrical_checks(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
+    """Check: the uniaxial closed form (`uniaxial_electrical_defect`) within ELECTRICAL_MATCH,
+    and the outer fixed point's steps."""
+    d = uniaxial_electrical_defect(model, sol)
+    outer = sol.info.get("electrical", {})
+    rec = {"electrical_phi": d["phi"], "electrical_lam": d["lam"]}
+    rec["electrical_steps"] = outer.get("iterations")
+    notes = [
+        f"closed form: φ {d['phi']:.1e}, λ_n {d['lam']:.1e}; {rec['electrical_steps']} k-steps"
+    ]
+    if not max(d.values()) <= ELECTRICAL_MATCH:
+        notes.append(f"FAIL: off the uniaxial closed form by {max(d.values()):.1e}")
+    return rec, notes
 
 
 def _drop_potential(body: str, material: dict) -> Callable[[dict], None]:
@@ -171,11 +214,35 @@ def unilateral_rows() -> list[ExtremeRow]:
     ]
 
 
+EB = "electrical_block"
+
+
+def _pull_top(data: dict) -> None:
+    """electrical_block's top pulled up by 1 μm instead of pressed: the contact in tension."""
+    top = next(d for d in data["bodies"]["block"]["displacement"] if d["boundary"] == "top")
+    top["value"] = [0.0, 1e-6]
+
+
+def electrical_rows() -> list[ExtremeRow]:
+    """[contact.electrical] on the uniaxial block: conductances from tiny to the grounded
+    limit, and pulled apart (tension: k = 0), each against the closed form."""
+    E = (contact_checks, electrical_checks)
+    return [
+        ExtremeRow("electrical: conductive k0 = 2e-12 (≈ insulating)", EB,
+                   ["contact.electrical.k0=2e-12"], checks=E),
+        ExtremeRow("electrical: conductive k0 = 2e-2 (≈ grounded)", EB,
+                   ["contact.electrical.k0=2e-2"], checks=E),
+        ExtremeRow("electrical: grounded", EB, ['contact.electrical.kind="grounded"'], checks=E),
+        ExtremeRow("electrical: pulled apart (k = 0)", EB, edit=_pull_top, checks=E),
+    ]  # fmt: skip
+
+
 def rows() -> list[ExtremeRow]:
     """The extreme cases, cheapest first within each group."""
     C = (contact_checks,)
     return [
         *unilateral_rows(),
+        *electrical_rows(),
         ExtremeRow("g = 0 (frictionless)", RF, ["contact.g=0.0"], checks=C),
         ExtremeRow("g = 1e-6 σ_ref", RF, [f"contact.g={1e-6 * S_RF!r}"], checks=C),
         ExtremeRow("g = 1e6 σ_ref", RF, [f"contact.g={1e6 * S_RF!r}"], checks=C),

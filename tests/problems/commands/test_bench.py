@@ -2,7 +2,14 @@
 
 import json
 
+import pytest
+
+from problems.commands import bench
 from problems.commands.main import main
+from problems.plugins import registry
+from problems.scene import load_scene
+
+from .electrical import SCENE, drop_electrical, matches
 
 
 def test_bench_writes_the_contract(tmp_path, capsys):
@@ -53,3 +60,19 @@ def test_bench_bad_input_exits_2(tmp_path, capsys):
     assert main(["bench", "--solvers", "magic", "--out", str(tmp_path / "b.json")]) == 2
     assert main(["bench", "--scenes", "nope", "--out", str(tmp_path / "b.json")]) == 2
     assert not (tmp_path / "b.json").exists()
+
+
+@pytest.mark.parametrize("fault", [False, True], ids=["coupled", "electrical dropped"])
+def test_bench_times_the_electrical_contact_problem(fault, monkeypatch):
+    """The timed nested solve is the scene's coupled problem (the closed form at the finest
+    level), and the conic row solves it too; with the electrical condition dropped it is not."""
+    if fault:
+        drop_electrical(monkeypatch)
+    scene = load_scene(SCENE)
+    model, sol, _, iters = bench._nested_ssn(registry.for_scene(scene), scene, 1, 1e-10)
+    assert sol.converged and len(iters) == 2
+    assert matches(model, sol) != fault
+    records = bench._record(SCENE, 0, ["ssn", "conic"], 1e-10)
+    assert [r["solver"] for r in records] == ["ssn", "conic"]
+    assert all(r["converged"] for r in records)
+    assert records[1]["difference_to_ssn"] <= 1e-8

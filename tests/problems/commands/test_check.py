@@ -18,6 +18,8 @@ from problems.plugins import piezo_contact as pc
 from problems.scene import load_scene
 from vi_core.kkt import Checker
 
+from .electrical import SCENE, drop_electrical
+
 STRONG = "bodies.block.material={name='BaTiO3', coupling_scale=4.0}"  # ρ ≈ 2.2: 4 levels
 
 
@@ -165,3 +167,20 @@ def test_fault_in_the_sets_projection_is_caught_by_the_independent_checker(tmp_p
     ssn_rec = recs[0]["methods"]["ssn"]
     assert ssn_rec["converged"] and ssn_rec["solver_residual"] <= 1e-10  # fooled …
     assert ssn_rec["residual"] > 1e-6  # … the checker is not
+
+
+@pytest.mark.parametrize("fault", [False, True], ids=["coupled", "electrical dropped"])
+def test_check_solves_and_judges_the_electrical_contact_problem(fault, tmp_path, monkeypatch):
+    """Every method runs inside the electrical fixed point and is judged against the VI frozen
+    at its own answer's conductances; a method that solves the insulating VI instead fails the
+    independent residual (exit 1)."""
+    if fault:
+        drop_electrical(monkeypatch)
+    rc, (rec,) = _check(tmp_path, SCENE, "--level", "0")
+    if fault:
+        assert rc == 1 and any("independent residual" in f for f in rec["failures"]), rec
+        return
+    assert rc == 0, rec["failures"]
+    assert set(rec["methods"]) == {"ssn", "homotopy", "conic"}
+    for m in rec["methods"].values():
+        assert m["outer_iterations"] > 2 and m["residual"] <= 1e-9

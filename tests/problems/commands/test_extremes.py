@@ -25,12 +25,17 @@ from problems.commands.extremes import (
 )
 from problems.plugins import registry
 
+from .electrical import SCENE, drop_electrical
+
 ROWS = [dataclasses.replace(r, level=0) for r in rows() if not r.huge]
-# the 3D rows cost ~15 s each at level 0 (homotopy: 34 ssn solves): three in CI, all under slow
+# the 3D rows cost ~15 s each at level 0 (homotopy: 34 ssn solves): three in CI, all under slow;
+# the unilateral ones (ssn and the fixed point, no homotopy) ~1 s: two in CI
 CI_3D = (
     "3D: g = 1e-6 σ_ref (all slip)",
     "3D: loads, g × 1e-9",
     "3D: extruded 2D scene (discs + lines)",
+    "3D unilateral: Coulomb F = 0.6",
+    "3D unilateral: gap 1e-3 (apart, λ = 0)",
 )
 ROWS_CI = [r for r in ROWS if r.plugin != "contact3d" or r.name in CI_3D]
 ROWS_3D_SLOW = [r for r in ROWS if r.plugin == "contact3d" and r.name not in CI_3D]
@@ -157,3 +162,16 @@ def test_a_broken_third_party_plugin_is_skipped_unless_named(tmp_path, capsys, m
     assert "skipping plug-in 'broken'" in capsys.readouterr().err
     with pytest.raises(SceneError, match="failed to load"):
         extremes_main(["--plugins", "broken", "--out", str(tmp_path / "b")])
+
+
+def test_electrical_rows_fail_when_the_electrical_condition_is_dropped(monkeypatch):
+    """The electrical rows hold the closed form; solved as the insulating VI (the fault) every
+    row with a touching conductive or grounded foundation fails, while the pulled-apart row
+    (k = 0) has nothing to drop and still passes."""
+    drop_electrical(monkeypatch)
+    for row in (r for r in ROWS if r.scene == SCENE):
+        rec = run_row(row)
+        apart = "pulled apart" in row.name
+        assert rec["ok"] == apart, rec
+        if not apart:
+            assert any("off the uniaxial closed form" in n for n in rec["notes"]), rec

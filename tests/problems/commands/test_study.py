@@ -9,7 +9,11 @@ from fem.meshing import rectangle
 from fem.shapes import half_disc
 from problems.commands import study
 from problems.commands.main import main
+from problems.plugins import piezo_contact as pc
 from problems.plugins.piezo_errors import evaluate
+from problems.scene import load_scene
+
+from .electrical import SCENE, drop_electrical, matches
 
 RECORD_KEYS = {"level", "h", "unknowns", "solver", "tol", "time_s", "iterations", "err"}
 ERR_KEYS = {"u_H1", "phi_H1", "phi_L2", "lam"}
@@ -124,3 +128,17 @@ def test_rates_against_the_finest_level_leave_the_reference_out():
     ]
     assert abs(fit_rates(recs, below=3)["ssn"]["u_H1"] - 1.0) < 1e-12
     assert fit_rates(recs)["ssn"]["u_H1"] > 10  # what the reference level would do to the fit
+
+
+@pytest.mark.parametrize("fault", [False, True], ids=["coupled", "electrical dropped"])
+def test_study_solves_the_electrical_contact_problem(fault, monkeypatch):
+    """Each study solve is the scene's coupled problem (the closed form on every level and
+    solver); with the electrical condition dropped the answers miss it."""
+    if fault:
+        drop_electrical(monkeypatch)
+    sols = {}
+    scene = load_scene(SCENE)
+    res = study.run_study(scene, [0, 1], ["ssn", "conic"], [1e-10], progress=False, solutions=sols)
+    assert all(r["converged"] for r in res["records"])
+    for (level, _, _), sol in sols.items():
+        assert matches(pc.build(scene, level), sol) != fault
