@@ -56,7 +56,7 @@ import os
 import time
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import scipy.linalg as sla
@@ -64,9 +64,6 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .linalg import BACKENDS
-
-if TYPE_CHECKING:
-    from .ssn import Condensation
 
 LINEAR_SOLVERS = (*BACKENDS, "amg")  # the direct backends and the iterative path
 # the loosest relative linear tolerance of a Newton step, from a cold start and from a warm
@@ -111,6 +108,15 @@ def bodies(A: sp.spmatrix) -> np.ndarray:
     from scipy.sparse.csgraph import connected_components
 
     return connected_components(A, directed=False)[1]
+
+
+class Split(Protocol):
+    """What the iterative path needs of a condensation (`ssn.Condensation` has it)."""
+
+    R: np.ndarray  # (n − m,) the remaining columns
+    S: np.ndarray  # (m,) the slave column of each row of B
+    D: sp.csr_matrix  # (m, m) B[:, S], block diagonal
+    Dt_inv: sp.csr_matrix  # (m, m) D^{-T}
 
 
 @dataclass
@@ -242,7 +248,7 @@ class KrylovSolver:
         self,
         A: sp.csr_matrix,
         B: sp.csr_matrix,
-        cond: Condensation,
+        cond: Split,
         fields: dict | None = None,
         near_null: dict | None = None,
         restart: int = 50,
