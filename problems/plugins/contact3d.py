@@ -1,4 +1,5 @@
-"""Plug-in: elastic or piezoelectric 3D bodies in bilateral contact with Tresca friction.
+"""Plug-in: elastic or piezoelectric 3D bodies in bilateral contact with Tresca friction, or in
+unilateral contact with Tresca (where touching) or Coulomb friction discs.
 
 Per contact node k of the slave surface Γ3 (a boundary part of a 3D body): a normal multiplier
 λ_n,k (free: bilateral contact) and a tangential one λ_t,k in the tangent plane with the
@@ -18,12 +19,22 @@ prescribed → n, t1, t2; all prescribed → no multiplier; one component e_c wi
 the tangent n × e_c (a line |λ_t| ≤ g); e_c ∥ n → the two tangents only (a disc); two
 components with the free one e_f ∥ n → n only; with e_f ⟂ n → the tangent e_f only; anything
 else is refused (SceneError naming the nodes).
+
+Unilateral contact (`[contact] law = "unilateral"`, the keys of `contact_law`): λ_n ≥ 0,
+gap ≥ 0, λ_n·gap = 0 and |λ_t| ≤ ρ with ρ = F_k λ_n (Coulomb, F_k = ∫Fφ_k / W_k) or g_k where
+the node touches (Tresca). The rows of a node are then side by side (`Contact3D.rows`):
+[n, t1, t2] per disc node (vi_core's contact set with dim 3), [n, t] per line node (dim 2),
+then the normal-only nodes (NonNegative); a node whose normal displacement is prescribed is
+refused. The initial gap is W_k·gap(x_k) for a rigid foundation (the scene's field) and the
+weighted mortar gap −n_k·(W_k x_s,k − Σ_j M_kj x_m,j) of the geometry for two bodies, which may
+start apart (an overlap beyond OVERLAP_TOL × the level-0 node size is refused).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Annotated
 
@@ -32,7 +43,6 @@ import scipy.sparse as sp
 from pydantic import Field, model_validator
 from scipy.spatial import cKDTree
 
-from fem.dirichlet import reduce_dirichlet
 from fem.mortar3d import covered_nodes, mortar_coupling3d, nodal_rows
 from fem.surface3d import Surface, face_integrals, frames, surface
 from problems.errors import SceneError
@@ -40,7 +50,7 @@ from problems.scene import Scene, SceneModel
 from problems.scene.exact import ExactSection3
 from problems.scene.fields3d import NonNegativeExpr3
 from problems.scene.model import head, refuse
-from vi_core import Ball, Box, Free, MixedVI, NonNegative, Solution, product
+from vi_core import Ball, Box, Free, NonNegative, Solution, product
 
 from . import contact3d_checks, contact3d_extremes, contact3d_output, contact_law, contact_model
 from .bodies import Body, build_body, dirichlet
@@ -49,7 +59,10 @@ from .contact_model import BodiesModel, reference
 from .contract import Sweep, check_meshed
 
 NAME = "contact3d"
-DESCRIPTION = "elastic/piezoelectric 3D bodies in bilateral Tresca contact (friction discs)"
+DESCRIPTION = (
+    "elastic/piezoelectric 3D bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
+    "(friction discs)"
+)
 CONTRACT = 2
 ALIGN_TOL = 1e-10  # sine of the angle under which a prescribed direction counts as n or ⟂ n
 # Unilateral contact of two bodies: the master may stand apart from the slave (an initial gap)
@@ -212,11 +225,7 @@ SCENE_MODEL = Contact3DScene
 def build(scene: Scene, level: int | None = None) -> Model:
     """Scene → Model (meshes, assembly, Dirichlet reduction, contact rows, MixedVI); a
     SceneError raised while building names the scene file."""
-    try:
-        with np.errstate(all="ignore"):
-            return _build(scene, level)
-    except SceneError as err:
-        raise (err if err.file else err.in_file(scene.path)) from None
+    return contact_model.built(_build, scene, level)
 
 
 def _build(scene: Scene, level: int | None) -> Model:
@@ -239,35 +248,23 @@ def _build(scene: Scene, level: int | None) -> Model:
             check_meshed(bodies[mname].mesh, [("contact.master", mpart)])
             master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
         contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
-    A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
-    f_full = np.concatenate([b.f for b in bodies.values()])
-    fixed = np.concatenate([b.fixed for b in bodies.values()])
-    values = np.concatenate([b.values for b in bodies.values()])
-    X_full = sp.block_diag([b.X for b in bodies.values()], format="csr")
-    for b in bodies.values():
-        b.X = None
-    A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
-    if contact is None:
-        B, gap, Lam, Y = sp.csr_matrix((0, free.size)), None, product(), sp.csr_matrix((0, 0))
-    else:
-        B = contact.B_full[:, free]
-        gap = -(contact.B_full[:, fixed] @ values[fixed])
-        if contact.gap0 is not None:
-            gap[contact.rows()[0]] += contact.gap0
-        Lam = contact.Lambda()
-        Y = sp.diags(row_nodes_weights(contact))
-    vi = MixedVI(
-        A=A,
-        B=B,
-        f=f,
-        Lambda=Lam,
-        gap=gap,
-        X=sp.csr_matrix(X_full[free][:, free]),
-        Y=Y,
-        info={"scene": scene.name, "level": level},
-        **field_data3(list(bodies.values()), free, n_full),
+    vi, free, values = contact_model.mixed_vi(
+        list(bodies.values()),
+        None if contact is None else partial(_rows, contact),
+        field_data3,
+        {"scene": scene.name, "level": level},
     )
     return Model(scene, level, list(bodies.values()), contact, vi, free, values, spec.options())
+
+
+def _rows(contact: Contact3D, free: np.ndarray, fixed: np.ndarray, values: np.ndarray):
+    """B restricted to the unknowns, the gap (Dirichlet data and the initial gap rows), Λ_h and
+    the Y Gram matrix of the contact rows."""
+    B = contact.B_full[:, free]
+    gap = -(contact.B_full[:, fixed] @ values[fixed])
+    if contact.gap0 is not None:
+        gap[contact.rows()[0]] += contact.gap0
+    return B, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
 
 
 def count(scene: Scene, level: int) -> tuple[int, int, int]:

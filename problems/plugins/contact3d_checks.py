@@ -108,10 +108,10 @@ def checks(model) -> dict:
 
 def solution_checks(model, sol) -> dict:
     """The summary entries "checks" of a solved 3D contact model: `checks` and, for
-    unilateral contact on a rigid foundation, `separation`."""
+    unilateral contact, `separation`."""
     out = checks(model)
     c = model.contact
-    if c is not None and c.master is None and c.law == "unilateral":
+    if c is not None and c.law == "unilateral":
         out["separation"] = separation(model, sol)
     return out
 
@@ -130,52 +130,67 @@ def _nodal_means(mesh, part: str, f) -> np.ndarray:
 
 
 def separation(model, sol) -> dict[str, float]:
-    """A posteriori unilateral conditions of a rigid-foundation solution, per normal node k,
-    from the displacement itself and not from the assembled rows: the remaining gap
-    d_k = gap(x_k) − n_k·u_k (n_k recomputed from `fem.assembly3d`'s face quadrature, gap from
-    the scene's field), λ_n,k and λ_t,k. Reported, relative to the length scale max(|gap|, |u|)
-    (u the slave's displacement) and the pressure scale max(λ_n): `penetration` max(−d_k, 0),
-    `tension` max(−λ_n,k, 0), `open_pressure` max λ_n,k over the nodes open by more than 1e-6 of the
-    length scale, `complementarity` max |λ_n,k d_k|, and `friction`: the excess of |λ_t,k| over
-    the friction radius ρ_k (Coulomb F_k λ_n,k, Tresca g_k where λ_n,k > 1e-9 of the pressure
-    scale, 0 elsewhere; F_k,
-    g_k the nodal means of the scene's field by the same quadrature) and, where the node
-    slips (tangential displacement beyond 1e-6 of the length scale), the shortfall. Each is
-    rounding at a solution; a wrong sign of the gap, a dropped complementarity row or a wrong
-    scaling of F makes one O(1) (tests/problems/plugins/test_contact3d_unilateral.py injects
-    each)."""
+    """A posteriori unilateral conditions of a solution, per normal node k: the remaining
+    gap d_k, λ_n,k, |λ_t,k| and the slip. A rigid foundation: from the displacement itself, not
+    from the assembled rows — d_k = gap(x_k) − n_k·u_k (n_k recomputed from `fem.assembly3d`'s
+    face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|. Two bodies:
+    from the mortar rows, d_k = (gap_k − (B u)_n,k)/W_k and the slip |(B u)_t,k|/W_k (the
+    discrete conditions as assembled; test_contact3d_unilateral checks the geometry apart).
+
+    Reported, relative to the length scale max(|gap|, |u|) and the pressure scale max(λ_n):
+    `penetration` max(−d_k, 0), `tension` max(−λ_n,k, 0), `open_pressure` max λ_n,k over the
+    nodes open by more than 1e-6 of the length scale, `complementarity` max |λ_n,k d_k|, and
+    `friction`: the excess of |λ_t,k| over the friction radius ρ_k (Coulomb F_k λ_n,k; Tresca
+    g_k where λ_n,k > 1e-9 of the pressure scale, 0 elsewhere; F_k, g_k the nodal means of the
+    scene's field by the same quadrature) and, where the node slips (by more than 1e-6 of the
+    length scale), the shortfall. Each is rounding at a solution; a wrong sign of the gap, a
+    dropped complementarity row or a wrong scaling of F makes one O(1)
+    (tests/problems/plugins/test_contact3d_unilateral.py injects each)."""
     c = model.contact
     body, surf = c.slave, c.surf
-    _, N_ind = _independent_weights(body.mesh, c.slave_part)
     nodes = surf.nodes[c.rows_n]  # (N_n,) mesh nodes carrying λ_n
-    nrm = N_ind[nodes] / np.linalg.norm(N_ind[nodes], axis=1)[:, None]  # (N_n, 3)
     x_full = model.full(sol.u)
-    u = x_full[body.u_dofs(nodes)]  # (N_n, 3)
-    x, y, z = body.mesh.points[nodes].T  # (N_n,) each
-    gap = (
-        np.zeros(x.size) if c.gap_field is None else np.broadcast_to(c.gap_field(x, y, z), x.shape)
-    )
-    un = np.einsum("ij,ij->i", nrm, u)  # (N_n,)
-    d = gap - un  # (N_n,) remaining gap
+    u_all = x_full[body.u_dofs(np.arange(body.n_nodes))]  # (N, 3) the slave's displacement
+    if c.master is None:
+        _, N_ind = _independent_weights(body.mesh, c.slave_part)
+        nrm = N_ind[nodes] / np.linalg.norm(N_ind[nodes], axis=1)[:, None]  # (N_n, 3)
+        u = x_full[body.u_dofs(nodes)]  # (N_n, 3)
+        x, y, z = body.mesh.points[nodes].T  # (N_n,) each
+        gap = np.zeros(x.size)
+        if c.gap_field is not None:
+            gap = np.broadcast_to(c.gap_field(x, y, z), x.shape)
+        un = np.einsum("ij,ij->i", nrm, u)  # (N_n,)
+        d = gap - un  # (N_n,) remaining gap
+        ut = np.linalg.norm(u - un[:, None] * nrm, axis=1)  # (N_n,) tangential slip
+        length = max(float(np.abs(gap).max(initial=0.0)), float(np.abs(u_all).max()), 1e-300)
+    else:  # two bodies: the weighted mortar gap and jump of the rows themselves
+        W = c.W[c.rows_n]  # (N_n,)
+        Bu = c.B_full @ x_full  # (m,)
+        d = (c.gap0 - Bu[c.rows()[0]]) / W
+        jump = np.zeros((surf.size, 2))
+        jump[c.disc] = Bu[c.rows()[1]] / c.W[c.disc, None]
+        jump[c.line, 0] = Bu[c.rows()[2]] / c.W[c.line]
+        ut = np.linalg.norm(jump, axis=1)[c.rows_n]  # (N_n,) tangential mortar jump
+        u_m = x_full[c.master.body.u_dofs(np.arange(c.master.body.n_nodes))]
+        scale = max(float(np.abs(u_all).max()), float(np.abs(u_m).max()))
+        length = max(float(np.abs(c.gap0 / W).max(initial=0.0)), scale, 1e-300)
     idx_n, idx_b, idx_l = c.rows()
     lam_n = sol.lam[idx_n]  # (N_n,)
     lam_t = np.zeros(surf.size)  # |λ_t| per surface node
     lam_t[c.disc] = np.linalg.norm(sol.lam[idx_b], axis=1)
     lam_t[c.line] = np.abs(sol.lam[idx_l])
     lam_t = lam_t[c.rows_n]
-    u_all = x_full[body.u_dofs(np.arange(body.n_nodes))]  # (N, 3) the slave's displacement
-    length = max(float(np.abs(gap).max(initial=0.0)), float(np.abs(u_all).max()), 1e-300)
     p = max(float(lam_n.max(initial=0.0)), 1e-300)
     open_ = d > 1e-6 * length
     bound = _nodal_means(body.mesh, c.slave_part, c.bound_field)[nodes]  # (N_n,)
     touch = lam_n > 1e-9 * p  # Tresca acts where the node presses on the foundation
     rho = bound * np.maximum(lam_n, 0.0) if c.friction == "coulomb" else bound * touch
-    slips = np.linalg.norm(u - un[:, None] * nrm, axis=1) > 1e-6 * length
+    slips = ut > 1e-6 * length
     excess = np.maximum(lam_t - rho, 0.0)
     excess[slips & ~open_] = np.abs(lam_t - rho)[slips & ~open_]
     return {
-        "penetration": max(float(np.max(-d, initial=0.0)), 0.0) / length,
-        "tension": max(float(np.max(-lam_n, initial=0.0)), 0.0) / p,
+        "penetration": float(np.maximum(-d, 0.0).max(initial=0.0)) / length,
+        "tension": float(np.maximum(-lam_n, 0.0).max(initial=0.0)) / p,
         "open_pressure": float(np.max(lam_n[open_], initial=0.0)) / p,
         "complementarity": float(np.max(np.abs(lam_n * d), initial=0.0)) / (p * length),
         "friction": float(excess.max(initial=0.0)) / p,

@@ -23,6 +23,7 @@ Contact rules (README "Contact interfaces"):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -32,7 +33,6 @@ from pydantic import Field, model_validator
 
 import vi_core
 from fem.boundary import ENDS, Trace, dual_mass, multiplier_basis, segment_loads, trace
-from fem.dirichlet import reduce_dirichlet
 from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots, results
@@ -237,11 +237,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
     Any SceneError raised while building names the scene file.
     """
-    try:
-        with np.errstate(all="ignore"):
-            return _build(scene, level)
-    except SceneError as err:
-        raise (err if err.file else err.in_file(scene.path)) from None
+    return contact_model.built(_build, scene, level)
 
 
 def _build(scene: Scene, level: int | None) -> Model:
@@ -283,29 +279,12 @@ def build_model(
         require_curve(bodies[bname].mesh, part, key, spec.output.potential_along)
         options["potential_along"] = (bname, part)
 
-    A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
-    f_full = np.concatenate([b.f for b in bodies.values()])
-    fixed = np.concatenate([b.fixed for b in bodies.values()])
-    values = np.concatenate([b.values for b in bodies.values()])
-    X_full = sp.block_diag([b.X for b in bodies.values()], format="csr")
-    for b in bodies.values():  # vi.X below is the one copy kept (memory)
-        b.X = None
-    _check_finite(A_full, f_full, values, contact)
-    A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
-    if contact is None:  # no contact: no multipliers
-        B, gap, Lam, Y = sp.csr_matrix((0, free.size)), None, product(), sp.csr_matrix((0, 0))
-    else:
-        B, gap, Lam, Y = _contact_rows(contact, free, fixed, values)
-    vi = MixedVI(
-        A=A,
-        B=B,
-        f=f,
-        Lambda=Lam,
-        gap=gap,
-        X=sp.csr_matrix(X_full[free][:, free]),
-        Y=Y,
-        info={"scene": scene.name, "level": level},
-        **field_data(list(bodies.values()), free, n_full),  # for the iterative linear path
+    vi, free, values = contact_model.mixed_vi(
+        list(bodies.values()),
+        None if contact is None else partial(_contact_rows, contact),
+        field_data,
+        {"scene": scene.name, "level": level},
+        check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
     )
     model = model_class(scene, level, list(bodies.values()), contact, vi, free, values, options)
     if ct is not None and ct.electrical is not None:

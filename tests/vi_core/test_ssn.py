@@ -258,3 +258,21 @@ def test_condensation_does_not_chain_two_nodes():
     D = cond.D.toarray()
     node = np.array([0, 1, 0, 0, 1, 1])  # the node of each row: n0, n1, t1_0, t2_0, t1_1, t2_1
     assert np.all(D[node[:, None] != node[None, :]] == 0)
+
+
+@given(seeds)
+def test_condensation_keeps_square_groups_inside_master_row_sets(seed):
+    """One row per node (a scalar problem): each row has a private column, and master columns
+    reach two neighbouring rows each. A private column's row set {j} lies inside a master
+    column's {j−1, j} but is square on its own: it stays its own group (merging it into the
+    master's set — the subset merge without the deficiency condition — leaves no condensation)."""
+    from vi_core.ssn import Condensation
+
+    rng = np.random.default_rng(seed)
+    k = int(rng.integers(3, 12))
+    rows = np.arange(k)
+    cols = np.concatenate([rows, rows + k, (rows + 1) % k + k])
+    vals = np.concatenate([rng.uniform(0.5, 2.0, k), -rng.uniform(0.1, 1.0, 2 * k)])
+    B = sp.csr_matrix((vals, (np.tile(rows, 3), cols)), shape=(k, 3 * k))
+    cond = Condensation.detect(B)
+    assert cond is not None and np.array_equal(cond.S, rows)

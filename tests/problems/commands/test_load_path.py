@@ -113,19 +113,10 @@ def test_a_step_that_does_not_converge_stops_the_path(tmp_path, monkeypatch):
 def test_a_load_path_with_a_patch_defect_exits_1_unless_allowed(tmp_path, monkeypatch, capsys):
     """Mutation: a dropped master entry (as for a single solve, test_crosspoints): the path
     converges, and the exit status follows the last step's mortar patch defect."""
-    import fem.mortar as fm
     from problems.scene import SCENES_DIR
+    from tests.problems.plugins.test_fault_table import mortar_dropped_entry
 
-    real = fm.mortar_coupling
-
-    def dropped_entry(*args, **kw):
-        mo = real(*args, **kw)
-        M = mo.M.tolil()
-        r, c = mo.M.nonzero()
-        M[r[5], c[5]] = 0.0
-        return fm.Mortar(mo.slave, mo.master_nodes, M.tocsr(), mo.coverage)
-
-    monkeypatch.setattr(fm, "mortar_coupling", dropped_entry)
+    mortar_dropped_entry(monkeypatch)
     scene = tmp_path / "two_body_path.toml"
     text = (SCENES_DIR / "shear_strip_two_body.toml").read_text()
     scene.write_text(text + "\n[load_path]\nsteps = 2\n")

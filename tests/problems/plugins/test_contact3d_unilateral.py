@@ -250,6 +250,8 @@ def test_two_bodies_that_start_apart(tmp_path):
     assert np.nanmin(d) >= -0.1 * GAP, np.nanmin(d)
     assert np.abs(d[st["touch"]]).max() <= 0.1 * GAP
     assert np.nanmin(st["gap"]) >= -1e-12 * GAP and st["lemma_4_2"] <= 1e-12
+    sep = contact3d_checks.separation(model, sol)
+    assert max(sep.values()) <= 1e-10, sep
     fp = vi_core.solve(model.vi, "fixed_point", inner="ssn", tol=1e-12)
     assert fp.converged
     assert np.abs(fp.lam - sol.lam).max() <= 1e-8 * np.abs(sol.lam).max()
@@ -264,6 +266,21 @@ def test_the_geometric_gap_sees_a_wrong_sign_of_the_two_body_gap(tmp_path, monke
     touch = contact3d.contact_state(model, sol)["touch"]
     # the bodies now press on each other while 2e-4 m apart (a gap of −1e-4 to close)
     assert touch.any() and np.abs(d[touch]).max() > 0.5 * GAP
+
+
+def test_separation_check_sees_a_dropped_mortar_row(tmp_path, monkeypatch):
+    """A normal row of the two-body problem lost from the VI's B (the check reads the
+    model's B_full, which keeps it) lets the slave sink into the master at that node."""
+    model = _two_bodies(tmp_path)
+    c = model.contact
+    B = model.vi.B.tolil()
+    pressed = int(np.argmax(_solve(model).lam[c.rows()[0]]))  # the node pressed hardest
+    B[c.rows()[0][pressed], :] = 0.0
+    model.vi = type(model.vi)(
+        A=model.vi.A, B=B.tocsr(), f=model.vi.f, Lambda=model.vi.Lambda, gap=model.vi.gap
+    )
+    sep = contact3d_checks.separation(model, _solve(model))
+    assert sep["penetration"] > 1e-3, sep
 
 
 def test_overlapping_bodies_are_refused(tmp_path):
