@@ -177,6 +177,9 @@ class Model(BodiesModel):
     """A built 3D scene: the mixed VI plus what post-processing needs."""
 
     dimension: int = 3
+    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
+    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
+    slip_origin: np.ndarray | None = None
 
 
 class ContactSection3(contact_law.contact_law(NonNegativeExpr3)):
@@ -625,6 +628,20 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     return {"lam0": lam0}
 
 
+def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
+    """Load paths: the friction law of the next step `model` acts on the slip since the
+    previous step, [u]_t − [u_prev]_t: the tangential rows of the gap are shifted by
+    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
+    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
+    c = model.contact
+    if c is None:
+        return
+    origin = c.B_full @ previous.full(previous_sol.u)  # (m,) in B_full's row order
+    origin[c.rows()[0]] = 0.0
+    model.slip_origin = origin
+    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
+
+
 # ------------------------------------------------------------------ post-processing
 def contact_state(model: Model, sol: Solution) -> dict:
     """Per surface node (k): lam_n, lam_t1, lam_t2 (NaN where not carried), lam_t_vec (k, 3),
@@ -634,7 +651,8 @@ def contact_state(model: Model, sol: Solution) -> dict:
     node with rows for bilateral contact; λ_n beyond 1e-9 of the pressure scale `pressure`
     for unilateral), gap (the remaining normal gap (gap₀ − [u]_n), unilateral; NaN elsewhere),
     slip (k,) bool and state (stick, slip, normal_only, open, no_multiplier); the Lemma 4.2
-    identity λᵀ(B u − gap₀) = Σ_k ρ_k W_k |[u]_t,k| and its relative defect (unilateral: relative
+    identity λᵀ(B u − gap₀) = Σ_k ρ_k W_k |[u]_t,k| ([u]_t since the previous load step on a
+    load path: `incremental`) and its relative defect (unilateral: relative
     to the larger of Σρ W|[u]_t| and the pressure scale times Σ|B u − gap₀|)."""
     c = model.contact
     k = c.surf.size
@@ -689,11 +707,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
     state[has_t] = np.where(slip[has_t], "slip", "stick")
     state[~has_t & np.isin(np.arange(k), c.rows_n)] = "normal_only"
     state[np.isin(np.arange(k), c.rows_n) & ~touch] = "open"
-    b_uh_lam = float(lam @ (Bu - gap_rows))
-    jt = np.linalg.norm(jvec, axis=1)
+    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    b_uh_lam = float(lam @ (Bi - gap_rows))
+    ji = np.zeros((k, 2))  # the tangential jump (since the origin) in the node's frame
+    ji[c.disc] = Bi[idx_b] / W[c.disc, None]
+    ji[c.line, 0] = Bi[idx_l] / W[c.line]
+    jt = np.linalg.norm(ji, axis=1)
     g_abs = float(np.sum((rho * W * jt)[has_t]))
     tiny = np.finfo(float).eps * float(np.sum(rho * W)) * max(np.abs(x_full).max(), 1e-300)
-    ref = max(g_abs, pressure * float(np.abs(Bu - gap_rows).sum()))  # unilateral: P × slack
+    ref = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))  # unilateral: P × slack
     gap = np.full(k, np.nan)
     if c.law == "unilateral":
         gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / W[c.rows_n]  # the remaining normal gap
