@@ -15,9 +15,10 @@ conventions (docs/design.md, "Meshes"):
 
 Refused with `MeshImportError` (a ValueError naming the file, the group or cell and what is
 allowed): unreadable files, unknown physical groups (the available ones are listed), cells
-other than triangles/quadrilaterals in a body, mixed cell types, cells with mixed orientation
-(a fold), degenerate (zero-area) cells and non-convex quadrilaterals, a curve group edge inside
-a body, a z coordinate other than 0.
+other than triangles/quadrilaterals in a body, mixed cell types, two nodes of a body at the same
+point (a mesh not made coherent), cells with mixed orientation (a fold), degenerate (zero-area)
+cells and non-convex quadrilaterals, a curve group edge inside a body, a z coordinate other
+than 0.
 """
 
 from __future__ import annotations
@@ -42,6 +43,8 @@ IGNORED_CELLS = ("vertex",)  # point groups: no role in 2D
 AREA_TOL = 1e-12
 # |z| of a node must be at most Z_TOL × the mesh's extent (the file holds a planar mesh).
 Z_TOL = 1e-12
+# Two nodes of a body closer than NODE_TOL × the body's extent are the same point (refused).
+NODE_TOL = 1e-10
 
 
 class MeshImportError(ValueError):
@@ -213,10 +216,29 @@ def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
     new_id = np.full(mf.points.shape[0], -1, dtype=np.int64)
     new_id[order] = np.arange(order.size)
     points = mf.points[order]  # (n, 2)
+    distinct_nodes(mf.path, where, points, order)
     cells = new_id[cells_file]  # (n_cells, k)
     cells = _oriented(mf.path, where, points, cells)
     boundaries = _boundaries(mf, where, new_id, cells)
     return Mesh(points, cells, boundaries)
+
+
+def distinct_nodes(path: str, where: str, points: np.ndarray, file_ids: np.ndarray) -> None:
+    """Refuse two nodes of a body at the same point (a mesh not made coherent: the body would
+    be cut along them). points (n, d) of the body; file_ids (n,) their 0-based ids in the file."""
+    from scipy.spatial import cKDTree
+
+    extent = float(np.ptp(points, axis=0).max()) if len(points) > 1 else 0.0
+    pairs = cKDTree(points).query_pairs(NODE_TOL * extent, output_type="ndarray")  # (n_p, 2)
+    if len(pairs):
+        i, j = sorted(file_ids[pairs[0]].tolist())
+        raise MeshImportError(
+            path,
+            f"{where}: {len(pairs)} pair(s) of nodes at the same point, e.g. file nodes {i} and "
+            f"{j} at the same point {points[pairs[0, 0]].tolist()} (0-based, in file order)",
+            "one node per point in a body (gmsh: Coherence Mesh, or BooleanFragments of the "
+            "volumes before meshing)",
+        )
 
 
 def _oriented(path: str, where: str, points: np.ndarray, cells: np.ndarray) -> np.ndarray:

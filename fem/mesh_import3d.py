@@ -15,8 +15,9 @@ volume group is a body, a physical surface group a boundary part.
 
 Refused with `MeshImportError` naming the file, the group or cell and what is allowed: an
 unknown group (the available ones listed), cells other than linear tetrahedra/hexahedra in a
-body, mixed cell types, inverted or degenerate cells, a surface group with faces inside the
-body, a surface group whose face type does not match the body's cells.
+body, mixed cell types, two nodes of the body at the same point, inverted or degenerate
+cells, a surface group with faces inside the body, a surface group whose face type does not
+match the body's cells.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import numpy as np
 
 from .elements3d import FACES
 from .mesh3d import Mesh3D, check_cells, exterior_faces, jacobian_determinants
-from .mesh_import import MeshFile, MeshImportError, _dim
+from .mesh_import import MeshFile, MeshImportError, _dim, distinct_nodes
 
 VOLUME_CELLS = {"tetra": 4, "hexahedron": 8}  # meshio cell types accepted in a body
 FACE_CELLS = {"tetra": "triangle", "hexahedron": "quad"}  # boundary faces of each body type
@@ -73,6 +74,7 @@ def body_mesh3d(mf: MeshFile, body: str | None = None) -> Mesh3D:
     new_id = np.full(mf.points.shape[0], -1, dtype=np.int64)
     new_id[order] = np.arange(order.size)
     points = mf.points[order]  # (n, 3)
+    distinct_nodes(mf.path, where, points, order)
     cells = _oriented(mf.path, where, points, new_id[cells_file], ctype)
     return Mesh3D(points, cells, _boundaries(mf, where, new_id, points, cells, ctype))
 

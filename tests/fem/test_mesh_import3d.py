@@ -191,3 +191,18 @@ def test_a_gmsh_box_imports_with_its_volume_and_faces(tmp_path, element):
     assert abs(vol - 0.125) < 1e-12
     s = surface(mesh, "bottom", 4)
     assert abs(s.weights.sum() - 0.5) < 1e-12 and np.allclose(s.normals, [0, 0, -1])
+
+
+@pytest.mark.parametrize("element", ["hexahedron", "tetra"])
+def test_coincident_nodes_are_refused_naming_them(tmp_path, element):
+    """A mesh not made coherent (the nodes of a layer written twice, one copy per side) would
+    read as a body cut along that layer: refused, naming the nodes and the point."""
+    mesh = box((0, 1), (0, 1), (0, 2), (1, 1, 2), element)
+    mid = np.flatnonzero(np.isclose(mesh.points[:, 2], 1.0))  # (4,) nodes of the middle layer
+    copy = np.arange(mesh.n_nodes)
+    copy[mid] = mesh.n_nodes + np.arange(mid.size)
+    upper = mesh.points[mesh.cells].mean(axis=1)[:, 2] > 1.0  # (n_cells,)
+    cells = np.where(upper[:, None], copy[mesh.cells], mesh.cells)
+    points = np.vstack([mesh.points, mesh.points[mid]])
+    with pytest.raises(MeshImportError, match=r"nodes \d+ and \d+ at the same point"):
+        _roundtrip(tmp_path, Mesh3D(points, cells))
