@@ -3,6 +3,8 @@ plug-in build → MixedVI → solve (nested iteration) → results.
 
     load(name_or_path, overrides)      read, migrate, override and validate (before any build)
     solve(loaded, level, method, tol)  build and solve; a `Run` with the model and solution
+    solve_built(loaded, model, ...)    the solve of a built model (also each load step's,
+                                       problems.pipeline.load_path)
     results(loaded, run)               fields, contact state and info as objects
 
 Nothing here writes files: `mixvi solve` (problems.commands.solve) adds the output folder,

@@ -1,4 +1,5 @@
-"""Plug-in: elastic or piezoelectric 3D bodies in bilateral contact with Tresca friction.
+"""Plug-in: elastic or piezoelectric 3D bodies in bilateral contact with Tresca friction, or in
+unilateral contact with Tresca (where touching) or Coulomb friction discs.
 
 Per contact node k of the slave surface Γ3 (a boundary part of a 3D body): a normal multiplier
 λ_n,k (free: bilateral contact) and a tangential one λ_t,k in the tangent plane with the
@@ -18,6 +19,15 @@ prescribed → n, t1, t2; all prescribed → no multiplier; one component e_c wi
 the tangent n × e_c (a line |λ_t| ≤ g); e_c ∥ n → the two tangents only (a disc); two
 components with the free one e_f ∥ n → n only; with e_f ⟂ n → the tangent e_f only; anything
 else is refused (SceneError naming the nodes).
+
+Unilateral contact (`[contact] law = "unilateral"`, the keys of `contact_law`): λ_n ≥ 0,
+gap ≥ 0, λ_n·gap = 0 and |λ_t| ≤ ρ with ρ = F_k λ_n (Coulomb, F_k = ∫Fφ_k / W_k) or g_k where
+the node touches (Tresca). The rows of a node are then side by side (`Contact3D.rows`):
+[n, t1, t2] per disc node (vi_core's contact set with dim 3), [n, t] per line node (dim 2),
+then the normal-only nodes (NonNegative); a node whose normal displacement is prescribed is
+refused. The initial gap is W_k·gap(x_k) for a rigid foundation (the scene's field) and the
+weighted mortar gap −n_k·(W_k x_s,k − Σ_j M_kj x_m,j) of the geometry for two bodies, which may
+start apart (an overlap beyond OVERLAP_TOL × the level-0 node size is refused).
 """
 
 from __future__ import annotations
@@ -49,7 +59,10 @@ from .contact_model import BodiesModel, reference
 from .contract import Sweep, check_meshed
 
 NAME = "contact3d"
-DESCRIPTION = "elastic/piezoelectric 3D bodies in bilateral Tresca contact (friction discs)"
+DESCRIPTION = (
+    "elastic/piezoelectric 3D bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
+    "(friction discs)"
+)
 CONTRACT = 2
 ALIGN_TOL = 1e-10  # sine of the angle under which a prescribed direction counts as n or ⟂ n
 # Unilateral contact of two bodies: the master may stand apart from the slave (an initial gap)
@@ -164,6 +177,9 @@ class Model(BodiesModel):
     """A built 3D scene: the mixed VI plus what post-processing needs."""
 
     dimension: int = 3
+    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
+    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
+    slip_origin: np.ndarray | None = None
 
 
 class ContactSection3(contact_law.contact_law(NonNegativeExpr3)):
@@ -612,6 +628,20 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     return {"lam0": lam0}
 
 
+def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
+    """Load paths: the friction law of the next step `model` acts on the slip since the
+    previous step, [u]_t − [u_prev]_t: the tangential rows of the gap are shifted by
+    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
+    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
+    c = model.contact
+    if c is None:
+        return
+    origin = c.B_full @ previous.full(previous_sol.u)  # (m,) in B_full's row order
+    origin[c.rows()[0]] = 0.0
+    model.slip_origin = origin
+    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
+
+
 # ------------------------------------------------------------------ post-processing
 def contact_state(model: Model, sol: Solution) -> dict:
     """Per surface node (k): lam_n, lam_t1, lam_t2 (NaN where not carried), lam_t_vec (k, 3),
@@ -621,7 +651,8 @@ def contact_state(model: Model, sol: Solution) -> dict:
     node with rows for bilateral contact; λ_n beyond 1e-9 of the pressure scale `pressure`
     for unilateral), gap (the remaining normal gap (gap₀ − [u]_n), unilateral; NaN elsewhere),
     slip (k,) bool and state (stick, slip, normal_only, open, no_multiplier); the Lemma 4.2
-    identity λᵀ(B u − gap₀) = Σ_k ρ_k W_k |[u]_t,k| and its relative defect (unilateral: relative
+    identity λᵀ(B u − gap₀) = Σ_k ρ_k W_k |[u]_t,k| ([u]_t since the previous load step on a
+    load path: `incremental`) and its relative defect (unilateral: relative
     to the larger of Σρ W|[u]_t| and the pressure scale times Σ|B u − gap₀|)."""
     c = model.contact
     k = c.surf.size
@@ -676,11 +707,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
     state[has_t] = np.where(slip[has_t], "slip", "stick")
     state[~has_t & np.isin(np.arange(k), c.rows_n)] = "normal_only"
     state[np.isin(np.arange(k), c.rows_n) & ~touch] = "open"
-    b_uh_lam = float(lam @ (Bu - gap_rows))
-    jt = np.linalg.norm(jvec, axis=1)
+    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    b_uh_lam = float(lam @ (Bi - gap_rows))
+    ji = np.zeros((k, 2))  # the tangential jump (since the origin) in the node's frame
+    ji[c.disc] = Bi[idx_b] / W[c.disc, None]
+    ji[c.line, 0] = Bi[idx_l] / W[c.line]
+    jt = np.linalg.norm(ji, axis=1)
     g_abs = float(np.sum((rho * W * jt)[has_t]))
     tiny = np.finfo(float).eps * float(np.sum(rho * W)) * max(np.abs(x_full).max(), 1e-300)
-    ref = max(g_abs, pressure * float(np.abs(Bu - gap_rows).sum()))  # unilateral: P × slack
+    ref = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))  # unilateral: P × slack
     gap = np.full(k, np.nan)
     if c.law == "unilateral":
         gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / W[c.rows_n]  # the remaining normal gap

@@ -133,9 +133,10 @@ def separation(model, sol) -> dict[str, float]:
     """A posteriori unilateral conditions of a solution, per normal node k: the remaining
     gap d_k, λ_n,k, |λ_t,k| and the slip. A rigid foundation: from the displacement itself, not
     from the assembled rows — d_k = gap(x_k) − n_k·u_k (n_k recomputed from `fem.assembly3d`'s
-    face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|. Two bodies:
-    from the mortar rows, d_k = (gap_k − (B u)_n,k)/W_k and the slip |(B u)_t,k|/W_k (the
-    discrete conditions as assembled; test_contact3d_unilateral checks the geometry apart).
+    face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|. Two bodies,
+    and a step of a load path (its slip since the previous step): from the rows,
+    d_k = (gap_k − (B u)_n,k)/W_k and the slip |(B u − origin)_t,k|/W_k (the discrete
+    conditions as assembled; test_contact3d_unilateral checks the geometry apart).
 
     Reported, relative to the length scale max(|gap|, |u|) and the pressure scale max(λ_n):
     `penetration` max(−d_k, 0), `tension` max(−λ_n,k, 0), `open_pressure` max λ_n,k over the
@@ -151,7 +152,7 @@ def separation(model, sol) -> dict[str, float]:
     nodes = surf.nodes[c.rows_n]  # (N_n,) mesh nodes carrying λ_n
     x_full = model.full(sol.u)
     u_all = x_full[body.u_dofs(np.arange(body.n_nodes))]  # (N, 3) the slave's displacement
-    if c.master is None:
+    if c.master is None and model.slip_origin is None:
         _, N_ind = _independent_weights(body.mesh, c.slave_part)
         nrm = N_ind[nodes] / np.linalg.norm(N_ind[nodes], axis=1)[:, None]  # (N_n, 3)
         u = x_full[body.u_dofs(nodes)]  # (N_n, 3)
@@ -163,16 +164,20 @@ def separation(model, sol) -> dict[str, float]:
         d = gap - un  # (N_n,) remaining gap
         ut = np.linalg.norm(u - un[:, None] * nrm, axis=1)  # (N_n,) tangential slip
         length = max(float(np.abs(gap).max(initial=0.0)), float(np.abs(u_all).max()), 1e-300)
-    else:  # two bodies: the weighted mortar gap and jump of the rows themselves
+    else:  # two bodies or a load step: the weighted gap and jump of the rows themselves
         W = c.W[c.rows_n]  # (N_n,)
         Bu = c.B_full @ x_full  # (m,)
         d = (c.gap0 - Bu[c.rows()[0]]) / W
+        if model.slip_origin is not None:
+            Bu = Bu - model.slip_origin  # the slip of this load step
         jump = np.zeros((surf.size, 2))
         jump[c.disc] = Bu[c.rows()[1]] / c.W[c.disc, None]
         jump[c.line, 0] = Bu[c.rows()[2]] / c.W[c.line]
         ut = np.linalg.norm(jump, axis=1)[c.rows_n]  # (N_n,) tangential mortar jump
-        u_m = x_full[c.master.body.u_dofs(np.arange(c.master.body.n_nodes))]
-        scale = max(float(np.abs(u_all).max()), float(np.abs(u_m).max()))
+        scale = float(np.abs(u_all).max())
+        if c.master is not None:
+            u_m = x_full[c.master.body.u_dofs(np.arange(c.master.body.n_nodes))]
+            scale = max(scale, float(np.abs(u_m).max()))
         length = max(float(np.abs(c.gap0 / W).max(initial=0.0)), scale, 1e-300)
     idx_n, idx_b, idx_l = c.rows()
     lam_n = sol.lam[idx_n]  # (N_n,)

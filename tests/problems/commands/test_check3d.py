@@ -20,6 +20,7 @@ LEVELS = [
     pytest.param("manufactured3d", 0),
     pytest.param("bracket3d", 0),
     pytest.param("block3d_liftoff", 1),
+    pytest.param("coulomb_strip3d", 1),
     pytest.param("block3d", 1, marks=pytest.mark.slow),
     pytest.param("rigid_foundation_extruded", 1, marks=pytest.mark.slow),
     pytest.param("manufactured3d", 1, marks=pytest.mark.slow),

@@ -308,3 +308,56 @@ def test_line_nodes_of_a_roller_side_carry_a_two_dimensional_contact_set():
     st = contact3d.contact_state(model, sol)
     line_lam = st["lam_t_vec"][c.line]  # along the kept tangent ±e_y only
     assert np.abs(line_lam[:, [0, 2]]).max() <= 1e-12 * np.abs(sol.lam).max()
+
+
+# ------------------------------------------------------------------ load paths
+def _strip_path(tmp_path) -> str:
+    """coulomb_strip3d sheared by δ = 1e-3 m (t = 1: the whole base slides 6.5e-4 m) and
+    then back to δ = 5e-4 m (t = 2): the base sticks where it slid to, the shear strain is
+    (5e-4 − 6.5e-4)/H = −1.5e-4 and λ_t = −1.5e5 ê Pa, inside the bound 3.5e5 Pa."""
+    text = (SCENES_DIR / "coulomb_strip3d.toml").read_text()
+    back = "where(t > 1.5, 0.5, 1.0)"
+    gamma = "where(t > 1.5, -1.5e-4, 3.5e-4)"
+    text = text.replace(
+        "value = [8.0e-4, 6.0e-4, -2.0e-4]", f'value = ["8.0e-4*{back}", "6.0e-4*{back}", -2.0e-4]'
+    )
+    text = text.replace(
+        '"5.2e-4 + 2.8e-4*z", "3.9e-4 + 2.1e-4*z"',
+        f'"0.8*(6.5e-4 + {gamma}*z)", "0.6*(6.5e-4 + {gamma}*z)"',
+    )
+    text = text.replace("[bodies.block]", "[load_path]\nt = [1.0, 2.0]\n\n[bodies.block]")
+    path = tmp_path / "strip_path.toml"
+    path.write_text(text)
+    return str(path)
+
+
+def _unloaded(res) -> None:
+    st = contact3d.contact_state(res.model, res.solution)
+    has = st["has_t"]
+    u = contact3d.fields(res.model, res.solution)["block.displacement"]
+    z = res.model.bodies[0].mesh.points[:, 2:3]
+    exact = (6.5e-4 - 1.5e-4 * z) * E_HAT + np.array([0.0, 0.0, -2.0e-4]) * z
+    assert np.abs(u - exact).max() <= 1e-9 * np.abs(exact).max()
+    assert np.abs(st["lam_t_vec"][has] + 1.5e5 * E_HAT).max() <= 1e-9 * 1.5e5
+    assert not st["slip"][has].any()
+
+
+def test_a_load_path_acts_on_the_slip_increments(tmp_path):
+    import problems
+
+    res = problems.solve_scene(_strip_path(tmp_path), level=0, tol=TOL)
+    assert [s["converged"] for s in res.info["steps"]] == [True, True]
+    _unloaded(res)
+    sep = contact3d_checks.separation(res.model, res.solution)
+    assert max(sep.values()) <= 1e-10, sep
+
+
+def test_the_total_form_misses_the_unloading(tmp_path, monkeypatch):
+    """Mutation: without `incremental` the second step is the fresh problem at δ = 5e-4 m
+    (slip 1.5e-4 m, λ_t = +3.5e5 ê): the unloading checks fail."""
+    import problems
+
+    monkeypatch.delattr(contact3d, "incremental")
+    res = problems.solve_scene(_strip_path(tmp_path), level=0, tol=TOL)
+    with pytest.raises(AssertionError):
+        _unloaded(res)
