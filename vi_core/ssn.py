@@ -210,6 +210,20 @@ class _Stepper:
             )
         self.pattern.sort_indices()
         self.pattern.data = np.ones(self.pattern.nnz, dtype=np.int8)  # only its structure is used
+        if self.cond is not None:
+            # the condensed Newton matrix, kept on the pattern: its R rows are written once and
+            # every step overwrites the data of its S rows in place (no copy of K_R, no new K)
+            c = self.cond
+            K_R = self.P @ sp.vstack([self.K_R, sp.csr_matrix((e.m, e.n))], format="csr")
+            self.K = _on_pattern(K_R, self.pattern)
+            del K_R, self.K_R
+            self.pattern_S = self.pattern[c.S]  # (m, n) its S rows, in the order of S
+            ip = self.pattern.indptr
+            lengths = np.diff(ip)[c.S]
+            # (nnz of pattern_S,) where each entry of pattern_S sits in K.data
+            self.S_pos = np.repeat(ip[c.S] - np.cumsum(lengths) + lengths, lengths) + np.arange(
+                lengths.sum()
+            )
 
     def step(self, J, W, rhs_c, guess=None, forcing=0.0):
         """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c (iterative path: from u⁺ = guess, to
@@ -228,7 +242,8 @@ class _Stepper:
         # Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)   (rhs_c = p − Jy − J gap)
         K_S = (Dt @ (W @ (c.Dt_inv @ self.A_S)) + Dt @ (J @ e.B)).tocsr()
         rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
-        K = _on_pattern(self.P @ sp.vstack([self.K_R, K_S], format="csr"), self.pattern)
+        K = self.K
+        K.data[self.S_pos] = _on_pattern(K_S, self.pattern_S).data
         del K_S  # what the factorisation does not need is freed before it runs
         self.nnz.append(K.nnz)
         rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])

@@ -40,7 +40,7 @@ def contact_checks(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Soluti
     gmax = float(g.max(initial=0.0))
     mag = np.linalg.norm(st["lam_t_vec"], axis=1)
     excess = float(np.max(mag[has] - g[has], initial=-np.inf))
-    stick = int((has & ~st["slip"]).sum())
+    stick = int((st["state"] == "stick").sum())  # open nodes (unilateral) are neither
     rec = {
         "lemma_4_2": st["lemma_4_2"] if gmax > 0 else None,
         # the pressure scale: with unilateral contact also the elastic stress (when every node

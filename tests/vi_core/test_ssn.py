@@ -159,7 +159,8 @@ def test_equilibrated_problem_has_unit_diagonal_and_unit_rows(seed):
 def test_newton_matrix_pattern_is_fixed_while_the_active_set_changes(condense, monkeypatch):
     """The README's claim: one sparsity pattern for every Newton matrix of a solve (explicit
     zeros kept), so a direct solver can reuse its analysis. Mutation: without storing on the
-    fixed pattern the nonzero count follows the active set."""
+    fixed pattern the nonzero count follows the active set (condensed: the S rows no longer fit
+    the kept matrix)."""
     import vi_core.ssn as ssn_module
     from problems.plugins import piezo_contact as pc
     from problems.scene import load_scene
@@ -168,6 +169,10 @@ def test_newton_matrix_pattern_is_fixed_while_the_active_set_changes(condense, m
     sol = solve(vi, "ssn", condense=condense, linear_solver="splu")
     assert sol.converged and sol.iterations >= 3 and len(sol.info["newton_nnz"]) == 1
     monkeypatch.setattr(ssn_module, "_on_pattern", lambda M, pattern: sp.csr_matrix(M))
+    if condense:  # K is kept and its S rows overwritten in place: off the pattern they do not fit
+        with pytest.raises(ValueError, match="shape mismatch"):
+            solve(vi, "ssn", condense=condense, linear_solver="splu")
+        return
     sol = solve(vi, "ssn", condense=condense, linear_solver="splu")
     assert len(sol.info["newton_nnz"]) > 1
 
