@@ -29,14 +29,14 @@ multiplier is then on its bound to rounding, as after a direct solve — nested 
 the stick/slip partition of the coarse answer, and without it the paper scene's level 5 took 8
 Newton steps instead of 2.
 
-Measured on the paper scene (`mixvi bench --scenes paper_two_body --levels 2..5
---linear-solvers amg`; the tied linear system to 1e-11 from zero): 14, 15, 16, 16 FGMRES
-iterations at levels 2–5 with this preconditioner and W-cycles; 19, 23, 28, 35 with the
+Measured on the paper scene (`mixvi bench --scenes paper_two_body --levels 2..5 --linear-solvers
+amg`; the tied linear system to 1e-11 from zero): 14, 15, 16, 16 FGMRES iterations at levels 2–5
+(16 at level 6, 1.5M unknowns) with this preconditioner and W-cycles; 19, 23, 28, 35 with the
 previous one (the R rows' operator A_R − B_Rᵀ D^{-T} A_S with a direct solve of K_SS, which
 misses the coupling of the slave dofs to the rest: its Schur complement differs from it by a
 term of the rank of the interface). On the Newton systems of the first nested fine step (an
-experiment on those matrices saved, FGMRES to 1e-8 from zero), V-cycles: 14, 16, 20, 24
-(levels 2–5), W-cycles 14, 14, 17, 18, and W costs less time at level 5 (6.6 s against 9.3 s).
+experiment on those matrices saved, FGMRES to 1e-8 from zero), V-cycles: 14, 16, 20, 24 (levels
+2–5), W-cycles 14, 14, 17, 18, and W costs less time at level 5 (6.6 s against 9.3 s).
 
 **Inexact Newton.** Each step starts from the current iterate and stops when the linear residual
 is ≤ η_k times its initial value (Eisenstat–Walker, choice 2: η_k = 0.9 (F_k/F_{k−1})², at most
