@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-import vi_core
 from problems.errors import SceneError
 from problems.scene import load_scene
 from vi_core.kkt import Checker
@@ -51,11 +50,14 @@ def _scene(name: str, overrides: list[str], F: float, friction: str = "coulomb",
 def measure(name: str, F: float, level: int, inner: str, overrides=(), tol=1e-10) -> dict:
     """One row (module docstring) of scene `name` at friction coefficient F and `level`."""
     model = pc.build(_scene(name, list(overrides), F), level)
-    vi = model.vi
+    # the scene's problem (pc.solve: with a [contact.electrical] fixed point around each path),
+    # each answer judged on the problem it must solve (pc.problem_at)
+    newton = pc.solve(model, method="ssn", tol=tol)
+    fixed = pc.solve(model, method="fixed_point", tol=tol, inner=inner)
+    vi = pc.problem_at(model, newton)
     check = Checker.of(vi)
-    newton = vi_core.solve(vi, "ssn", tol=tol)
-    fixed = vi_core.solve(vi, "fixed_point", tol=tol, inner=inner)
-    res_n, res_f = check(newton.u, newton.lam).relative, check(fixed.u, fixed.lam).relative
+    res_n = check(newton.u, newton.lam).relative
+    res_f = Checker.of(pc.problem_at(model, fixed))(fixed.u, fixed.lam).relative
     ok_n = newton.converged and res_n <= ACCEPT * tol
     ok_f = fixed.converged and res_f <= ACCEPT * tol
     row = {
@@ -80,7 +82,7 @@ def measure(name: str, F: float, level: int, inner: str, overrides=(), tol=1e-10
         row["stick"] = int(st["touch_t"].sum()) - row["slip"]
         mean_p = float(np.mean(st["lam_n"][touch])) if touch.any() else 0.0
         tresca = pc.build(_scene(name, list(overrides), F, "tresca", F * mean_p), level)
-        t_sol = vi_core.solve(tresca.vi, "ssn", tol=tol)
+        t_sol = pc.solve(tresca, method="ssn", tol=tol)
         row["tresca_newton_steps"] = t_sol.iterations if t_sol.converged else None
     if ok_n and ok_f:
         kappa = check.inverse_norm(newton.u, newton.lam)
