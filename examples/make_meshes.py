@@ -13,6 +13,10 @@ were made and remakes them. Physical groups carry the names the scenes use:
   base_contact.
 - `plate_with_hole.msh` (gmsh v2.2, quadrilaterals): a `plate` [0, 2] × [0, 1] with a circular
   hole of radius 0.25 about (1, 0.5). Curves: bottom, right, top, left, hole.
+- `bracket3d.msh` (gmsh v4.1, tetrahedra): an L-shaped `bracket` (OpenCASCADE): a foot
+  [0, 0.6] × [0, 0.4] × [0, 0.08] with a bolt hole of radius 0.08 about (0.35, 0.2) and a wall
+  [0, 0.08] × [0, 0.4] × [0, 0.5], mesh size 0.06. Surfaces: base (the foot's bottom z = 0),
+  top (the wall's top z = 0.5), bolt (the hole), toe (x = 0.6), back (x = 0).
 """
 
 from __future__ import annotations
@@ -111,6 +115,37 @@ def plate_with_hole(gmsh, path: Path) -> None:
     gmsh.write(str(path))
 
 
+def bracket3d(gmsh, path: Path) -> None:
+    gmsh.model.add("bracket3d")
+    occ = gmsh.model.occ
+    foot = occ.addBox(0, 0, 0, 0.6, 0.4, 0.08)
+    wall = occ.addBox(0, 0, 0, 0.08, 0.4, 0.5)
+    hole = occ.addCylinder(0.35, 0.2, -0.1, 0, 0, 0.3, 0.08)
+    body, _ = occ.fuse([(3, foot)], [(3, wall)])
+    body, _ = occ.cut(body, [(3, hole)])
+    occ.synchronize()
+    gmsh.model.addPhysicalGroup(3, [t for _, t in body], name="bracket")
+
+    def faces(test) -> list[int]:  # the surfaces whose bounding box passes `test`
+        return [t for _, t in gmsh.model.getEntities(2) if test(gmsh.model.getBoundingBox(2, t))]
+
+    eps = 1e-6
+    named = {
+        "base": lambda b: b[5] < eps,  # z_max = 0
+        "top": lambda b: b[2] > 0.5 - eps,  # z_min = 0.5
+        "toe": lambda b: b[0] > 0.6 - eps,  # x_min = 0.6
+        "back": lambda b: b[3] < eps,  # x_max = 0
+        "bolt": lambda b: b[0] > 0.27 - eps and b[3] < 0.43 + eps and b[2] < eps
+        and b[5] > 0.08 - eps,  # the hole's wall
+    }  # fmt: skip
+    for name, test in named.items():
+        gmsh.model.addPhysicalGroup(2, faces(test), name=name)
+    gmsh.option.setNumber("Mesh.CharacteristicLengthMax", 0.06)
+    gmsh.model.mesh.generate(3)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.write(str(path))
+
+
 def main(argv: list[str]) -> int:
     import gmsh
 
@@ -119,6 +154,7 @@ def main(argv: list[str]) -> int:
     for make, name in (
         (wavy_two_body, "wavy_two_body.msh"),
         (plate_with_hole, "plate_with_hole.msh"),
+        (bracket3d, "bracket3d.msh"),
     ):
         gmsh.initialize(["-noenv"])
         gmsh.option.setNumber("General.Terminal", 0)

@@ -15,9 +15,10 @@ conventions (docs/design.md, "Meshes"):
 
 Refused with `MeshImportError` (a ValueError naming the file, the group or cell and what is
 allowed): unreadable files, unknown physical groups (the available ones are listed), cells
-other than triangles/quadrilaterals in a body, mixed cell types, cells with mixed orientation
-(a fold), degenerate (zero-area) cells and non-convex quadrilaterals, a curve group edge inside
-a body, a z coordinate other than 0.
+other than triangles/quadrilaterals in a body, mixed cell types, two nodes of a body at the same
+point (a mesh not made coherent), cells with mixed orientation (a fold), degenerate (zero-area)
+cells and non-convex quadrilaterals, a curve group edge inside a body, a z coordinate other
+than 0.
 """
 
 from __future__ import annotations
@@ -42,6 +43,8 @@ IGNORED_CELLS = ("vertex",)  # point groups: no role in 2D
 AREA_TOL = 1e-12
 # |z| of a node must be at most Z_TOL × the mesh's extent (the file holds a planar mesh).
 Z_TOL = 1e-12
+# Two nodes of a body closer than NODE_TOL × the body's extent are the same point (refused).
+NODE_TOL = 1e-10
 
 
 class MeshImportError(ValueError):
@@ -86,8 +89,11 @@ class MeshFile:
         )
 
 
-def read_mesh(path: str | PathLike) -> MeshFile:
-    """Read a mesh file with meshio (format from the file name; gmsh .msh v2 or v4, ...)."""
+def read_mesh(path: str | PathLike, planar: bool = True) -> MeshFile:
+    """Read a mesh file with meshio (format from the file name; gmsh .msh v2 or v4, ...).
+
+    planar: a 2D mesh in the plane z = 0 (points (n, 2), refused otherwise); False keeps the
+    three coordinates (points (n, 3): `fem.mesh_import3d`)."""
     import meshio
 
     path = str(path)
@@ -102,7 +108,9 @@ def read_mesh(path: str | PathLike) -> MeshFile:
     pts = np.asarray(m.points, dtype=float)
     if pts.ndim != 2 or pts.shape[0] == 0:
         raise MeshImportError(path, "no nodes", "a mesh with nodes")
-    if pts.shape[1] == 3:
+    if not planar:
+        pts = np.pad(pts, ((0, 0), (0, 3 - pts.shape[1]))) if pts.shape[1] < 3 else pts
+    elif pts.shape[1] == 3:
         extent = float(np.ptp(pts[:, :2], axis=0).max()) if len(pts) > 1 else 1.0
         z = np.abs(pts[:, 2])
         if z.max() > Z_TOL * max(extent, 1e-300):
@@ -118,7 +126,7 @@ def read_mesh(path: str | PathLike) -> MeshFile:
         phys = np.asarray(tags[i], dtype=int) if tags is not None else np.full(len(block.data), -1)
         blocks.append((block.type, np.asarray(block.data, dtype=np.int64), phys))
     groups = {str(k): (int(v[1]), int(v[0])) for k, v in (m.field_data or {}).items()}
-    return MeshFile(path, pts[:, :2].copy(), blocks, groups)
+    return MeshFile(path, (pts[:, :2] if planar else pts).copy(), blocks, groups)
 
 
 def mesh_geo(path: str | PathLike, level: int = 0) -> MeshFile:
@@ -208,10 +216,29 @@ def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
     new_id = np.full(mf.points.shape[0], -1, dtype=np.int64)
     new_id[order] = np.arange(order.size)
     points = mf.points[order]  # (n, 2)
+    distinct_nodes(mf.path, where, points, order)
     cells = new_id[cells_file]  # (n_cells, k)
     cells = _oriented(mf.path, where, points, cells)
     boundaries = _boundaries(mf, where, new_id, cells)
     return Mesh(points, cells, boundaries)
+
+
+def distinct_nodes(path: str, where: str, points: np.ndarray, file_ids: np.ndarray) -> None:
+    """Refuse two nodes of a body at the same point (a mesh not made coherent: the body would
+    be cut along them). points (n, d) of the body; file_ids (n,) their 0-based ids in the file."""
+    from scipy.spatial import cKDTree
+
+    extent = float(np.ptp(points, axis=0).max()) if len(points) > 1 else 0.0
+    pairs = cKDTree(points).query_pairs(NODE_TOL * extent, output_type="ndarray")  # (n_p, 2)
+    if len(pairs):
+        i, j = sorted(file_ids[pairs[0]].tolist())
+        raise MeshImportError(
+            path,
+            f"{where}: {len(pairs)} pair(s) of nodes at the same point, e.g. file nodes {i} and "
+            f"{j} at the same point {points[pairs[0, 0]].tolist()} (0-based, in file order)",
+            "one node per point in a body (gmsh: Coherence Mesh, or BooleanFragments of the "
+            "volumes before meshing)",
+        )
 
 
 def _oriented(path: str, where: str, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -309,11 +336,18 @@ def write_msh(
     file_format: str = "gmsh22",
 ) -> None:
     """Write meshes as one gmsh file (meshio's `file_format`: "gmsh22" = v2.2, "gmsh" = v4.1):
-    each body a physical surface named for it, each boundary part a physical curve named
-    `part` (`body_part` where two bodies have a part of that name). Nodes of different bodies
-    are not merged. Tests and examples use it to hand built-in meshes to `body_mesh`."""
+    each body a physical surface (2D `Mesh`) or volume (`Mesh3D`) named for it, each boundary
+    part a physical curve (2D) or surface (3D) named `part` (`body_part` where two bodies have
+    a part of that name; 3D only as v2.2). Nodes of different bodies are not merged. Tests
+    and examples use it to hand built-in meshes to `body_mesh` / `mesh_import3d.body_mesh3d`."""
     import meshio
 
+    dims = {m.points.shape[1] for m in bodies.values()}
+    if len(dims) != 1:
+        raise ValueError("write_msh: all bodies 2D or all 3D")
+    dim = dims.pop()
+    if dim == 3 and file_format != "gmsh22":  # meshio's v4.1 writer drops entities without a
+        raise ValueError("write_msh: 3D meshes as gmsh22")  # node of their own (its reader fails)
     counts: dict[str, int] = {}
     for m in bodies.values():
         for p in m.boundaries:
@@ -321,25 +355,26 @@ def write_msh(
     points, cells, phys, geo, field, dim_tags = [], [], [], [], {}, []
     offset, tag = 0, 1
     for bname, m in bodies.items():
-        field[bname] = np.array([tag, 2])
-        dt = np.tile([2, tag], (m.n_nodes, 1))  # (n, 2) the entity each node is classified on
+        faces = "line" if dim == 2 else {4: "triangle", 8: "quad"}[m.cells.shape[1]]
+        field[bname] = np.array([tag, dim])
+        dt = np.tile([dim, tag], (m.n_nodes, 1))  # (n, 2) the entity each node is classified on
         cells.append((m.cell_type, m.cells + offset))
         phys.append(np.full(m.n_cells, tag))
         geo.append(np.full(m.n_cells, tag))
         tag += 1
         for p, e in m.boundaries.items():
             name = p if counts[p] == 1 else f"{bname}_{p}"
-            field[name] = np.array([tag, 1])
-            cells.append(("line", e + offset))
+            field[name] = np.array([tag, dim - 1])
+            cells.append((faces, e + offset))
             phys.append(np.full(len(e), tag))
             geo.append(np.full(len(e), tag))
-            dt[e.ravel()] = [1, tag]
+            dt[e.ravel()] = [dim - 1, tag]
             tag += 1
         points.append(m.points)
         dim_tags.append(dt)
         offset += m.n_nodes
     pts = np.concatenate(points)
-    pts3 = np.concatenate([pts, np.zeros((len(pts), 1))], axis=1)
+    pts3 = np.pad(pts, ((0, 0), (0, 3 - dim)))  # (n, 3)
     out = meshio.Mesh(
         pts3,
         cells,

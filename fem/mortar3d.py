@@ -69,8 +69,8 @@ from scipy.spatial import cKDTree
 
 from .boundary import ENDS
 from .elements import reference_element
-from .elements3d import FACE_TYPE
 from .mesh3d import Mesh3D
+from .surface3d import Surface, surface, triangle_rule
 
 # Quadrature order of the face integrals (mass, normals): exact on affine faces; on non-planar
 # quadrilaterals (|N| not polynomial) biorthogonality holds to 5e-14 relative at 7 % warp.
@@ -83,67 +83,6 @@ FACE_ORDER = 12
 QUAD_ORDER = {"triangle": 5, "quad": 10}
 
 
-@dataclass(frozen=True, eq=False)
-class Faces:
-    """The trace of a 3D mesh on boundary parts: what the mortar needs of each side.
-
-    nodes : (k,) global node ids (sorted); faces : (n_f, m) local indices into `nodes`,
-    counterclockwise seen from outside; face_type : "triangle" or "quad".
-    points : (k, 3) node coordinates; normals : (k, 3) outward unit nodal normals ∝ ∫φ_k n dA.
-    weights : (k,) ∫_Γ φ_k dA (the diagonal of D); face_weights : (n_f, m) ∫_e φ_a dA.
-    areas : (n_f,); dual : (n_f, m, m) the coefficients A_e of ψ_{e,a} (module docstring).
-    """
-
-    nodes: np.ndarray
-    faces: np.ndarray
-    face_type: str
-    points: np.ndarray
-    normals: np.ndarray
-    weights: np.ndarray
-    face_weights: np.ndarray
-    areas: np.ndarray
-    dual: np.ndarray
-
-    @property
-    def size(self) -> int:
-        """Number of surface nodes."""
-        return self.nodes.size
-
-
-def faces_of(mesh: Mesh3D, names: str | Sequence[str], order: int = FACE_ORDER) -> Faces:
-    """The trace of `mesh` on the boundary part(s) `names` (KeyError naming an unknown part)."""
-    names = [names] if isinstance(names, str) else list(names)
-    for nm in names:
-        if nm not in mesh.boundaries:
-            raise KeyError(
-                f"unknown boundary {nm!r}; this mesh has: {', '.join(sorted(mesh.boundaries))}"
-            )
-    glob = np.concatenate([mesh.boundaries[nm] for nm in names])  # (n_f, m)
-    if glob.size == 0:
-        raise ValueError(f"boundary part {'+'.join(names)!r} has no faces")
-    nodes, inv = np.unique(glob, return_inverse=True)
-    faces = inv.reshape(glob.shape)  # (n_f, m)
-    ftype = FACE_TYPE[mesh.cell_type]
-    ref = reference_element(ftype)
-    pts, w = triangle_rule(order) if ftype == "triangle" else ref.quadrature(order)  # (n_qp, 2)
-    phi = ref.values(pts)  # (n_qp, m)
-    T = np.einsum("fai,qaj->fqij", mesh.points[glob], ref.gradients(pts))  # (n_f, n_qp, 3, 2)
-    N = np.cross(T[..., 0], T[..., 1])  # (n_f, n_qp, 3)
-    dA = np.linalg.norm(N, axis=-1) * w  # (n_f, n_qp)
-    areas = dA.sum(axis=1)
-    if (areas <= 0).any():
-        raise ValueError(f"boundary part {'+'.join(names)!r} has a face of zero area")
-    mass = np.einsum("fq,qa,qb->fab", dA, phi, phi)  # (n_f, m, m)
-    fw = mass.sum(axis=2)  # (n_f, m) ∫_e φ_a dA
-    k = nodes.size
-    weights = np.bincount(faces.ravel(), fw.ravel(), minlength=k)
-    nloc = np.einsum("q,qa,fqi->fai", w, phi, N)  # (n_f, m, 3) ∫_e φ_a n dA
-    nsum = np.stack([np.bincount(faces.ravel(), nloc[..., i].ravel(), k) for i in range(3)], 1)
-    normals = nsum / np.linalg.norm(nsum, axis=1)[:, None]  # (k, 3)
-    dual = fw[:, :, None] * np.linalg.inv(mass)  # (n_f, m, m)
-    return Faces(nodes, faces, ftype, mesh.points[nodes], normals, weights, fw, areas, dual)
-
-
 def rim_nodes(faces: np.ndarray) -> np.ndarray:
     """(r,) local indices of the nodes on the rim of a surface (edges of one face only)."""
     e = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)  # (n_f m, 2)
@@ -151,13 +90,13 @@ def rim_nodes(faces: np.ndarray) -> np.ndarray:
     return np.unique(key[count == 1])
 
 
-def dual_mass(s: Faces) -> sp.csr_matrix:
+def dual_mass(s: Surface) -> sp.csr_matrix:
     """(m·n_f, k) the local slave block: ∫_e ψ_{e,a} φ_j dA = δ(j = node a of e) ∫_e φ_a dA."""
     rows = np.arange(s.faces.size)
     return sp.csr_matrix((s.face_weights.ravel(), (rows, s.faces.ravel())), (rows.size, s.size))
 
 
-def multiplier_basis(s: Faces, carry: np.ndarray, ends: str = "merge") -> sp.csr_matrix:
+def multiplier_basis(s: Surface, carry: np.ndarray, ends: str = "merge") -> sp.csr_matrix:
     """Q (n_carry, m·n_f): ψ̃_k = Σ_(e,a) Q[k, m e + a] ψ_{e,a} for the nodes with carry True.
 
     Rows follow the carrying nodes in the order of `s.nodes`. A node that carries no multiplier
@@ -195,14 +134,14 @@ def multiplier_basis(s: Faces, carry: np.ndarray, ends: str = "merge") -> sp.csr
 class Mortar3D:
     """The segment-based dual mortar coupling of a slave and a master surface.
 
-    slave, master : the two traces (`Faces`); global ids in slave.nodes, master.nodes.
+    slave, master : the two traces (`Surface`); global ids in slave.nodes, master.nodes.
     M : (m·n_f, k_m) csr, M[m e + a, j] = ∫_e ψ_{e,a} (φ_j^m ∘ π) dA (module docstring).
     coverage : (n_f,) fraction of each slave face's area mapped onto the master (0 … 1).
     n_cells : number of integration cells (non-empty clip polygons).
     """
 
-    slave: Faces
-    master: Faces
+    slave: Surface
+    master: Surface
     M: sp.csr_matrix
     coverage: np.ndarray
     n_cells: int
@@ -212,7 +151,7 @@ def _cross2(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
 
 
-def _planes(s: Faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _planes(s: Surface) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Auxiliary planes of the slave faces: centres x0 (n_f, 3), unit normals n0 (n_f, 3) and
     in-plane axes E (n_f, 3, 2) with e1 × e2 = n0."""
     x0 = s.points[s.faces].mean(axis=1)  # (n_f, 3): ξ = 0 of a Q1 face, centroid of a P1 face
@@ -224,7 +163,7 @@ def _planes(s: Faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return x0, n0, np.stack([e1, np.cross(n0, e1)], axis=2)
 
 
-def _face_normal(f: Faces) -> np.ndarray:
+def _face_normal(f: Surface) -> np.ndarray:
     """(n_f, 3) ∂x/∂ξ × ∂x/∂η at the face centre (outward, not normalised)."""
     X = f.points[f.faces]  # (n_f, m, 3)
     if f.face_type == "triangle":
@@ -232,7 +171,7 @@ def _face_normal(f: Faces) -> np.ndarray:
     return np.cross(X[:, 1] + X[:, 2] - X[:, 0] - X[:, 3], X[:, 2] + X[:, 3] - X[:, 0] - X[:, 1])
 
 
-def _candidates(s: Faces, m: Faces, x0, n0, reach: float) -> tuple[np.ndarray, np.ndarray]:
+def _candidates(s: Surface, m: Surface, x0, n0, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """Slave/master face pairs (e, f) near each other and facing each other."""
     cs, cm = x0, m.points[m.faces].mean(axis=1)  # (n_fs, 3), (n_fm, 3)
     rs = np.linalg.norm(s.points[s.faces] - cs[:, None], axis=2).max(axis=1)  # (n_fs,)
@@ -285,17 +224,6 @@ def _distinct(P: np.ndarray, c: np.ndarray, tol: float) -> tuple[np.ndarray, np.
     ok = (i < c[:, None]) & (np.abs(nxt - P).max(axis=2) > tol)  # (n, K)
     order = np.argsort(~ok, axis=1, kind="stable")
     return np.take_along_axis(P, order[..., None], axis=1), ok.sum(axis=1)
-
-
-def triangle_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
-    """Collapsed Gauss on the reference triangle: points (n², 2), weights (n²,) summing to 1/2,
-    exact for total degree ≤ `order` (n = ⌈(order + 2)/2⌉)."""
-    n = (order + 3) // 2
-    g, w = np.polynomial.legendre.leggauss(n)
-    g, w = 0.5 * (g + 1.0), 0.5 * w  # (n,) on [0, 1]
-    a, b = np.meshgrid(g, g, indexing="ij")
-    pts = np.stack([a.ravel(), (b * (1 - a)).ravel()], axis=1)  # (n², 2)
-    return pts, (np.outer(w, w) * (1 - a)).ravel()
 
 
 def _values(face_type: str, xi: np.ndarray) -> np.ndarray:
@@ -411,7 +339,7 @@ def _rays(
     raise ValueError("projection along the normals did not converge (degenerate faces)")
 
 
-def cells(s: Faces, m: Faces, reach: float = 1.0):
+def cells(s: Surface, m: Surface, reach: float = 1.0):
     """The integration cells: clip polygons of every facing slave/master face pair.
 
     The slave face is projected orthogonally onto its auxiliary plane; each master node y is
@@ -455,16 +383,16 @@ def mortar_coupling3d(
         quadrilaterals that are not parallelograms need more).
     reach : a master face is a candidate for a slave face e if their centres are at most
         (1 + reach)·r_e + r_max apart (r: the largest centre-to-node distance of a face).
-    face_order : quadrature order of the face integrals (`faces_of`): a caller whose slave
-        block D = diag(∫φ_k) comes from another rule passes that rule's order, so that D and
-        the dual basis in M agree on non-planar faces.
+    face_order : quadrature order of the face integrals (`fem.surface3d.surface`): a caller
+        whose slave block D = diag(∫φ_k) comes from a surface of another order passes that
+        order, so that D and the dual basis in M agree on non-planar faces.
     Cost: O(n_cells · q) with n_cells ≈ (slave faces) × (master faces per slave face).
     """
-    s, m = faces_of(slave, slave_part, face_order), faces_of(master, master_part, face_order)
+    s, m = surface(slave, slave_part, face_order), surface(master, master_part, face_order)
     return couple(s, m, quad_order, reach)
 
 
-def couple(s: Faces, m: Faces, quad_order: int | None = None, reach: float = 1.0) -> Mortar3D:
+def couple(s: Surface, m: Surface, quad_order: int | None = None, reach: float = 1.0) -> Mortar3D:
     """`mortar_coupling3d` on two traces."""
     if quad_order is None:
         quad_order = max(QUAD_ORDER[s.face_type], QUAD_ORDER[m.face_type])

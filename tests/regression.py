@@ -65,12 +65,16 @@ LEVEL_0_ONLY = (
     "rigid_foundation_extruded",
     "paper_two_body_extruded",
     "spherical_cap",
+    "block3d_liftoff",
+    "coulomb_strip3d",
+    "bracket3d",
 )
 # Scenes whose Newton iteration stops just below TOL, one (quadratic) step short of rounding, so
 # that their derived tolerance exceeds the 1e-8 rounding bound of test_regression: compared at
 # the derived tolerance, the bound not asserted. block3d level 0: residuals 7.8e-7, 9.1e-13
-# (stop), 4.9e-16 (the next step): derived tolerance 7.5e-8.
-SHORT_OF_ROUNDING = ("block3d",)
+# (stop), 4.9e-16 (the next step): derived tolerance 7.5e-8. bracket3d level 0: residual 7.7e-14
+# at the stop, κ 1.7e3: derived tolerance 2.7e-7.
+SHORT_OF_ROUNDING = ("block3d", "bracket3d")
 TOL = 1e-12  # Newton's stopping tolerance: it converges quadratically to rounding below it
 SAFETY = 1e3
 EPS = float(np.finfo(float).eps)

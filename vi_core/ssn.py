@@ -110,14 +110,16 @@ class Condensation:
 
 
 def _merge_subsets(groups: dict[tuple, list[int]]) -> dict[tuple, list[int]]:
-    """Columns grouped by exact row set → grouped by the largest row set containing theirs.
+    """Columns grouped by exact row set → a deficient group joins the row set containing it.
 
     A node's columns need not all touch all of its rows: where a frame vector of a 3D contact
     node is orthogonal to a coordinate axis, that displacement component has an exact zero in
     the tangential row (e.g. u_z of a node whose tangent t2 lies in the x-y plane touches the
     normal row and t1 only). Its row set is then a proper subset of the node's, and on its own
-    it would be a group with fewer columns than rows. A row set joins a larger one only if all
-    of its rows belong to that one set (no chaining of two groups)."""
+    it would be a group with fewer columns than rows. Such a deficient group joins the largest
+    row set holding all of its rows, if one set holds them all (no chaining of two groups); a
+    group with as many columns as rows stays as it is (a slave column of a scalar problem, whose
+    row is also touched by a master column reaching two nodes)."""
     owner: dict[int, tuple] = {}  # row → the largest row set seen that holds it
     merged: dict[tuple, list[int]] = {}
     # the largest row sets first, and among equal ones those with more columns (a node's own
@@ -125,7 +127,7 @@ def _merge_subsets(groups: dict[tuple, list[int]]) -> dict[tuple, list[int]]:
     for rows in sorted(groups, key=lambda r: (len(r), len(groups[r])), reverse=True):
         owners = {owner.get(r) for r in rows}
         into = owners.pop() if len(owners) == 1 else None
-        if into is not None:
+        if into is not None and len(groups[rows]) < len(rows):
             merged[into].extend(groups[rows])
             continue
         merged[rows] = list(groups[rows])
@@ -183,7 +185,7 @@ class _Stepper:
         self.krylov = None  # the iterative path (condensed steps only)
         if iterative and self.cond is not None:
             self.krylov = KrylovSolver(
-                self.cond.R, self.cond.S, e.fields, e.near_null, parts=bodies(e.A)
+                e.A.tocsr(), e.B, self.cond, e.fields, e.near_null, parts=bodies(e.A)
             )
         G = _block_structure(e.Lambda.block_sizes())  # (m, m) structure of J and W
         if self.cond is not None:
@@ -208,6 +210,20 @@ class _Stepper:
             )
         self.pattern.sort_indices()
         self.pattern.data = np.ones(self.pattern.nnz, dtype=np.int8)  # only its structure is used
+        if self.cond is not None:
+            # the condensed Newton matrix, kept on the pattern: its R rows are written once and
+            # every step overwrites the data of its S rows in place (no copy of K_R, no new K)
+            c = self.cond
+            K_R = self.P @ sp.vstack([self.K_R, sp.csr_matrix((e.m, e.n))], format="csr")
+            self.K = _on_pattern(K_R, self.pattern)
+            del K_R, self.K_R
+            self.pattern_S = self.pattern[c.S]  # (m, n) its S rows, in the order of S
+            ip = self.pattern.indptr
+            lengths = np.diff(ip)[c.S]
+            # (nnz of pattern_S,) where each entry of pattern_S sits in K.data
+            self.S_pos = np.repeat(ip[c.S] - np.cumsum(lengths) + lengths, lengths) + np.arange(
+                lengths.sum()
+            )
 
     def step(self, J, W, rhs_c, guess=None, forcing=0.0):
         """Solve A u⁺ + Bᵀλ⁺ = f, W λ⁺ − J B u⁺ = rhs_c (iterative path: from u⁺ = guess, to
@@ -226,13 +242,15 @@ class _Stepper:
         # Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)   (rhs_c = p − Jy − J gap)
         K_S = (Dt @ (W @ (c.Dt_inv @ self.A_S)) + Dt @ (J @ e.B)).tocsr()
         rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
-        K = _on_pattern(self.P @ sp.vstack([self.K_R, K_S], format="csr"), self.pattern)
+        K = self.K
+        K.data[self.S_pos] = _on_pattern(K_S, self.pattern_S).data
         del K_S  # what the factorisation does not need is freed before it runs
         self.nnz.append(K.nnz)
         rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])
         u_new = None
         if self.krylov is not None:
-            u_new, _ = self.krylov(K, rhs, guess, forcing, self.tol)
+            tied = np.asarray(abs(W).sum(axis=1)).ravel() == 0  # (m,) rows (B u)_i = …
+            u_new, _ = self.krylov(K, rhs, guess, forcing, self.tol, tied)
         if u_new is None:  # direct, or the Krylov solve's fallback
             self.last = self.factorize(K)
             u_new = self.last(rhs)

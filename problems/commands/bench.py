@@ -154,6 +154,7 @@ def _child(scene_name: str, level: int, solvers: list[str], tol: float, q, linea
     """Run one case in a worker process and put ("ok", rows) or ("error", cause) on `q`."""
     signals.ignore_in_child()
     _die_with_parent()
+    resources.fix_mmap_threshold()
     try:
         q.put(("ok", _record(scene_name, level, solvers, tol, linear)))
     except MemoryError:

@@ -14,6 +14,9 @@ def run() -> int:
     signals.install()
     try:
         from .main import main
+        from .resources import fix_mmap_threshold
+
+        fix_mmap_threshold()
     except KeyboardInterrupt as sig:
         name = str(sig) if isinstance(sig, signals.Interrupted) else "SIGINT"
         print(f"mixvi: interrupted by {name}", file=sys.stderr)

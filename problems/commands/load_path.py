@@ -1,113 +1,86 @@
-"""`mixvi solve` of a scene with a `[load_path]`: the steps solved in order
-(`problems.pipeline.load_path`), each step's files under steps/NNNN/, the collection steps.pvd
-(time = t), the last step's files beside summary.json (with `steps: [...]`), a progress bar per
-step on a terminal and a per-step table on the console (docs/load_paths.md)."""
+"""`mixvi solve` of a scene with a `[load_path]` (the command body: `problems.commands.solve`):
+the steps solved in order (`problems.pipeline.load_path`), each step's files under
+steps/NNNN/, the rows of the collection steps.pvd (time = t), summary.json's `load_path` and
+`steps` entries and warnings, a progress bar per step on a terminal and a per-step table on
+the console (docs/load_paths.md)."""
 
 from __future__ import annotations
 
 import argparse
-import json
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 from tqdm import tqdm
 
 import problems.pipeline as pipeline
-from problems.output.collection import vtu_datasets, write_pvd
-from problems.output.files import OutputFolder, jsonable
-from problems.pipeline.load_path import Step, solve_path
+from problems.output.collection import vtu_datasets
+from problems.pipeline.load_path import PathRun, Step, solve_path
+
+from .options import solver_options
 
 COUNTS = ("nodes", "stick", "slip", "open")  # contact counts kept per step
 
 
-def run(
-    args: argparse.Namespace,
-    t0: float,
-    loaded: pipeline.Loaded,
-    level: int,
-    folder: OutputFolder,
-    console_summary: Callable[[dict, list[dict]], list[str]],
-) -> int:
-    """Solve the load path of `loaded` into `folder`; exit status 0 if every step converged.
-    `console_summary(summary, levels)` gives the lines about the last step (mixvi solve's)."""
+def solve_steps(
+    args: argparse.Namespace, loaded: pipeline.Loaded, level: int, tmp: Path
+) -> tuple[PathRun, list[tuple[float, str]]]:
+    """Solve the load path of `loaded`, each step's files under tmp/steps/NNNN/ as it is
+    solved (with a progress bar per step on a terminal); the path and the rows of steps.pvd."""
     plugin = loaded.plugin
-    ts = loaded.spec.load_path.values()
     datasets: list[tuple[float, str]] = []
-    with folder.staging() as tmp:
-        bar = tqdm(total=len(ts), unit="step", disable=None, desc=loaded.scene.name, leave=False)
+    n = len(loaded.spec.load_path.values())
+    bar = tqdm(total=n, unit="step", disable=None, desc=loaded.scene.name, leave=False)
 
-        def write_step(step: Step) -> None:
-            sub = Path("steps") / f"{step.index:04d}"
-            (tmp / sub).mkdir(parents=True)
-            write = getattr(plugin, "step_output", plugin.postprocess)
-            extras = write(step.model, step.solution, tmp / sub)
-            c = extras.get("contact") or {}
-            if c:
-                step.record["contact"] = {k: c[k] for k in COUNTS if k in c}
-            files = [(sub / f).as_posix() for f in extras.get("files", [])]
-            datasets.extend(vtu_datasets(step.t, files))
-            bar.set_postfix(t=f"{step.t:.4g}", newton=step.solution.iterations)
-            bar.update(1)
+    def write_step(step: Step) -> None:
+        sub = Path("steps") / f"{step.index:04d}"
+        (tmp / sub).mkdir(parents=True)
+        write = getattr(plugin, "step_output", plugin.postprocess)
+        extras = write(step.model, step.solution, tmp / sub)
+        c = extras.get("contact") or {}
+        if c:
+            step.record["contact"] = {k: c[k] for k in COUNTS if k in c}
+        files = [(sub / f).as_posix() for f in extras.get("files", [])]
+        datasets.extend(vtu_datasets(step.t, files))
+        bar.set_postfix(t=f"{step.t:.4g}", newton=step.solution.iterations)
+        bar.update(1)
 
-        try:
-            path = solve_path(
-                loaded,
-                level,
-                args.solver,
-                args.tol,
-                args.cold,
-                args.linear_solver,
-                on_step=write_step,
-            )
-        finally:
-            bar.close()
-        run_ = path.run
-        model, sol = run_.model, run_.solution
-        extras = plugin.postprocess(model, sol, tmp)
-        write_pvd(tmp / "steps.pvd", datasets)
-        warnings = model.warnings + sol.warnings + extras.get("warnings", [])
-        if not path.incremental:
-            warnings.append(
-                f"plug-in {plugin.NAME!r} does not declare `incremental`: every load step is "
-                "solved in total form (no history; the same as solving each t on its own)"
-            )
-        stopped = len(path.steps) < len(ts)
-        if stopped:
-            warnings.append(
-                f"load step {len(path.steps)} (t = {path.steps[-1]['t']:.6g}) did not converge: "
-                f"the path stopped there ({len(ts) - len(path.steps)} steps not solved)"
-            )
-        summary = {
-            **pipeline.info(loaded, run_),
-            **extras,
-            "files": sorted([*extras.get("files", []), "steps.pvd"]),
-            "load_path": {
-                "t": ts,
-                "form": "incremental" if path.incremental else "total",
-                "warm_start": "cold" if args.cold else "previous step",
-                "steps_solved": len(path.steps),
-            },
-            "steps": path.steps,
-            "scaling": pipeline.scaling_summary(model),
-            "solver_info": sol.info,
-            "warnings": warnings,
-            "nested": run_.nested,
-            "time_s": {
-                "build": run_.time_build,
-                "solve": run_.time_solve,
-                "total": time.perf_counter() - t0,
-            },
-        }
-        (tmp / "summary.json").write_text(json.dumps(jsonable(summary), indent=2) + "\n")
-    last = pipeline.level_record(model.level, model, sol)
-    for line in console_summary(summary, [last]):
-        print(line)
-    for line in step_table(summary):
-        print(line)
-    out = folder.path
-    print(f"  wrote {out}/: summary.json, {', '.join(summary['files'])} and steps/")
-    return 0 if path.converged and not stopped else 1
+    with bar:
+        path = solve_path(loaded, level, **solver_options(args), on_step=write_step)
+    return path, datasets
+
+
+def stopped(loaded: pipeline.Loaded, path: PathRun) -> bool:
+    """The path stopped at a step that did not converge (later steps not solved)."""
+    return len(path.steps) < len(loaded.spec.load_path.values())
+
+
+def path_warnings(loaded: pipeline.Loaded, path: PathRun) -> list[str]:
+    """The load path's warnings: the total form, a stop before the end."""
+    ts = loaded.spec.load_path.values()
+    out = []
+    if not path.incremental:
+        out.append(
+            f"plug-in {loaded.plugin.NAME!r} does not declare `incremental`: every load step is "
+            "solved in total form (no history; the same as solving each t on its own)"
+        )
+    if stopped(loaded, path):
+        out.append(
+            f"load step {len(path.steps)} (t = {path.steps[-1]['t']:.6g}) did not converge: "
+            f"the path stopped there ({len(ts) - len(path.steps)} steps not solved)"
+        )
+    return out
+
+
+def entries(args: argparse.Namespace, loaded: pipeline.Loaded, path: PathRun) -> dict:
+    """summary.json's load_path and steps entries."""
+    return {
+        "load_path": {
+            "t": loaded.spec.load_path.values(),
+            "form": "incremental" if path.incremental else "total",
+            "warm_start": "cold" if args.cold else "previous step",
+            "steps_solved": len(path.steps),
+        },
+        "steps": path.steps,
+    }
 
 
 def step_table(summary: dict) -> list[str]:

@@ -13,6 +13,17 @@ MAX_LEVEL = 12
 DEFAULT_SCENE = "paper_two_body"
 
 
+def solver_options(args: argparse.Namespace) -> dict:
+    """The keywords of `pipeline.solve` and `solve_path` from `mixvi solve`'s options
+    (--solver, --tol, --cold, --linear-solver)."""
+    return {
+        "method": args.solver,
+        "tol": args.tol,
+        "cold": args.cold,
+        "linear_solver": args.linear_solver,
+    }
+
+
 def level(text: str) -> int:
     """argparse type: a refinement level, an integer 0 … MAX_LEVEL (the scene's own cap, from
     its memory estimate, is checked once the scene is read: `resources.check_levels`)."""

@@ -104,6 +104,22 @@ def peak_bytes(unknowns: float, nnz: float, solver: str, dimension: int = 2) -> 
     return base + a * x**b
 
 
+def fix_mmap_threshold() -> bool:
+    """glibc: serve every allocation above 128 KiB by its own mmap, returned to the system when
+    freed. By default glibc raises this threshold (up to 32 MB) each time a mapped block is
+    freed, after which arrays of that size come from the heap, whose freed memory stays
+    resident: the peak of a solve then counts arrays long freed. Measured on `mixvi bench
+    --scenes paper_two_body --levels 4..4 --linear-solvers amg` (97k unknowns): peak 515 →
+    447 MB. Called by the `mixvi` entry point and by each bench child; True where it took
+    effect (False off glibc)."""
+    try:
+        import ctypes
+
+        return ctypes.CDLL("libc.so.6").mallopt(-3, 1 << 17) == 1  # M_MMAP_THRESHOLD
+    except (OSError, AttributeError):
+        return False
+
+
 def gb(x: float) -> str:
     """Bytes as '1.2 GB' (decimal units, as `free -g` and the README use)."""
     return f"{x / 1e9:.1f} GB" if x >= 1e8 else f"{x / 1e6:.0f} MB"

@@ -18,7 +18,7 @@ from problems.output.files import jsonable, output_folder
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 
 from . import load_path, resources
-from .options import DEFAULT_SCENE
+from .options import DEFAULT_SCENE, solver_options
 
 # --accuracy presets: (level, tol); measured time and error on the paper scene in the README
 ACCURACY = {"fast": (1, 1e-6), "balanced": (2, 1e-8), "fine": (3, 1e-10)}
@@ -44,55 +44,49 @@ def cmd_solve(args: argparse.Namespace) -> int:
     )
     out = Path(args.out) if args.out else Path("out") / scene.name
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
-        if loaded.spec.load_path is not None:  # one solve per load step
-            return load_path.run(args, t0, loaded, level, folder, console_summary)
         return _solve(args, t0, loaded, level, folder)
 
 
 def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
+    """Solve `loaded` into `folder`: one state (the nested iteration's coarse levels under
+    levels/L/ with --write-levels), or every step of its load path (under steps/NNNN/); the
+    last state's files, the collection (.pvd), summary.json and the console lines. Exit
+    status 0 converged, 1 not (a load path: any step) or a mortar patch defect above the
+    limit without --allow-defect."""
     plugin = loaded.plugin
     out = folder.path
+    path = None  # the load path's steps, if the scene has one
     with folder.staging() as tmp:
-        coarse: dict[int, list[str]] = {}  # level → its files under levels/L/
-
-        # a progress bar over the levels of the nested iteration (on a terminal only)
-        bar = tqdm(total=level + 1, unit="level", desc="solving", disable=None, leave=False)
-
-        def on_level(model, sol) -> None:  # a coarse level is solved
-            bar.update(1)
-            if args.write_levels:  # its results, under levels/L/
-                sub = Path("levels") / str(model.level)
-                (tmp / sub).mkdir(parents=True)
-                written = plugin.postprocess(model, sol, tmp / sub).get("files", [])
-                coarse[model.level] = [(sub / f).as_posix() for f in written]
-
-        with bar:
-            run = pipeline.solve(
-                loaded,
-                level,
-                args.solver,
-                args.tol,
-                args.cold,
-                args.linear_solver,
-                on_level=on_level,
-            )
-            bar.update(bar.total - bar.n)
+        if loaded.spec.load_path is not None:  # one solve per load step
+            path, datasets = load_path.solve_steps(args, loaded, level, tmp)
+            run, coarse = path.run, {}
+        else:
+            run, coarse = _solve_levels(args, loaded, level, tmp)
         model, sol, nested = run.model, run.solution, run.nested
         extras = plugin.postprocess(model, sol, tmp)
         files = [*extras.get("files", [])]
-        per_level = [*sorted(coarse.items()), (model.level, files)]
-        datasets = [d for lev, fs in per_level for d in vtu_datasets(lev, fs)]
-        if datasets:
-            write_pvd(tmp / "results.pvd", datasets)
-            files.append("results.pvd")
+        warnings = model.warnings + sol.warnings + extras.get("warnings", [])
+        if path is None:
+            per_level = [*sorted(coarse.items()), (model.level, files)]
+            datasets = [d for lev, fs in per_level for d in vtu_datasets(lev, fs)]
+            if datasets:
+                write_pvd(tmp / "results.pvd", datasets)
+                files.append("results.pvd")
+            before, after = {}, {"condition_estimate": sol.info.get("condition_estimate")}
+        else:
+            write_pvd(tmp / "steps.pvd", datasets)
+            files = sorted([*files, "steps.pvd"])
+            warnings += load_path.path_warnings(loaded, path)
+            before, after = load_path.entries(args, loaded, path), {}
         summary = {
             **pipeline.info(loaded, run),
             **extras,
             "files": files,
+            **before,
             "scaling": pipeline.scaling_summary(model),
-            "condition_estimate": sol.info.get("condition_estimate"),
+            **after,
             "solver_info": sol.info,
-            "warnings": model.warnings + sol.warnings + extras.get("warnings", []),
+            "warnings": warnings,
             "nested": nested,
             "time_s": {
                 "build": run.time_build,
@@ -103,14 +97,17 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
         if coarse:
             summary["levels_written"] = {str(lev): fs for lev, fs in sorted(coarse.items())}
         (tmp / "summary.json").write_text(json.dumps(jsonable(summary), indent=2) + "\n")
-    for line in console_summary(
-        summary, nested or [pipeline.level_record(model.level, model, sol)]
-    ):
+    last = [pipeline.level_record(model.level, model, sol)]
+    for line in console_summary(summary, last if path is not None else nested or last):
         print(line)
-    print(f"  wrote {out}/: {', '.join(['summary.json', *files])}")
+    if path is not None:
+        for line in load_path.step_table(summary):
+            print(line)
+    steps = "" if path is None else " and steps/"
+    print(f"  wrote {out}/: {', '.join(['summary.json', *files])}{steps}")
     if coarse:
         print(f"  and the coarse levels' results in {out}/levels/{{{','.join(map(str, coarse))}}}/")
-    elif args.write_levels:
+    elif args.write_levels and path is None:
         print(
             "  note: --write-levels: no coarse level was solved (only the nested ssn solve "
             "of a level above 0 has them)"
@@ -119,7 +116,33 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     if defect is not None and defect > PATCH_DEFECT_LIMIT and not args.allow_defect:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
         return 1
+    if path is not None:
+        return 0 if path.converged and not load_path.stopped(loaded, path) else 1
     return 0 if sol.converged else 1
+
+
+def _solve_levels(
+    args, loaded: pipeline.Loaded, level: int, tmp: Path
+) -> tuple[pipeline.Run, dict[int, list[str]]]:
+    """One state, with a progress bar over the levels of the nested iteration (on a terminal
+    only); with --write-levels each coarse level's results under levels/L/ (its files by
+    level, the second value)."""
+    plugin = loaded.plugin
+    coarse: dict[int, list[str]] = {}  # level → its files under levels/L/
+    bar = tqdm(total=level + 1, unit="level", desc="solving", disable=None, leave=False)
+
+    def on_level(model, sol) -> None:  # a coarse level is solved
+        bar.update(1)
+        if args.write_levels:  # its results, under levels/L/
+            sub = Path("levels") / str(model.level)
+            (tmp / sub).mkdir(parents=True)
+            written = plugin.postprocess(model, sol, tmp / sub).get("files", [])
+            coarse[model.level] = [(sub / f).as_posix() for f in written]
+
+    with bar:
+        run = pipeline.solve(loaded, level, **solver_options(args), on_level=on_level)
+        bar.update(bar.total - bar.n)
+    return run, coarse
 
 
 def _vec(v) -> str:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 STATES = ("stick", "slip", "open", "no_multiplier")
+CSV_TITLE = "mixvi contact results, one row per node of the slave contact boundary"
 AXES = "xyz"
 UNITS = {"lambda_n": "Pa", "lambda_t": "Pa", "jump_t": "m", "gap": "m", "state": "-"}
 MEANING = {
@@ -177,11 +178,16 @@ class ContactTable:
 def write_contact_csv(path: Path, table: ContactTable) -> None:
     """contact.csv: '#' comment lines with units and meanings, a header row, one row a node."""
     cols = table.columns
-    lines = ["# mixvi contact results, one row per node of the slave contact boundary"]
-    for k in cols:
-        lines.append(f"# {k} [{table.unit(k)}]: {table.meaning(k)}".rstrip(": "))
+    notes = [f"{k} [{table.unit(k)}]: {table.meaning(k)}".rstrip(": ") for k in cols]
+    write_csv(path, [CSV_TITLE, *notes], cols)
+
+
+def write_csv(path: Path, comments: list[str], cols: dict[str, np.ndarray]) -> None:
+    """A results CSV: one '#' line per comment, a header row of the column names, one row per
+    entry of the (k,) columns: numbers as repr(float), NaN as an empty cell, `state` as text."""
+    lines = [f"# {c}" for c in comments]
     lines.append(",".join(cols))
-    for i in range(table.points.shape[0]):
+    for i in range(len(next(iter(cols.values())))):
         cells = []
         for k, v in cols.items():
             x = v[i]

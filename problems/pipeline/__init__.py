@@ -3,6 +3,8 @@ plug-in build → MixedVI → solve (nested iteration) → results.
 
     load(name_or_path, overrides)      read, migrate, override and validate (before any build)
     solve(loaded, level, method, tol)  build and solve; a `Run` with the model and solution
+    solve_built(loaded, model, ...)    the solve of a built model (also each load step's,
+                                       problems.pipeline.load_path)
     results(loaded, run)               fields, contact state and info as objects
 
 Nothing here writes files: `mixvi solve` (problems.commands.solve) adds the output folder,
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,7 +24,11 @@ import numpy as np
 import vi_core
 from problems.errors import SceneError
 from problems.plugins import registry
+from problems.plugins.contract import problem_at, solve_model
+
+__all__ = ["problem_at", "solve_model"]  # the contract's defaults, the commands' entry point
 from problems.scene import Scene, SceneModel, load_scene
+from problems.scene.fields import load_parameter
 
 CONDITION_LIMIT = 200_000  # estimate the Newton matrix's condition up to this many unknowns
 
@@ -80,25 +87,60 @@ def solve(
     `cold`). `linear_solver` (auto|splu|pardiso|amg) solves the Newton steps, coarse levels
     included. `on_level(model, solution)` is called for each coarse level of the nested
     iteration while it is alive (mixvi solve --write-levels writes its results)."""
-    scene, plugin = loaded.scene, loaded.plugin
     t0 = time.perf_counter()
-    model = plugin.build(scene, level)
+    model = loaded.plugin.build(loaded.scene, level)
     t_build = time.perf_counter() - t0
+    run = solve_built(loaded, model, method, tol, cold, linear_solver, on_level)
+    run.time_build = t_build
+    return run
+
+
+def solve_built(
+    loaded: Loaded,
+    model: Any,
+    method: str | None = None,
+    tol: float | None = None,
+    cold: bool = False,
+    linear_solver: str = "auto",
+    on_level: Callable[[Any, vi_core.Solution], None] | None = None,
+    previous: vi_core.Solution | None = None,
+    t: float | None = None,
+) -> Run:
+    """Solve the built `model` of `loaded` as `solve` does (time_build left 0). A load step
+    (`t`, the step's load parameter: the nested iteration's levels are built at t) after the
+    first passes the `previous` step's solution: ssn starts from it where it fits the model,
+    without a nested iteration, and `solution.info["warm_start"]` says whether it did."""
     method = method or model.options.get("method", "ssn")
     if method not in vi_core.METHODS:
         raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
     tol = tol if tol is not None else model.options.get("tol", 1e-10)
     nested: list[dict] = []
     warm: dict = {}
-    if method == "ssn" and hasattr(plugin, "warm_start") and model.level > 0 and not cold:
-        nested, warm = _nested(plugin, scene, model, tol, linear_solver, on_level)
+    if method == "ssn" and not cold:
+        if previous is not None:
+            if _same_shape(previous, model):
+                warm = {"u0": previous.u, "lam0": previous.lam}
+        elif hasattr(loaded.plugin, "warm_start") and model.level > 0:
+            with load_parameter(t) if t is not None else nullcontext():
+                nested, warm = _nested(
+                    loaded.plugin, loaded.scene, model, tol, linear_solver, on_level
+                )
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
         warm["estimate_condition"] = True
-    sol = solve_model(plugin, model, method=method, tol=tol, linear_solver=linear_solver, **warm)
+    sol = solve_model(
+        loaded.plugin, model, method=method, tol=tol, linear_solver=linear_solver, **warm
+    )
+    if t is not None:
+        sol.info["warm_start"] = "u0" in warm
     if nested:
         nested.append(level_record(model.level, model, sol))
     t_solve = sum(r["time_s"] for r in nested) if nested else sol.time
-    return Run(model, sol, method, tol, nested, linear_solver, t_build, t_solve)
+    return Run(model, sol, method, tol, nested, linear_solver, 0.0, t_solve)
+
+
+def _same_shape(sol: vi_core.Solution, model: Any) -> bool:
+    """`sol` fits `model` (same unknowns and multipliers)."""
+    return np.shape(sol.u) == (model.vi.n,) and np.shape(sol.lam) == (model.vi.m,)
 
 
 def _nested(
@@ -123,24 +165,6 @@ def _nested(
             on_level(coarse, csol)
         prev = (coarse, csol)
     return nested, plugin.warm_start(*prev, model)
-
-
-def solve_model(plugin: Any, model: Any, **options: Any) -> vi_core.Solution:
-    """The plug-in's `solve(model, **options)` if it has one (an outer iteration around the
-    VI), else `vi_core.solve(model.vi, **options)`."""
-    if hasattr(plugin, "solve"):
-        return plugin.solve(model, **options)
-    return vi_core.solve(model.vi, **options)
-
-
-def problem_at(plugin: Any, model: Any, sol: vi_core.Solution) -> vi_core.MixedVI:
-    """The mixed VI that `sol` must solve: the plug-in's `problem_at(model, sol)` where its
-    `solve` iterates around the VI (piezo_contact's electrical contact: the VI with the
-    conductances frozen at k(λ_n) of `sol`), else `model.vi`. Checkers judge an answer of
-    `solve_model` against this problem, never against the VI the solver was last given."""
-    if hasattr(plugin, "problem_at"):
-        return plugin.problem_at(model, sol)
-    return model.vi
 
 
 def level_record(level: int, model: Any, sol: vi_core.Solution) -> dict:

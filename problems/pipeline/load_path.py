@@ -20,13 +20,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 import vi_core
 from problems.errors import SceneError
 from problems.scene.fields import load_parameter
 
-from . import CONDITION_LIMIT, Loaded, Run, _nested, level_record, solve_model
+from . import Loaded, Run, solve_built
 
 
 @dataclass
@@ -96,38 +94,21 @@ def solve_path(
             plugin.incremental(model, *prev)
         build_s = time.perf_counter() - t0
         t_build_total += build_s
-        m = method or model.options.get("method", "ssn")
-        if m not in vi_core.METHODS:
-            raise SceneError("--solver", m, "one of " + ", ".join(vi_core.METHODS))
-        tl = tol if tol is not None else model.options.get("tol", 1e-10)
-        warm: dict = {}
-        nested: list[dict] = []
-        if m == "ssn" and not cold:
-            if prev is not None and _same_shape(prev[1], model):
-                warm = {"u0": prev[1].u, "lam0": prev[1].lam}
-            elif prev is None and hasattr(plugin, "warm_start") and model.level > 0:
-                with load_parameter(t):
-                    nested, warm = _nested(plugin, scene, model, tl, linear_solver)
-        if m == "ssn" and model.vi.n <= CONDITION_LIMIT:
-            warm["estimate_condition"] = True
-        sol = solve_model(plugin, model, method=m, tol=tl, linear_solver=linear_solver, **warm)
-        sol.info["warm_start"] = "u0" in warm
+        previous = None if prev is None else prev[1]
+        run = solve_built(loaded, model, method, tol, cold, linear_solver, previous=previous, t=t)
+        del previous  # only this step is kept once it is solved (prev, below)
+        sol = run.solution
         rec = step_record(index, t, model, sol, build_s)
-        if nested:
-            nested.append(level_record(model.level, model, sol))
-            rec["nested"] = nested
+        if run.nested:
+            rec["nested"] = run.nested
         records.append(rec)
         prev = None  # the step before is no longer needed once this one is solved
         if on_step is not None:
             on_step(Step(index, t, model, sol, rec))
-        t_solve = sum(r["time_s"]["solve"] for r in records)
-        last = Run(model, sol, m, tl, nested, linear_solver, t_build_total, t_solve)
+        run.time_build = t_build_total
+        run.time_solve = sum(r["time_s"]["solve"] for r in records)
+        last = run
         prev = (model, sol)
         if not sol.converged:
             break
     return PathRun(last, records, incremental)
-
-
-def _same_shape(sol: vi_core.Solution, model: Any) -> bool:
-    """The previous step's solution fits `model` (same unknowns and multipliers)."""
-    return np.shape(sol.u) == (model.vi.n,) and np.shape(sol.lam) == (model.vi.m,)

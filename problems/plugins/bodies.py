@@ -1,22 +1,24 @@
 """Bodies of a contact scene: the [bodies.NAME] section model, and its assembly
-(geometry → mesh, material, loads, Dirichlet data).
+(geometry → mesh, material, loads, Dirichlet data), in 2D and in 3D (the 3D section's value
+types: `problems.plugins.contact3d_bodies`).
 
-A body owns its displacement unknowns and, only if its material is piezoelectric, its
-potential unknowns. Global (full) numbering: body after body, displacement (2·N, node-major)
-then potential (N).
+A body owns d displacement unknowns per node (d = 2 or 3, the mesh's dimension) and, only if
+its material is piezoelectric, one potential unknown per node. Global (full) numbering: body
+after body, displacement (d·N, node-major: dof d·i + k) then potential (N).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 import numpy as np
 import scipy.sparse as sp
 from pydantic import BeforeValidator, model_validator
 
-from fem import assembly
-from fem.mesh import Mesh
+from fem import assembly, assembly3d
+from fem.mesh import CellMesh
+from fem.tensors import Material3D
 from problems.scene import Section
 from problems.scene.fields import Expression, Text, Vector, evaluate
 from problems.scene.geometry import Geometry
@@ -25,21 +27,27 @@ from problems.scene.model import one_or_many, refuse
 
 from .contract import check_boundaries, check_meshed
 
-COMPONENTS = {"x": (0,), "y": (1,), "xy": (0, 1)}
+# the displacement components a [[displacement]] part may prescribe → their indices
+COMPONENTS = {c: tuple("xyz".index(a) for a in c) for c in ("x", "y", "z", "xy", "xz", "yz", "xyz")}
 
 
 def vector(components: list[Expression]):
-    """A vector field as one function (x, y) → (..., 2)."""
-    return lambda x, y: evaluate(components, x, y)
+    """A vector field as one function (x, y[, z]) → (..., len(components))."""
+    return lambda *coords: evaluate(components, *coords)
+
+
+def coordinates(mesh: CellMesh, nodes: np.ndarray) -> list[np.ndarray]:
+    """The coordinate arrays x, y[, z], each (len(nodes),), of `nodes`."""
+    return [mesh.points[nodes, i] for i in range(mesh.points.shape[1])]
 
 
 @dataclass
 class Body:
-    """One body: mesh, material, full-numbering offsets and its assembled blocks."""
+    """One body (2D or 3D): mesh, material, full-numbering offset and its assembled blocks."""
 
     name: str
-    mesh: Mesh
-    material: Material
+    mesh: CellMesh
+    material: Material | Material3D
     offset: int  # first full dof of this body
     A: sp.csr_matrix = None  # (n_b, n_b): [[K, Gᵀ], [−G, P]] or K
     f: np.ndarray = None  # (n_b,)
@@ -48,31 +56,40 @@ class Body:
     X: sp.csr_matrix = None  # (n_b, n_b) H1 Gram matrix of the body's fields
 
     @property
+    def dim(self) -> int:
+        """Space dimension d: displacement components per node."""
+        return self.mesh.points.shape[1]
+
+    @property
     def n_nodes(self) -> int:
+        """Nodes of the mesh."""
         return self.mesh.n_nodes
 
     @property
     def has_potential(self) -> bool:
+        """Whether the body has potential unknowns (a piezoelectric material)."""
         return self.material.piezoelectric
 
     @property
     def size(self) -> int:
-        return self.n_nodes * (3 if self.has_potential else 2)
+        """Full dofs of the body."""
+        return self.n_nodes * (self.dim + 1 if self.has_potential else self.dim)
 
     def u_dofs(self, nodes: np.ndarray) -> np.ndarray:
-        """Full indices (len(nodes), 2) of the displacement dofs of `nodes`."""
+        """Full indices (len(nodes), d) of the displacement dofs of `nodes`."""
         nodes = np.asarray(nodes)
-        return self.offset + 2 * nodes[:, None] + np.arange(2)[None, :]
+        d = self.dim
+        return self.offset + d * nodes[:, None] + np.arange(d)[None, :]
 
     def phi_dofs(self, nodes: np.ndarray) -> np.ndarray:
         """Full indices of the potential dofs of `nodes` (piezoelectric bodies only)."""
-        return self.offset + 2 * self.n_nodes + np.asarray(nodes)
+        return self.offset + self.dim * self.n_nodes + np.asarray(nodes)
 
     def split(self, x_body: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """Body-local full vector → displacement (N, 2) and potential (N,) or None."""
-        N = self.n_nodes
-        u = x_body[: 2 * N].reshape(N, 2)
-        phi = x_body[2 * N :] if self.has_potential else None
+        """Body-local full vector → displacement (N, d) and potential (N,) or None."""
+        N, d = self.n_nodes, self.dim
+        u = x_body[: d * N].reshape(N, d)
+        phi = x_body[d * N :] if self.has_potential else None
         return u, phi
 
 
@@ -102,7 +119,11 @@ class ScalarPart(Section):
 
 
 class BodySection(Section):
-    """One [bodies.NAME] table (and signorini's [body]): geometry, material, loads, data."""
+    """One [bodies.NAME] table (and signorini's [body]): geometry, material, loads, data.
+    (The 3D table, `contact3d_bodies.BodySection3`, is this one with 3D value types.)"""
+
+    # where φ is prescribed, as the refusal of a piezoelectric body without [[potential]] says
+    POTENTIAL_WHERE: ClassVar[str] = "Γ_a, where φ is prescribed"
 
     material: MaterialSpec
     geometry: Geometry
@@ -138,7 +159,7 @@ class BodySection(Section):
             raise refuse(
                 ["potential"],
                 None,
-                "at least one [[potential]] part (Γ_a, where φ is prescribed): the material "
+                f"at least one [[potential]] part ({self.POTENTIAL_WHERE}): the material "
                 f"{material.name!r} is piezoelectric",
             )
         if not material.piezoelectric:
@@ -155,51 +176,56 @@ class BodySection(Section):
 
 
 def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
-    """Mesh one validated `[bodies.NAME]` table and assemble the body's blocks (the boundary
-    references checked now if the geometry's parts are known only once meshed)."""
+    """Mesh one validated `[bodies.NAME]` table (2D or 3D) and assemble the body's blocks (the
+    boundary references checked now if the geometry's parts are known only once meshed)."""
     mesh = t.geometry.mesh(level)
     if t.geometry.BOUNDARIES is None:
         check_meshed(mesh, t.boundary_refs())
-    material = t.material.material()
-    body = Body(name, mesh, material, offset)
-    N = mesh.n_nodes
-    n_b = body.size
-    K = assembly.elasticity_matrix(mesh, material.C)
-    f = np.zeros(n_b)
-    fixed = np.zeros(n_b, dtype=bool)
-    values = np.zeros(n_b)
+    body = Body(name, mesh, t.material.material(), offset)
+    material, N, d = body.material, body.n_nodes, body.dim
+    fem = assembly if d == 2 else assembly3d
+    f = np.zeros(body.size)
+    fixed, values = dirichlet(t, body)
     if t.body_force is not None:
-        f[: 2 * N] += assembly.volume_load(mesh, vector(t.body_force), 2)
+        f[: d * N] += fem.volume_load(mesh, vector(t.body_force), d)
     for tt in t.traction:
-        f[: 2 * N] += assembly.boundary_load(mesh, tt.boundary, vector(tt.value), 2)
-    for tt in t.displacement:
-        comps = COMPONENTS[tt.components]
-        nodes = mesh.boundary_nodes(tt.boundary)
-        val = evaluate(tt.value, mesh.points[nodes, 0], mesh.points[nodes, 1])  # (k, 2)
-        for c in comps:
-            fixed[2 * nodes + c] = True
-            values[2 * nodes + c] = val[:, c]
-    Mu = assembly.mass_matrix(mesh)
-    Su = assembly.stiffness_matrix(mesh)
-    H1 = (Mu + Su).tocsr()
-    X_blocks = [sp.kron(H1, sp.identity(2)).tocsr()]  # node-major: dof 2·i + k ↔ (i, k)
+        f[: d * N] += fem.boundary_load(mesh, tt.boundary, vector(tt.value), d)
+    K = fem.elasticity_matrix(mesh, material.C)
+    H1 = (fem.mass_matrix(mesh) + fem.permittivity_matrix(mesh, np.eye(d))).tocsr()
+    X_blocks = [sp.kron(H1, sp.identity(d)).tocsr()]  # node-major: dof d·i + k ↔ (i, k)
     if material.piezoelectric:
-        G = assembly.coupling_matrix(mesh, material.e)
-        P = assembly.permittivity_matrix(mesh, material.kappa)
+        G = fem.coupling_matrix(mesh, material.e)
+        P = fem.permittivity_matrix(mesh, material.kappa)
         A = sp.bmat([[K, G.T], [-G, P]], format="csr")
         fphi = np.zeros(N)
         if t.free_charge is not None:
-            fphi += assembly.volume_load(mesh, t.free_charge, 1)
+            fphi += fem.volume_load(mesh, t.free_charge, 1)
         for tt in t.charge:
-            fphi -= assembly.boundary_load(mesh, tt.boundary, tt.value, 1)
-        f[2 * N :] = fphi
-        for tt in t.potential:
-            nodes = mesh.boundary_nodes(tt.boundary)
-            fixed[2 * N + nodes] = True
-            values[2 * N + nodes] = tt.value(mesh.points[nodes, 0], mesh.points[nodes, 1])
+            fphi -= fem.boundary_load(mesh, tt.boundary, tt.value, 1)
+        f[d * N :] = fphi
         X_blocks.append(H1)
     else:
         A = K.tocsr()
     body.A, body.f, body.fixed, body.values = A, f, fixed, values
     body.X = sp.block_diag(X_blocks, format="csr")
     return body
+
+
+def dirichlet(t: BodySection, body: Body) -> tuple[np.ndarray, np.ndarray]:
+    """(fixed (n_b,) bool, values (n_b,)) of the body's prescribed displacement components and
+    potentials (body-local full numbering; values 0 where free)."""
+    mesh, N, d = body.mesh, body.n_nodes, body.dim
+    fixed = np.zeros(body.size, dtype=bool)
+    values = np.zeros(body.size)
+    for tt in t.displacement:
+        nodes = mesh.boundary_nodes(tt.boundary)
+        val = evaluate(tt.value, *coordinates(mesh, nodes))  # (k, d)
+        for c in COMPONENTS[tt.components]:
+            fixed[d * nodes + c] = True
+            values[d * nodes + c] = val[:, c]
+    if body.has_potential:
+        for tt in t.potential:
+            nodes = mesh.boundary_nodes(tt.boundary)
+            fixed[d * N + nodes] = True
+            values[d * N + nodes] = tt.value(*coordinates(mesh, nodes))
+    return fixed, values

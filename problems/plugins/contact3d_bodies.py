@@ -1,6 +1,7 @@
-"""Bodies of a 3D contact scene: the [bodies.NAME] section model and its assembly
-(geometry → `Mesh3D`, material tensors, loads, Dirichlet data), and the fields of the unknowns
-with their near-null spaces for the iterative linear path.
+"""Bodies of a 3D contact scene: the [bodies.NAME] section with its 3D value types (the model,
+its checks and the assembly into a `Body`: `problems.plugins.bodies`), the counts of the
+unknowns without assembling, and the fields of the unknowns with their near-null spaces for the
+iterative linear path.
 
 A body owns 3 displacement unknowns per node and, only if its material is piezoelectric, one
 potential unknown per node. Full numbering: body after body, displacement (3·N, node-major:
@@ -9,81 +10,34 @@ dof 3 i + k) then potential (N).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Annotated, Literal
 
 import numpy as np
 import scipy.sparse as sp
-from pydantic import BeforeValidator, model_validator
 
-from fem import assembly3d
-from fem.mesh3d import Mesh3D
-from fem.tensors import Material3D
-from problems.scene import Section
-from problems.scene.fields3d import Expression3, Vector3, evaluate3
+from problems.scene.fields3d import Expression3, Vector3
 from problems.scene.geometry3d import Geometry3
 from problems.scene.materials3d import MaterialSpec3
-from problems.scene.model import one_or_many, refuse
 
-from .contract import check_boundaries
+from .bodies import (
+    COMPONENTS,
+    Body,
+    BodySection,
+    DisplacementPart,
+    Parts,
+    ScalarPart,
+    TractionPart,
+    dirichlet,
+)
 
 # Quadrature order of the contact surface integrals (W, normals, g_k, the dual basis of the
 # mortar): Q1 faces of a curved surface are not planar and |∂x/∂ξ × ∂x/∂η| is not polynomial
 # (order 4 leaves 7e-11 in the rigid-body rows of spherical_cap, order 8 3e-15); P1 faces are
 # flat (order 4 exact).
 SURFACE_ORDER = {"hexahedron": 8, "tetra": 4}
-COMPONENTS = {c: tuple("xyz".index(a) for a in c) for c in ("x", "y", "z", "xy", "xz", "yz", "xyz")}
 
 
-def vector3(components: list[Expression3]):
-    """A vector field as one function (x, y, z) → (..., 3)."""
-    return lambda x, y, z: evaluate3(components, x, y, z)
-
-
-@dataclass
-class Body3D:
-    """One 3D body: mesh, material, full-numbering offset and its assembled blocks."""
-
-    name: str
-    mesh: Mesh3D
-    material: Material3D
-    offset: int  # first full dof of this body
-    A: sp.csr_matrix = None  # (n_b, n_b): [[K, Gᵀ], [−G, P]] or K
-    f: np.ndarray = None  # (n_b,)
-    fixed: np.ndarray = None  # (n_b,) bool
-    values: np.ndarray = None  # (n_b,) prescribed values on fixed dofs
-    X: sp.csr_matrix = None  # (n_b, n_b) H1 Gram matrix of the body's fields
-
-    @property
-    def n_nodes(self) -> int:
-        """Nodes of the mesh."""
-        return self.mesh.n_nodes
-
-    @property
-    def has_potential(self) -> bool:
-        """Whether the body has potential unknowns (a piezoelectric material)."""
-        return self.material.piezoelectric
-
-    @property
-    def size(self) -> int:
-        """Full dofs of the body."""
-        return self.n_nodes * (4 if self.has_potential else 3)
-
-    def u_dofs(self, nodes: np.ndarray) -> np.ndarray:
-        """Full indices (len(nodes), 3) of the displacement dofs of `nodes`."""
-        nodes = np.asarray(nodes)
-        return self.offset + 3 * nodes[:, None] + np.arange(3)[None, :]
-
-    def split(self, x_body: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """Body-local full vector → displacement (N, 3) and potential (N,) or None."""
-        N = self.n_nodes
-        return x_body[: 3 * N].reshape(N, 3), (x_body[3 * N :] if self.has_potential else None)
-
-
-Parts = BeforeValidator(one_or_many)
-
-
-class DisplacementPart3(Section):
+class DisplacementPart3(DisplacementPart):
     """A [[displacement]] part: prescribed components of u on a boundary part (m)."""
 
     boundary: str
@@ -91,22 +45,24 @@ class DisplacementPart3(Section):
     value: Vector3
 
 
-class TractionPart3(Section):
+class TractionPart3(TractionPart):
     """A [[traction]] part: the surface force density on a boundary part (Pa)."""
 
     boundary: str
     value: Vector3
 
 
-class ScalarPart3(Section):
+class ScalarPart3(ScalarPart):
     """A [[potential]] (V) or [[charge]] (C/m²) part: a scalar field on a boundary part."""
 
     boundary: str
     value: Expression3
 
 
-class BodySection3(Section):
+class BodySection3(BodySection):
     """One [bodies.NAME] table of a 3D scene: geometry, material, loads, boundary data."""
+
+    POTENTIAL_WHERE = "where φ is prescribed"
 
     material: MaterialSpec3
     geometry: Geometry3
@@ -117,99 +73,12 @@ class BodySection3(Section):
     potential: Annotated[list[ScalarPart3], Parts] = []
     charge: Annotated[list[ScalarPart3], Parts] = []
 
-    @model_validator(mode="after")
-    def _consistent(self) -> BodySection3:
-        names = self.geometry.BOUNDARIES
-        for key in ("displacement", "traction", "potential", "charge"):
-            for i, part in enumerate(getattr(self, key)):
-                check_boundaries([key, i, "boundary"], [part.boundary], names)
-        if not self.displacement:
-            raise refuse(
-                ["displacement"],
-                [],
-                "at least one [[displacement]] part (otherwise a rigid motion is left free)",
-            )
-        material = self.material.material()
-        if material.piezoelectric and not self.potential:
-            raise refuse(
-                ["potential"],
-                None,
-                "at least one [[potential]] part (where φ is prescribed): the material "
-                f"{material.name!r} is piezoelectric",
-            )
-        if not material.piezoelectric:
-            for key in ("potential", "charge", "free_charge"):
-                v = getattr(self, key)
-                if v:
-                    raise refuse(
-                        [key],
-                        v.source if isinstance(v, Expression3) else [p.boundary for p in v],
-                        f"not allowed: the material {material.name!r} is not piezoelectric, so "
-                        "the body has no electric potential",
-                    )
-        return self
 
-
-def build_body3(name: str, t: BodySection3, level: int, offset: int) -> Body3D:
-    """Mesh one validated [bodies.NAME] table and assemble the body's blocks."""
-    mesh = t.geometry.mesh(level)
-    body = Body3D(name, mesh, t.material.material(), offset)
-    material = body.material
-    N = mesh.n_nodes
-    f = np.zeros(body.size)
-    fixed, values = dirichlet3(t, body)
-    if t.body_force is not None:
-        f[: 3 * N] += assembly3d.volume_load(mesh, vector3(t.body_force), 3)
-    for tt in t.traction:
-        f[: 3 * N] += assembly3d.boundary_load(mesh, tt.boundary, vector3(tt.value), 3)
-    K = assembly3d.elasticity_matrix(mesh, material.C)
-    H1 = (assembly3d.mass_matrix(mesh) + assembly3d.permittivity_matrix(mesh, np.eye(3))).tocsr()
-    X_blocks = [sp.kron(H1, sp.identity(3)).tocsr()]  # node-major: dof 3 i + k ↔ (i, k)
-    if material.piezoelectric:
-        G = assembly3d.coupling_matrix(mesh, material.e)
-        P = assembly3d.permittivity_matrix(mesh, material.kappa)
-        A = sp.bmat([[K, G.T], [-G, P]], format="csr")
-        fphi = np.zeros(N)
-        if t.free_charge is not None:
-            fphi += assembly3d.volume_load(mesh, t.free_charge, 1)
-        for tt in t.charge:
-            fphi -= assembly3d.boundary_load(mesh, tt.boundary, tt.value, 1)
-        f[3 * N :] = fphi
-        X_blocks.append(H1)
-    else:
-        A = K.tocsr()
-    body.A, body.f, body.fixed, body.values = A, f, fixed, values
-    body.X = sp.block_diag(X_blocks, format="csr")
-    return body
-
-
-def dirichlet3(t: BodySection3, body: Body3D) -> tuple[np.ndarray, np.ndarray]:
-    """(fixed (n_b,) bool, values (n_b,)) of the body's prescribed displacement components and
-    potentials (body-local full numbering; values 0 where free)."""
-    mesh, N = body.mesh, body.n_nodes
-    fixed = np.zeros(body.size, dtype=bool)
-    values = np.zeros(body.size)
-    for tt in t.displacement:
-        nodes = mesh.boundary_nodes(tt.boundary)
-        P = mesh.points[nodes]
-        val = evaluate3(tt.value, P[:, 0], P[:, 1], P[:, 2])  # (k, 3)
-        for c in COMPONENTS[tt.components]:
-            fixed[3 * nodes + c] = True
-            values[3 * nodes + c] = val[:, c]
-    if body.has_potential:
-        for tt in t.potential:
-            nodes = mesh.boundary_nodes(tt.boundary)
-            P = mesh.points[nodes]
-            fixed[3 * N + nodes] = True
-            values[3 * N + nodes] = tt.value(P[:, 0], P[:, 1], P[:, 2])
-    return fixed, values
-
-
-def count3(t: BodySection3, body: Body3D) -> tuple[int, int]:
+def count3(t: BodySection3, body: Body) -> tuple[int, int]:
     """(free unknowns, stored entries of the body's reduced operator) without assembling it:
     every pair of nodes sharing a cell couples all their free unknowns (the assembly stores
     full blocks on the cell pattern, explicit zeros included)."""
-    fixed, _ = dirichlet3(t, body)
+    fixed, _ = dirichlet(t, body)
     N = body.n_nodes
     d = (~fixed[: 3 * N]).reshape(N, 3).sum(axis=1)  # (N,) free unknowns per node
     if body.has_potential:
@@ -224,7 +93,7 @@ def count3(t: BodySection3, body: Body3D) -> tuple[int, int]:
     return int(d.sum()), int(d @ (P @ d.astype(np.int64)))
 
 
-def field_data3(bodies: list[Body3D], free: np.ndarray, n_full: int) -> dict:
+def field_data3(bodies: list[Body], free: np.ndarray, n_full: int) -> dict:
     """`MixedVI` keywords fields and near_null: displacement and potential masks over the
     unknowns `free`, and the displacement block's six rigid-body modes (n_disp, 6)."""
     comp = np.full(n_full, -1)  # displacement component of each full dof, −1 = potential

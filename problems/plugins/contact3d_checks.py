@@ -12,6 +12,9 @@
 
 A transposed frame block, a dropped entry of B or a wrong sign in a tangent frame each make
 one of them O(1) (tests/problems/plugins/test_contact3d.py injects each).
+- `separation` (unilateral contact on a rigid foundation): the remaining gap and λ_n of the
+  solution, node by node, from the displacement (not from B): no penetration, no tension, no
+  pressure where open, complementarity.
 """
 
 from __future__ import annotations
@@ -61,13 +64,11 @@ def contact_row_defects(model) -> dict[str, float]:
     Bc = c.B_full.tocsc()
     k = surf.size
     R = np.zeros((k, 3, 3))  # rows: normal, t1, t2 (zero where not carried)
-    N_n, N_b, _ = c.sizes
-    slots = [(c.rows_n, np.arange(N_n), 0)]
-    slots.append((c.disc, N_n + 2 * np.arange(N_b), 1))
-    slots.append((c.disc, N_n + 2 * np.arange(N_b) + 1, 2))
+    idx_n, idx_b, idx_l = c.rows()
+    slots = [(c.rows_n, idx_n, 0), (c.disc, idx_b[:, 0], 1), (c.disc, idx_b[:, 1], 2)]
     for slot in (0, 1):
         sel = np.flatnonzero(c.line_slot == slot)
-        slots.append((c.line[sel], N_n + 2 * N_b + sel, 1 + slot))
+        slots.append((c.line[sel], idx_l[sel], 1 + slot))
     has = np.zeros((k, 3), dtype=bool)  # the rows each node is declared to carry
     for nodes, rows, s in slots:
         has[nodes, s] = True
@@ -103,3 +104,99 @@ def checks(model) -> dict:
     if model.contact is not None and model.contact.master is None:
         out["contact_rows"] = contact_row_defects(model)
     return out
+
+
+def solution_checks(model, sol) -> dict:
+    """The summary entries "checks" of a solved 3D contact model: `checks` and, for
+    unilateral contact, `separation`."""
+    out = checks(model)
+    c = model.contact
+    if c is not None and c.law == "unilateral":
+        out["separation"] = separation(model, sol)
+    return out
+
+
+def _nodal_means(mesh, part: str, f) -> np.ndarray:
+    """(N,) ∫f φ_i dA / ∫φ_i dA over boundary `part` by fem.assembly3d's face quadrature (the
+    nodal value of a friction field as the plug-in defines it, computed apart from it)."""
+    order = SURFACE_ORDER[mesh.cell_type]
+    x, w, phi, _ = assembly3d.face_geometry(mesh, part, order)  # (n_f, q, 3), (n_f, q), (q, k)
+    fv = np.broadcast_to(f(x[..., 0], x[..., 1], x[..., 2]), w.shape)  # (n_f, q)
+    faces = mesh.boundaries[part]  # (n_f, k)
+    num, den = np.zeros(mesh.n_nodes), np.zeros(mesh.n_nodes)
+    np.add.at(num, faces.ravel(), ((w * fv) @ phi).ravel())
+    np.add.at(den, faces.ravel(), (w @ phi).ravel())
+    return num / np.where(den > 0, den, 1.0)
+
+
+def separation(model, sol) -> dict[str, float]:
+    """A posteriori unilateral conditions of a solution, per normal node k: the remaining
+    gap d_k, λ_n,k, |λ_t,k| and the slip. A rigid foundation: from the displacement itself, not
+    from the assembled rows — d_k = gap(x_k) − n_k·u_k (n_k recomputed from `fem.assembly3d`'s
+    face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|. Two bodies,
+    and a step of a load path (its slip since the previous step): from the rows,
+    d_k = (gap_k − (B u)_n,k)/W_k and the slip |(B u − origin)_t,k|/W_k (the discrete
+    conditions as assembled; test_contact3d_unilateral checks the geometry apart).
+
+    Reported, relative to the length scale max(|gap|, |u|) and the pressure scale max(λ_n):
+    `penetration` max(−d_k, 0), `tension` max(−λ_n,k, 0), `open_pressure` max λ_n,k over the
+    nodes open by more than 1e-6 of the length scale, `complementarity` max |λ_n,k d_k|, and
+    `friction`: the excess of |λ_t,k| over the friction radius ρ_k (Coulomb F_k λ_n,k; Tresca
+    g_k where λ_n,k > 1e-9 of the pressure scale, 0 elsewhere; F_k, g_k the nodal means of the
+    scene's field by the same quadrature) and, where the node slips (by more than 1e-6 of the
+    length scale), the shortfall. Each is rounding at a solution; a wrong sign of the gap, a
+    dropped complementarity row or a wrong scaling of F makes one O(1)
+    (tests/problems/plugins/test_contact3d_unilateral.py injects each)."""
+    c = model.contact
+    body, surf = c.slave, c.surf
+    nodes = surf.nodes[c.rows_n]  # (N_n,) mesh nodes carrying λ_n
+    x_full = model.full(sol.u)
+    u_all = x_full[body.u_dofs(np.arange(body.n_nodes))]  # (N, 3) the slave's displacement
+    if c.master is None and model.slip_origin is None:
+        _, N_ind = _independent_weights(body.mesh, c.slave_part)
+        nrm = N_ind[nodes] / np.linalg.norm(N_ind[nodes], axis=1)[:, None]  # (N_n, 3)
+        u = x_full[body.u_dofs(nodes)]  # (N_n, 3)
+        x, y, z = body.mesh.points[nodes].T  # (N_n,) each
+        gap = np.zeros(x.size)
+        if c.gap_field is not None:
+            gap = np.broadcast_to(c.gap_field(x, y, z), x.shape)
+        un = np.einsum("ij,ij->i", nrm, u)  # (N_n,)
+        d = gap - un  # (N_n,) remaining gap
+        ut = np.linalg.norm(u - un[:, None] * nrm, axis=1)  # (N_n,) tangential slip
+        length = max(float(np.abs(gap).max(initial=0.0)), float(np.abs(u_all).max()), 1e-300)
+    else:  # two bodies or a load step: the weighted gap and jump of the rows themselves
+        W = c.W[c.rows_n]  # (N_n,)
+        Bu = c.B_full @ x_full  # (m,)
+        d = (c.gap0 - Bu[c.rows()[0]]) / W
+        if model.slip_origin is not None:
+            Bu = Bu - model.slip_origin  # the slip of this load step
+        jump = np.zeros((surf.size, 2))
+        jump[c.disc] = Bu[c.rows()[1]] / c.W[c.disc, None]
+        jump[c.line, 0] = Bu[c.rows()[2]] / c.W[c.line]
+        ut = np.linalg.norm(jump, axis=1)[c.rows_n]  # (N_n,) tangential mortar jump
+        scale = float(np.abs(u_all).max())
+        if c.master is not None:
+            u_m = x_full[c.master.body.u_dofs(np.arange(c.master.body.n_nodes))]
+            scale = max(scale, float(np.abs(u_m).max()))
+        length = max(float(np.abs(c.gap0 / W).max(initial=0.0)), scale, 1e-300)
+    idx_n, idx_b, idx_l = c.rows()
+    lam_n = sol.lam[idx_n]  # (N_n,)
+    lam_t = np.zeros(surf.size)  # |λ_t| per surface node
+    lam_t[c.disc] = np.linalg.norm(sol.lam[idx_b], axis=1)
+    lam_t[c.line] = np.abs(sol.lam[idx_l])
+    lam_t = lam_t[c.rows_n]
+    p = max(float(lam_n.max(initial=0.0)), 1e-300)
+    open_ = d > 1e-6 * length
+    bound = _nodal_means(body.mesh, c.slave_part, c.bound_field)[nodes]  # (N_n,)
+    touch = lam_n > 1e-9 * p  # Tresca acts where the node presses on the foundation
+    rho = bound * np.maximum(lam_n, 0.0) if c.friction == "coulomb" else bound * touch
+    slips = ut > 1e-6 * length
+    excess = np.maximum(lam_t - rho, 0.0)
+    excess[slips & ~open_] = np.abs(lam_t - rho)[slips & ~open_]
+    return {
+        "penetration": float(np.maximum(-d, 0.0).max(initial=0.0)) / length,
+        "tension": float(np.maximum(-lam_n, 0.0).max(initial=0.0)) / p,
+        "open_pressure": float(np.max(lam_n[open_], initial=0.0)) / p,
+        "complementarity": float(np.max(np.abs(lam_n * d), initial=0.0)) / (p * length),
+        "friction": float(excess.max(initial=0.0)) / p,
+    }

@@ -6,7 +6,9 @@ with the conic and homotopy answers, λ ∈ Λ):
 - `contact_checks`: the Lemma 4.2 gap |b(u, λ) − Σ g_k W_k |[u]_t,k|| / Σ g_k W_k |[u]_t,k|,
   the friction excess max(|λ_t| − g) relative to max g and the stick/slip counts;
 - `homogeneity`: loads and g scaled by s scale (u, λ) by s;
-- `expect` counts (all slip / all stick where the data force it).
+- `expect` counts (all slip / all stick where the data force it); for unilateral contact
+  (block3d_liftoff, coulomb_strip3d: F from 0 to 1e3, gaps from 0 to far apart) the open,
+  stick and slip zones (`zone_count`).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from .contract import ExtremeRow
 HOMOGENEOUS = 1e-6  # relative deviation from degree-1 homogeneity that fails a row
 FRICTION_EXCESS = 1e-9  # relative excess of |λ_t| over g that fails a row
 BLOCK, EXT = "block3d", "rigid_foundation_extruded"
+LIFT, STRIP = "block3d_liftoff", "coulomb_strip3d"  # unilateral contact, Coulomb friction
 G_BLOCK = "1.8e7*(1 + 0.3*x)"  # block3d's friction bound
 
 
@@ -37,10 +40,13 @@ def contact_checks(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Soluti
     gmax = float(g.max(initial=0.0))
     mag = np.linalg.norm(st["lam_t_vec"], axis=1)
     excess = float(np.max(mag[has] - g[has], initial=-np.inf))
-    stick = int((has & ~st["slip"]).sum())
+    stick = int((st["state"] == "stick").sum())  # open nodes (unilateral) are neither
     rec = {
         "lemma_4_2": st["lemma_4_2"] if gmax > 0 else None,
-        "friction_excess": excess / max(gmax, float(np.abs(sol.lam).max(initial=0)), 1e-300),
+        # the pressure scale: with unilateral contact also the elastic stress (when every node
+        # is apart λ is rounding of that size)
+        "friction_excess": excess
+        / max(gmax, float(np.abs(sol.lam).max(initial=0)), st["pressure"], 1e-300),
         "stick": stick,
         "slip": int(st["slip"].sum()),
     }
@@ -75,6 +81,19 @@ def slip_count(want: str) -> Callable:
         n, s = int(st["has_t"].sum()), int(st["slip"].sum())
         ok = s == n if want == "all" else s == 0
         return {}, [] if ok else [f"FAIL: {s} of {n} nodes slip, expected {want}"]
+
+    return check
+
+
+def zone_count(zone: str, want: str) -> Callable:
+    """Check: the nodes in state `zone` ("open", "stick", "slip") are all the nodes carrying
+    a normal multiplier (want "all"), none ("none") or some ("some")."""
+
+    def check(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
+        st = plugin.contact_state(model, sol)
+        n, s = int(model.contact.rows_n.size), int((st["state"] == zone).sum())
+        ok = {"all": s == n, "none": s == 0, "some": 0 < s < n}[want]
+        return {zone: s}, [] if ok else [f"FAIL: {s} of {n} nodes {zone}, expected {want}"]
 
     return check
 
@@ -152,6 +171,53 @@ def rows() -> list[ExtremeRow]:
         ),
         ExtremeRow("3D: ν = 0.49 (elastic)", BLOCK, level=0, edit=_isotropic, checks=C),
         ExtremeRow("3D: extruded 2D scene (discs + lines)", EXT, level=0, checks=C),
+        ExtremeRow(
+            "3D unilateral: Coulomb F = 0 (frictionless)",
+            LIFT,
+            ["contact.F=0.0"],
+            level=0,
+            checks=(*C, zone_count("stick", "none"), zone_count("open", "some")),
+        ),
+        ExtremeRow(
+            "3D unilateral: Coulomb F = 0.6",
+            LIFT,
+            level=1,
+            checks=(*C, zone_count("stick", "some"), zone_count("slip", "some")),
+        ),
+        ExtremeRow(
+            "3D unilateral: Coulomb F = 1e3 (stick where touching)",
+            LIFT,
+            ["contact.F=1e3"],
+            level=0,
+            checks=(*C, zone_count("slip", "none")),
+        ),
+        ExtremeRow(
+            "3D unilateral: F varies 1e4 over Γ3",
+            LIFT,
+            ["contact.F='0.01*exp(log(1e4)*(x + y)/2)'"],
+            level=0,
+            checks=C,
+        ),
+        ExtremeRow(
+            "3D unilateral: gap 2e-7..4e-7 (partly closed)",
+            LIFT,
+            ["contact.gap='2e-7*(1 + y)'"],
+            level=0,
+            checks=(*C, zone_count("open", "some")),
+        ),
+        ExtremeRow(
+            "3D unilateral: gap 1e-3 (apart, λ = 0)",
+            STRIP,
+            ["contact.gap=1e-3"],
+            level=0,
+            checks=(*C, zone_count("open", "all")),
+        ),
+        ExtremeRow(
+            "3D unilateral: Coulomb strip (closed form)",
+            STRIP,
+            level=0,
+            checks=(*C, zone_count("slip", "all")),
+        ),
         ExtremeRow(
             "3D: extruded, aspect ratio 1e3",
             EXT,

@@ -21,10 +21,12 @@ import numpy as np
 
 from fem import assembly3d
 from fem.surface3d import frames
+from problems.output.results import write_csv
 
-STATES = ("stick", "slip", "normal_only", "no_multiplier")
+STATES = ("stick", "slip", "normal_only", "open", "no_multiplier")
 VTK_ORDER = [0, 1, 2, 5, 3, 4]  # Voigt (xx, yy, zz, yz, xz, xy) → VTK (XX, YY, ZZ, XY, YZ, XZ)
 UNITS = {"x": "m", "normal": "1", "tangent": "1", "lambda": "Pa", "jump": "m", "g": "Pa"}
+CSV_TITLE = "mixvi contact3d results, one row per node of the slave contact surface"
 CSV_NOTES = [
     "x, y, z [m]: node position",
     "normal_* [1]: outward unit normal n of the slave body; tangent1_*, tangent2_* [1]: the "
@@ -94,21 +96,6 @@ def table(model, st: dict) -> dict[str, np.ndarray]:
         "state": st["state"],
     }
     return cols
-
-
-def write_csv(path: Path, cols: dict[str, np.ndarray]) -> None:
-    """contact.csv: '#' lines with units and meanings, a header, one row per node."""
-    lines = ["# mixvi contact3d results, one row per node of the slave contact surface"]
-    lines += [f"# {n}" for n in CSV_NOTES]
-    lines.append(",".join(cols))
-    k = len(cols["x"])
-    for i in range(k):
-        cells = []
-        for name, v in cols.items():
-            x = v[i]
-            cells.append(str(x) if name == "state" else ("" if np.isnan(x) else repr(float(x))))
-        lines.append(",".join(cells))
-    path.write_text("\n".join(lines) + "\n")
 
 
 def write_surface_vtu(path: Path, model, st: dict) -> None:
@@ -222,7 +209,7 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
         c = model.contact
         st = contact_state(model, sol)
         cols = table(model, st)
-        write_csv(outdir / "contact.csv", cols)
+        write_csv(outdir / "contact.csv", [CSV_TITLE, *CSV_NOTES], cols)
         write_surface_vtu(outdir / "contact.vtu", model, st)
         contact_map(outdir / "contact_map.png", model, st, title=model.scene.name)
         files += ["contact.csv", "contact.vtu", "contact_map.png"]

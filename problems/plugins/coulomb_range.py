@@ -1,6 +1,7 @@
 """The range of the friction coefficient F over which the two Coulomb paths converge and agree
 on a scene (issue 17): semismooth Newton on the combined map and the fixed point on Tresca
-problems g ← F λ_n (vi_core.tresca_fixed_point), each Tresca problem solved by `inner`.
+problems g ← F λ_n (vi_core.tresca_fixed_point), each Tresca problem solved by `inner`; for
+piezo_contact (2D) and contact3d (3D) scenes with law = "unilateral".
 
     python -m problems.plugins.coulomb_range SCENE [--F 0,0.1,0.3] [--levels 0..2]
         [--inner conic|ssn|homotopy] [--set KEY=VALUE ...] [--json FILE]
@@ -30,7 +31,8 @@ from problems.errors import SceneError
 from problems.scene import load_scene
 from vi_core.kkt import Checker
 
-from . import piezo_contact as pc
+from .contract import problem_at, solve_model
+from .registry import for_scene
 
 ACCEPT = 10.0  # a path's independent residual must be ≤ ACCEPT · tol (as `mixvi check`)
 
@@ -47,17 +49,32 @@ def _scene(name: str, overrides: list[str], F: float, friction: str = "coulomb",
     return scene
 
 
+def _zones(st: dict) -> tuple[int, int, int, float]:
+    """(open, stick, slip, mean λ_n where touching) of a contact state: piezo_contact's (per
+    multiplier row: touch over the normal rows, touch_t over the tangential ones) or
+    contact3d's (per surface node, with its state names)."""
+    touch = st["touch"]
+    mean_p = float(np.mean(st["lam_n"][touch])) if touch.any() else 0.0
+    slip = int(st["slip"].sum())
+    if "has_t" in st:  # contact3d
+        state = st["state"]
+        return int((state == "open").sum()), int((state == "stick").sum()), slip, mean_p
+    return int((~touch).sum()), int(st["touch_t"].sum()) - slip, slip, mean_p
+
+
 def measure(name: str, F: float, level: int, inner: str, overrides=(), tol=1e-10) -> dict:
     """One row (module docstring) of scene `name` at friction coefficient F and `level`."""
-    model = pc.build(_scene(name, list(overrides), F), level)
-    # the scene's problem (pc.solve: with a [contact.electrical] fixed point around each path),
-    # each answer judged on the problem it must solve (pc.problem_at)
-    newton = pc.solve(model, method="ssn", tol=tol)
-    fixed = pc.solve(model, method="fixed_point", tol=tol, inner=inner)
-    vi = pc.problem_at(model, newton)
+    scene = _scene(name, list(overrides), F)
+    plugin = for_scene(scene)
+    model = plugin.build(scene, level)
+    # the scene's problem (with the plug-in's outer iteration, e.g. a [contact.electrical]
+    # fixed point, around each path), each answer judged on the problem it must solve
+    newton = solve_model(plugin, model, method="ssn", tol=tol)
+    fixed = solve_model(plugin, model, method="fixed_point", tol=tol, inner=inner)
+    vi = problem_at(plugin, model, newton)
     check = Checker.of(vi)
     res_n = check(newton.u, newton.lam).relative
-    res_f = Checker.of(pc.problem_at(model, fixed))(fixed.u, fixed.lam).relative
+    res_f = Checker.of(problem_at(plugin, model, fixed))(fixed.u, fixed.lam).relative
     ok_n = newton.converged and res_n <= ACCEPT * tol
     ok_f = fixed.converged and res_f <= ACCEPT * tol
     row = {
@@ -75,14 +92,9 @@ def measure(name: str, F: float, level: int, inner: str, overrides=(), tol=1e-10
         "fp_residual": res_f,
     }
     if ok_n:
-        st = pc.contact_state(model, newton)
-        touch = st["touch"]
-        row["open"] = int((~touch).sum())
-        row["slip"] = int(st["slip"].sum())
-        row["stick"] = int(st["touch_t"].sum()) - row["slip"]
-        mean_p = float(np.mean(st["lam_n"][touch])) if touch.any() else 0.0
-        tresca = pc.build(_scene(name, list(overrides), F, "tresca", F * mean_p), level)
-        t_sol = pc.solve(tresca, method="ssn", tol=tol)
+        row["open"], row["stick"], row["slip"], mean_p = _zones(plugin.contact_state(model, newton))
+        tresca = plugin.build(_scene(name, list(overrides), F, "tresca", F * mean_p), level)
+        t_sol = solve_model(plugin, tresca, method="ssn", tol=tol)
         row["tresca_newton_steps"] = t_sol.iterations if t_sol.converged else None
     if ok_n and ok_f:
         kappa = check.inverse_norm(newton.u, newton.lam)

@@ -22,7 +22,8 @@ Contact rules (README "Contact interfaces"):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -32,7 +33,6 @@ from pydantic import Field, model_validator
 
 import vi_core
 from fem.boundary import ENDS, Trace, dual_mass, multiplier_basis, segment_loads, trace
-from fem.dirichlet import expand, reduce_dirichlet
 from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots, results
@@ -44,10 +44,18 @@ from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
 from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
 
-from . import contact_law, electrical_contact, piezo_balance, piezo_errors, piezo_extremes
+from . import (
+    contact_law,
+    contact_model,
+    electrical_contact,
+    piezo_balance,
+    piezo_errors,
+    piezo_extremes,
+)
 from .bodies import Body, BodySection, build_body
 from .body_output import body_fields
 from .contact_law import FRICTIONS, LAWS
+from .contact_model import BodiesModel, reference
 from .contract import Sweep, check_meshed
 from .fields import field_data
 
@@ -139,39 +147,13 @@ class Contact:
 
 
 @dataclass
-class Model:
+class Model(BodiesModel):
     """A built scene: the mixed VI plus what post-processing needs."""
 
-    scene: Scene
-    level: int
-    bodies: list[Body]
-    contact: Contact | None
-    vi: MixedVI
-    free: np.ndarray  # (n_free,) full indices of the unknowns
-    values: np.ndarray  # (n_full,) prescribed values (fixed entries)
-    options: dict = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
     electrical: electrical_contact.Coupling | None = None  # [contact.electrical], if given
     # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
     # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
     slip_origin: np.ndarray | None = None
-
-    def unknown_fields(self) -> dict[str, np.ndarray]:
-        """Boolean masks over the unknowns: which are displacement, which potential."""
-        is_disp = np.zeros(self.values.size, dtype=bool)
-        for b in self.bodies:
-            is_disp[b.offset : b.offset + 2 * b.n_nodes] = True
-        return {"displacement": is_disp[self.free], "potential": ~is_disp[self.free]}
-
-    @property
-    def dofs(self) -> dict[str, int]:
-        """Number of unknowns per field."""
-        counts = {k: int(v.sum()) for k, v in self.unknown_fields().items()}
-        return {**counts, "multiplier": self.vi.m}
-
-    def full(self, u: np.ndarray) -> np.ndarray:
-        """Unknowns → full vector including Dirichlet values."""
-        return expand(u, self.free, self.values)
 
     def contact_state(self, sol: Solution) -> dict:
         """`contact_state(self, sol)` (for modules that this one imports)."""
@@ -221,9 +203,9 @@ class PiezoScene(SceneModel):
     def _references(self) -> PiezoScene:
         c = self.contact
         if c is not None:
-            slave = _ref(self, ["contact", "slave"], c.slave)
+            slave = reference(self.bodies, ["contact", "slave"], c.slave)
             if c.master != "rigid":
-                master = _ref(self, ["contact", "master"], c.master)
+                master = reference(self.bodies, ["contact", "master"], c.master)
                 if master[0] == slave[0]:
                     raise refuse(["contact", "master"], c.master, "a body other than the slave")
             e = c.electrical
@@ -244,27 +226,12 @@ class PiezoScene(SceneModel):
                     )
         if self.output is not None and self.output.potential_along is not None:
             field = ["output", "potential_along"]
-            body, _ = _ref(self, field, self.output.potential_along)
+            body, _ = reference(self.bodies, field, self.output.potential_along)
             if not self.bodies[body].material.material().piezoelectric:
                 raise refuse(
                     field, self.output.potential_along, "a boundary of a piezoelectric body"
                 )
         return self
-
-
-def _ref(scene: PiezoScene, field: list[str], ref: str) -> tuple[str, str]:
-    """BODY.BOUNDARY → (body, boundary), checked against the scene's bodies and geometries."""
-    bname, dot, part = ref.partition(".")
-    if not dot:
-        raise refuse(field, ref, "BODY.BOUNDARY, e.g. block.bottom")
-    if bname not in scene.bodies:
-        raise refuse(
-            field, ref, f"BODY.BOUNDARY with a body of this scene: {', '.join(scene.bodies)}"
-        )
-    names = scene.bodies[bname].geometry.BOUNDARIES
-    if names is not None and part not in names:
-        raise refuse(field, ref, f"BODY.BOUNDARY with a boundary of {bname!r}: {', '.join(names)}")
-    return bname, part
 
 
 SCENE_MODEL = PiezoScene
@@ -275,11 +242,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
     Any SceneError raised while building names the scene file.
     """
-    try:
-        with np.errstate(all="ignore"):
-            return _build(scene, level)
-    except SceneError as err:
-        raise (err if err.file else err.in_file(scene.path)) from None
+    return contact_model.built(_build, scene, level)
 
 
 def _build(scene: Scene, level: int | None) -> Model:
@@ -321,29 +284,12 @@ def build_model(
         require_curve(bodies[bname].mesh, part, key, spec.output.potential_along)
         options["potential_along"] = (bname, part)
 
-    A_full = sp.block_diag([b.A for b in bodies.values()], format="csr")
-    f_full = np.concatenate([b.f for b in bodies.values()])
-    fixed = np.concatenate([b.fixed for b in bodies.values()])
-    values = np.concatenate([b.values for b in bodies.values()])
-    X_full = sp.block_diag([b.X for b in bodies.values()], format="csr")
-    for b in bodies.values():  # vi.X below is the one copy kept (memory)
-        b.X = None
-    _check_finite(A_full, f_full, values, contact)
-    A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
-    if contact is None:  # no contact: no multipliers
-        B, gap, Lam, Y = sp.csr_matrix((0, free.size)), None, product(), sp.csr_matrix((0, 0))
-    else:
-        B, gap, Lam, Y = _contact_rows(contact, free, fixed, values)
-    vi = MixedVI(
-        A=A,
-        B=B,
-        f=f,
-        Lambda=Lam,
-        gap=gap,
-        X=sp.csr_matrix(X_full[free][:, free]),
-        Y=Y,
-        info={"scene": scene.name, "level": level},
-        **field_data(list(bodies.values()), free, n_full),  # for the iterative linear path
+    vi, free, values = contact_model.mixed_vi(
+        list(bodies.values()),
+        None if contact is None else partial(_contact_rows, contact),
+        field_data,
+        {"scene": scene.name, "level": level},
+        check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
     )
     model = model_class(scene, level, list(bodies.values()), contact, vi, free, values, options)
     if ct is not None and ct.electrical is not None:
@@ -953,19 +899,6 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
     )
 
 
-def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
-    """Nodal fields by name: "BODY.displacement" (N, 2) and, for piezoelectric bodies,
-    "BODY.potential" (N,)."""
-    x_full = model.full(sol.u)
-    out = {}
-    for b in model.bodies:
-        u, phi = b.split(x_full[b.offset : b.offset + b.size])
-        out[f"{b.name}.displacement"] = u
-        if phi is not None:
-            out[f"{b.name}.potential"] = phi
-    return out
-
-
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
     into `outdir`; return the summary entries."""
@@ -988,9 +921,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         state = contact_state(model, sol)
         files += plots.contact_plots(state, outdir, title=model.scene.name)
         table = contact_table(model, sol)
-        results.write_contact_csv(outdir / "contact.csv", table)
-        results.write_contact_vtu(outdir / "contact.vtu", table)
-        files += ["contact.csv", "contact.vtu"]
+        files += results.write_contact(outdir, table)[0]
         n_slip = int(state["slip"].sum())
         n_touch = int(state["touch_t"].sum())
         summary["contact"] = {
@@ -1027,6 +958,8 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 
 
 # ------------------------------------------------------------------ contract v2 declarations
+fields = contact_model.fields  # nodal fields by name
+mesh_size = contact_model.mesh_size  # h of the built level
 CONTRACT = 2
 SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="fig_5_4.png")
 NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
@@ -1038,11 +971,6 @@ def draw(ax, model: Model, sol: Solution) -> str:
     if model.contact is None:
         return "no contact interface"
     return plots.friction_panel(ax, contact_state(model, sol))
-
-
-def mesh_size(model: Model) -> float:
-    """h of the built level: the largest cell diameter over the bodies."""
-    return max(b.mesh.h for b in model.bodies)
 
 
 def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
@@ -1065,10 +993,9 @@ def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
     out: dict = {"files": files}
     if model.contact is not None:
         table = contact_table(model, sol)
-        results.write_contact_csv(outdir / "contact.csv", table)
-        results.write_contact_vtu(outdir / "contact.vtu", table)
-        files += ["contact.csv", "contact.vtu"]
-        out["contact"] = table.totals()["counts"]
+        written, contact = results.write_contact(outdir, table)
+        files += written
+        out["contact"] = contact["counts"]
     return out
 
 

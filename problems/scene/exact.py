@@ -14,6 +14,10 @@ value) giving the exact solution:
 the table from a scene and compiles it. The study engine measures errors against it.
 
 The generator of the shipped manufactured scene is `problems.scene.manufactured`.
+
+contact3d scenes carry the same table with fields of (x, y, z) (`ExactSection3`): u, grad_u
+(3 × 3), phi, grad_phi (3) and lam = λ = −σn on Γ3 as a Cartesian 3-vector (frame-free);
+generator `problems.scene.manufactured3d`, errors `problems.plugins.contact3d_errors`.
 """
 
 from __future__ import annotations
@@ -26,21 +30,22 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from .fields import Expression, Text, Vector, evaluate
+from .fields3d import Expression3, Vector3
 from .model import Section, refuse, validate
 from .reader import Scene
 
-Field2 = Callable[[np.ndarray, np.ndarray], np.ndarray]
+FieldN = Callable[..., np.ndarray]  # of (x, y) in 2D, of (x, y, z) in 3D
 
 
 @dataclass(frozen=True)
 class Exact:
-    """Compiled exact fields; each maps (x, y) arrays to x.shape + (components...)."""
+    """Compiled exact fields; each maps (x, y) arrays (3D: (x, y, z)) to x.shape + (...)."""
 
-    u: Field2  # → (..., 2)
-    grad_u: Field2  # → (..., 2, 2), [k, i] = ∂u_k/∂x_i
-    phi: Field2 | None  # → (...)
-    grad_phi: Field2 | None  # → (..., 2)
-    lam: Field2  # → (..., 2): (λ·n, λ·τ) on Γ3
+    u: FieldN  # → (..., d)
+    grad_u: FieldN  # → (..., d, d), [k, i] = ∂u_k/∂x_i
+    phi: FieldN | None  # → (...)
+    grad_phi: FieldN | None  # → (..., d)
+    lam: FieldN  # 2D → (..., 2): (λ·n, λ·τ) on Γ3; 3D → (..., 3): λ = −σn, Cartesian
 
 
 class ExactSection(Section):
@@ -60,19 +65,29 @@ class ExactSection(Section):
         return self
 
     def compiled(self) -> Exact:
-        """The fields as functions of (x, y)."""
+        """The fields as functions of the coordinates."""
         u, rows, lam, gp = self.u, self.grad_u, self.lam, self.grad_phi
 
-        def grad_u(x, y):
-            return np.stack([evaluate(r, x, y) for r in rows], axis=-2)  # (..., 2, 2)
+        def grad_u(*p):
+            return np.stack([evaluate(r, *p) for r in rows], axis=-2)  # (..., d, d)
 
         return Exact(
-            u=lambda x, y: evaluate(u, x, y),
+            u=lambda *p: evaluate(u, *p),
             grad_u=grad_u,
             phi=self.phi,
-            grad_phi=None if gp is None else (lambda x, y: evaluate(gp, x, y)),
-            lam=lambda x, y: evaluate(lam, x, y),
+            grad_phi=None if gp is None else (lambda *p: evaluate(gp, *p)),
+            lam=lambda *p: evaluate(lam, *p),
         )
+
+
+class ExactSection3(ExactSection):
+    """The [exact] table of a contact3d scene: fields of (x, y, z), lam the Cartesian λ."""
+
+    u: Vector3
+    grad_u: Annotated[list[Vector3], Field(min_length=3, max_length=3)]
+    phi: Expression3 | None = None
+    grad_phi: Vector3 | None = None
+    lam: Vector3
 
 
 def split_exact(scene: Scene) -> tuple[Scene, Exact | None]:

@@ -233,9 +233,10 @@ NonNegativeExpr = Annotated[Expression, AfterValidator(_nonnegative)]  # constan
 Vector = Annotated[list[Expression], Field(min_length=2, max_length=2)]
 
 
-def evaluate(components: Sequence[Expression], x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """A vector field's values: (..., len(components)) at the points (x, y)."""
-    return np.stack([c(x, y) for c in components], axis=-1)
+def evaluate(components: Sequence[Expression], *coords: np.ndarray) -> np.ndarray:
+    """A vector field's values: (..., len(components)) at the points whose coordinates are
+    `coords` (x, y; x, y, z for the `Expression3` of a 3D scene)."""
+    return np.stack([c(*coords) for c in components], axis=-1)
 
 
 def _increasing(v: list) -> list:

@@ -6,7 +6,6 @@ variables are x, y and z; it is called as f(x, y, z). `Vector3` is three of them
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Annotated
 
 import numpy as np
@@ -75,11 +74,6 @@ def _nonnegative(e: Expression3) -> Expression3:
 
 NonNegativeExpr3 = Annotated[Expression3, AfterValidator(_nonnegative)]
 Vector3 = Annotated[list[Expression3], Field(min_length=3, max_length=3)]
-
-
-def evaluate3(components: Sequence[Expression3], x, y, z) -> np.ndarray:
-    """A vector field's values: (..., len(components)) at the points (x, y, z)."""
-    return np.stack([c(x, y, z) for c in components], axis=-1)
 
 
 def _increasing(v: list) -> list:

@@ -9,23 +9,26 @@ top (nodes move by h(x, y)·(z − z0)/(z1 − z0)). Kind "extruded": a built-in
 (`section`: rectangle, half_disc or cradle, in the x–y plane) extruded over z in `layers`
 layers of hexahedra (`fem.mesh3d.extrude`; a level refines the section and doubles the
 layers); its parts are the section's (surfaces over its curves) and "z0"/"z1" (the ends). A mesh
+file, `{ mesh = "part.msh", body = "bracket" }` (no kind): a physical volume group of linear
+tetrahedra or hexahedra, its physical surface groups the parts (`problems.scene.imported`). A mesh
 of more than MAX_CELLS cells, or one the map inverts, is a SceneError naming the key.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, ClassVar, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Discriminator, Field, Tag
 
 from fem.mesh3d import END_PARTS, Mesh3D, box, extrude, transform
 from problems.errors import SceneError
 
-from .fields import Integer
+from .fields import Integer, Text
 from .fields3d import Cells3, Expression3, Interval
-from .geometry import Cradle, HalfDisc, Rectangle
-from .model import Section
+from .geometry import Cradle, HalfDisc, MeshFile, Rectangle
+from .imported import imported_mesh3d
+from .model import UNION_TAGS, Section
 
 MAX_CELLS = 4_000_000  # cells of one body at the requested level
 
@@ -118,4 +121,38 @@ class Extruded(Section):
         return extrude(m2, tuple(self.z), layers)
 
 
-Geometry3 = Annotated[Box | Extruded, Field(discriminator="kind")]
+class MeshFile3(MeshFile):
+    """`{ mesh = "FILE", body = "GROUP" }`: a 3D mesh file (gmsh .msh or any meshio format) of
+    linear tetrahedra or hexahedra, the volume group's cells refined `level` times (each into 8,
+    new nodes on the file's faces); its physical surface groups are the boundary parts."""
+
+    body: Text | None = Field(
+        None, description="a physical volume group (omitted: every volume cell of the file)"
+    )
+
+    def mesh(self, level: int) -> Mesh3D:  # type: ignore[override]
+        """The body's mesh at refinement `level`."""
+        return imported_mesh3d(self.resolved(), self.body, level, self.key("mesh"), MAX_CELLS)
+
+
+def _tag(v: Any) -> str | None:
+    """The union member of a 3D geometry table: its `kind`, or "mesh" for a file."""
+    if isinstance(v, dict):
+        if "kind" in v:
+            return v["kind"] if isinstance(v["kind"], str) else None
+        return "mesh" if "mesh" in v else None
+    return "mesh" if isinstance(v, MeshFile3) else getattr(v, "kind", None)
+
+
+Geometry3 = Annotated[
+    Annotated[Box, Tag("box")]
+    | Annotated[Extruded, Tag("extruded")]
+    | Annotated[MeshFile3, Tag("mesh")],
+    Discriminator(
+        _tag,
+        custom_error_type="geometry",
+        custom_error_message="a table with kind = box | extruded, or with mesh = FILE (a 3D "
+        "mesh file; and body = GROUP)",
+    ),
+]
+UNION_TAGS.update(("geometry", k) for k in ("box", "extruded"))

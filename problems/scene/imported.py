@@ -9,6 +9,10 @@ nodes stay on the file's polyline, so against a curved exact boundary the error 
 polyline's geometric error (docs/design.md, "Meshes from files"). From a `.geo` file gmsh meshes
 and refines, putting new boundary nodes on the geometry's curves.
 
+A 3D scene's geometry `{ mesh = "part.msh", body = "bracket" }` names a physical volume group;
+its physical surface groups become the boundary parts (`imported_mesh3d`, `fem.mesh_import3d`),
+and a level refines every cell into 8 (`fem.mesh3d.refine`, new nodes on the file's faces).
+
 Everything here is independent of how the scene is read: `imported_mesh` takes the resolved
 path, the group name and the key to blame, and turns `fem.mesh_import` refusals into
 SceneErrors.
@@ -19,18 +23,20 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
+from fem import mesh3d
 from fem.mesh import Mesh
 from fem.mesh_import import MeshFile, MeshImportError, body_mesh, mesh_geo, read_mesh
 from fem.mesh_import import require_curve as _require_curve
+from fem.mesh_import3d import body_mesh3d
 from fem.meshing import refine
 from problems.errors import SceneError
 
 
 @lru_cache(maxsize=8)
-def _read(path: str, mtime_ns: int, size: int) -> MeshFile:
+def _read(path: str, mtime_ns: int, size: int, planar: bool = True) -> MeshFile:
     """Read once per file version: a two-body file is read once for both bodies."""
     del mtime_ns, size  # part of the cache key only
-    return read_mesh(path)
+    return read_mesh(path, planar)
 
 
 def resolve(scene_dir: Path | None, name: str) -> Path:
@@ -55,8 +61,10 @@ def _stat(path: Path, key: str, what: str):
         ) from None
 
 
-def _check_cells(n_cells: int, level: int, key: str, path: Path, max_cells: int | None) -> None:
-    cells = n_cells * 4**level
+def _check_cells(
+    n_cells: int, level: int, key: str, path: Path, max_cells: int | None, children: int = 4
+) -> None:
+    cells = n_cells * children**level
     if max_cells is not None and cells > max_cells:
         raise SceneError(
             key,
@@ -83,6 +91,20 @@ def imported_mesh(
         raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
     _check_cells(mesh.n_cells, level, key, path, max_cells)
     return refine(mesh, level)
+
+
+def imported_mesh3d(
+    path: Path, body: str | None, level: int, key: str, max_cells: int | None = None
+) -> mesh3d.Mesh3D:
+    """The body `body` (a physical volume group) of the 3D mesh file `path`, refined `level`
+    times (each cell into 8, new nodes on the file's faces); refusals as for `imported_mesh`."""
+    st = _stat(path, key, "mesh file")
+    try:
+        mesh = body_mesh3d(_read(str(path), st.st_mtime_ns, st.st_size, False), body)
+    except MeshImportError as err:
+        raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
+    _check_cells(mesh.n_cells, level, key, path, max_cells, 8)
+    return mesh3d.refine(mesh, level)
 
 
 def geo_mesh(

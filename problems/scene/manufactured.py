@@ -87,9 +87,10 @@ def generate() -> dict:
     }
 
 
-def _toml(v) -> str:
+def toml_value(v) -> str:
+    """A field (an expression text or a nested list of them) as a TOML value."""
     if isinstance(v, list):
-        return "[" + ", ".join(_toml(w) for w in v) + "]"
+        return "[" + ", ".join(toml_value(w) for w in v) + "]"
     return f'"{v}"'
 
 
@@ -101,7 +102,7 @@ GEOMETRY = (
 
 def scene_text(fields: dict) -> str:
     """The TOML text of `scenes/manufactured.toml` from `generate()`'s fields."""
-    f = {k: _toml(v) for k, v in fields.items()}
+    f = {k: toml_value(v) for k, v in fields.items()}
     return f"""\
 # Manufactured solution (docs/manufactured.md): a BaTiO3 block on a rigid foundation with a known
 # exact (u, φ, λ); stick on x < {A_STICK}, slip on x > {A_STICK} along Γ3 = bottom.

@@ -6,6 +6,7 @@ import pytest
 
 from fem import mesh_import, shapes
 from fem.boundary import trace
+from fem.mesh import Mesh
 from fem.mesh_import import MeshImportError, body_mesh, read_mesh, require_curve, write_msh
 from fem.meshing import rectangle, refine
 
@@ -202,3 +203,17 @@ def test_mutation_a_misdirected_boundary_is_caught(tmp_path, monkeypatch):
     monkeypatch.setattr(mesh_import, "_order_edges", lambda e: e[::-1, ::-1])
     with pytest.raises(AssertionError):
         test_a_written_mesh_reads_back_identical(tmp_path, "gmsh22", shapes.cradle())
+
+
+def test_coincident_nodes_are_refused_naming_them(tmp_path):
+    """A mesh not made coherent (a node line written twice, one copy per side) would read as a
+    body cut along it: refused, naming the nodes and the point."""
+    m = rectangle((0, 2), (0, 1), (2, 1), "quad")
+    mid = np.flatnonzero(np.isclose(m.points[:, 0], 1.0))  # (2,) nodes of the middle line
+    copy = np.arange(m.n_nodes)
+    copy[mid] = m.n_nodes + np.arange(mid.size)
+    right = m.points[m.cells].mean(axis=1)[:, 0] > 1.0  # (n_cells,)
+    cells = np.where(right[:, None], copy[m.cells], m.cells)
+    write_msh(tmp_path / "cut.msh", {"part": Mesh(np.vstack([m.points, m.points[mid]]), cells)})
+    with pytest.raises(MeshImportError, match=r"nodes \d+ and \d+ at the same point"):
+        body_mesh(read_mesh(tmp_path / "cut.msh"), "part")

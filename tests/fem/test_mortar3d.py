@@ -19,19 +19,17 @@ from fem.assembly3d import permittivity_matrix
 from fem.elements import reference_element
 from fem.mesh3d import Mesh3D, box, extrude, transform
 from fem.mortar import mortar_coupling, patch_defect
-from fem.mortar3d import (
-    couple,
-    dual_mass,
-    faces_of,
-    mortar_coupling3d,
-    multiplier_basis,
-    rim_nodes,
-    triangle_rule,
-)
+from fem.mortar3d import couple, dual_mass, mortar_coupling3d, multiplier_basis, rim_nodes
 from fem.shapes import cradle, half_disc
+from fem.surface3d import Surface, surface
 
 HEX, TET = "hexahedron", "tetra"
 PAIRS = [(HEX, TET), (TET, HEX), (HEX, HEX), (TET, TET)]
+
+
+def trace(mesh: Mesh3D, part: str) -> Surface:
+    """The trace of `mesh` on `part` at the mortar's default face order."""
+    return surface(mesh, part, fm3.FACE_ORDER)
 
 
 def rotation(seed: int) -> np.ndarray:
@@ -88,18 +86,18 @@ def pair(kind, es, em, seed=None, level=0):
     if kind == "flat":
         s = flat((1.0, 2.0), (3 * n, 4 * n, 1), es, "bottom", R)
         m = flat((0.0, 1.0), (5 * n, 3 * n, 1), em, "top", R)
-        return faces_of(s, "bottom"), faces_of(m, "top")
+        return trace(s, "bottom"), trace(m, "top")
     if kind == "trapezoid":
         s = flat((1.0, 2.0), (3 * n, 4 * n, 1), es, "bottom", R, shear=0.4)
         m = flat((0.0, 1.0), (5 * n, 3 * n, 1), em, "top", R, shear=0.4)
-        return faces_of(s, "bottom"), faces_of(m, "top")
+        return trace(s, "bottom"), trace(m, "top")
     if kind == "cylinder":
         s = cylinder((0.5, 1.0), (0.0, 1.2), (1, 5 * n, 4 * n), es, R)
         m = cylinder((1.0, 1.5), (-0.1, 1.3), (1, 7 * n, 3 * n), em, R)
-        return faces_of(s, "right"), faces_of(m, "left")
+        return trace(s, "right"), trace(m, "left")
     s = sphere((0.5, 1.0), (0.5, 1.3), (0.2, 1.4), (1, 5 * n, 6 * n), es, R)
     m = sphere((1.0, 1.5), (0.4, 1.4), (0.1, 1.5), (1, 7 * n, 4 * n), em, R)
-    return faces_of(s, "right"), faces_of(m, "left")
+    return trace(s, "right"), trace(m, "left")
 
 
 def rigid_defect(mo):
@@ -227,7 +225,7 @@ def test_nodal_rows_and_coverage_on_a_partly_covered_slave():
     np.testing.assert_allclose(np.asarray(fm3.nodal_rows(mo).sum(axis=1)).ravel(), s.weights)
     assert fm3.covered_nodes(mo).all()
     short = cylinder((1.0, 1.5), (0.4, 1.3), (1, 4, 3), TET)  # θ from 0.4: the slave starts at 0
-    mo = couple(s, faces_of(short, "left"))
+    mo = couple(s, trace(short, "left"))
     cov = fm3.covered_nodes(mo)
     theta = np.arctan2(s.points[:, 1], s.points[:, 0])
     assert (~cov).any() and cov.any()
@@ -276,13 +274,13 @@ def fine_rule(face_type, n=12):
     return np.stack([U.ravel(), (V * (1 - U)).ravel()], 1), (W * (1 - U)).ravel()
 
 
-def warped(f: fm3.Faces, seed: int) -> fm3.Faces:
+def warped(f: Surface, seed: int) -> Surface:
     """TEST-ONLY: the trace with nodes moved randomly off the surface by about 7 % of a face
     size (non-planar quadrilaterals)."""
     pts = np.zeros((f.nodes.max() + 1, 3))
     pts[f.nodes] = f.points + 0.01 * np.random.default_rng(seed).normal(size=f.points.shape)
     cells = np.zeros((0, 8 if f.face_type == "quad" else 4), dtype=int)
-    return faces_of(Mesh3D(pts, cells, {"p": f.nodes[f.faces]}), "p")
+    return trace(Mesh3D(pts, cells, {"p": f.nodes[f.faces]}), "p")
 
 
 @pytest.mark.parametrize("kind", ["sphere", "warped"])
@@ -314,16 +312,6 @@ def test_dual_basis_of_affine_faces_is_the_classical_one():
     one = np.array([[2.0, -1.0], [-1.0, 2.0]])
     A = np.kron(one, one)[np.ix_([0, 1, 3, 2], [0, 1, 3, 2])]  # (ξ, η) corner order of a quad
     np.testing.assert_allclose(s.dual, np.broadcast_to(A, s.dual.shape), atol=1e-13)
-
-
-def test_triangle_rule_degree():
-    for order in (3, 5, 10):
-        pts, w = triangle_rule(order)
-        for i in range(order + 1):
-            for j in range(order + 1 - i):  # ∫ s^i t^j = i! j! / (i + j + 2)!
-                exact = np.prod(np.arange(1, i + 1)) * np.prod(np.arange(1, j + 1))
-                exact /= np.prod(np.arange(1, i + j + 3))
-                assert abs(w @ (pts[:, 0] ** i * pts[:, 1] ** j) - exact) <= 1e-15
 
 
 # ---------------------------------------------------------------- invariance
@@ -412,7 +400,7 @@ def tied_solve(ends, seed):
     lo = flat((0.3, 1.0), (5, 3, 2), TET, "top", R)
     c = np.array([0.3, -1.2, 0.8, 2.1])
     u_ex = lambda x: c[0] + x @ c[1:]  # noqa: E731
-    s, m = faces_of(up, "bottom"), faces_of(lo, "top")
+    s, m = trace(up, "bottom"), trace(lo, "top")
     mo = couple(s, m)
     ns = up.n_nodes
     K = sp.block_diag([permittivity_matrix(up, np.eye(3)), permittivity_matrix(lo, np.eye(3))])
@@ -520,7 +508,7 @@ def test_mutation_wrong_normal_fails_the_patch_test(monkeypatch):
 def test_mutation_primal_basis_fails_the_linear_transfer(monkeypatch):
     """φ in place of ψ (A = I): row sums still agree on covered faces, linear fields do not."""
     s, m = pair("flat", TET, HEX, seed=4)
-    broken = fm3.Faces(
+    broken = Surface(
         s.nodes, s.faces, s.face_type, s.points, s.normals, s.weights, s.face_weights,
         s.areas, np.broadcast_to(np.eye(3), s.dual.shape),
     )  # fmt: skip

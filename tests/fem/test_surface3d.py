@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from fem.elements import reference_element
 from fem.mesh3d import box, transform
-from fem.surface3d import dual_coefficients, face_integrals, frames, reference_direction, surface
+from fem.surface3d import face_integrals, frames, reference_direction, surface, triangle_rule
 
 SEEDS = st.integers(0, 2**31 - 1)
 
@@ -60,7 +60,7 @@ def test_dual_basis_is_biorthogonal_on_curved_faces(seed, element):
     """∫_e ψ_{e,a} φ_b dA = δ_ab ∫_e φ_a dA on every face, checked by a finer quadrature."""
     mesh = _wavy(np.random.default_rng(seed), element)
     surf = surface(mesh, "bottom")
-    A = dual_coefficients(mesh, surf)  # (n_f, k, k)
+    A = surf.dual  # (n_f, k, k)
     ref = reference_element(surf.face_type)
     pts, w = ref.quadrature(8 if surf.face_type == "quad" else 5)
     phi = ref.values(pts)  # (q, k)
@@ -110,3 +110,13 @@ def test_mutation_a_wrong_sign_in_the_frame_is_caught():
     t1, _ = frames(surf.normals)
     bad = np.cross(t1, surf.normals)
     assert np.abs(np.cross(t1, bad) - surf.normals).max() > 1.0
+
+
+def test_triangle_rule_degree():
+    for order in (3, 5, 10):
+        pts, w = triangle_rule(order)
+        for i in range(order + 1):
+            for j in range(order + 1 - i):  # ∫ s^i t^j = i! j! / (i + j + 2)!
+                exact = np.prod(np.arange(1, i + 1)) * np.prod(np.arange(1, j + 1))
+                exact /= np.prod(np.arange(1, i + j + 3))
+                assert abs(w @ (pts[:, 0] ** i * pts[:, 1] ** j) - exact) <= 1e-15

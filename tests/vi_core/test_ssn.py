@@ -159,7 +159,8 @@ def test_equilibrated_problem_has_unit_diagonal_and_unit_rows(seed):
 def test_newton_matrix_pattern_is_fixed_while_the_active_set_changes(condense, monkeypatch):
     """The README's claim: one sparsity pattern for every Newton matrix of a solve (explicit
     zeros kept), so a direct solver can reuse its analysis. Mutation: without storing on the
-    fixed pattern the nonzero count follows the active set."""
+    fixed pattern the nonzero count follows the active set (condensed: the S rows no longer fit
+    the kept matrix)."""
     import vi_core.ssn as ssn_module
     from problems.plugins import piezo_contact as pc
     from problems.scene import load_scene
@@ -168,6 +169,10 @@ def test_newton_matrix_pattern_is_fixed_while_the_active_set_changes(condense, m
     sol = solve(vi, "ssn", condense=condense, linear_solver="splu")
     assert sol.converged and sol.iterations >= 3 and len(sol.info["newton_nnz"]) == 1
     monkeypatch.setattr(ssn_module, "_on_pattern", lambda M, pattern: sp.csr_matrix(M))
+    if condense:  # K is kept and its S rows overwritten in place: off the pattern they do not fit
+        with pytest.raises(ValueError, match="shape mismatch"):
+            solve(vi, "ssn", condense=condense, linear_solver="splu")
+        return
     sol = solve(vi, "ssn", condense=condense, linear_solver="splu")
     assert len(sol.info["newton_nnz"]) > 1
 
@@ -258,3 +263,21 @@ def test_condensation_does_not_chain_two_nodes():
     D = cond.D.toarray()
     node = np.array([0, 1, 0, 0, 1, 1])  # the node of each row: n0, n1, t1_0, t2_0, t1_1, t2_1
     assert np.all(D[node[:, None] != node[None, :]] == 0)
+
+
+@given(seeds)
+def test_condensation_keeps_square_groups_inside_master_row_sets(seed):
+    """One row per node (a scalar problem): each row has a private column, and master columns
+    reach two neighbouring rows each. A private column's row set {j} lies inside a master
+    column's {j−1, j} but is square on its own: it stays its own group (merging it into the
+    master's set — the subset merge without the deficiency condition — leaves no condensation)."""
+    from vi_core.ssn import Condensation
+
+    rng = np.random.default_rng(seed)
+    k = int(rng.integers(3, 12))
+    rows = np.arange(k)
+    cols = np.concatenate([rows, rows + k, (rows + 1) % k + k])
+    vals = np.concatenate([rng.uniform(0.5, 2.0, k), -rng.uniform(0.1, 1.0, 2 * k)])
+    B = sp.csr_matrix((vals, (np.tile(rows, 3), cols)), shape=(k, 3 * k))
+    cond = Condensation.detect(B)
+    assert cond is not None and np.array_equal(cond.S, rows)

@@ -28,11 +28,14 @@ from problems.plugins import registry
 from .electrical import SCENE, drop_electrical
 
 ROWS = [dataclasses.replace(r, level=0) for r in rows() if not r.huge]
-# the 3D rows cost ~15 s each at level 0 (homotopy: 34 ssn solves): three in CI, all under slow
+# the 3D rows cost ~15 s each at level 0 (homotopy: 34 ssn solves): three in CI, all under slow;
+# the unilateral ones (ssn and the fixed point, no homotopy) ~1 s: two in CI
 CI_3D = (
     "3D: g = 1e-6 σ_ref (all slip)",
     "3D: loads, g × 1e-9",
     "3D: extruded 2D scene (discs + lines)",
+    "3D unilateral: Coulomb F = 0.6",
+    "3D unilateral: gap 1e-3 (apart, λ = 0)",
 )
 ROWS_CI = [r for r in ROWS if r.plugin != "contact3d" or r.name in CI_3D]
 ROWS_3D_SLOW = [r for r in ROWS if r.plugin == "contact3d" and r.name not in CI_3D]

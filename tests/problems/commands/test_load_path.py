@@ -108,3 +108,22 @@ def test_a_step_that_does_not_converge_stops_the_path(tmp_path, monkeypatch):
     assert summary["load_path"]["steps_solved"] == 2
     assert any("did not converge" in w for w in summary["warnings"])
     assert sorted(p.name for p in (out / "steps").iterdir()) == ["0001", "0002"]
+
+
+def test_a_load_path_with_a_patch_defect_exits_1_unless_allowed(tmp_path, monkeypatch, capsys):
+    """Mutation: a dropped master entry (as for a single solve, test_crosspoints): the path
+    converges, and the exit status follows the last step's mortar patch defect."""
+    from problems.scene import SCENES_DIR
+    from tests.problems.plugins.test_fault_table import mortar_dropped_entry
+
+    mortar_dropped_entry(monkeypatch)
+    scene = tmp_path / "two_body_path.toml"
+    text = (SCENES_DIR / "shear_strip_two_body.toml").read_text()
+    scene.write_text(text + "\n[load_path]\nsteps = 2\n")
+    for extra, rc in (([], 1), (["--allow-defect"], 0)):
+        out = tmp_path / f"o{rc}"
+        assert main(["solve", str(scene), "--level", "0", "--out", str(out), *extra]) == rc
+        summary = json.loads((out / "summary.json").read_text())
+        assert all(s["converged"] for s in summary["steps"])
+        assert summary["contact"]["mortar_patch_defect"] > 1e-3
+        assert ("--allow-defect to accept" in capsys.readouterr().out) == (rc == 1)

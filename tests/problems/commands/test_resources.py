@@ -3,6 +3,7 @@ growth factor from the geometry's dimension, the memory estimate, caps and refus
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -135,3 +136,44 @@ def test_the_amg_path_is_guarded_by_its_own_memory_model(monkeypatch):
     check_levels(plugin, scene, (6, 6), "--level", "6", linear_solver="amg")
     with pytest.raises(SceneError, match="available"):
         check_levels(plugin, scene, (6, 6), "--level", "6", linear_solver="splu")
+
+
+_RSS_AFTER_FREE = """
+import sys, numpy as np
+from problems.commands.resources import fix_mmap_threshold
+if sys.argv[1] == "fix":
+    assert fix_mmap_threshold()
+def rss():
+    return int(open("/proc/self/statm").read().split()[1]) * 4096
+big = np.ones(2**22)  # 32 MB, mapped; freeing it raises glibc's dynamic threshold
+del big
+base = rss()
+keep = []
+for _ in range(8):  # 8 MB arrays, one freed before the next: their pages should go back
+    a = np.ones(2**20)
+    keep.append(np.ones(16))  # small blocks on the heap above each array
+    del a
+print((rss() - base) / 2**20)
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/statm").exists(), reason="Linux /proc only")
+def test_fixed_mmap_threshold_returns_freed_arrays():
+    """With the threshold fixed, a freed 8 MB array leaves the resident set; without (the
+    mutation: glibc's default dynamic threshold) the freed arrays can stay resident."""
+    import subprocess
+    import sys
+
+    def grown(mode: str) -> float:
+        out = subprocess.run(
+            [sys.executable, "-c", _RSS_AFTER_FREE, mode], capture_output=True, text=True
+        )
+        assert out.returncode == 0, out.stderr
+        return float(out.stdout)
+
+    from problems.commands.resources import fix_mmap_threshold
+
+    if not fix_mmap_threshold():
+        pytest.skip("not glibc")
+    assert grown("fix") < 2.0
+    assert grown("default") >= 4.0  # measured 7.7: one freed 8 MB array stays resident

@@ -19,7 +19,7 @@ import vi_core
 from problems.commands import main as cli
 from problems.commands.resources import Sizes
 from problems.errors import SceneError
-from problems.plugins import contact3d, contact3d_bodies, contact3d_checks
+from problems.plugins import bodies, contact3d, contact3d_checks
 from problems.plugins import piezo_contact as pc
 from problems.plugins.contact3d_output import frame_checks
 from problems.scene import load_scene
@@ -80,8 +80,8 @@ def test_the_extruded_scene_reproduces_the_2d_solution_to_rounding():
 
 
 def _transposed_coupling(monkeypatch):
-    real = contact3d_bodies.assembly3d.coupling_matrix
-    monkeypatch.setattr(contact3d_bodies.assembly3d, "coupling_matrix", lambda m, e: -real(m, e))
+    real = bodies.assembly3d.coupling_matrix
+    monkeypatch.setattr(bodies.assembly3d, "coupling_matrix", lambda m, e: -real(m, e))
 
 
 def _flipped_t1(monkeypatch):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import vi_core
-from problems.plugins import coulomb_range
+from problems.plugins import contact_law, coulomb_range
 from problems.plugins import piezo_contact as pc
 from problems.scene import load_scene
 from vi_core.coulomb import Coulomb
@@ -57,7 +57,7 @@ def test_strip_matches_the_closed_form(level):
 
 def test_dropping_the_F_factor_breaks_the_strip(monkeypatch):
     # mutation: the Coulomb radius λ_n instead of F λ_n
-    monkeypatch.setattr(pc, "Coulomb", lambda F, dim: Coulomb(np.ones_like(F), dim))
+    monkeypatch.setattr(contact_law, "Coulomb", lambda F, dim: Coulomb(np.ones_like(F), dim))
     errs = _strip_errors(*_solve(load_scene("coulomb_strip"), 1))
     assert errs["lam_t"] > 0.1
 

@@ -1,0 +1,142 @@
+"""What the contact plug-ins piezo_contact (2D) and contact3d (3D) share besides the contact law
+(`contact_law`): the built model's bookkeeping (`BodiesModel`: the unknowns of each field, the
+full vector with its Dirichlet values), the assembly of the bodies into the MixedVI
+(`mixed_vi`), the nodal fields by name, the mesh size, and the check
+of a BODY.BOUNDARY reference of a scene.
+
+A body (`bodies.Body`, `contact3d_bodies.Body3D`) numbers its full dofs from `offset`:
+displacement first (`u_dofs`), then potential on piezoelectric bodies; `split` cuts its part
+of a full vector into displacement (N, d) and potential (N,) or None.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from fem.dirichlet import expand, reduce_dirichlet
+from problems.errors import SceneError
+from problems.scene import Scene
+from problems.scene.model import refuse
+from vi_core import MixedVI, Solution, product
+
+
+@dataclass
+class BodiesModel:
+    """A built contact scene: the mixed VI plus what post-processing needs (the plug-ins'
+    `Model` subclasses add their own fields)."""
+
+    scene: Scene
+    level: int
+    bodies: list[Any]
+    contact: Any
+    vi: MixedVI
+    free: np.ndarray  # (n_free,) full indices of the unknowns
+    values: np.ndarray  # (n_full,) prescribed values (fixed entries)
+    options: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def unknown_fields(self) -> dict[str, np.ndarray]:
+        """Boolean masks over the unknowns: which are displacement, which potential."""
+        is_disp = np.zeros(self.values.size, dtype=bool)
+        for b in self.bodies:
+            is_disp[b.u_dofs(np.arange(b.n_nodes)).ravel()] = True
+        return {"displacement": is_disp[self.free], "potential": ~is_disp[self.free]}
+
+    @property
+    def dofs(self) -> dict[str, int]:
+        """Number of unknowns per field."""
+        counts = {k: int(v.sum()) for k, v in self.unknown_fields().items()}
+        return {**counts, "multiplier": self.vi.m}
+
+    def full(self, u: np.ndarray) -> np.ndarray:
+        """Unknowns → full vector including Dirichlet values."""
+        return expand(u, self.free, self.values)
+
+
+def built(build: Callable[[Scene, int | None], Any], scene: Scene, level: int | None) -> Any:
+    """build(scene, level) with floating-point warnings silenced (the data are checked where
+    they are read); a SceneError raised while building names the scene file."""
+    try:
+        with np.errstate(all="ignore"):
+            return build(scene, level)
+    except SceneError as err:
+        raise (err if err.file else err.in_file(scene.path)) from None
+
+
+def mixed_vi(
+    bodies: list[Any],
+    rows: Callable | None,
+    field_data: Callable,
+    info: dict,
+    check: Callable | None = None,
+) -> tuple[MixedVI, np.ndarray, np.ndarray]:
+    """The bodies' blocks side by side, reduced by their Dirichlet data, and the contact rows:
+    (the MixedVI, free (n_free,) the full indices of the unknowns, values (n_full,) the
+    prescribed values). rows(free, fixed, values) → (B, gap, Λ, Y) of the contact (None: no
+    multipliers); field_data(bodies, free, n_full) → the MixedVI's `fields` and `near_null`;
+    check(A_full, f_full, values) may refuse the assembled data. Each body's Gram matrix X is
+    released (vi.X is the one copy kept: memory)."""
+    A_full = sp.block_diag([b.A for b in bodies], format="csr")
+    f_full = np.concatenate([b.f for b in bodies])
+    fixed = np.concatenate([b.fixed for b in bodies])
+    values = np.concatenate([b.values for b in bodies])
+    X_full = sp.block_diag([b.X for b in bodies], format="csr")
+    for b in bodies:
+        b.X = None
+    if check is not None:
+        check(A_full, f_full, values)
+    A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
+    if rows is None:
+        B, gap, Lam, Y = sp.csr_matrix((0, free.size)), None, product(), sp.csr_matrix((0, 0))
+    else:
+        B, gap, Lam, Y = rows(free, fixed, values)
+    vi = MixedVI(
+        A=A,
+        B=B,
+        f=f,
+        Lambda=Lam,
+        gap=gap,
+        X=sp.csr_matrix(X_full[free][:, free]),
+        Y=Y,
+        info=info,
+        **field_data(bodies, free, values.size),  # for the iterative linear path
+    )
+    return vi, free, values
+
+
+def fields(model: BodiesModel, sol: Solution) -> dict[str, np.ndarray]:
+    """Nodal fields by name: "BODY.displacement" (N, d) and, for piezoelectric bodies,
+    "BODY.potential" (N,)."""
+    x_full = model.full(sol.u)
+    out = {}
+    for b in model.bodies:
+        u, phi = b.split(x_full[b.offset : b.offset + b.size])
+        out[f"{b.name}.displacement"] = u
+        if phi is not None:
+            out[f"{b.name}.potential"] = phi
+    return out
+
+
+def mesh_size(model: BodiesModel) -> float:
+    """h of the built level: the largest cell diameter over the bodies."""
+    return max(b.mesh.h for b in model.bodies)
+
+
+def reference(bodies: dict[str, Any], field_: list[str], ref: str) -> tuple[str, str]:
+    """BODY.BOUNDARY → (body, boundary), checked against the scene's [bodies] tables and
+    their geometries' boundary names (not checked for a geometry without fixed names: a mesh
+    file, whose groups are checked when it is read)."""
+    bname, dot, part = ref.partition(".")
+    if not dot:
+        raise refuse(field_, ref, "BODY.BOUNDARY, e.g. block.bottom")
+    if bname not in bodies:
+        raise refuse(field_, ref, f"BODY.BOUNDARY with a body of this scene: {', '.join(bodies)}")
+    names = bodies[bname].geometry.BOUNDARIES
+    if names is not None and part not in names:
+        raise refuse(field_, ref, f"BODY.BOUNDARY with a boundary of {bname!r}: {', '.join(names)}")
+    return bname, part
