@@ -24,9 +24,9 @@ import numpy as np
 import vi_core
 from problems.errors import SceneError
 from problems.plugins import registry
-from problems.plugins.contract import problem_at, solve_model
-
-__all__ = ["problem_at", "solve_model"]  # the contract's defaults, the commands' entry point
+# the commands' one entry point to solve a scene's model, and the problem its answer solves
+from problems.plugins.contract import problem_at as problem_at
+from problems.plugins.contract import solve_model as solve_model
 from problems.scene import Scene, SceneModel, load_scene
 from problems.scene.fields import load_parameter
 
