@@ -24,6 +24,7 @@ import numpy as np
 import vi_core
 from problems.errors import SceneError
 from problems.plugins import registry
+
 # the commands' one entry point to solve a scene's model, and the problem its answer solves
 from problems.plugins.contract import problem_at as problem_at
 from problems.plugins.contract import solve_model as solve_model
