@@ -3,7 +3,10 @@ load P, half-width a and peak pressure p0 against Hertz at the measured load, th
 errors and the observed rates between levels), printed and written as JSON.
 
     python -m problems.commands.hertz_table [--scene hertz] [--levels 0..3] [--radius 1.0]
-        [--json FILE]
+        [--set KEY=VALUE ...] [--json FILE]
+
+With `--set contact.electrical.kind='"grounded"'` on hertz_piezo the cylinder is a conducting
+indenter and the reference E* the conducting one (`contact_references.hertz_modulus`).
 """
 
 from __future__ import annotations
@@ -17,9 +20,9 @@ from problems.pipeline import load, solve
 from problems.plugins import hertz
 
 
-def rows(scene: str, levels: range, R: float) -> list[dict]:
-    """Solve `scene` at each level and measure its line contact."""
-    loaded = load(scene)
+def rows(scene: str, levels: range, R: float, overrides: list[str] = ()) -> list[dict]:
+    """Solve `scene` (with the `--set` overrides) at each level and measure its line contact."""
+    loaded = load(scene, overrides)
     out = []
     for lev in levels:
         run = solve(loaded, lev, cold=True)
@@ -49,6 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scene", default="hertz", help="a Hertz scene (rigid cylinder at x = 0)")
     ap.add_argument("--levels", default="0..3", help="A..B, the levels solved")
     ap.add_argument("--radius", type=float, default=1.0, help="the cylinder's radius R (m)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--json", default=None, help="write the rows to this JSON file")
     args = ap.parse_args(argv)
     lo, _, hi = args.levels.partition("..")
@@ -60,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--levels = {args.levels!r}: expected A..B with integers 0 ≤ A ≤ B")
     if not args.radius > 0:
         ap.error(f"--radius = {args.radius!r}: expected a radius > 0 (m)")
-    table = rows(args.scene, levels, args.radius)
+    table = rows(args.scene, levels, args.radius, args.set)
     print(
         f"{'level':>5} {'unknowns':>9} {'Newton':>6} {'P [N/m]':>10} {'a/a_ref-1':>10} "
         f"{'rate':>5} {'p0/p0_ref-1':>11} {'rate':>5}"

@@ -24,6 +24,10 @@ import numpy as np
 import vi_core
 from problems.errors import SceneError
 from problems.plugins import registry
+
+# the commands' one entry point to solve a scene's model, and the problem its answer solves
+from problems.plugins.contract import problem_at as problem_at
+from problems.plugins.contract import solve_model as solve_model
 from problems.scene import Scene, SceneModel, load_scene
 from problems.scene.fields import load_parameter
 
@@ -162,24 +166,6 @@ def _nested(
             on_level(coarse, csol)
         prev = (coarse, csol)
     return nested, plugin.warm_start(*prev, model)
-
-
-def solve_model(plugin: Any, model: Any, **options: Any) -> vi_core.Solution:
-    """The plug-in's `solve(model, **options)` if it has one (an outer iteration around the
-    VI), else `vi_core.solve(model.vi, **options)`."""
-    if hasattr(plugin, "solve"):
-        return plugin.solve(model, **options)
-    return vi_core.solve(model.vi, **options)
-
-
-def problem_at(plugin: Any, model: Any, sol: vi_core.Solution) -> vi_core.MixedVI:
-    """The mixed VI that `sol` must solve: the plug-in's `problem_at(model, sol)` where its
-    `solve` iterates around the VI (piezo_contact's electrical contact: the VI with the
-    conductances frozen at k(λ_n) of `sol`), else `model.vi`. Checkers judge an answer of
-    `solve_model` against this problem, never against the VI the solver was last given."""
-    if hasattr(plugin, "problem_at"):
-        return plugin.problem_at(model, sol)
-    return model.vi
 
 
 def level_record(level: int, model: Any, sol: vi_core.Solution) -> dict:

@@ -38,14 +38,15 @@ declaration it needs with exit status 2, naming the declaration):
                                                baselines: an outer iteration around model.vi
                                                (e.g. piezo_contact's electrical contact fixed
                                                point); default vi_core.solve(model.vi, **options)
-                                               (`problems.pipeline.solve_model`: every
-                                               command solves through it)
+                                               (`solve_model`, re-exported by
+                                               problems.pipeline: every command solves
+                                               through it)
     problem_at(model, sol) -> MixedVI          with `solve`: the mixed VI the answer `sol`
                                                must solve (e.g. the VI with the electrical
                                                conductances frozen at k(λ_n) of `sol`),
                                                which `mixvi check` and `extremes` judge it
                                                against; default model.vi
-                                               (`problems.pipeline.problem_at`)
+                                               (`problem_at`)
     incremental(model, previous, previous_sol) load paths (`[load_path]`, mixvi solve and
                          -> None               `problems.solve_scene`): make `model`, the next
                                                load step just built, act on the increments
@@ -105,6 +106,7 @@ from typing import Annotated, Any, Protocol, runtime_checkable
 import numpy as np
 from pydantic import BeforeValidator, Field
 
+import vi_core
 from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.scene import Scene, SceneModel, Section, load_scene
@@ -259,6 +261,24 @@ def conforms(obj: Any) -> list[str]:
     if not (isinstance(norms, tuple) and all(isinstance(k, str) for k in norms)):
         missing.append("NORMS (a tuple of names, when declared)")
     return missing
+
+
+def solve_model(plugin: Any, model: Any, **options: Any) -> Solution:
+    """The plug-in's `solve(model, **options)` if it has one (an outer iteration around the
+    VI), else `vi_core.solve(model.vi, **options)`."""
+    if hasattr(plugin, "solve"):
+        return plugin.solve(model, **options)
+    return vi_core.solve(model.vi, **options)
+
+
+def problem_at(plugin: Any, model: Any, sol: Solution) -> MixedVI:
+    """The mixed VI that `sol` must solve: the plug-in's `problem_at(model, sol)` where its
+    `solve` iterates around the VI (piezo_contact's electrical contact: the VI with the
+    conductances frozen at k(λ_n) of `sol`), else `model.vi`. Checkers judge an answer of
+    `solve_model` against this problem, never against the VI the solver was last given."""
+    if hasattr(plugin, "problem_at"):
+        return plugin.problem_at(model, sol)
+    return model.vi
 
 
 def draw_multiplier(ax, model: Any, sol: Solution) -> str:

@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-import vi_core
 from problems.errors import SceneError
 from problems.scene import load_scene
 from vi_core.kkt import Checker
 
+from .contract import problem_at, solve_model
 from .registry import for_scene
 
 ACCEPT = 10.0  # a path's independent residual must be ≤ ACCEPT · tol (as `mixvi check`)
@@ -67,11 +67,14 @@ def measure(name: str, F: float, level: int, inner: str, overrides=(), tol=1e-10
     scene = _scene(name, list(overrides), F)
     plugin = for_scene(scene)
     model = plugin.build(scene, level)
-    vi = model.vi
+    # the scene's problem (with the plug-in's outer iteration, e.g. a [contact.electrical]
+    # fixed point, around each path), each answer judged on the problem it must solve
+    newton = solve_model(plugin, model, method="ssn", tol=tol)
+    fixed = solve_model(plugin, model, method="fixed_point", tol=tol, inner=inner)
+    vi = problem_at(plugin, model, newton)
     check = Checker.of(vi)
-    newton = vi_core.solve(vi, "ssn", tol=tol)
-    fixed = vi_core.solve(vi, "fixed_point", tol=tol, inner=inner)
-    res_n, res_f = check(newton.u, newton.lam).relative, check(fixed.u, fixed.lam).relative
+    res_n = check(newton.u, newton.lam).relative
+    res_f = Checker.of(problem_at(plugin, model, fixed))(fixed.u, fixed.lam).relative
     ok_n = newton.converged and res_n <= ACCEPT * tol
     ok_f = fixed.converged and res_f <= ACCEPT * tol
     row = {
@@ -91,7 +94,7 @@ def measure(name: str, F: float, level: int, inner: str, overrides=(), tol=1e-10
     if ok_n:
         row["open"], row["stick"], row["slip"], mean_p = _zones(plugin.contact_state(model, newton))
         tresca = plugin.build(_scene(name, list(overrides), F, "tresca", F * mean_p), level)
-        t_sol = vi_core.solve(tresca.vi, "ssn", tol=tol)
+        t_sol = solve_model(plugin, tresca, method="ssn", tol=tol)
         row["tresca_newton_steps"] = t_sol.iterations if t_sol.converged else None
     if ok_n and ok_f:
         kappa = check.inverse_norm(newton.u, newton.lam)

@@ -132,7 +132,12 @@ def conductance_matrix(weights: np.ndarray, k: np.ndarray) -> sp.dia_matrix:
 @dataclass
 class Coupling:
     """What the fixed point needs from a built model: the VI with k = 0 (A0), where the trace
-    nodes' potentials and normal multipliers sit, and the law."""
+    nodes' potentials and normal multipliers sit, and the law.
+
+    The potential jump at slave node i is [φ]_i = φ_s,i − (Π φ_m)_i − φ_F: a rigid foundation
+    (or a master body without potential, a conductor) at φ_F has no Π; a piezoelectric master
+    body has φ_F = 0 and Π its dual-mortar mean Σ_j M_ij φ_m,j / W_i (`master` on the unknowns,
+    `fixed` the part of the jump from prescribed potentials, slave and master)."""
 
     vi0: MixedVI  # the insulating problem
     phi: np.ndarray  # (N,) unknown index of φ at each trace node carrying a λ_n, −1 if prescribed
@@ -142,15 +147,35 @@ class Coupling:
     phi_F: float
     max_iter: int = 50
     tol: float = 1e-10
+    master: sp.csr_matrix | None = None  # (N, n) Π on the master's potential unknowns
+    fixed: np.ndarray | None = None  # (N,) φ_s,i − (Πφ_m)_i of the prescribed potentials
+
+    @property
+    def jump_matrix(self) -> sp.csr_matrix:
+        """G (N, n): the potential jump [φ] = G u + fixed − φ_F on the unknowns u."""
+        keep = np.flatnonzero(self.phi >= 0)
+        N, n = self.phi.size, self.vi0.n
+        G = sp.csr_matrix((np.ones(keep.size), (keep, self.phi[keep])), shape=(N, n))
+        return G if self.master is None else (G - self.master).tocsr()
+
+    def jump(self, u: np.ndarray) -> np.ndarray:
+        """[φ] (N,) at the slave nodes (NaN where the slave potential is prescribed)."""
+        out = self.jump_matrix @ u - self.phi_F
+        if self.fixed is not None:
+            out = out + self.fixed
+        return np.where(self.phi >= 0, out, np.nan)
 
     def frozen(self, k: np.ndarray) -> MixedVI:
-        """The MixedVI with the frozen nodal conductances k (N,)."""
+        """The MixedVI with the frozen nodal conductances k (N,): + Gᵀ diag(w k) G on A and
+        − Gᵀ diag(w k)(fixed − φ_F) on f (∫_Γ3 k [φ][ψ] ds by the nodal rule; a slave node
+        with prescribed φ has no row: nothing flows through it)."""
         keep = self.phi >= 0
-        n = self.vi0.n
-        d = np.zeros(n)  # (n,) the Robin diagonal on the unknowns
-        np.add.at(d, self.phi[keep], (self.weights * k)[keep])
-        f = self.vi0.f + d * self.phi_F  # (n,) + w_i k_i φ_F on the trace potentials
-        return dataclasses.replace(self.vi0, A=(self.vi0.A + sp.diags(d)).tocsr(), f=f)
+        wk = np.where(keep, self.weights * k, 0.0)  # (N,)
+        G = self.jump_matrix
+        const = -self.phi_F + (0.0 if self.fixed is None else self.fixed)  # (N,) or scalar
+        A = self.vi0.A + G.T @ sp.diags(wk) @ G
+        f = self.vi0.f - G.T @ (wk * const)  # (n,)
+        return dataclasses.replace(self.vi0, A=A.tocsr(), f=f)
 
     def conductances(self, lam: np.ndarray) -> np.ndarray:
         """k (N,) from the multipliers λ of the VI."""
@@ -239,11 +264,10 @@ def report(c: Coupling, sol: Solution) -> dict:
     law_defect = max_i |D·n_i − k(λ_n,i)(φ_i − φ_F)| / max(max_i |D·n_i|, tiny)."""
     lam_n = sol.lam[c.normal]
     keep = c.phi >= 0
-    phi = np.full(c.phi.size, np.nan)
-    phi[keep] = sol.u[c.phi[keep]]
+    jump = c.jump(sol.u)  # (N,) φ_s − Πφ_m − φ_F, NaN where φ_s is prescribed
     flux = c.flux(sol.u, sol.lam)  # (N,)
     k = c.law(lam_n)
-    law = k * (phi - c.phi_F)
+    law = k * jump
     top = float(np.nanmax(np.abs(flux), initial=0.0))
     defect = float(np.nanmax(np.abs(flux - law), initial=0.0)) / max(top, 1e-300)
     touching = lam_n > TOUCH * max(float(lam_n.max(initial=0.0)), 1e-300)
@@ -257,5 +281,5 @@ def report(c: Coupling, sol: Solution) -> dict:
         "fixed_point": sol.info.get("electrical"),
     }
     if touching.any() and keep[touching].any():
-        out["potential_gap_touching"] = float(np.nanmax(np.abs(phi[touching] - c.phi_F)))
+        out["potential_gap_touching"] = float(np.nanmax(np.abs(jump[touching])))
     return out

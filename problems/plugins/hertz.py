@@ -62,8 +62,16 @@ def measure(
 
 def of_model(model, sol, R: float) -> LineContact:
     """`measure` on a solved signorini or piezo_contact (rigid foundation) model, with the
-    contact body's E* from the Barnett–Lothe tensor (`hertz_modulus`: the charge-free
-    surface for a piezoelectric body)."""
+    contact body's E* from the Barnett–Lothe tensor (`hertz_modulus`): the charge-free surface
+    for a piezoelectric body (insulating, or no [contact.electrical]), the conducting indenter
+    for `grounded` (φ = φ_F where it touches); a `conductive` law (finite k) has no closed form
+    (ValueError)."""
+    kind = getattr(getattr(model, "electrical", None), "law", None)
+    kind = "none" if kind is None else kind.kind
+    if kind not in ("none", "grounded"):
+        raise ValueError(
+            f"electrical contact law {kind!r}: no Hertz reference (insulating or grounded only)"
+        )
     c = getattr(model, "contact", None)
     if c is None:  # signorini: λ = [normal rows, tangential rows], nodal weights
         body, nodes, w, lam_n = (
@@ -76,4 +84,5 @@ def of_model(model, sol, R: float) -> LineContact:
         body, nodes, w, lam_n = c.slave, c.tr.nodes[c.rows_n], c.W_n, c.normal(sol.lam)
     mat = body.material
     x = body.mesh.points[nodes, 0]
-    return measure(x, w, lam_n, R, hertz_modulus(mat.C, mat.e, mat.kappa))
+    E_star = hertz_modulus(mat.C, mat.e, mat.kappa, conducting=kind == "grounded")
+    return measure(x, w, lam_n, R, E_star)

@@ -110,6 +110,8 @@ class Contact:
     patch_defect: float  # max_k |Σ_j Ds_kj − Σ_j M_kj| / Σ_j Ds_kj (0 for a rigid master)
     uncovered: np.ndarray  # trace indices left without multiplier: no master behind them
     master_proj: sp.csr_matrix | None = None  # (N_t, n_full): u ↦ mortar-mean u_m·τ_k
+    # (N_n, n_full): x ↦ mortar mean Σ_j M_kj φ_m,j / W_k of a piezoelectric master's potential
+    master_phi: sp.csr_matrix | None = None
     law: str = LAWS[0]  # "bilateral" or "unilateral"
     friction: str = FRICTIONS[0]  # "tresca" or "coulomb"
     F: np.ndarray | None = None  # (N_t,) Coulomb F_k = ∫Fφ̃_k / ∫φ̃_k (friction = "coulomb")
@@ -212,12 +214,15 @@ class PiezoScene(SceneModel):
                     raise refuse(
                         ["contact", "electrical"], e.kind, "only with a piezoelectric slave body"
                     )
-                if e.kind != "insulating" and c.master != "rigid":
+                piezo_master = c.master != "rigid" and (
+                    self.bodies[c.master.split(".")[0]].material.material().piezoelectric
+                )
+                if piezo_master and e.kind != "insulating" and e.phi_F != 0.0:
                     raise refuse(
-                        ["contact", "electrical", "kind"],
-                        e.kind,
-                        "insulating with a master body (conductive and grounded need "
-                        'master = "rigid")',
+                        ["contact", "electrical", "phi_F"],
+                        e.phi_F,
+                        "0 (absent) with a piezoelectric master body: the charge flows into "
+                        "the master, whose potential takes the foundation's place",
                     )
         if self.output is not None and self.output.potential_along is not None:
             field = ["output", "potential_along"]
@@ -288,7 +293,7 @@ def build_model(
     )
     model = model_class(scene, level, list(bodies.values()), contact, vi, free, values, options)
     if ct is not None and ct.electrical is not None:
-        model.electrical = _electrical(ct.electrical, contact, vi, free)
+        model.electrical = _electrical(ct.electrical, contact, vi, free, values)
     if contact is not None:
         model.warnings += interface_warnings(contact)
     for b in model.bodies:
@@ -303,22 +308,39 @@ def build_model(
 
 
 def _electrical(
-    e: electrical_contact.ElectricalSection, contact: Contact, vi: MixedVI, free: np.ndarray
+    e: electrical_contact.ElectricalSection,
+    contact: Contact,
+    vi: MixedVI,
+    free: np.ndarray,
+    values: np.ndarray | None = None,
 ) -> electrical_contact.Coupling:
-    """The fixed point's data: φ unknowns and normal multipliers of the slave trace nodes."""
+    """The fixed point's data: φ unknowns and normal multipliers of the slave trace nodes, and
+    with a piezoelectric master body its mortar mean Π φ_m (on the unknowns, and the part of
+    the jump from prescribed potentials); a master without potential is a conductor at φ_F."""
     tr, slave = contact.tr, contact.slave
     nodes = contact.rows_n  # trace indices carrying λ_n (index j of λ)
     full = slave.phi_dofs(tr.nodes[nodes])  # (N,)
     pos = np.searchsorted(free, full)
     found = (pos < free.size) & (free[np.minimum(pos, free.size - 1)] == full)
     kappa_max = float(np.linalg.eigvalsh(slave.material.kappa)[-1])
+    master, fixed, phi_F = None, None, float(e.phi_F)
+    if contact.master_phi is not None:
+        P = contact.master_phi  # (N, n_full)
+        is_free = np.zeros(P.shape[1], dtype=bool)
+        is_free[free] = True
+        known = np.where(is_free, 0.0, values)  # (n_full,) prescribed values only
+        master = P[:, free].tocsr()
+        fixed = np.where(found, 0.0, values[full]) - P @ known  # (N,)
+        phi_F = 0.0  # the master's potential replaces the foundation's
     return electrical_contact.Coupling(
+        master=master,
+        fixed=fixed,
         vi0=vi,
         phi=np.where(found, pos, -1),
         normal=contact.idx_n,
         weights=tr.weights[nodes],
         law=e.law_of(kappa_max, float(tr.lengths.max())),
-        phi_F=float(e.phi_F),
+        phi_F=phi_F,
         max_iter=int(e.max_iter),
         tol=float(e.tol),
     )
@@ -551,6 +573,13 @@ def _contact(
             ),
             shape=(rows_t.size, n_full),
         )
+    master_phi = None
+    if master is not None and master.has_potential:  # normal rows: Σ_j M_kj φ_m,j / W_k
+        M = (Q_c[0] @ mort.M).tocoo()
+        master_phi = sp.csr_matrix(
+            (M.data / W_n[M.row], (M.row, master.phi_dofs(mort.master_nodes)[M.col])),
+            shape=(rows_n.size, n_full),
+        )
     return Contact(
         slave=slave,
         slave_part=part,
@@ -570,6 +599,7 @@ def _contact(
         patch_defect=max(defects),
         uncovered=np.flatnonzero(uncovered),
         master_proj=proj,
+        master_phi=master_phi,
         law=ct.law,
         friction=ct.friction,
         F=gw / W_t if ct.friction == "coulomb" else None,

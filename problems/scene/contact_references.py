@@ -4,11 +4,15 @@
   cylinder of radius R under the load P per unit length (Johnson, Contact Mechanics, §5.6):
   half-width a = sqrt(4 P R / (π E*)), peak pressure p0 = 2 P / (π a) = sqrt(P E* / (π R)),
   p(x) = p0 sqrt(1 − x²/a²). E* is the plane-strain modulus of the half-plane, E/(1 − ν²) for
-  an isotropic one (`isotropic_plane_strain_modulus`).
+  an isotropic one (`isotropic_plane_strain_modulus`), 2/(L⁻¹)_yy of the Barnett–Lothe tensor
+  for an anisotropic or (insulating indenter) piezoelectric one, and for a conducting indenter
+  on a piezoelectric one the modulus of the (y, φ) Schur complement (`hertz_modulus`).
 - `uniaxial_electrical_contact`: a piezoelectric layer 0 < y < H, poled along y, in uniaxial
   strain (rollers on its sides), its top pushed down by δ and held at the potential V, its bottom
   on a rigid foundation with the electrical contact law D·n = k(λ_n)(φ − φ_F) (n = −e_y): every
   field is linear in y and the bottom potential φ0 solves one scalar equation (bracketed root).
+- `two_layer_electrical_contact`: the same layer on a second piezoelectric layer instead of the
+  foundation, with D·n = k(λ_n)(φ_s − φ_m) across the interface (a bracketed root again).
 """
 
 from __future__ import annotations
@@ -80,14 +84,100 @@ def uniaxial_electrical_contact(
 
     phi_ins = V + e33 * delta / k33
     lo, hi = min(phi_F, phi_ins), max(phi_F, phi_ins)
-    if residual(lo) == 0.0 or lo == hi:
-        phi0 = lo
-    elif residual(hi) == 0.0:
-        phi0 = hi
-    else:
+    r_lo, r_hi = (residual(lo), residual(hi)) if lo < hi else (0.0, 0.0)
+    if r_lo * r_hi < 0.0:
         phi0 = brentq(residual, lo, hi, xtol=1e-14 * max(abs(lo), abs(hi), 1.0), rtol=1e-15)
+    else:  # the root is at an end of the bracket; rounding gave both ends one sign
+        phi0 = lo if abs(r_lo) <= abs(r_hi) else hi
     kk = float(k(lam(phi0)))
     return Uniaxial(phi0=phi0, lam_n=lam(phi0), flux=kk * (phi0 - phi_F), k=kk)
+
+
+@dataclass(frozen=True)
+class Layer:
+    """A piezoelectric layer in uniaxial strain along its poling axis y: thickness H (m) and
+    the constants c33 (Pa), e33 (C/m²), κ33 (F/m)."""
+
+    c33: float
+    e33: float
+    k33: float
+    H: float
+
+
+@dataclass(frozen=True)
+class TwoLayer:
+    """The state at the interface of two stacked layers: the slave's and the master's
+    potentials there, the pressure, the slave's D·n (n = −e_y), k, the interface's u_y."""
+
+    phi_s: float
+    phi_m: float
+    lam_n: float
+    flux: float
+    k: float
+    v: float
+
+
+def two_layer_electrical_contact(
+    slave: Layer,
+    master: Layer,
+    delta: float,
+    V: float,
+    V_m: float,
+    k: Callable[[float], float],
+) -> TwoLayer:
+    """A slave layer 0 < y < H_s (top pushed down by δ, at potential V) in bilateral contact
+    with a master layer −H_m < y < 0 (bottom fixed, at potential V_m) through the electrical
+    contact law D·n = k(λ_n)(φ_s − φ_m) (n = −e_y the slave's normal). Every field is linear in
+    y in each layer; with v = u_y(0), a = φ_s(0), b = φ_m(0):
+        σ_s = c_s(−δ − v)/H_s + e_s(V − a)/H_s,   D_s = e_s(−δ − v)/H_s − κ_s(V − a)/H_s,
+        σ_m = c_m v/H_m + e_m(b − V_m)/H_m,       D_m = e_m v/H_m − κ_m(b − V_m)/H_m,
+    σ_s = σ_m, D_s = D_m (no charge stays on the interface) and −D_s = k(−σ_s)(a − b). For a
+    given k the three are linear (k = ∞: a = b); the pressure solves λ = Λ(k(λ)), a root
+    bracketed by Λ(0) and Λ(∞) (k ↦ Λ(k) is a Möbius map, monotone)."""
+
+    def state(kk: float) -> np.ndarray:
+        s, m = slave, master
+        # rows: σ_s − σ_m = 0, D_s − D_m = 0, law; unknowns x = (v, a, b)
+        A = np.array(
+            [
+                [-s.c33 / s.H - m.c33 / m.H, -s.e33 / s.H, -m.e33 / m.H],
+                [-s.e33 / s.H - m.e33 / m.H, s.k33 / s.H, m.k33 / m.H],
+                [0.0, 0.0, 0.0],
+            ]
+        )
+        rhs = np.array(
+            [
+                s.c33 * delta / s.H - s.e33 * V / s.H - m.e33 * V_m / m.H,
+                s.e33 * delta / s.H + s.k33 * V / s.H + m.k33 * V_m / m.H,
+                0.0,
+            ]
+        )
+        if np.isinf(kk):  # a = b
+            A[2] = [0.0, 1.0, -1.0]
+        else:  # −D_s − k(a − b) = 0, D_s = e_s(−δ − v)/H_s − κ_s(V − a)/H_s
+            A[2] = [s.e33 / s.H, -s.k33 / s.H - kk, kk]
+            rhs[2] = -s.e33 * delta / s.H - s.k33 * V / s.H
+        return np.linalg.solve(A, rhs)
+
+    def lam(x: np.ndarray) -> float:
+        v, a, _ = x
+        return -(slave.c33 * (-delta - v) / slave.H + slave.e33 * (V - a) / slave.H)
+
+    l0, l_inf = lam(state(0.0)), lam(state(np.inf))
+    lo, hi = min(l0, l_inf), max(l0, l_inf)
+
+    def residual(p: float) -> float:
+        return p - lam(state(float(k(p))))
+
+    r_lo, r_hi = (residual(lo), residual(hi)) if lo < hi else (0.0, 0.0)
+    if r_lo * r_hi < 0.0:
+        p = brentq(residual, lo, hi, xtol=1e-15 * max(abs(lo), abs(hi), 1.0), rtol=1e-15)
+    else:  # the root is at an end (r ≤ 0 at lo, ≥ 0 at hi in exact arithmetic): rounding
+        p = lo if abs(r_lo) <= abs(r_hi) else hi
+    kk = float(k(p))
+    v, a, b = state(kk)
+    d_s = slave.e33 * (-delta - v) / slave.H - slave.k33 * (V - a) / slave.H
+    return TwoLayer(phi_s=a, phi_m=b, lam_n=lam(np.array([v, a, b])), flux=-d_s, k=kk, v=v)
 
 
 VOIGT = ((0, 2), (2, 1))  # VOIGT[i][j]: the Voigt index of (i, j) in (xx, yy, xy)
@@ -138,13 +228,36 @@ def barnett_lothe_L(
 
 
 def hertz_modulus(
-    C: np.ndarray, e: np.ndarray | None = None, kappa: np.ndarray | None = None
+    C: np.ndarray,
+    e: np.ndarray | None = None,
+    kappa: np.ndarray | None = None,
+    conducting: bool = False,
 ) -> float:
-    """The plane-strain Hertz modulus E* = 2 / (L⁻¹)_yy of a half-plane y < 0 (its surface
-    normal y, the poling axis of mixvi's piezoelectric materials) against a rigid frictionless
-    cylinder: the surface slope is u_y' = (L⁻¹)_yy/π · PV∫p(s)/(s − x) ds under a normal pressure
-    alone (SL⁻¹ is antisymmetric, so no local term), the isotropic one with 2/E*. With e and κ
-    the surface is charge free (an insulating indenter: D·n = 0 on the whole surface) and L the
-    extended tensor; the conducting indenter (φ prescribed under it) is not covered."""
-    Li = np.linalg.inv(barnett_lothe_L(C, e, kappa))
-    return float(2.0 / Li[1, 1])
+    """The plane-strain Hertz modulus E* of a half-plane y < 0 (its surface normal y, the
+    poling axis of mixvi's piezoelectric materials) against a rigid frictionless cylinder.
+
+    On the surface, u' = (1/π) L⁻¹ · PV∫t(s)/(s − x) ds for the surface tractions (and, with e
+    and κ, the surface charge) t (SL⁻¹ is antisymmetric, and with the mirror symmetry x → −x
+    of a material poled along y it does not couple (u_y, φ) with each other: no local term).
+    Insulating indenter (default; charge-free surface D·n = 0 everywhere, and the elastic
+    case): a normal pressure alone, u_y' = (L⁻¹)_yy/π · PV∫p/(s − x), so E* = 2/(L⁻¹)_yy.
+    Conducting indenter (`conducting`; φ constant under it, D·n = 0 outside): the pressure p
+    and the surface charge q under the cylinder solve N·H[p, q] = [−x/R, 0] with N the (y, φ)
+    block of L⁻¹ and H the finite Hilbert transform; eliminating q, p is Hertz's ellipse with
+    2/E* = N_yy − N_yφ²/N_φφ = 1/L_yy (the potential of the indenter only adds a charge
+    c/sqrt(a² − x²), which H maps to 0 and p does not see). Derived here from the same surface
+    relation (no published 2D formula was found to cite); needs the mirror symmetry (x
+    decoupled from (u_y, φ) in L: ValueError otherwise). Isotropic and elastic: E/(1 − ν²)
+    either way; BaTiO3: 1.413e11 Pa insulating, 1.235e11 Pa conducting, 1.208e11 Pa elastic."""
+    L = barnett_lothe_L(C, e, kappa)
+    Li = np.linalg.inv(L)
+    if not conducting or e is None:
+        return float(2.0 / Li[1, 1])
+    coupling = np.abs(L[0, 1:]) / np.sqrt(np.abs(L[0, 0] * np.diag(L)[1:]))  # (2,)
+    if coupling.max() > 1e-8:
+        raise ValueError(
+            f"conducting indenter: L couples u_x with (u_y, φ) ({coupling.max():.1e}); the "
+            "closed form needs a material symmetric under x → −x (poled along y)"
+        )
+    N = Li[1:, 1:]  # (2, 2) the (y, φ) block of L⁻¹
+    return float(2.0 / (N[0, 0] - N[0, 1] ** 2 / N[1, 1]))

@@ -159,3 +159,49 @@ def test_coulomb_slip_converges_under_refinement():
         hs.append(pc.mesh_size(m))
     rate = np.polyfit(np.log(hs), np.log(errs), 1)[0]
     assert errs == sorted(errs, reverse=True) and rate >= 0.7, (errs, rate)
+
+
+# ------------------------------------------------------------------ beyond the range of F
+def test_beyond_the_range_each_path_says_not_converged():
+    """coulomb_strip at level 1 (docs/coulomb.md, "The upper end of the range"): at F = 30 the
+    fixed point stalls (its step ratio stays at 1) while Newton converges; at F = 1e6 Newton
+    cycles too. Each path says converged False with its reason — never an answer — and the
+    range tool's verdict names the path."""
+    row = coulomb_range.measure("coulomb_strip", 30.0, 1, "conic")
+    assert row["newton_converged"] and row["verdict"] == "not converged: fixed point", row
+    model = pc.build(coulomb_range._scene("coulomb_strip", [], 1e6), 1)
+    fp = vi_core.solve(model.vi, "fixed_point", tol=1e-10, inner="conic")
+    assert not fp.converged and any("did not shrink" in w for w in fp.warnings), fp.warnings
+    newton = vi_core.solve(model.vi, "ssn", tol=1e-10)
+    assert not newton.converged and any("did not reach tol" in w for w in newton.warnings)
+
+
+def test_a_path_claiming_convergence_beyond_the_range_is_caught(monkeypatch):
+    """The fault: a solver that calls its last iterate converged. The range tool judges each
+    answer by the independent checker, so F = 30 on the strip is still "not converged"."""
+    solve = vi_core.solve
+
+    def lying(vi, method="auto", **kw):
+        out = solve(vi, method, **kw)
+        out.converged = True
+        return out
+
+    monkeypatch.setattr(vi_core, "solve", lying)
+    row = coulomb_range.measure("coulomb_strip", 30.0, 1, "conic")
+    assert row["verdict"] == "not converged: fixed point" and row["fp_residual"] > 1e-3, row
+
+
+def test_mixvi_says_not_converged_beyond_the_range(tmp_path, capsys):
+    """`mixvi solve --cold` at F = 1e6 (Newton cycles) exits 1 with converged false in
+    summary.json; `mixvi check` at F = 30 (the fixed point stalls) exits 1."""
+    import json
+
+    from problems.commands.main import main
+
+    out = tmp_path / "s"
+    rc = main(["solve", "coulomb_strip", "--level", "1", "--cold", "--set", "contact.F=1e6",
+               "--out", str(out)])  # fmt: skip
+    assert rc == 1 and json.loads((out / "summary.json").read_text())["converged"] is False
+    assert "NOT converged" in capsys.readouterr().out
+    assert main(["check", "coulomb_strip", "--level", "1", "--set", "contact.F=30.0"]) == 1
+    assert "fixed_point failed its own test" in capsys.readouterr().out

@@ -13,7 +13,11 @@ from hypothesis import strategies as st
 from problems.plugins import electrical_contact as ec
 from problems.plugins import piezo_contact as pc
 from problems.scene import load_scene
-from problems.scene.contact_references import uniaxial_electrical_contact
+from problems.scene.contact_references import (
+    Layer,
+    two_layer_electrical_contact,
+    uniaxial_electrical_contact,
+)
 from problems.scene.materials import NAMED
 
 MATCH = 1e-8  # FE against the closed form: linear fields are exact in Q1 (rounding + tol 1e-10)
@@ -232,18 +236,18 @@ def test_grounded_is_the_limit_of_large_conductance():
     assert gaps[1] / gaps[2] == pytest.approx(10.0, rel=0.05)  # O(1/k0)
 
 
-def test_two_body_and_elastic_slaves_are_refused():
-    """An elastic slave has no potential; a master body is no foundation at φ_F."""
+def test_elastic_slaves_and_a_foundation_potential_on_a_piezo_master_are_refused():
+    """An elastic slave has no potential; with a piezoelectric master the charge flows into
+    the master, so φ_F has no place."""
     from problems.errors import SceneError
 
     table = ['contact.electrical={kind = "conductive", k0 = 1e-6}']
     with pytest.raises(SceneError, match="only with a piezoelectric slave body"):
         load_scene("paper_two_body", table).validated(pc.SCENE_MODEL)
-    scene = load_scene("paper_two_body", table)
-    scene.data["bodies"]["disc"]["material"] = "BaTiO3"
-    scene.data["bodies"]["disc"]["potential"] = [{"boundary": "top", "value": 0.0}]
-    with pytest.raises(SceneError, match='conductive and grounded need master = "rigid"'):
-        scene.validated(pc.SCENE_MODEL)
+    with pytest.raises(SceneError, match="with a piezoelectric master body"):
+        load_scene("electrical_two_body", ["contact.electrical.phi_F=5.0"]).validated(
+            pc.SCENE_MODEL
+        )
 
 
 # ------------------------------------------------------------------ fault injection
@@ -326,3 +330,99 @@ def test_electrical_conditions_act_only_where_the_body_touches(sets):
         assert np.abs(phi[touch] - c.phi_F).max() <= 1e-6 * np.abs(phi).max()
     else:
         assert rep["law_defect"] <= 1e-6
+
+
+# ------------------------------------------------------------------ two bodies (dual mortar)
+LAYER = Layer(C33, E33, K33, H)
+
+
+def _two_body(overrides=(), level=0, delta=1e-6, V=0.0, V_m=0.0, base=None):
+    """electrical_two_body with the load δ, the top potential V, the base's bottom potential
+    V_m and optionally another base material."""
+    scene = load_scene("electrical_two_body", list(overrides))
+    bodies = scene.data["bodies"]
+    bodies["block"]["displacement"][0]["value"] = [0.0, -delta]
+    bodies["block"]["potential"][0]["value"] = V
+    bodies["base"]["potential"][0]["value"] = V_m
+    if base is not None:
+        bodies["base"]["material"] = base
+        bodies["base"].pop("potential")
+    model = pc.build(scene, level)
+    sol = pc.solve(model, method="ssn", tol=1e-10)
+    assert sol.converged, sol.warnings
+    return model, sol
+
+
+def _two_body_errors(model, sol, delta=1e-6, V=0.0, V_m=0.0) -> dict[str, float]:
+    """φ_s, Πφ_m and λ_n on Γ3 against the two-layer closed form (relative)."""
+    c = model.electrical
+    ref = two_layer_electrical_contact(
+        LAYER, LAYER, delta, V, V_m, lambda lam: float(c.law(np.array([lam]))[0])
+    )
+    scale = max(abs(ref.phi_s), abs(ref.phi_m), abs(V), abs(V_m), 1.0)
+    return {
+        "phi_s": float(np.abs(sol.u[c.phi] - ref.phi_s).max()) / scale,
+        "phi_m": float(np.abs(c.master @ sol.u + c.fixed - ref.phi_m).max()) / scale,
+        "lam": float(np.abs(sol.lam[c.normal] - ref.lam_n).max()) / abs(ref.lam_n),
+    }
+
+
+@settings(max_examples=10)
+@given(
+    delta=st.floats(2e-7, 3e-6),
+    V=st.floats(-500.0, 500.0),
+    V_m=st.floats(-500.0, 500.0),
+    k0=st.floats(1e-8, 1e-5),
+    law=st.sampled_from(["saturated", "power"]),
+    p=st.floats(0.5, 2.0),
+    level=st.integers(0, 1),
+)
+def test_two_bodies_match_the_two_layer_closed_form(delta, V, V_m, k0, law, p, level):
+    """Non-matching meshes (4 : 3 interface segments at level 0): the slave potential, the
+    mortar mean of the master's and the pressure against the 3 × 3 closed form, and the
+    recovered D·n obeys D·n = k(λ_n)(φ_s − Πφ_m)."""
+    sets = [
+        f"contact.electrical.k0={k0!r}",
+        f"contact.electrical.law={law!r}".replace("'", '"'),
+        f"contact.electrical.p={p!r}",
+    ]
+    model, sol = _two_body(sets, level, delta, V, V_m)
+    err = _two_body_errors(model, sol, delta, V, V_m)
+    assert max(err.values()) <= MATCH, err
+    assert ec.report(model.electrical, sol)["law_defect"] <= 1e-7
+
+
+def test_two_bodies_grounded_equalise_the_potentials_where_they_touch():
+    """grounded: φ_s = Πφ_m on the touching nodes (the penalty's accuracy), the closed form
+    with k = K."""
+    model, sol = _two_body(['contact.electrical.kind="grounded"'], level=1)
+    rep = ec.report(model.electrical, sol)
+    assert rep["touching_nodes"] == 9 and rep["potential_gap_touching"] <= 1e-5
+    assert max(_two_body_errors(model, sol).values()) <= MATCH
+
+
+def test_a_stiff_master_without_potential_is_the_rigid_foundation():
+    """The rigid-foundation limit: an elastic base (a conductor at φ_F) 1e9 times stiffer than
+    BaTiO3 gives the one-body closed form of electrical_block (its compliance: 1e-9)."""
+    stiff = {"kind": "isotropic", "E": 1e20, "nu": 0.3}
+    model, sol = _two_body(["contact.electrical.phi_F=100.0"], level=1, base=stiff)
+    c = model.electrical
+    assert c.master is None and c.phi_F == 100.0
+    ref = _reference(1e-6, 0.0, 100.0, c.law)
+    assert np.abs(sol.u[c.phi] - ref.phi0).max() <= 1e-8 * abs(ref.phi0)
+    assert np.abs(sol.lam[c.normal] - ref.lam_n).max() <= 1e-8 * ref.lam_n
+
+
+_JUMP = ec.Coupling.jump_matrix.fget  # the original, for faults built on it
+TWO_BODY_FAULTS = {
+    "master's sign flipped (φ_s + Πφ_m)": lambda c: _JUMP(c) + 2 * c.master,
+    "master dropped (φ_s only)": lambda c: _JUMP(c) + c.master,
+    "mortar mean not divided by W": lambda c: _JUMP(c) + c.master - sp.diags(c.weights) @ c.master,
+}
+
+
+@pytest.mark.parametrize("fault", list(TWO_BODY_FAULTS))
+def test_two_body_fault_injection_is_caught_by_the_closed_form(fault, monkeypatch):
+    monkeypatch.setattr(ec.Coupling, "jump_matrix", property(TWO_BODY_FAULTS[fault]))
+    model, sol = _two_body()
+    assert not max(_two_body_errors(model, sol).values()) <= MATCH

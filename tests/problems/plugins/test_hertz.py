@@ -123,3 +123,35 @@ def test_mutation_piezo_with_the_elastic_modulus_fails():
 def test_piezo_hertz_converges():
     """Levels 2 → 3 (6,370 and 25,026 unknowns): the same bounds as the elastic block."""
     _check([_measure_piezo(2), _measure_piezo(3)])
+
+
+# ------------------------------------------------------------------ conducting cylinder
+GROUNDED = ['contact.electrical.kind="grounded"']
+
+
+@functools.cache
+def _grounded(level):
+    model = pc.build(load_scene("hertz_piezo", GROUNDED), level)
+    sol = pc.solve(model, method="ssn", tol=1e-10)
+    assert sol.converged
+    return model, sol
+
+
+def test_piezo_hertz_under_a_conducting_cylinder_matches_its_modulus():
+    """Grounded (φ = φ_F where the block touches): level 2 within the bounds of the insulating
+    test, against E* = 2 L_yy (conducting, 1.235e11 Pa; measured −2.2e-2 / +1.0e-2); the
+    insulating E* (1.413e11 Pa, the fault) misses by +4.7e-2 / −5.5e-2."""
+    model, sol = _grounded(2)
+    e = hertz.of_model(model, sol, R).errors
+    assert abs(e["a"]) <= 3e-2 and abs(e["p0"]) <= 1.5e-2, e
+    c = model.contact
+    x = c.slave.mesh.points[c.tr.nodes[c.rows_n], 0]
+    mat = c.slave.material
+    wrong = hertz.measure(x, c.W_n, c.normal(sol.lam), R, cr.hertz_modulus(mat.C, mat.e, mat.kappa))
+    assert not (abs(wrong.errors["a"]) <= 3e-2 and abs(wrong.errors["p0"]) <= 1.5e-2)
+
+
+def test_a_conductive_law_has_no_hertz_reference():
+    model = pc.build(load_scene("hertz_piezo", ['contact.electrical.kind="conductive"']), 0)
+    with pytest.raises(ValueError, match="no Hertz reference"):
+        hertz.of_model(model, pc.solve(model, method="ssn"), R)

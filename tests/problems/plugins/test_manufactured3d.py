@@ -226,12 +226,33 @@ def test_rates_on_hexahedra_and_tetrahedra(element):
     h, errs, states = _errors(None, element)
     assert slope_failures(slopes(h, errs)) == []
     model, st = states[-1]
-    wrong = _wrong_states(model, st)
-    # the slip |u_t| grows like dist³ and g − |λ_t| like dist² from the interface: nodes next
-    # to it may take the other state (level 2: 5 of 81 on hexahedra, 7 on tetrahedra)
-    assert wrong.size <= 0.1 * st["slip"].size
-    assert (wrong < h[-1]).all()  # only within a cell diameter of the exact interface
+    assert state_failures(model, st, h[-1]) == []
     assert st["lemma_4_2"] <= 1e-8
+
+
+def state_failures(model, st, h: float) -> list[str]:
+    """The contact states against the exact zones: the slip |u_t| grows like dist³ and
+    g − |λ_t| like dist² from the interface, so nodes next to it may take the other state, at
+    most 10 % of them (level 2: 8 of 81 on hexahedra, 9.9 %; 7 on tetrahedra) and all within
+    a cell diameter h of the exact interface."""
+    wrong = _wrong_states(model, st)
+    out = []
+    if wrong.size > 0.1 * st["slip"].size:
+        out.append(f"{wrong.size} of {st['slip'].size} nodes in the other state")
+    if (wrong >= h).any():
+        out.append(f"a node {wrong.max():.3f} from the interface in the other state (h {h:.3f})")
+    return out
+
+
+def test_a_friction_bound_off_by_ten_percent_is_seen_by_the_states():
+    """Mutation: g × 0.9 moves the stick/slip interface: 18 of 81 nodes at level 2 take the
+    other state, one of them beyond a cell diameter. (Of the slopes over levels 0–2 only φ's
+    L² one sees it, 1.40; u 1.71, 0.92 and λ 1.44 pass: the states check is the one that reads
+    the friction law.)"""
+    scene = load_scene(NAME)
+    scene.data["contact"]["g"] = f"0.9 * ({scene.data['contact']['g']})"
+    h, _, states = _errors(scene, "hexahedron")
+    assert state_failures(*states[-1], h[-1])
 
 
 def _wrong_states(model, st) -> np.ndarray:

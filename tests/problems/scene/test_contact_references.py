@@ -107,3 +107,63 @@ def test_a_focus_outside_the_rectangle_is_refused():
         load_scene("hertz", ["body.geometry.focus=[0.0, 2.0]"]).validated(SCENE_MODEL)
     with pytest.raises(SceneError, match="grading"):
         load_scene("hertz", ["body.geometry.grading=[0.5, 1.0]"]).validated(SCENE_MODEL)
+
+
+@given(seed=st.integers(0, 2**31))
+def test_conducting_indenter_modulus_is_one_over_L_yy_and_below_the_insulating(seed):
+    """Drawn perturbations of BaTiO3: the Schur-complement form equals 2 L_yy (the two routes
+    agree through L⁻¹), lies between the elastic and the charge-free moduli here, and the
+    insulating one is never below it (2/(L⁻¹)_yy = 2(L_yy + L_yφ²/|L_φφ|), L_φφ < 0)."""
+    rng = np.random.default_rng(seed)
+    C, e, k = _piezo("BaTiO3")
+    C = C * rng.uniform(0.7, 1.3, (3, 3))
+    C = 0.5 * (C + C.T)
+    e = e * rng.uniform(0.7, 1.3, e.shape)
+    k = np.diag(np.diag(k) * rng.uniform(0.7, 1.3, 2))
+    L = cr.barnett_lothe_L(C, e, k)
+    conducting = cr.hertz_modulus(C, e, k, conducting=True)
+    assert conducting == pytest.approx(2 * L[1, 1], rel=1e-10)
+    assert cr.hertz_modulus(C, e, k) > conducting
+    assert cr.hertz_modulus(C, 1e-6 * e, k, conducting=True) == pytest.approx(
+        cr.hertz_modulus(C), rel=1e-9
+    )
+
+
+def test_conducting_indenter_needs_the_mirror_symmetry():
+    C, e, k = _piezo("BaTiO3")
+    tilted = e.copy()
+    tilted[0, 0] = 0.3 * e[1, 1]  # e_x,xx ≠ 0: no longer symmetric under x → −x
+    with pytest.raises(ValueError, match="x → −x"):
+        cr.hertz_modulus(C, tilted, k, conducting=True)
+
+
+@given(
+    delta=st.floats(-3e-6, 3e-6),
+    V=st.floats(-500.0, 500.0),
+    phi_F=st.floats(-1000.0, 1000.0),
+    k0=st.floats(1e-8, 1e-4),
+    law=st.sampled_from(["saturated", "power"]),
+)
+def test_two_layers_tend_to_the_foundation(delta, V, phi_F, k0, law):
+    """A master layer 1e6 times stiffer and more permittive, without coupling, at V_m = φ_F:
+    the two-layer state is the one-layer state on a conductive foundation at φ_F within the
+    master's relative compliance 1e-6 (an independent route: one scalar equation against the
+    3 × 3 system)."""
+    c, e, k = (_piezo("BaTiO3")[i][1, 1] for i in range(3))
+    H, lam_star = 1e-2, 2e7
+
+    def kf(lam):
+        lam = max(lam, 0.0)
+        if law == "saturated":
+            return k0 * min(lam / lam_star, 1.0)
+        return k0 * (lam / lam_star) ** 2
+
+    one = cr.uniaxial_electrical_contact(c, e, k, H, delta, V, phi_F, kf)
+    two = cr.two_layer_electrical_contact(
+        cr.Layer(c, e, k, H), cr.Layer(1e6 * c, 0.0, 1e6 * k, H), delta, V, phi_F, kf
+    )
+    # the potentials' scale includes the layer's piezoelectric one, e δ/κ (3,000 V at 2 μm)
+    scale = max(abs(one.phi0), abs(phi_F), abs(V), abs(e * delta / k), 1.0)
+    assert two.phi_s == pytest.approx(one.phi0, abs=1e-5 * scale)
+    assert two.phi_m == pytest.approx(phi_F, abs=1e-5 * scale)
+    assert two.lam_n == pytest.approx(one.lam_n, rel=1e-5, abs=1e-5 * (c * 1e-6 + e * scale) / H)
