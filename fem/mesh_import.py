@@ -27,9 +27,11 @@ import contextlib
 import difflib
 import io
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -180,44 +182,85 @@ def _dim(cell_type: str) -> int:
     return 3
 
 
-def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
-    """The body `body` (a physical surface group; None: every surface cell of the file) as a
-    Mesh, with every physical curve group that lies on its boundary as a boundary part."""
+SHAPES = {2: "surface", 3: "volume"}  # what a body of each dimension is, for messages
+CELL_NAMES = {
+    "triangle": "triangles",
+    "quad": "quadrilaterals",
+    "tetra": "tetrahedra",
+    "hexahedron": "hexahedra",
+}
+
+
+class BodyCells(NamedTuple):
+    """One body's cells cut out of a mesh file (`body_cells`)."""
+
+    where: str  # "the file" or "body 'NAME'", for messages
+    cell_type: str  # the meshio cell type of every cell of the body
+    cells: np.ndarray  # (n_cells, k) body node ids, as in the file (orientation unchecked)
+    points: np.ndarray  # (n, d) the body's nodes, in the file's order
+    new_id: np.ndarray  # (n_file,) body node id of each file node; −1 where not in the body
+
+
+def body_cells(
+    mf: MeshFile,
+    body: str | None,
+    dim: int,
+    allowed: Mapping[str, int],
+    allowed_text: str,
+    one_type_text: str,
+) -> BodyCells:
+    """The cells of the physical group `body` of dimension `dim` (None: every cell of that
+    dimension, and — to refuse them — every cell of a higher one), its nodes renumbered
+    0 … n−1 in the file's order. Refused naming the file and the body: a cell type not in
+    `allowed` (`allowed_text` says what is), no cell, mixed types (`one_type_text` says how to
+    get one), two nodes at the same point (`distinct_nodes`)."""
     where = "the file" if body is None else f"body {body!r}"
-    tag = None if body is None else mf._group(body, 2, "body")
+    tag = None if body is None else mf._group(body, dim, "body")
     cells_of: dict[str, list[np.ndarray]] = {}
     for ctype, data, phys in mf.blocks:
-        if _dim(ctype) != 2 and not (_dim(ctype) == 3 and tag is None):
+        if _dim(ctype) < dim or (_dim(ctype) > dim and tag is not None):
             continue
         sel = data if tag is None else data[phys == tag]
         if len(sel) == 0:
             continue
-        if ctype not in SURFACE_CELLS:
+        if ctype not in allowed:
             raise MeshImportError(
-                mf.path,
-                f"{len(sel)} cell(s) of type {ctype!r} in {where}",
-                "linear triangles ('triangle') or quadrilaterals ('quad'); mesh with element "
-                "order 1 (gmsh -order 1) and without 3D cells",
+                mf.path, f"{len(sel)} cell(s) of type {ctype!r} in {where}", allowed_text
             )
         cells_of.setdefault(ctype, []).append(sel)
     if not cells_of:
-        raise MeshImportError(mf.path, where, "a surface with triangles or quadrilaterals")
+        kinds = " or ".join(CELL_NAMES[c] for c in allowed)
+        raise MeshImportError(mf.path, where, f"a {SHAPES[dim]} with {kinds}")
     if len(cells_of) > 1:
         counts = ", ".join(f"{sum(map(len, v))} {k}" for k, v in cells_of.items())
         raise MeshImportError(
             mf.path,
             f"{where} mixes cell types ({counts})",
-            "one cell type per body: all triangles or all quadrilaterals "
-            "(gmsh: Mesh.RecombineAll = 1 for quadrilaterals everywhere)",
+            f"one cell type per body: {one_type_text}",
         )
     ctype, pieces = next(iter(cells_of.items()))
     cells_file = np.concatenate(pieces)  # (n_cells, k) file node ids
     order = np.unique(cells_file.ravel())  # file node ids used by the body, in file order
-    new_id = np.full(mf.points.shape[0], -1, dtype=np.int64)
+    new_id = np.full(mf.points.shape[0], -1, dtype=np.int64)  # (n_file,)
     new_id[order] = np.arange(order.size)
-    points = mf.points[order]  # (n, 2)
+    points = mf.points[order]  # (n, d)
     distinct_nodes(mf.path, where, points, order)
-    cells = new_id[cells_file]  # (n_cells, k)
+    return BodyCells(where, ctype, new_id[cells_file], points, new_id)
+
+
+def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
+    """The body `body` (a physical surface group; None: every surface cell of the file) as a
+    Mesh, with every physical curve group that lies on its boundary as a boundary part."""
+    where, ctype, cells, points, new_id = body_cells(
+        mf,
+        body,
+        2,
+        SURFACE_CELLS,
+        "linear triangles ('triangle') or quadrilaterals ('quad'); mesh with element order 1 "
+        "(gmsh -order 1) and without 3D cells",
+        "all triangles or all quadrilaterals (gmsh: Mesh.RecombineAll = 1 for quadrilaterals "
+        "everywhere)",
+    )
     cells = _oriented(mf.path, where, points, cells)
     boundaries = _boundaries(mf, where, new_id, cells)
     return Mesh(points, cells, boundaries)

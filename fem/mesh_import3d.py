@@ -26,7 +26,7 @@ import numpy as np
 
 from .elements3d import FACES
 from .mesh3d import Mesh3D, check_cells, exterior_faces, jacobian_determinants
-from .mesh_import import MeshFile, MeshImportError, _dim, distinct_nodes
+from .mesh_import import MeshFile, MeshImportError, _dim, body_cells
 
 VOLUME_CELLS = {"tetra": 4, "hexahedron": 8}  # meshio cell types accepted in a body
 FACE_CELLS = {"tetra": "triangle", "hexahedron": "quad"}  # boundary faces of each body type
@@ -41,41 +41,17 @@ def body_mesh3d(mf: MeshFile, body: str | None = None) -> Mesh3D:
     Mesh3D, with every physical surface group that lies on its boundary as a boundary part."""
     if mf.points.shape[1] != 3:
         raise ValueError("body_mesh3d needs a MeshFile read with planar=False")
-    where = "the file" if body is None else f"body {body!r}"
-    tag = None if body is None else mf._group(body, 3, "body")
-    cells_of: dict[str, list[np.ndarray]] = {}
-    for ctype, data, phys in mf.blocks:
-        if _dim(ctype) != 3:
-            continue
-        sel = data if tag is None else data[phys == tag]
-        if len(sel) == 0:
-            continue
-        if ctype not in VOLUME_CELLS:
-            raise MeshImportError(
-                mf.path,
-                f"{len(sel)} cell(s) of type {ctype!r} in {where}",
-                "linear tetrahedra ('tetra') or hexahedra ('hexahedron'); mesh with element "
-                "order 1 (gmsh -order 1), without prisms or pyramids",
-            )
-        cells_of.setdefault(ctype, []).append(sel)
-    if not cells_of:
-        raise MeshImportError(mf.path, where, "a volume with tetrahedra or hexahedra")
-    if len(cells_of) > 1:
-        counts = ", ".join(f"{sum(map(len, v))} {k}" for k, v in cells_of.items())
-        raise MeshImportError(
-            mf.path,
-            f"{where} mixes cell types ({counts})",
-            "one cell type per body: all tetrahedra or all hexahedra (gmsh: "
-            "Mesh.RecombineAll = 1 and Mesh.Recombine3DAll = 1, or transfinite volumes)",
-        )
-    ctype, pieces = next(iter(cells_of.items()))
-    cells_file = np.concatenate(pieces)  # (n_cells, k) file node ids
-    order = np.unique(cells_file.ravel())  # file node ids used by the body, in file order
-    new_id = np.full(mf.points.shape[0], -1, dtype=np.int64)
-    new_id[order] = np.arange(order.size)
-    points = mf.points[order]  # (n, 3)
-    distinct_nodes(mf.path, where, points, order)
-    cells = _oriented(mf.path, where, points, new_id[cells_file], ctype)
+    where, ctype, cells, points, new_id = body_cells(
+        mf,
+        body,
+        3,
+        VOLUME_CELLS,
+        "linear tetrahedra ('tetra') or hexahedra ('hexahedron'); mesh with element order 1 "
+        "(gmsh -order 1), without prisms or pyramids",
+        "all tetrahedra or all hexahedra (gmsh: Mesh.RecombineAll = 1 and "
+        "Mesh.Recombine3DAll = 1, or transfinite volumes)",
+    )
+    cells = _oriented(mf.path, where, points, cells, ctype)
     return Mesh3D(points, cells, _boundaries(mf, where, new_id, points, cells, ctype))
 
 

@@ -22,8 +22,7 @@ def test_same_answers_as_the_baseline(name, level):
     now = regression.run_case(name, level)
     assert regression.check_case(name, level, base, now) == []
     # the derived tolerance stays a rounding tolerance (κ and r as measured at baseline time)
-    if name not in regression.SHORT_OF_ROUNDING:
-        assert regression.tolerance(base, now) <= 1e-8
+    assert regression.tolerance(base, now) <= 1e-8
 
 
 def _scaled_solve(factor):

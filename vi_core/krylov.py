@@ -22,21 +22,24 @@ part of its diagonal block, with the field's near-null space (`MixedVI.near_null
 rigid-body modes for displacement, carried to s by C^{-1}D) or the constant vector, aggregates
 within one body, energy-minimising prolongation; the coupling blocks below the diagonal (the
 piezoelectric coupling) are applied exactly. The hierarchies depend on which rows are tied:
-they are rebuilt when that changes (in nested iteration the fine level's first step usually
-fixes it; passing the old hierarchy on with the changed rows left out made FGMRES stagnate).
+they are rebuilt when more than REUSE of the rows changed type since they were built; below
+that the whole preconditioner of the old tied rows is kept — the exact inverse (with exact
+hierarchies) of a Newton matrix that differs from K in the changed S rows only, a low-rank
+difference FGMRES absorbs in a few iterations (passing the old hierarchy on with the changed
+rows merely left out made FGMRES stagnate).
 After FGMRES the S rows are solved exactly once more (K_SS by SuperLU): a slip row's
 multiplier is then on its bound to rounding, as after a direct solve — nested iteration reads
 the stick/slip partition of the coarse answer, and without it the paper scene's level 5 took 8
 Newton steps instead of 2.
 
-Measured on the paper scene (`mixvi bench --scenes paper_two_body --levels 2..5
---linear-solvers amg`; the tied linear system to 1e-11 from zero): 14, 15, 16, 16 FGMRES
-iterations at levels 2–5 with this preconditioner and W-cycles; 19, 23, 28, 35 with the
+Measured on the paper scene (`mixvi bench --scenes paper_two_body --levels 2..5 --linear-solvers
+amg`; the tied linear system to 1e-11 from zero): 14, 15, 16, 16 FGMRES iterations at levels 2–5
+(16 at level 6, 1.5M unknowns) with this preconditioner and W-cycles; 19, 23, 28, 35 with the
 previous one (the R rows' operator A_R − B_Rᵀ D^{-T} A_S with a direct solve of K_SS, which
 misses the coupling of the slave dofs to the rest: its Schur complement differs from it by a
 term of the rank of the interface). On the Newton systems of the first nested fine step (an
-experiment on those matrices saved, FGMRES to 1e-8 from zero), V-cycles: 14, 16, 20, 24
-(levels 2–5), W-cycles 14, 14, 17, 18, and W costs less time at level 5 (6.6 s against 9.3 s).
+experiment on those matrices saved, FGMRES to 1e-8 from zero), V-cycles: 14, 16, 20, 24 (levels
+2–5), W-cycles 14, 14, 17, 18, and W costs less time at level 5 (6.6 s against 9.3 s).
 
 **Inexact Newton.** Each step starts from the current iterate and stops when the linear residual
 is ≤ η_k times its initial value (Eisenstat–Walker, choice 2: η_k = 0.9 (F_k/F_{k−1})², at most
@@ -79,6 +82,12 @@ ETA_MAX_WARM = 1e-8
 # Jacobi, 11, 12, 12 with energy minimisation (set-up about twice as long)
 SMOOTH = ("energy", {"krylov": "cg", "maxiter": 2, "degree": 1, "weighting": "local"})
 CYCLE = "W"  # see the module docstring for the measurements
+# the hierarchy is rebuilt only when more than this fraction of the rows changed between tied
+# and free since it was built; otherwise the preconditioner of the old tied rows is used as it
+# is (module docstring). Paper scene, level 4 from a cold start: 10.5 s with 8 set-ups at 0,
+# 6.2 s with 2 at 0.1, 6.5 s with 1 at 1.0 (more FGMRES iterations); nested to level 5: one
+# set-up on the fine level instead of two, 13 and 12 iterations either way
+REUSE = 0.1
 MAX_LEVELS = 30  # more than any hierarchy has (pyamg's default max_levels is 10)
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
@@ -187,8 +196,17 @@ class BlockAMG:
             index = np.flatnonzero(mask)
             if index.size == 0:
                 continue
-            Kf = K[index][:, index]
-            sym = ((Kf + Kf.T) * 0.5).tocsr()
+            rows = K[index]  # (k, n) the field's rows: its block and its coupling blocks
+            lower = []
+            for j, prev in enumerate(self.blocks if couple else []):
+                C = rows[:, prev.index].tocsr()
+                C.eliminate_zeros()
+                if C.nnz:
+                    lower.append((j, C))
+            Kf = rows[:, index]
+            del rows  # freed before the set-up, where the peak memory falls
+            sym = (Kf + Kf.T).tocsr()  # the symmetric part, halved in place (one copy fewer)
+            sym.data *= 0.5
             del Kf
             kw = {} if nn is None else {"B": np.asarray(nn, float).reshape(index.size, -1)}
             ml = pyamg.smoothed_aggregation_solver(
@@ -200,14 +218,7 @@ class BlockAMG:
                 **kw,
             )
             del sym
-            blk = FieldBlock(name, index, ml)
-            if couple:
-                for j, prev in enumerate(self.blocks):
-                    C = K[index][:, prev.index].tocsr()
-                    C.eliminate_zeros()
-                    if C.nnz:
-                        blk.lower.append((j, C))
-            self.blocks.append(blk)
+            self.blocks.append(FieldBlock(name, index, ml, lower))
         self.setup_time = time.perf_counter() - t
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
@@ -344,8 +355,9 @@ class KrylovSolver:
 
     def preconditioner(self, tied: np.ndarray):
         """x ≈ K⁻¹ r for the Newton matrix K with these tied rows (module docstring)."""
-        if self.tied is None or not np.array_equal(tied, self.tied):
+        if self.tied is None or (tied != self.tied).sum() > REUSE * tied.size:
             self._hierarchy(tied)
+        tied = self.tied  # the exact inverse of a Newton matrix differing in a few S rows
         A, R, S, amg = self.A, self.R, self.S, self.amg
         free = ~tied
         scale_F = self.scale[free]

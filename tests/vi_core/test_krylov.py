@@ -244,3 +244,26 @@ def test_krylov_step_solves_the_s_rows_exactly(exact, monkeypatch):
     assert np.linalg.norm(K @ x - b) <= 1e-6 * np.linalg.norm(b)
     s_rows = np.linalg.norm((K @ x - b)[cond.S]) / np.linalg.norm(b)
     assert (s_rows <= 1e-13) == exact, s_rows
+
+
+def test_a_few_changed_rows_keep_the_old_preconditioner(monkeypatch):
+    """One row changing type keeps the hierarchy: the preconditioner stays the exact inverse
+    of the Newton matrix of the old tied rows (so FGMRES sees a rank-one difference only).
+    Mutation (REUSE = 0: rebuild on every change): a second set-up."""
+    from vi_core.ssn import Condensation
+
+    rng = np.random.default_rng(11)
+    vi = _lower_vi(rng, 20)  # 20 rows: one changed is 5 %
+    cond = Condensation.detect(vi.B)
+    old = np.arange(vi.m) % 2 == 0
+    new = old.copy()
+    new[1] = True
+    r = rng.standard_normal(vi.n)
+    for reuse, setups in ((kr.REUSE, 1), (0.0, 2)):
+        monkeypatch.setattr(kr, "REUSE", reuse)
+        ks = kr.KrylovSolver(vi.A.tocsr(), vi.B, cond, vi.fields, None)
+        ks.preconditioner(old)
+        x = ks.preconditioner(new)(r)
+        assert len(ks.setups) == setups
+        K = _newton_matrix(vi, cond, old if setups == 1 else new)
+        assert np.linalg.norm(K @ x - r) <= 1e-10 * np.linalg.norm(r)

@@ -111,7 +111,7 @@ def _same_values(a, b, points) -> None:
 
 
 def test_the_scene_is_the_generators_output():
-    pytest.importorskip("sympy", reason="sympy (not a dependency) writes the scene")
+    pytest.importorskip("sympy", reason="sympy (in the test extra) writes the scene")
     import tomllib
 
     from problems.scene import SCENES_DIR
@@ -226,22 +226,46 @@ def test_rates_on_hexahedra_and_tetrahedra(element):
     h, errs, states = _errors(None, element)
     assert slope_failures(slopes(h, errs)) == []
     model, st = states[-1]
-    wrong = _wrong_states(model, st)
-    # the slip |u_t| grows like dist³ and g − |λ_t| like dist² from the interface: nodes next
-    # to it may take the other state (level 2: 5 of 81 on hexahedra, 7 on tetrahedra)
-    assert wrong.size <= 0.1 * st["slip"].size
-    assert (wrong < h[-1]).all()  # only within a cell diameter of the exact interface
+    assert state_failures(model, st, h[-1]) == []
     assert st["lemma_4_2"] <= 1e-8
 
 
-def _wrong_states(model, st) -> np.ndarray:
+def state_failures(model, st, h: float) -> list[str]:
+    """The contact states against the exact zones: the slip |u_t| grows like dist³ and
+    g − |λ_t| like dist² from the interface, so nodes next to it may take the other state:
+    all of them within a cell diameter h of the exact interface, and at most a third of the
+    nodes in that band (level 2: 36 nodes in the band; 8 in the other state on hexahedra, 7 on
+    tetrahedra; a friction bound off by 10 % puts 18 there)."""
+    wrong, band = _wrong_states(model, st, h)
+    out = []
+    if 3 * wrong.size > band:
+        out.append(f"{wrong.size} nodes in the other state, of {band} within h of the interface")
+    if (wrong >= h).any():
+        out.append(f"a node {wrong.max():.3f} from the interface in the other state (h {h:.3f})")
+    return out
+
+
+def test_a_friction_bound_off_by_ten_percent_is_seen_by_the_states():
+    """Mutation: g × 0.9 moves the stick/slip interface: 18 of 81 nodes at level 2 take the
+    other state, one of them beyond a cell diameter. (Of the slopes over levels 0–2 only φ's
+    L² one sees it, 1.40; u 1.71, 0.92 and λ 1.44 pass: the states check is the one that reads
+    the friction law.)"""
+    scene = load_scene(NAME)
+    scene.data["contact"]["g"] = f"0.9 * ({scene.data['contact']['g']})"
+    h, _, states = _errors(scene, "hexahedron")
+    assert state_failures(*states[-1], h[-1])
+
+
+def _wrong_states(model, st, h: float) -> tuple[np.ndarray, int]:
     """Distances |r − r0| to the exact stick/slip interface of the contact nodes whose discrete
-    state (slip or stick) is not the exact one."""
+    state (slip or stick) is not the exact one, and the number of contact nodes within h of
+    the interface."""
     c = model.contact
     P = c.slave.mesh.points[c.surf.nodes]
     r = np.hypot(P[:, 0] - CENTRE[0], P[:, 1] - CENTRE[1])  # (k,)
+    d = np.abs(r - np.sqrt(S0))  # (k,)
     wrong = st["slip"] != (r**2 > S0)
-    return np.abs(r - np.sqrt(S0))[wrong]
+    return d[wrong], int((d < h).sum())
 
 
 def test_clamped_sides_keep_the_rates():
@@ -287,7 +311,7 @@ def test_rates_table(element):
     for level, (hh, e, (model, st)) in enumerate(zip(h, errs, states, strict=True)):
         row = " | ".join(f"{e[k]:.3e}" for k in contact3d_errors.NORMS)
         n = model.vi.n + model.vi.m
-        slip, wrong = int(st["slip"].sum()), _wrong_states(model, st).size
+        slip, wrong = int(st["slip"].sum()), _wrong_states(model, st, hh)[0].size
         print(f"| {element} | {level} | {hh:.3f} | {n} | {row} | {slip} | {wrong} |")
     rates = slopes(h[1:], errs[1:])
     print(element, {k: round(v, 2) for k, v in rates.items()})
