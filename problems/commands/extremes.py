@@ -51,22 +51,28 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _difference(model: Any, vi: Any, sol: vi_core.Solution, other: vi_core.Solution) -> float:
-    """The larger relative difference of u (with its Dirichlet values, `Model.full` where the
-    model has it: the data's scale) and of λ between `other` and ssn's `sol`. A part that is
-    (rounding) zero in ssn's answer — below INACTIVE of the answer's size ‖(u', λ')‖ in
-    equilibrated variables — is measured relative to that size instead (a 0/0 would call the
-    1e-12 of an interior-point λ, or of a glued u, a disagreement). `vi`: the problem ssn's
-    answer solves (`pipeline.problem_at`), whose equilibration measures the difference."""
+    """The largest relative difference between `other` and ssn's `sol`, per field: each field
+    of u (displacement and potential apart, `Model.full_fields` where the model has them: metres
+    and volts are not added; with the Dirichlet values, `Model.full`: the data's scale) and λ.
+    A part that is (rounding) zero in ssn's answer — below INACTIVE of the answer's size
+    ‖(u', λ')‖ in equilibrated variables — is measured relative to that size instead (a 0/0
+    would call the 1e-12 of an interior-point λ, or of a glued u, a disagreement). `vi`: the
+    problem ssn's answer solves (`pipeline.problem_at`), whose equilibration measures the
+    difference."""
     checker = Checker.of(vi)
     u_s, lam_s = checker.scaled(sol.u, sol.lam)
     u_o, lam_o = checker.scaled(other.u, other.lam)
     size = max(float(np.linalg.norm(np.concatenate([u_s, lam_s]))), 1e-300)
     full = getattr(model, "full", lambda u: u)
+    a_u, b_u = full(other.u), full(sol.u)
+    if hasattr(model, "full_fields"):
+        masks = [(f, f[model.free]) for f in model.full_fields().values()]
+    else:
+        masks = [(np.ones(a_u.size, dtype=bool), np.ones(u_s.size, dtype=bool))]
+    parts = [(u_s[r], u_o[r], a_u[f], b_u[f]) for f, r in masks]
+    parts.append((lam_s, lam_o, other.lam, sol.lam))
     diffs = []
-    for s_, o_, a, b in (
-        (u_s, u_o, full(other.u), full(sol.u)),
-        (lam_s, lam_o, other.lam, sol.lam),
-    ):
+    for s_, o_, a, b in parts:
         if s_.size == 0:
             continue
         active = np.linalg.norm(s_) > INACTIVE * size

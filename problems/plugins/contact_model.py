@@ -40,12 +40,17 @@ class BodiesModel:
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
-    def unknown_fields(self) -> dict[str, np.ndarray]:
-        """Boolean masks over the unknowns: which are displacement, which potential."""
-        is_disp = np.zeros(self.values.size, dtype=bool)
+    def full_fields(self) -> dict[str, np.ndarray]:
+        """Boolean masks over the full vector (prescribed entries included): which entries are
+        displacement, which potential."""
+        is_disp = np.zeros(self.values.size, dtype=bool)  # (n_full,)
         for b in self.bodies:
             is_disp[b.u_dofs(np.arange(b.n_nodes)).ravel()] = True
-        return {"displacement": is_disp[self.free], "potential": ~is_disp[self.free]}
+        return {"displacement": is_disp, "potential": ~is_disp}
+
+    def unknown_fields(self) -> dict[str, np.ndarray]:
+        """Boolean masks over the unknowns: which are displacement, which potential."""
+        return {k: v[self.free] for k, v in self.full_fields().items()}
 
     @property
     def dofs(self) -> dict[str, int]:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 from problems.commands.extremes import (
@@ -175,3 +176,45 @@ def test_electrical_rows_fail_when_the_electrical_condition_is_dropped(monkeypat
         assert rec["ok"] == apart, rec
         if not apart:
             assert any("off the uniaxial closed form" in n for n in rec["notes"]), rec
+
+
+def _displacement_off(monkeypatch, factor: float) -> None:
+    """conic's answer with its displacement unknowns (only) scaled by `factor`."""
+    import vi_core
+
+    real = vi_core.solve
+
+    def off(vi, method, **kw):
+        sol = real(vi, method, **kw)
+        if method == "conic":
+            disp = vi.fields["displacement"]
+            sol.u = sol.u.copy()
+            sol.u[disp] *= factor
+        return sol
+
+    monkeypatch.setattr(vi_core, "solve", off)
+
+
+FRICTIONLESS = "g = 0 (frictionless)"  # piezo_contact, manufactured: ‖φ‖ ~ 1e4 V, ‖u‖ ~ 1e-4 m
+
+
+def test_a_displacement_off_is_caught_beside_large_potentials(monkeypatch):
+    """Metres and volts are compared apart: conic's displacements off by 1e-4 (its potentials
+    exact) fail the row, though they are lost in ‖(u, φ)‖ where φ is 1e8 times larger."""
+    _displacement_off(monkeypatch, 1 + 1e-4)
+    rec = run_row(next(r for r in ROWS if r.name == FRICTIONLESS))
+    assert rec["agreement"]["conic"] > AGREE_OK and not rec["ok"], rec
+
+
+def test_mutation_one_mixed_field_misses_the_displacement(monkeypatch):
+    """Mutation: displacement and potential measured as one vector (the former measure): the
+    same 1e-4 in the displacements passes as agreement."""
+    from problems.plugins.contact_model import BodiesModel
+
+    def one_field(self):
+        return {"u": np.ones(self.values.size, dtype=bool)}
+
+    monkeypatch.setattr(BodiesModel, "full_fields", one_field)
+    _displacement_off(monkeypatch, 1 + 1e-4)
+    rec = run_row(next(r for r in ROWS if r.name == FRICTIONLESS))
+    assert rec["agreement"]["conic"] < AGREE_OK, rec
