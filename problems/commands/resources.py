@@ -246,7 +246,8 @@ def check_levels(
             else f" ({describe(sizes.estimate(cap + 1))}; this machine has {gb(total)}; "
             "--force to try anyway)"
         )
-        raise SceneError(option, text, f"expected A..B with 0 ≤ A ≤ B ≤ {cap}{why}")
+        allowed = f"A..B with 0 ≤ A ≤ B ≤ {cap}" if ".." in text else f"a level from 0 to {cap}"
+        raise SceneError(option, text, f"expected {allowed}{why}")
     e = sizes.estimate(b)
     if not force and e.upper_bytes > available:
         raise SceneError(

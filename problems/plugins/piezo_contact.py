@@ -71,7 +71,10 @@ LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 
 # two bodies meshed separately in gmsh along one curve, and refuses bodies that overlap or
 # stand apart by more (docs/design.md, "Meshes from files").
 SEPARATION_TOL = 0.1
-DESCRIPTION = "elasto-piezoelectric bodies in bilateral Tresca contact (dual mortar multipliers)"
+DESCRIPTION = (
+    "elasto-piezoelectric bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
+    "(dual mortar multipliers)"
+)
 # A prescribed displacement component at a contact node counts as along the contact normal or
 # tangent if the sine of the angle between them is at most ALIGN_TOL (a roller on a side
 # perpendicular to a flat contact: exactly 0).
