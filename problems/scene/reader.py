@@ -109,12 +109,14 @@ def apply_overrides(scene: Scene, overrides: Iterable[str]) -> None:
     for text in overrides:
         parts, value = parse_override(text)
         node = scene.data
-        for p in parts[:-1]:
+        for i, p in enumerate(parts[:-1]):
             if not isinstance(node, dict) or p not in node or not isinstance(node[p], dict):
+                table, rest = ".".join(parts[: i + 1]), ".".join(parts[i + 1 :])
                 raise SceneError(
                     f"--set {'.'.join(parts)}",
                     value,
-                    f"a key inside existing tables ({p!r} missing)",
+                    f"a key inside existing tables ({p!r} missing; to add the table give it "
+                    f"whole: --set '{table}={{{rest} = ...}}')",
                     scene.path,
                 )
             node = node[p]

@@ -153,6 +153,14 @@ def test_set_errors_name_the_file(tmp_path, capsys):
     assert "rigid_foundation.toml: --set solver.tol" in capsys.readouterr().err
 
 
+def test_set_into_a_missing_table_says_how_to_add_it(tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["solve", R, "--set", 'contact.electrical.kind="grounded"', "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "'electrical' missing" in err and "--set 'contact.electrical={kind = ...}'" in err
+    assert not out.exists()
+
+
 # ------------------------------------------------------------------ property test
 def _leaves(node, path=()):
     """(path, value) of every scalar leaf, descending into tables and arrays."""
