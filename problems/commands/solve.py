@@ -152,7 +152,8 @@ def _vec(v) -> str:
 def console_summary(summary: dict, levels: list[dict]) -> list[str]:
     """What `mixvi solve` prints: a header, one row per level solved (unknowns, Newton steps,
     time, residual), the outcome, the contact line (stick/slip counts and lengths, total
-    force on the slave body), the time and the warnings — no raw dicts."""
+    force on the slave body), the electrical contact's fixed point where there is one, the
+    time and the warnings — no raw dicts."""
     dofs = summary["dofs"]
     out = [
         f"{summary['scene']} (plug-in {summary['plugin']}, solver {summary['solver']}, "
@@ -200,6 +201,17 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
             line += f"; force on the slave {_vec(c['force_on_slave'])} {unit}"
         if c.get("mortar_patch_defect") is not None:
             line += f"; mortar patch defect {c['mortar_patch_defect']:.1e}"
+        out.append(line)
+    el = summary.get("electrical") or {}
+    fp = el.get("fixed_point")
+    if fp:
+        line = (
+            f"  electrical contact ({el['kind']}): {fp['iterations']} fixed-point steps on k, "
+            f"{'converged' if fp['converged'] else 'NOT converged'}, contraction "
+            f"{fp['contraction']:.3g}, law defect {el['law_defect']:.1e}"
+        )
+        if el.get("potential_gap_touching") is not None:
+            line += f"; potential jump where touching {el['potential_gap_touching']:.6g} V"
         out.append(line)
     info = summary.get("solver_info") or {}
     if "krylov_iterations" in info:

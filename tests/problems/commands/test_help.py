@@ -76,3 +76,18 @@ def test_the_console_summary_is_a_table_and_a_contact_line(tmp_path, capsys):
     contact = next(ln for ln in out.splitlines() if ln.strip().startswith("contact:"))
     assert re.search(r"stick \d+ \([\d.]+ m\), slip \d+ \([\d.]+ m\)", contact)
     assert re.search(r"force on the slave \(\S+, \S+\) N/m", contact)
+
+
+def test_the_console_shows_the_electrical_fixed_point(tmp_path, capsys):
+    """An electrical contact's outer loop is on the console, not only in summary.json: its
+    steps, contraction, law defect and the potential jump agree with the summary."""
+    import json
+
+    out_dir = tmp_path / "o"
+    assert main(["solve", "electrical_block", "--level", "1", "--out", str(out_dir)]) == 0
+    out = capsys.readouterr().out
+    el = json.loads((out_dir / "summary.json").read_text())["electrical"]
+    line = next(ln for ln in out.splitlines() if ln.strip().startswith("electrical contact"))
+    assert f"{el['fixed_point']['iterations']} fixed-point steps" in line
+    assert "converged" in line and "NOT" not in line
+    assert f"{el['potential_gap_touching']:.6g} V" in line
