@@ -107,7 +107,7 @@ class Expression:
         self.path = "(expression)"
         self.t_end: float | None = None
         if isinstance(source, str):
-            self._fn = compile_expression(source, VARIABLES)
+            self._fn = compile_expression(source, self.VARIABLES)
             self.constant = False
             self.uses_t = "t" in _names(source)
         else:

@@ -14,8 +14,8 @@ from pydantic_core import PydanticCustomError
 
 from problems.errors import SceneError
 
-from .expressions import ALLOWED, MAX_MAGNITUDE, compile_expression
-from .fields import Expression, Integer, Number
+from .expressions import ALLOWED, MAX_MAGNITUDE
+from .fields import Expression, Integer, Number, _nonnegative
 
 VARIABLES = ("x", "y", "z", "t")  # t: the load parameter (scenes with a [load_path] only)
 ALLOWED_3D = ALLOWED.replace("of x, y", "of x, y, z")
@@ -26,14 +26,6 @@ class Expression3(Expression):
 
     VARIABLES = VARIABLES
     ALLOWED_TEXT = ALLOWED_3D
-
-    def __init__(self, source: float | str):
-        self.source = source
-        self.path = "(expression)"
-        self.t_end: float | None = None
-        self.constant = not isinstance(source, str)
-        self._fn = None if self.constant else compile_expression(source, VARIABLES)
-        self.uses_t = not self.constant and "t" in _names(source)
 
     def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:  # type: ignore[override]
         """Values at the points (x, y, z): an array of their broadcast shape (SceneError if a
@@ -58,18 +50,6 @@ class Expression3(Expression):
 
     def __repr__(self) -> str:
         return f"Expression3({self.source!r})"
-
-
-def _names(text: str) -> set[str]:
-    import ast
-
-    return {n.id for n in ast.walk(ast.parse(text.strip(), mode="eval")) if isinstance(n, ast.Name)}
-
-
-def _nonnegative(e: Expression3) -> Expression3:
-    if e.constant and float(e.source) < 0:
-        raise PydanticCustomError("expression", "a field ≥ 0 (a number or expression)")
-    return e
 
 
 NonNegativeExpr3 = Annotated[Expression3, AfterValidator(_nonnegative)]
