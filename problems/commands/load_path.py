@@ -28,7 +28,7 @@ def solve_steps(
     plugin = loaded.plugin
     datasets: list[tuple[float, str]] = []
     n = len(loaded.spec.load_path.values())
-    bar = tqdm(total=n, unit="step", disable=None, desc=loaded.scene.name, leave=False)
+    bar = tqdm(total=n, unit="step", disable=None, desc=f"solving {loaded.scene.name}", leave=False)
 
     def write_step(step: Step) -> None:
         sub = Path("steps") / f"{step.index:04d}"
@@ -40,8 +40,9 @@ def solve_steps(
             step.record["contact"] = {k: c[k] for k in COUNTS if k in c}
         files = [(sub / f).as_posix() for f in extras.get("files", [])]
         datasets.extend(vtu_datasets(step.t, files))
-        bar.set_postfix(t=f"{step.t:.4g}", newton=step.solution.iterations)
+        bar.set_postfix(t=f"{step.t:.4g}", newton=step.solution.iterations, refresh=False)
         bar.update(1)
+        bar.refresh()  # every step is shown, however fast (tqdm skips updates within 0.1 s)
 
     with bar:
         path = solve_path(loaded, level, **solver_options(args), on_step=write_step)

@@ -142,6 +142,7 @@ def _solve_levels(
     with bar:
         run = pipeline.solve(loaded, level, **solver_options(args), on_level=on_level)
         bar.update(bar.total - bar.n)
+        bar.refresh()  # the full bar is shown before it is cleared, however fast the last level
     return run, coarse
 
 

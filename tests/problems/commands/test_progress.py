@@ -15,10 +15,13 @@ MIXVI = str(Path(sys.executable).parent / "mixvi")
 
 
 def _on_a_terminal(argv, cwd) -> str:
-    """Run `mixvi argv` with stdout and stderr on a pseudo-terminal of 100 columns."""
+    """Run `mixvi argv` with stdout and stderr on a pseudo-terminal of 100 columns, as on a
+    machine so fast that every step ends within tqdm's display interval (TQDM_MININTERVAL):
+    the bar's last state must still be shown (it once was only when a step took > 0.1 s)."""
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 100, 0, 0))
-    proc = subprocess.Popen([MIXVI, *argv], cwd=cwd, stdout=slave, stderr=slave)
+    env = {**os.environ, "TQDM_MININTERVAL": "1000"}
+    proc = subprocess.Popen([MIXVI, *argv], cwd=cwd, stdout=slave, stderr=slave, env=env)
     os.close(slave)
     chunks = []
     while True:
@@ -39,8 +42,13 @@ def _on_a_terminal(argv, cwd) -> str:
     [
         (["solve", "rigid_foundation", "--level", "2", "--out", "o"], "3/3"),
         (["figures", "rigid_foundation", "--level", "0", "--out", "o"], "3/3"),
+        (["solve", "shear_strip_path", "--level", "0", "--out", "o"], "30/30"),
     ],
-    ids=["solve: levels of the nested iteration", "figures: one solve per value"],
+    ids=[
+        "solve: levels of the nested iteration",
+        "figures: one solve per value",
+        "solve: steps of a load path",
+    ],
 )
 def test_a_terminal_gets_a_progress_bar_and_a_pipe_does_not(tmp_path, argv, bar):
     (tmp_path / "tty").mkdir()
