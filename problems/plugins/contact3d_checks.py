@@ -150,7 +150,8 @@ def separation(model, sol) -> dict[str, float]:
     gap d_k, λ_n,k, |λ_t,k| and the slip. A rigid foundation: from the displacement itself, not
     from the assembled rows — d_k = gap(x_k) − n_k·u_k (n_k recomputed from `fem.assembly3d`'s
     face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|. Two bodies,
-    and a step of a load path (its slip since the previous step): from the rows,
+    a step of a load path (its slip since the previous step) and the "merge" basis (whose rows
+    hold means over ψ̃_k that reach the dropped nodes, not nodal values): from the rows,
     d_k = (gap_k − (B u)_n,k)/W_k and the slip |(B u − origin)_t,k|/W_k (the discrete
     conditions as assembled; test_contact3d_unilateral checks the geometry apart).
 
@@ -168,7 +169,7 @@ def separation(model, sol) -> dict[str, float]:
     nodes = surf.nodes[c.rows_n]  # (N_n,) mesh nodes carrying λ_n
     x_full = model.full(sol.u)
     u_all = x_full[body.u_dofs(np.arange(body.n_nodes))]  # (N, 3) the slave's displacement
-    if c.master is None and model.slip_origin is None:
+    if c.master is None and model.slip_origin is None and c.ends == "keep":
         _, N_ind = _independent_weights(body.mesh, c.slave_part)
         nrm = N_ind[nodes] / np.linalg.norm(N_ind[nodes], axis=1)[:, None]  # (N_n, 3)
         u = x_full[body.u_dofs(nodes)]  # (N_n, 3)
