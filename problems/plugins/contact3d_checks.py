@@ -116,16 +116,32 @@ def solution_checks(model, sol) -> dict:
     return out
 
 
-def _nodal_means(mesh, part: str, f) -> np.ndarray:
-    """(N,) ∫f φ_i dA / ∫φ_i dA over boundary `part` by fem.assembly3d's face quadrature (the
-    nodal value of a friction field as the plug-in defines it, computed apart from it)."""
+def _nodal_means(mesh, part: str, f, carry: np.ndarray | None = None) -> np.ndarray:
+    """(N,) ∫f φ̃_i dA / ∫φ̃_i dA over boundary `part` by fem.assembly3d's face quadrature (the
+    nodal value of a friction field as the plug-in defines it, computed apart from it).
+    φ̃_i = φ_i, or with carry (N,) bool ("merge"): in each face a node without carry gives its
+    share to the face's carrying nodes next to it along an edge (to all carrying ones if none
+    is), equally."""
     order = SURFACE_ORDER[mesh.cell_type]
     x, w, phi, _ = assembly3d.face_geometry(mesh, part, order)  # (n_f, q, 3), (n_f, q), (q, k)
     fv = np.broadcast_to(f(x[..., 0], x[..., 1], x[..., 2]), w.shape)  # (n_f, q)
-    faces = mesh.boundaries[part]  # (n_f, k)
+    faces = mesh.boundaries[part]  # (n_f, m)
+    loc_f, loc_1 = (w * fv) @ phi, w @ phi  # (n_f, m) ∫_e f φ_a, ∫_e φ_a
+    if carry is not None:
+        c = carry[faces]  # (n_f, m)
+        m = faces.shape[1]
+        num, den = loc_f * c, loc_1 * c
+        for a in range(m):
+            tgt = np.zeros_like(c)
+            tgt[:, [(a - 1) % m, (a + 1) % m]] = True
+            tgt &= c
+            tgt = np.where(tgt.any(axis=1, keepdims=True), tgt, c)
+            share = tgt * (~c[:, a] / np.maximum(tgt.sum(axis=1), 1))[:, None]  # (n_f, m)
+            num, den = num + share * loc_f[:, a : a + 1], den + share * loc_1[:, a : a + 1]
+        loc_f, loc_1 = num, den
     num, den = np.zeros(mesh.n_nodes), np.zeros(mesh.n_nodes)
-    np.add.at(num, faces.ravel(), ((w * fv) @ phi).ravel())
-    np.add.at(den, faces.ravel(), (w @ phi).ravel())
+    np.add.at(num, faces.ravel(), loc_f.ravel())
+    np.add.at(den, faces.ravel(), loc_1.ravel())
     return num / np.where(den > 0, den, 1.0)
 
 
@@ -165,14 +181,14 @@ def separation(model, sol) -> dict[str, float]:
         ut = np.linalg.norm(u - un[:, None] * nrm, axis=1)  # (N_n,) tangential slip
         length = max(float(np.abs(gap).max(initial=0.0)), float(np.abs(u_all).max()), 1e-300)
     else:  # two bodies or a load step: the weighted gap and jump of the rows themselves
-        W = c.W[c.rows_n]  # (N_n,)
+        W = c.W_n[c.rows_n]  # (N_n,) the normal rows' ∫ψ̃_k
         Bu = c.B_full @ x_full  # (m,)
         d = (c.gap0 - Bu[c.rows()[0]]) / W
         if model.slip_origin is not None:
             Bu = Bu - model.slip_origin  # the slip of this load step
         jump = np.zeros((surf.size, 2))
-        jump[c.disc] = Bu[c.rows()[1]] / c.W[c.disc, None]
-        jump[c.line, 0] = Bu[c.rows()[2]] / c.W[c.line]
+        jump[c.disc] = Bu[c.rows()[1]] / c.W_t[c.disc, None]
+        jump[c.line, 0] = Bu[c.rows()[2]] / c.W_t[c.line]
         ut = np.linalg.norm(jump, axis=1)[c.rows_n]  # (N_n,) tangential mortar jump
         scale = float(np.abs(u_all).max())
         if c.master is not None:
@@ -187,7 +203,15 @@ def separation(model, sol) -> dict[str, float]:
     lam_t = lam_t[c.rows_n]
     p = max(float(lam_n.max(initial=0.0)), 1e-300)
     open_ = d > 1e-6 * length
-    bound = _nodal_means(body.mesh, c.slave_part, c.bound_field)[nodes]  # (N_n,)
+    carry = None
+    if c.ends == "merge":  # the tangential class's carriers (an uncovered node keeps its own)
+        tan = np.zeros(surf.size, dtype=bool)
+        tan[c.disc] = tan[c.line] = True
+        if c.master is not None:
+            tan |= ~c.master.covered
+        carry = np.zeros(body.mesh.n_nodes, dtype=bool)
+        carry[surf.nodes[tan]] = True
+    bound = _nodal_means(body.mesh, c.slave_part, c.bound_field, carry)[nodes]  # (N_n,)
     touch = lam_n > 1e-9 * p  # Tresca acts where the node presses on the foundation
     rho = bound * np.maximum(lam_n, 0.0) if c.friction == "coulomb" else bound * touch
     slips = ut > 1e-6 * length
