@@ -146,11 +146,7 @@ def test_mixvi_check_agrees_with_merge_on_clamped_manufactured3d_and_bracket3d()
     assert main(["check", "bracket3d", "--set", "contact.ends=merge", "--level", "0"]) == 0
 
 
-def test_unilateral_coulomb_with_merge_passes_the_separation_check():
-    """block3d_liftoff (one step, F a field of x) with its left side pressed 0.5 µm into the
-    foundation and clamped: the merged normal rows reach the clamped nodes' displacement; the
-    independent a-posteriori conditions (from the rows' means, with the merged nodal means of
-    F computed apart) and Lemma 4.2 hold to rounding."""
+def _pressed_liftoff():
     scene = load_scene("block3d_liftoff", ["contact.ends=merge", "contact.F=0.6+0.3*x"])
     blk = scene.data["bodies"]["block"]
     del scene.data["load_path"]
@@ -160,10 +156,39 @@ def test_unilateral_coulomb_with_merge_passes_the_separation_check():
         "-1.0e-6 + 1.6e-6*x",
     ]
     blk["displacement"].append({"boundary": "left", "value": [0.0, 0.0, -0.5e-6]})
-    m = contact3d.build(scene, 1)
+    return scene
+
+
+def test_unilateral_coulomb_with_merge_passes_the_separation_check():
+    """block3d_liftoff (one step, F a field of x) with its left side pressed 0.5 µm into the
+    foundation and clamped: the merged normal rows reach the clamped nodes' displacement; the
+    independent a-posteriori conditions (the means the rows read, by the check's own
+    quadrature and merge rule; the merged nodal means of F) and Lemma 4.2 hold to rounding."""
+    m = contact3d.build(_pressed_liftoff(), 1)
     sol = vi_core.solve(m.vi, method="ssn", tol=1e-12)
     c, st = m.contact, contact3d.contact_state(m, sol)
     assert sol.converged and c.rows_n.size < c.surf.size
     assert max(contact3d_checks.separation(m, sol).values()) <= 1e-12
     assert st["lemma_4_2"] < 1e-12
     assert {"stick", "slip", "open"} <= set(st["state"])
+
+
+@pytest.mark.parametrize("fault", ["dropped row", "normal class kept"])
+def test_the_merged_separation_check_sees_a_dropped_row_and_an_unmerged_class(monkeypatch, fault):
+    """A normal row of the first pressed node zeroed, or the normal class built with "keep"
+    (the pressed edge's share lost from its neighbours' rows)."""
+    if fault == "dropped row":
+        real = contact3d.contact_rows
+
+        def faulty(*args):
+            B = real(*args).tolil()
+            B[0, :] = 0.0
+            return B.tocsr()
+
+        monkeypatch.setattr(contact3d, "contact_rows", faulty)
+    else:
+        _one_class(monkeypatch, "normal")
+    m = contact3d.build(_pressed_liftoff(), 1)
+    sol = vi_core.solve(m.vi, method="ssn", tol=1e-12)
+    sep = contact3d_checks.separation(m, sol)
+    assert max(sep["penetration"], sep["complementarity"]) > 1e-3, sep
