@@ -55,10 +55,11 @@ experiment on those matrices saved, FGMRES to 1e-8 from zero), V-cycles: 14, 16,
 
 **Inexact Newton.** Each step starts from the current iterate and stops when the linear residual
 is ≤ η_k times its initial value (Eisenstat–Walker, choice 2: η_k = 0.9 (F_k/F_{k−1})², at most
-ETA_MAX, or ETA_MAX_WARM from a warm start), but never asks for more than 0.1·tol relative to
-‖b‖: the step that brings the natural residual below tol is solved to about the requested
-tolerance, and convergence is judged from the natural residual of the iterate itself, as with a
-direct solve.
+ETA_MAX from a cold start; from a warm start ETA_MAX_WARM = 0: nested iteration's prediction of
+the active set usually holds, and then one step solved to tol is the answer), but never asks for
+more than 0.1·tol relative to ‖b‖: the step that brings the natural residual below tol is solved
+to about the requested tolerance, and convergence is judged from the natural residual of the
+iterate itself, as with a direct solve.
 
 **Fallback.** A solve whose true residual falls by less than a factor 0.9 over a restart cycle,
 or does not reach its tolerance within `max_cycles` cycles, is redone by the direct solver; the
@@ -78,17 +79,20 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .fgmres import fgmres_cycle
 from .linalg import BACKENDS
 
 LINEAR_SOLVERS = (*BACKENDS, "amg")  # the direct backends and the iterative path
 # the loosest relative linear tolerance of a Newton step, from a cold start and from a warm
-# start (u0/λ0 given: nested iteration, where the active set is nearly right and Newton needs 1–2
-# exact steps, so an inexact step only adds steps). Measured with the fine level of the paper
-# scene (FGMRES iterations / Newton steps): level 3 cold, 0.1 → 78 / 9, 1e-3 → 97 / 7; level 4
-# nested, 1e-4 → 98 / 4, 1e-8 → 71 / 2 (each step also costs a K_SS factorisation, residuals
-# and the line search)
+# start (u0/λ0 given: nested iteration, where the active set is nearly right and Newton needs
+# one exact step, so an inexact step only adds steps: 0 = every warm step is solved to the
+# requested tolerance, 0.1·tol·‖b‖). Measured with the fine level of the paper scene (FGMRES
+# iterations / Newton steps): level 3 cold, 0.1 → 78 / 9, 1e-3 → 97 / 7; level 4 nested,
+# 1e-4 → 98 / 4, 1e-8 → 71 / 2; with the warm start's stick/slip prediction at the transitions
+# (piezo_contact.warm_start) level 4 nested, 1e-8 → 13 + 6 its in 2 steps, 0 → 18 in 1 step,
+# 3.13 s → 3.04 s (each step also costs a K_SS factorisation, residuals and the line search)
 ETA_MAX = 0.1
-ETA_MAX_WARM = 1e-8
+ETA_MAX_WARM = 0.0
 # prolongation smoothing: energy minimisation (two CG steps) instead of one Jacobi step; CG on
 # the displacement block of the paper scene to 1e-8, levels 3, 4, 5: 14, 15, 17 iterations with
 # Jacobi, 11, 12, 12 with energy minimisation (set-up about twice as long)
@@ -118,10 +122,11 @@ def thread_settings() -> dict:
 def forcing_term(res: float, res_prev: float | None, tol: float, eta_max: float = ETA_MAX) -> float:
     """Eisenstat–Walker (choice 2, γ = 0.9, α = 2) forcing term for the next Newton step:
     η = 0.9 (res / res_prev)², at most eta_max (also on the first step, res_prev None), and not
-    below 0.1·tol/res (no step solved more accurately than reaching tol needs)."""
+    below 0.1·tol/res (no step solved more accurately than reaching tol needs, whatever
+    eta_max: with eta_max = 0 every step is solved to that floor)."""
     eta = eta_max if not res_prev else 0.9 * (res / res_prev) ** 2
     floor = 0.1 * tol / res if res > 0 else eta_max
-    return float(min(eta_max, max(eta, floor)))
+    return float(max(min(eta_max, eta), floor))
 
 
 def bodies(A: sp.spmatrix) -> np.ndarray:
@@ -250,6 +255,32 @@ def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> list:
     return [("predefined", {"C": C})] + ["symmetric"] * MAX_LEVELS
 
 
+def field_blocks(K: sp.csr_matrix, fields: list[tuple], couple: bool = True) -> list[dict]:
+    """Per field (in order): its positions `index` (k,), the symmetric part `sym` (k, k) of its
+    diagonal block, its near-null rows `nn`, and `lower` = [(j, K[field, field j])] for the
+    earlier fields j (empty with couple=False). Nothing refers to K afterwards: the caller can
+    free it before the multigrid set-ups, where the peak memory falls."""
+    out: list[dict] = []
+    for name, mask, nn in fields:
+        index = np.flatnonzero(mask)
+        if index.size == 0:
+            continue
+        rows = K[index]  # (k, n) the field's rows: its block and its coupling blocks
+        lower = []
+        for j, prev in enumerate(out if couple else []):
+            C = rows[:, prev["index"]].tocsr()
+            C.eliminate_zeros()
+            if C.nnz:
+                lower.append((j, C))
+        Kf = rows[:, index]
+        del rows
+        sym = (Kf + Kf.T).tocsr()  # the symmetric part, halved in place (one copy fewer)
+        sym.data *= 0.5
+        del Kf
+        out.append({"name": name, "index": index, "sym": sym, "nn": nn, "lower": lower})
+    return out
+
+
 class BlockAMG:
     """x ≈ K⁻¹ r: one multigrid cycle per field, block lower triangular over the fields.
 
@@ -263,27 +294,27 @@ class BlockAMG:
         parts: np.ndarray | None = None,
         cycle: str = "V",
     ):
+        self._setup(field_blocks(K, fields, couple), parts, cycle)
+
+    @classmethod
+    def from_blocks(
+        cls, blocks: list[dict], parts: np.ndarray | None = None, cycle: str = "V"
+    ) -> BlockAMG:
+        """The preconditioner of `field_blocks`' output; each field's symmetric block is
+        dropped from `blocks` once its hierarchy is built."""
+        self = cls.__new__(cls)
+        self._setup(blocks, parts, cycle)
+        return self
+
+    def _setup(self, blocks: list[dict], parts: np.ndarray | None, cycle: str) -> None:
         import pyamg
 
         self.cycle = cycle
         t = time.perf_counter()
         self.blocks: list[FieldBlock] = []
-        for name, mask, nn in fields:
-            index = np.flatnonzero(mask)
-            if index.size == 0:
-                continue
-            rows = K[index]  # (k, n) the field's rows: its block and its coupling blocks
-            lower = []
-            for j, prev in enumerate(self.blocks if couple else []):
-                C = rows[:, prev.index].tocsr()
-                C.eliminate_zeros()
-                if C.nnz:
-                    lower.append((j, C))
-            Kf = rows[:, index]
-            del rows  # freed before the set-up, where the peak memory falls
-            sym = (Kf + Kf.T).tocsr()  # the symmetric part, halved in place (one copy fewer)
-            sym.data *= 0.5
-            del Kf
+        for blk in blocks:
+            index, nn = blk["index"], blk["nn"]
+            sym = blk.pop("sym")
             kw = {} if nn is None else {"B": np.asarray(nn, float).reshape(index.size, -1)}
             ml = pyamg.smoothed_aggregation_solver(
                 sym,
@@ -294,7 +325,7 @@ class BlockAMG:
                 **kw,
             )
             del sym
-            self.blocks.append(FieldBlock(name, index, ml, lower))
+            self.blocks.append(FieldBlock(blk["name"], index, ml, blk["lower"]))
         self.setup_time = time.perf_counter() - t
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
@@ -405,12 +436,12 @@ class KrylovSolver:
             A_hat = (A_hat + BT.T @ (spring.M @ BT)).tocsr()
             del BT
         del T0
+        blocks = field_blocks(A_hat, self._fields_y(tied), couple=self.couple)
+        del A_hat  # freed before the set-ups (memory: the set-up is where the peak falls)
         parts = None
         if self.parts is not None:
             parts = np.concatenate([self.parts[self.R], self.parts[self.S][~tied]])
-        self.amg = BlockAMG(
-            A_hat, self._fields_y(tied), couple=self.couple, parts=parts, cycle=self.cycle
-        )
+        self.amg = BlockAMG.from_blocks(blocks, parts=parts, cycle=self.cycle)
         self.tied, self.spring = tied.copy(), spring
         self.setups.append(self.amg.setup_time)
 
@@ -493,10 +524,8 @@ class KrylovSolver:
         x[S] += spla.splu(sp.csc_matrix(K[S][:, S])).solve((b - K @ x)[S])
 
     def _solve(self, K, b, x0, eta, tol, tied, spring=None):
-        from pyamg.krylov import fgmres
-
         t0 = time.perf_counter()
-        M = spla.LinearOperator(K.shape, matvec=self.preconditioner(tied, spring), dtype=float)
+        M = self.preconditioner(tied, spring)
         x = np.zeros(self.n) if x0 is None else np.array(x0, dtype=float)
         nb = float(np.linalg.norm(b))
         r0 = float(np.linalg.norm(b - K @ x))
@@ -514,16 +543,7 @@ class KrylovSolver:
                 break
             with warnings.catch_warnings():  # a (near) breakdown is judged by the residual below
                 warnings.simplefilter("ignore", sla.LinAlgWarning)
-                x, _ = fgmres(
-                    K,
-                    b,
-                    x0=x,
-                    tol=target / nb,
-                    restart=min(self.restart, self.n),
-                    maxiter=1,
-                    M=M,
-                    callback=count,
-                )
+                x, _ = fgmres_cycle(K, b, x, M, target, min(self.restart, self.n), count)
             cycles += 1
             new = float(np.linalg.norm(b - K @ x))
             if new > 0.9 * res and new > target:
@@ -542,7 +562,7 @@ class KrylovSolver:
     def info(self) -> dict:
         """What the Newton solve's `info` reports about the iterative path."""
         return {
-            "krylov": "fgmres (pyamg, right preconditioned)",
+            "krylov": "fgmres (vi_core.fgmres, right preconditioned)",
             "restart": self.restart,
             "preconditioner": (
                 f"tied rows eliminated, smoothed aggregation per field ({self.cycle}-cycle)"

@@ -449,6 +449,32 @@ def test_mutation_keep_at_crosspoints_fails_the_tied_patch_test():
     assert np.abs(u - exact).max() > 1e-4
 
 
+@pytest.mark.parametrize("kind,es,em", [("sphere", HEX, TET), ("cylinder", TET, HEX)])
+def test_merge_ties_a_constant_multiplier_on_curved_non_matching_surfaces(kind, es, em):
+    """The tied patch test of the multiplier on curved non-matching surfaces whose rim carries
+    no multiplier (crosspoints): λ_h ≡ 1 in the modified basis (every coefficient 1) loads the
+    master with Σ_k (Q M)_kj, which must be the load of the constant itself over the faces
+    with a carrying node (Σ_a ψ_{e,a} = 1 on each face; a corner triangle of rim nodes only has
+    no multiplier at all), ≤ 1e-12; the rigid-body rows of the covered nodes stay exact too.
+    "keep" loses the rim faces' share of the constant (its mutation test)."""
+    s, m = pair(kind, es, em)
+    carry = np.ones(s.size, dtype=bool)
+    carry[rim_nodes(s.faces)] = False
+    some = np.repeat(carry[s.faces].any(axis=1), s.faces.shape[1])  # (m·n_f,) local rows
+    assert some.mean() > 0.9
+    mo = couple(s, m)
+    exact = some @ mo.M  # (k_m,) ∫ φ_j^m ∘ π dA over the faces with a carrying node
+    covered = fm3.covered_nodes(mo)[carry]
+    defects = {}
+    for ends in ("merge", "keep"):
+        Q = multiplier_basis(s, carry, ends)
+        load = np.asarray((Q @ mo.M).sum(axis=0)).ravel()
+        defects[ends] = np.abs(load - exact).max() / np.abs(exact).max()
+        rigid = patch_defect(Q @ dual_mass(s), Q @ mo.M)[covered]
+        assert rigid.max() <= 1e-12, (ends, rigid.max())
+    assert defects["merge"] <= 1e-12 and defects["keep"] > 1e-2, defects
+
+
 @pytest.mark.parametrize("element", [HEX, TET])
 def test_boundary_modified_basis_keeps_biorthogonality_and_constants(element):
     s, _ = pair("sphere", element, TET)

@@ -134,7 +134,10 @@ def test_forcing_term():
     assert kr.forcing_term(1e-6, 1e-3, 1e-10) == pytest.approx(0.1 * 1e-10 / 1e-6)
     # slow convergence: capped
     assert kr.forcing_term(0.5, 1.0, 1e-10) == kr.ETA_MAX
-    assert kr.forcing_term(0.5, 1.0, 1e-10, kr.ETA_MAX_WARM) == kr.ETA_MAX_WARM
+    # a warm start: every step solved to the floor of tol, also below a cap
+    assert kr.ETA_MAX_WARM == 0.0
+    assert kr.forcing_term(0.5, 1.0, 1e-10, kr.ETA_MAX_WARM) == pytest.approx(0.1 * 1e-10 / 0.5)
+    assert kr.forcing_term(1e-6, 1e-3, 1e-10, 1e-8) == pytest.approx(0.1 * 1e-10 / 1e-6)
 
 
 def test_field_data_is_checked_and_equilibrated():
