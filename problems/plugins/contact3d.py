@@ -415,7 +415,8 @@ def class_blocks(
     Returns S (k, k) the slave block Q_c D_loc (row k zero where node k has no row of the
     class; S_kk = W_k by biorthogonality, S_kj ≠ 0 for j ≠ k only at nodes j that gave their
     function away), Mc (k, k_m) = Q_c M_loc (None without a master), Wc (k,) the row sums
-    ∫ψ̃_k dA (W_k where node k has no row) and Qk (k, m·n_f) the basis in node rows.
+    ∫ψ̃_k dA = W_k + what node k received (W_k where it has no row or received nothing) and
+    Qk (k, m·n_f) the basis in node rows.
     """
     idx = np.flatnonzero(carry)  # (n_c,) the node of each row of Q
     Q = multiplier_basis(surf, carry, ends)  # (n_c, m n_f)
@@ -425,9 +426,11 @@ def class_blocks(
     )
     Qk = (P @ Q).tocsr()  # (k, m n_f)
     S = (Qk @ dual_mass(surf)).tocsr()  # (k, k)
-    has = np.zeros(surf.size, dtype=bool)
-    has[idx[sel]] = True
-    Wc = np.where(has, Qk @ surf.face_weights.ravel(), surf.weights)  # (k,)
+    C = Qk.tocoo()
+    given = surf.faces.ravel()[C.col] != C.row  # (nnz,) entries of another node's function
+    fw = surf.face_weights.ravel()  # (m n_f,) ∫_e φ_a = ∫_e ψ_{e,a}
+    received = np.bincount(C.row[given], C.data[given] * fw[C.col[given]], surf.size)  # (k,)
+    Wc = surf.weights + received  # (k,) = W exactly where nothing was merged in
     Mc = None if M_loc is None else (Qk @ M_loc).tocsr()
     return S, Mc, Wc, Qk
 

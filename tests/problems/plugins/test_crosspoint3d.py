@@ -21,12 +21,14 @@ from problems.commands.main import main
 from problems.plugins import contact3d, contact3d_checks
 from problems.plugins import piezo_contact as pc
 from problems.scene import load_scene
+from vi_core.ssn import Condensation
 
 from .test_contact3d import EXTRUDED, _against_2d
 
 LEFT = [-1.0e-4, -1.0e-4]  # the clamped left side's displacement (2D; 3D adds u_z = 0)
 # a friction bound rising towards the clamped side, so that the node next to it sticks (a
 # slipping node's row is blind to its gap) and the bounds ∫gφ̃_k / ∫φ̃_k vary
+ENDS = ("keep", "merge")
 G = "contact.g=9e6*(1+10*(1-x/2)**4)"  # degree 4: both quadratures exact
 
 
@@ -130,6 +132,7 @@ def _clamped_manufactured(ends: str):
     return scene
 
 
+@pytest.mark.slow  # 9–13 s on the shared machine; the two-body test below checks in CI
 def test_mixvi_check_agrees_with_merge_on_clamped_manufactured3d_and_bracket3d():
     """ssn, homotopy and conic agree on the clamped manufactured3d at level 1 and ssn and
     conic on bracket3d (its bolt holes cut the contact base) with "merge"; Lemma 4.2 holds.
@@ -146,11 +149,7 @@ def test_mixvi_check_agrees_with_merge_on_clamped_manufactured3d_and_bracket3d()
     assert main(["check", "bracket3d", "--set", "contact.ends=merge", "--level", "0"]) == 0
 
 
-def test_unilateral_coulomb_with_merge_passes_the_separation_check():
-    """block3d_liftoff (one step, F a field of x) with its left side pressed 0.5 µm into the
-    foundation and clamped: the merged normal rows reach the clamped nodes' displacement; the
-    independent a-posteriori conditions (from the rows' means, with the merged nodal means of
-    F computed apart) and Lemma 4.2 hold to rounding."""
+def _pressed_liftoff():
     scene = load_scene("block3d_liftoff", ["contact.ends=merge", "contact.F=0.6+0.3*x"])
     blk = scene.data["bodies"]["block"]
     del scene.data["load_path"]
@@ -160,10 +159,90 @@ def test_unilateral_coulomb_with_merge_passes_the_separation_check():
         "-1.0e-6 + 1.6e-6*x",
     ]
     blk["displacement"].append({"boundary": "left", "value": [0.0, 0.0, -0.5e-6]})
-    m = contact3d.build(scene, 1)
+    return scene
+
+
+def test_unilateral_coulomb_with_merge_passes_the_separation_check():
+    """block3d_liftoff (one step, F a field of x) with its left side pressed 0.5 µm into the
+    foundation and clamped: the merged normal rows reach the clamped nodes' displacement; the
+    independent a-posteriori conditions (the means the rows read, by the check's own
+    quadrature and merge rule; the merged nodal means of F) and Lemma 4.2 hold to rounding."""
+    m = contact3d.build(_pressed_liftoff(), 1)
     sol = vi_core.solve(m.vi, method="ssn", tol=1e-12)
     c, st = m.contact, contact3d.contact_state(m, sol)
     assert sol.converged and c.rows_n.size < c.surf.size
     assert max(contact3d_checks.separation(m, sol).values()) <= 1e-12
     assert st["lemma_4_2"] < 1e-12
     assert {"stick", "slip", "open"} <= set(st["state"])
+
+
+@pytest.mark.parametrize("fault", ["dropped row", "normal class kept"])
+def test_the_merged_separation_check_sees_a_dropped_row_and_an_unmerged_class(monkeypatch, fault):
+    """A normal row of the first pressed node zeroed, or the normal class built with "keep"
+    (the pressed edge's share lost from its neighbours' rows)."""
+    if fault == "dropped row":
+        real = contact3d.contact_rows
+
+        def faulty(*args):
+            B = real(*args).tolil()
+            B[0, :] = 0.0
+            return B.tocsr()
+
+        monkeypatch.setattr(contact3d, "contact_rows", faulty)
+    else:
+        _one_class(monkeypatch, "normal")
+    m = contact3d.build(_pressed_liftoff(), 1)
+    sol = vi_core.solve(m.vi, method="ssn", tol=1e-12)
+    sep = contact3d_checks.separation(m, sol)
+    assert max(sep["penetration"], sep["complementarity"]) > 1e-3, sep
+
+
+TWO_BOXES = """format = 2
+[scene]
+title = "two non-matching boxes, the slave's left side clamped (crosspoints)"
+plugin = "contact3d"
+level = 0
+[bodies.block]
+material = { kind = "isotropic", E = 1.0e9, nu = 0.3 }
+geometry = { kind = "box", x = [0.0, 1.0], y = [0.0, 1.0], z = [0.5, 1.0], cells = [3, 4, 2] }
+[[bodies.block.displacement]]
+boundary = "top"
+value = [2.0e-4, 1.0e-4, -1.0e-4]
+[[bodies.block.displacement]]
+boundary = "left"
+value = [-1.0e-4, 0.0, -0.5e-4]
+[bodies.base]
+material = { kind = "isotropic", E = 2.0e9, nu = 0.25 }
+geometry = { kind = "box", x = [-0.2, 1.2], y = [-0.2, 1.2], z = [0.0, 0.5], cells = [5, 3, 2], \
+element = "tetra" }
+[[bodies.base.displacement]]
+boundary = "bottom"
+value = [0.0, 0.0, 0.0]
+[contact]
+slave = "block.bottom"
+master = "base.top"
+g = 1.0e5
+"""
+
+
+def test_two_bodies_with_merge_keep_exact_rows_and_the_condensation(tmp_path):
+    """A block on a non-matching tetrahedral base, its left side clamped: the merged master
+    rows Q_c M_loc are rigid-body exact (≤ 1e-12), the slave block of B on the unknowns is
+    still 3×3 per node (the off-diagonal entries sit at the clamped dofs), so ssn's
+    condensation finds it; Lemma 4.2 holds and ssn and conic agree (`mixvi check`)."""
+    path = tmp_path / "two_boxes3d.toml"
+    path.write_text(TWO_BOXES)
+    models = {e: contact3d.build(load_scene(str(path), [f"contact.ends={e}"]), 0) for e in ENDS}
+    m, k = models["merge"], models["keep"]
+    c = m.contact
+    assert c.rows_n.size < c.surf.size and c.master.patch_defect <= 1e-12
+    assert abs(m.vi.B - k.vi.B).max() > 1e-3 * abs(k.vi.B).max()  # the master rows moved
+    cond, cond_keep = Condensation.detect(m.vi.B), Condensation.detect(k.vi.B)
+    assert cond is not None and np.array_equal(cond.S, cond_keep.S)  # the same private columns
+    node = contact3d.row_nodes(c)  # (m,) the surface node of each row
+    i, j = cond.D.nonzero()
+    assert (node[i] == node[j]).all()  # D block diagonal by node
+    sol = vi_core.solve(m.vi, method="ssn", tol=1e-12)
+    st = contact3d.contact_state(m, sol)
+    assert st["lemma_4_2"] < 1e-12 and st["slip"].any() and (st["state"] == "stick").any()
+    assert main(["check", str(path), "--set", "contact.ends=merge"]) == 0
