@@ -281,23 +281,29 @@ def _build(scene: Scene, level: int | None) -> Model:
             check_meshed(bodies[mname].mesh, [("contact.master", mpart)])
             master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
         contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
-    vi, free, values = contact_model.mixed_vi(
+    vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
         None if contact is None else partial(_rows, contact),
         field_data3,
         {"scene": scene.name, "level": level},
     )
-    return Model(scene, level, list(bodies.values()), contact, vi, free, values, spec.options())
+    bodies_ = list(bodies.values())
+    return Model(scene, level, bodies_, contact, vi, free, values, spec.options(), rhs=rhs)
 
 
-def _rows(contact: Contact3D, free: np.ndarray, fixed: np.ndarray, values: np.ndarray):
-    """B restricted to the unknowns, the gap (Dirichlet data and the initial gap rows), Λ_h and
-    the Y Gram matrix of the contact rows."""
-    B = contact.B_full[:, free]
-    gap = -(contact.B_full[:, fixed] @ values[fixed])
+def update(model: Model, scene: Scene, t: float) -> Model | None:
+    """Load paths: the step t of `model` with only its loads and prescribed values re-read
+    (`contact_model.update`; None: rebuild the step)."""
+    return contact_model.update(model, scene.validated(SCENE_MODEL), t)
+
+
+def _rows(contact: Contact3D):
+    """B_full, the gap rows not from Dirichlet data (the initial gap rows), Λ_h and the Y Gram
+    matrix of the contact rows (`contact_model.mixed_vi`)."""
+    gap = np.zeros(contact.B_full.shape[0])  # (m,)
     if contact.gap0 is not None:
         gap[contact.rows()[0]] += contact.gap0
-    return B, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
+    return contact.B_full, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
 
 
 def count(scene: Scene, level: int) -> tuple[int, int, int]:
@@ -409,7 +415,8 @@ def class_blocks(
     Returns S (k, k) the slave block Q_c D_loc (row k zero where node k has no row of the
     class; S_kk = W_k by biorthogonality, S_kj ≠ 0 for j ≠ k only at nodes j that gave their
     function away), Mc (k, k_m) = Q_c M_loc (None without a master), Wc (k,) the row sums
-    ∫ψ̃_k dA (W_k where node k has no row) and Qk (k, m·n_f) the basis in node rows.
+    ∫ψ̃_k dA = W_k + what node k received (W_k where it has no row or received nothing) and
+    Qk (k, m·n_f) the basis in node rows.
     """
     idx = np.flatnonzero(carry)  # (n_c,) the node of each row of Q
     Q = multiplier_basis(surf, carry, ends)  # (n_c, m n_f)
@@ -419,9 +426,11 @@ def class_blocks(
     )
     Qk = (P @ Q).tocsr()  # (k, m n_f)
     S = (Qk @ dual_mass(surf)).tocsr()  # (k, k)
-    has = np.zeros(surf.size, dtype=bool)
-    has[idx[sel]] = True
-    Wc = np.where(has, Qk @ surf.face_weights.ravel(), surf.weights)  # (k,)
+    C = Qk.tocoo()
+    given = surf.faces.ravel()[C.col] != C.row  # (nnz,) entries of another node's function
+    fw = surf.face_weights.ravel()  # (m n_f,) ∫_e φ_a = ∫_e ψ_{e,a}
+    received = np.bincount(C.row[given], C.data[given] * fw[C.col[given]], surf.size)  # (k,)
+    Wc = surf.weights + received  # (k,) = W exactly where nothing was merged in
     Mc = None if M_loc is None else (Qk @ M_loc).tocsr()
     return S, Mc, Wc, Qk
 

@@ -116,41 +116,67 @@ def solution_checks(model, sol) -> dict:
     return out
 
 
+def _shares(faces: np.ndarray, carry: np.ndarray | None) -> np.ndarray:
+    """(n_f, m, m) the part of each face's local function a (last axis) that node t (middle)
+    takes: the identity, or with carry (N,) bool ("merge") a node without carry gives its share
+    to the face's carrying nodes next to it along an edge (to all carrying ones if none is),
+    equally. Written apart from `fem.mortar3d.multiplier_basis`."""
+    n_f, m = faces.shape
+    if carry is None:
+        return np.broadcast_to(np.eye(m), (n_f, m, m))
+    c = carry[faces]  # (n_f, m)
+    out = np.where(c[:, :, None], np.eye(m)[None], 0.0)  # (n_f, m, m)
+    for a in range(m):
+        tgt = np.zeros_like(c)
+        tgt[:, [(a - 1) % m, (a + 1) % m]] = True
+        tgt &= c
+        tgt = np.where(tgt.any(axis=1, keepdims=True), tgt, c)
+        out[:, :, a] += tgt * (~c[:, a] / np.maximum(tgt.sum(axis=1), 1))[:, None]
+    return out
+
+
 def _nodal_means(mesh, part: str, f, carry: np.ndarray | None = None) -> np.ndarray:
     """(N,) ∫f φ̃_i dA / ∫φ̃_i dA over boundary `part` by fem.assembly3d's face quadrature (the
-    nodal value of a friction field as the plug-in defines it, computed apart from it).
-    φ̃_i = φ_i, or with carry (N,) bool ("merge"): in each face a node without carry gives its
-    share to the face's carrying nodes next to it along an edge (to all carrying ones if none
-    is), equally."""
+    nodal value of a friction field as the plug-in defines it, computed apart from it);
+    φ̃ = φ, or merged by `_shares` with carry (N,) ("merge")."""
     order = SURFACE_ORDER[mesh.cell_type]
     x, w, phi, _ = assembly3d.face_geometry(mesh, part, order)  # (n_f, q, 3), (n_f, q), (q, k)
     fv = np.broadcast_to(f(x[..., 0], x[..., 1], x[..., 2]), w.shape)  # (n_f, q)
     faces = mesh.boundaries[part]  # (n_f, m)
-    loc_f, loc_1 = (w * fv) @ phi, w @ phi  # (n_f, m) ∫_e f φ_a, ∫_e φ_a
-    if carry is not None:
-        c = carry[faces]  # (n_f, m)
-        m = faces.shape[1]
-        num, den = loc_f * c, loc_1 * c
-        for a in range(m):
-            tgt = np.zeros_like(c)
-            tgt[:, [(a - 1) % m, (a + 1) % m]] = True
-            tgt &= c
-            tgt = np.where(tgt.any(axis=1, keepdims=True), tgt, c)
-            share = tgt * (~c[:, a] / np.maximum(tgt.sum(axis=1), 1))[:, None]  # (n_f, m)
-            num, den = num + share * loc_f[:, a : a + 1], den + share * loc_1[:, a : a + 1]
-        loc_f, loc_1 = num, den
+    sh = _shares(faces, carry)  # (n_f, m, m)
+    loc_f = np.einsum("fta,fa->ft", sh, (w * fv) @ phi)  # (n_f, m) ∫_e f φ̃_t
+    loc_1 = np.einsum("fta,fa->ft", sh, w @ phi)  # (n_f, m) ∫_e φ̃_t
     num, den = np.zeros(mesh.n_nodes), np.zeros(mesh.n_nodes)
     np.add.at(num, faces.ravel(), loc_f.ravel())
     np.add.at(den, faces.ravel(), loc_1.ravel())
     return num / np.where(den > 0, den, 1.0)
 
 
+def _row_means(mesh, part: str, carry: np.ndarray | None, v: np.ndarray) -> np.ndarray:
+    """(N, ...) Σ_j w_kj v_j / Σ_j w_kj, w_kj = ∫φ̃_k φ_j dA (= δ_kj ∫φ_k under "keep": the
+    nodal values): what a contact row of node k reads of a nodal field v (N, ...), by
+    fem.assembly3d's face quadrature and `_shares` (biorthogonality: ∫ψ_{e,a} φ_{e,b} =
+    δ_ab ∫_e φ_a)."""
+    order = SURFACE_ORDER[mesh.cell_type]
+    _, w, phi, _ = assembly3d.face_geometry(mesh, part, order)  # (n_f, q), (q, m)
+    faces = mesh.boundaries[part]  # (n_f, m)
+    sh = _shares(faces, carry) * (w @ phi)[:, None, :]  # (n_f, m, m) w of (target, source)
+    tgt = np.broadcast_to(faces[:, :, None], sh.shape).ravel()
+    src = np.broadcast_to(faces[:, None, :], sh.shape).ravel()
+    num = np.zeros((mesh.n_nodes, *v.shape[1:]))
+    np.add.at(num, tgt, sh.ravel().reshape(-1, *([1] * (v.ndim - 1))) * v[src])
+    den = np.bincount(tgt, sh.ravel(), mesh.n_nodes)
+    return num / np.where(den > 0, den, 1.0).reshape(-1, *([1] * (v.ndim - 1)))
+
+
 def separation(model, sol) -> dict[str, float]:
     """A posteriori unilateral conditions of a solution, per normal node k: the remaining
     gap d_k, λ_n,k, |λ_t,k| and the slip. A rigid foundation: from the displacement itself, not
     from the assembled rows — d_k = gap(x_k) − n_k·u_k (n_k recomputed from `fem.assembly3d`'s
-    face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|. Two bodies,
-    and a step of a load path (its slip since the previous step): from the rows,
+    face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|; under
+    "merge" the gap and u are the means the rows read (`_row_means`: ψ̃_k reaches the dropped
+    neighbours), by a quadrature and a merge rule of this module. Two bodies, and a step of a
+    load path (its slip since the previous step): from the rows,
     d_k = (gap_k − (B u)_n,k)/W_k and the slip |(B u − origin)_t,k|/W_k (the discrete
     conditions as assembled; test_contact3d_unilateral checks the geometry apart).
 
@@ -171,14 +197,19 @@ def separation(model, sol) -> dict[str, float]:
     if c.master is None and model.slip_origin is None:
         _, N_ind = _independent_weights(body.mesh, c.slave_part)
         nrm = N_ind[nodes] / np.linalg.norm(N_ind[nodes], axis=1)[:, None]  # (N_n, 3)
-        u = x_full[body.u_dofs(nodes)]  # (N_n, 3)
-        x, y, z = body.mesh.points[nodes].T  # (N_n,) each
+        x, y, z = body.mesh.points.T  # (N,) each
         gap = np.zeros(x.size)
         if c.gap_field is not None:
             gap = np.broadcast_to(c.gap_field(x, y, z), x.shape)
-        un = np.einsum("ij,ij->i", nrm, u)  # (N_n,)
-        d = gap - un  # (N_n,) remaining gap
-        ut = np.linalg.norm(u - un[:, None] * nrm, axis=1)  # (N_n,) tangential slip
+        carry_n = carry_t = None  # "keep": the nodal values themselves
+        if c.ends == "merge":
+            carry_n = np.isin(np.arange(body.mesh.n_nodes), nodes)
+            carry_t = np.isin(np.arange(body.mesh.n_nodes), surf.nodes[np.r_[c.disc, c.line]])
+        mean_n = _row_means(body.mesh, c.slave_part, carry_n, np.c_[gap, u_all])[nodes]
+        un = np.einsum("ij,ij->i", nrm, mean_n[:, 1:])  # (N_n,) the normal rows' mean n_k·u
+        d = mean_n[:, 0] - un  # (N_n,) remaining gap
+        u = _row_means(body.mesh, c.slave_part, carry_t, u_all)[nodes]  # (N_n, 3)
+        ut = np.linalg.norm(u - np.einsum("ij,ij->i", nrm, u)[:, None] * nrm, axis=1)  # slip
         length = max(float(np.abs(gap).max(initial=0.0)), float(np.abs(u_all).max()), 1e-300)
     else:  # two bodies or a load step: the weighted gap and jump of the rows themselves
         W = c.W_n[c.rows_n]  # (N_n,) the normal rows' ∫ψ̃_k
@@ -209,8 +240,7 @@ def separation(model, sol) -> dict[str, float]:
         tan[c.disc] = tan[c.line] = True
         if c.master is not None:
             tan |= ~c.master.covered
-        carry = np.zeros(body.mesh.n_nodes, dtype=bool)
-        carry[surf.nodes[tan]] = True
+        carry = np.isin(np.arange(body.mesh.n_nodes), surf.nodes[tan])
     bound = _nodal_means(body.mesh, c.slave_part, c.bound_field, carry)[nodes]  # (N_n,)
     touch = lam_n > 1e-9 * p  # Tresca acts where the node presses on the foundation
     rho = bound * np.maximum(lam_n, 0.0) if c.friction == "coulomb" else bound * touch
