@@ -25,9 +25,10 @@ paper_two_body --levels 2..5 --linear-solvers amg` measured after the FGMRES vec
 the iterations, Â was freed before the set-up and bench stopped holding a coarse level and a
 second equilibrated A (146, 199, 400, 1191 MB; estimate / measured 0.86 … 1.01; level 6,
 `--levels 6..6`: 4328 MB measured, 4468 MB estimated, ×1.03; before: a = 151, peaks 150, 210,
-449, 1385 MB and 5121 MB at level 6; before that a = 179); it has its own model so that the guard neither refuses an AMG run by the direct solver's
-larger peak nor lets one through by it. Peaks: RSS of `mixvi solve SCENE --level L` in a fresh
-process (`/usr/bin/time -f %M`); `mixvi bench` prints its measured peak beside the estimate.
+449, 1385 MB and 5121 MB at level 6; before that a = 179); it has its own model so that the
+guard neither refuses an AMG run by the direct solver's larger peak nor lets one through by it.
+Peaks: RSS of `mixvi solve SCENE --level L` in a fresh process (`/usr/bin/time -f %M`); `mixvi
+bench` prints its measured peak beside the estimate.
 Re-measure them here when the memory per unknown changes.
 
 In 3D (the model's `dimension` 3) the fill of a sparse factor grows faster: MEMORY_MODEL_3D,
