@@ -845,7 +845,9 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
-NORMS = ("u_nodes", "phi_nodes", "lam_nodes")
+NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
+# against the scene's [exact] table: exact_errors (contact3d_errors)
+EXACT_NORMS = ("u_L2", "u_H1", "phi_L2", "phi_H1", "lam")
 extremes = contact3d_extremes.rows
 
 
@@ -861,6 +863,14 @@ def draw(ax, model: Model, sol: Solution) -> str:
     ax.set_aspect("equal")
     ax.legend(fontsize=7)
     return f"slip {int(st['slip'].sum())} of {int(st['has_t'].sum())} nodes"
+
+
+def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
+    """The EXACT_NORMS against the scene's [exact] table (None without one):
+    `contact3d_errors.exact_errors` (imported here: it imports this module)."""
+    from . import contact3d_errors
+
+    return contact3d_errors.exact_errors(model, sol)
 
 
 def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:

@@ -20,7 +20,7 @@ from vi_core import Solution
 
 from . import contact3d
 
-NORMS = ("u_L2", "u_H1", "phi_L2", "phi_H1", "lam")
+NORMS = contact3d.EXACT_NORMS  # u_L2, u_H1, phi_L2, phi_H1, lam
 
 
 def exact_errors(model: contact3d.Model, sol: Solution) -> dict[str, float] | None:
