@@ -21,8 +21,8 @@ components with the free one e_f ∥ n → n only; with e_f ⟂ n → the tangen
 else is refused (SceneError naming the nodes).
 
 Crosspoint basis (`[contact] ends`, `class_blocks`), per class (normal; tangential): "keep"
-(default) drops the dual functions of the nodes the rules give no row of the class; "merge"
-(Wohlmuth's modification, the 2D default) gives them to the class's carrying neighbours in each
+drops the dual functions of the nodes the rules give no row of the class; "merge" (default;
+Wohlmuth's modification, the 2D default too) gives them to the class's carrying neighbours in each
 face (`fem.mortar3d.multiplier_basis`), so that Σ_k ψ̃_k = 1 on every face with a carrier. A
 line node keeps its tangential class (it cannot give away one tangent's function: the
 neighbours' rows would re-impose the tangent it keeps); its other tangent's function is dropped.
@@ -125,7 +125,7 @@ class Contact3D:
     B_full: sp.csr_matrix  # (N_n + 2 N_b + N_l, n_full)
     W_n: np.ndarray  # (k,) ∫ψ̃_k dA of the normal class (W where the node carries no λ_n)
     W_t: np.ndarray  # (k,) ∫ψ̃_k dA of the tangential class (W where no tangential row)
-    ends: str = "keep"  # the crosspoint basis: "keep" or "merge" (`class_blocks`)
+    ends: str = "merge"  # the crosspoint basis: "keep" or "merge" (`class_blocks`)
     master: Coupling | None = None
     law: str = contact_law.LAWS[0]  # "bilateral" or "unilateral"
     friction: str = contact_law.FRICTIONS[0]  # "tresca" or "coulomb"
@@ -222,7 +222,7 @@ class ContactSection3(contact_law.contact_law(NonNegativeExpr3)):
 
     slave: str
     master: str = "rigid"
-    ends: Literal["keep", "merge"] = "keep"
+    ends: Literal["keep", "merge"] = "merge"
 
 
 Head = head(NAME, 1)
