@@ -64,7 +64,14 @@ from problems.scene.fields3d import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
 
-from . import contact3d_checks, contact3d_extremes, contact3d_output, contact_law, contact_model
+from . import (
+    contact3d_checks,
+    contact3d_errors,
+    contact3d_extremes,
+    contact3d_output,
+    contact_law,
+    contact_model,
+)
 from .bodies import Body, build_body, dirichlet
 from .contact3d_bodies import SURFACE_ORDER, BodySection3, count3, field_data3
 from .contact_model import BodiesModel, reference
@@ -847,7 +854,7 @@ mesh_size = contact_model.mesh_size  # h of the built level
 SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
 # against the scene's [exact] table: exact_errors (contact3d_errors)
-EXACT_NORMS = ("u_L2", "u_H1", "phi_L2", "phi_H1", "lam")
+EXACT_NORMS = contact3d_errors.NORMS
 extremes = contact3d_extremes.rows
 
 
@@ -867,10 +874,12 @@ def draw(ax, model: Model, sol: Solution) -> str:
 
 def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
     """The EXACT_NORMS against the scene's [exact] table (None without one):
-    `contact3d_errors.exact_errors` (imported here: it imports this module)."""
-    from . import contact3d_errors
-
-    return contact3d_errors.exact_errors(model, sol)
+    `contact3d_errors.exact_errors`."""
+    section = model.scene.validated(SCENE_MODEL).exact
+    if section is None:
+        return None
+    state = None if model.contact is None else contact_state(model, sol)
+    return contact3d_errors.exact_errors(model, sol, section.compiled(), state)
 
 
 def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:

@@ -3,7 +3,7 @@
 `contact3d_errors`) with fitted rates, through the same study command as 2D's `manufactured`.
 
 Cross-checks: every record's errors are those of an independent build, solve and
-`contact3d_errors.exact_errors` of that level; the rates written are the fit of the records
+`contact3d.exact_errors` of that level; the rates written are the fit of the records
 and pass the slopes of `test_manufactured3d.py` (MIN_SLOPE). Mutation: the exact displacement
 gradient transposed (a wrong reference) must fail the slopes."""
 
@@ -16,7 +16,7 @@ import pytest
 
 import vi_core
 from problems.commands import study
-from problems.plugins import contact3d, contact3d_errors
+from problems.plugins import contact3d
 from problems.scene import load_scene
 from problems.scene.exact import Exact, ExactSection3
 
@@ -41,7 +41,7 @@ def test_study_reports_the_exact_errors_and_rates(tmp_path, capsys):
         assert set(r["err"]) == set(contact3d.EXACT_NORMS) and r["converged"]
         model = contact3d.build(scene, r["level"])
         sol = vi_core.solve(model.vi, "ssn", tol=1e-10)
-        direct = contact3d_errors.exact_errors(model, sol)
+        direct = contact3d.exact_errors(model, sol)
         for k, v in direct.items():
             assert r["err"][k] == pytest.approx(v, rel=1e-6), (r["level"], k)
     rates = res["rates"]["ssn"]
