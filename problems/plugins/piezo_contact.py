@@ -287,14 +287,16 @@ def build_model(
         require_curve(bodies[bname].mesh, part, key, spec.output.potential_along)
         options["potential_along"] = (bname, part)
 
-    vi, free, values = contact_model.mixed_vi(
+    vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
         None if contact is None else partial(_contact_rows, contact),
         field_data,
         {"scene": scene.name, "level": level},
         check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
     )
-    model = model_class(scene, level, list(bodies.values()), contact, vi, free, values, options)
+    model = model_class(
+        scene, level, list(bodies.values()), contact, vi, free, values, options, rhs=rhs
+    )
     if ct is not None and ct.electrical is not None:
         model.electrical = _electrical(ct.electrical, contact, vi, free, values)
     if contact is not None:
@@ -387,10 +389,10 @@ def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None
             )
 
 
-def _contact_rows(contact: Contact, free, fixed, values):
-    """B restricted to the unknowns, the gap from Dirichlet data, Λ_h and the Y Gram matrix."""
-    B = contact.B_full[:, free]
-    gap = -(contact.B_full[:, fixed] @ values[fixed])
+def _contact_rows(contact: Contact):
+    """B_full, the gap rows not from Dirichlet data (the initial gap), Λ_h and the Y Gram
+    matrix (`contact_model.mixed_vi`)."""
+    gap = np.zeros(contact.B_full.shape[0])  # (N_n + N_t,)
     tr = contact.tr
     n_n, n_t = contact.sizes
     if contact.law == "bilateral":
@@ -407,7 +409,7 @@ def _contact_rows(contact: Contact, free, fixed, values):
     rows = np.empty(n_n + n_t, dtype=int)  # trace index of each row of B_full
     rows[contact.idx_n], rows[contact.idx_t] = contact.rows_n, contact.rows_t
     Y = sp.diags(h_i[rows] * tr.weights[rows])  # mesh-dependent H^{-1/2} stand-in
-    return B, gap, Lam, Y
+    return contact.B_full, gap, Lam, Y
 
 
 def _where(body: Body, tr: Trace, i: int) -> str:
@@ -1031,6 +1033,12 @@ def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
         files += written
         out["contact"] = contact["counts"]
     return out
+
+
+def update(model: Model, scene: Scene, t: float) -> Model | None:
+    """Load paths: the step t of `model` with only its loads and prescribed values re-read
+    (`contact_model.update`; None: rebuild the step, e.g. with [contact.electrical])."""
+    return contact_model.update(model, scene.validated(SCENE_MODEL), t)
 
 
 def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
