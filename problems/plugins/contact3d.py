@@ -21,8 +21,8 @@ components with the free one e_f ∥ n → n only; with e_f ⟂ n → the tangen
 else is refused (SceneError naming the nodes).
 
 Crosspoint basis (`[contact] ends`, `class_blocks`), per class (normal; tangential): "keep"
-(default) drops the dual functions of the nodes the rules give no row of the class; "merge"
-(Wohlmuth's modification, the 2D default) gives them to the class's carrying neighbours in each
+drops the dual functions of the nodes the rules give no row of the class; "merge" (default;
+Wohlmuth's modification, the 2D default too) gives them to the class's carrying neighbours in each
 face (`fem.mortar3d.multiplier_basis`), so that Σ_k ψ̃_k = 1 on every face with a carrier. A
 line node keeps its tangential class (it cannot give away one tangent's function: the
 neighbours' rows would re-impose the tangent it keeps); its other tangent's function is dropped.
@@ -64,7 +64,14 @@ from problems.scene.fields3d import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
 
-from . import contact3d_checks, contact3d_extremes, contact3d_output, contact_law, contact_model
+from . import (
+    contact3d_checks,
+    contact3d_errors,
+    contact3d_extremes,
+    contact3d_output,
+    contact_law,
+    contact_model,
+)
 from .bodies import Body, build_body, dirichlet
 from .contact3d_bodies import SURFACE_ORDER, BodySection3, count3, field_data3
 from .contact_model import BodiesModel, reference
@@ -125,7 +132,7 @@ class Contact3D:
     B_full: sp.csr_matrix  # (N_n + 2 N_b + N_l, n_full)
     W_n: np.ndarray  # (k,) ∫ψ̃_k dA of the normal class (W where the node carries no λ_n)
     W_t: np.ndarray  # (k,) ∫ψ̃_k dA of the tangential class (W where no tangential row)
-    ends: str = "keep"  # the crosspoint basis: "keep" or "merge" (`class_blocks`)
+    ends: str = "merge"  # the crosspoint basis: "keep" or "merge" (`class_blocks`)
     master: Coupling | None = None
     law: str = contact_law.LAWS[0]  # "bilateral" or "unilateral"
     friction: str = contact_law.FRICTIONS[0]  # "tresca" or "coulomb"
@@ -222,7 +229,7 @@ class ContactSection3(contact_law.contact_law(NonNegativeExpr3)):
 
     slave: str
     master: str = "rigid"
-    ends: Literal["keep", "merge"] = "keep"
+    ends: Literal["keep", "merge"] = "merge"
 
 
 Head = head(NAME, 1)
@@ -845,7 +852,9 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
-NORMS = ("u_nodes", "phi_nodes", "lam_nodes")
+NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
+# against the scene's [exact] table: exact_errors (contact3d_errors)
+EXACT_NORMS = contact3d_errors.NORMS
 extremes = contact3d_extremes.rows
 
 
@@ -861,6 +870,16 @@ def draw(ax, model: Model, sol: Solution) -> str:
     ax.set_aspect("equal")
     ax.legend(fontsize=7)
     return f"slip {int(st['slip'].sum())} of {int(st['has_t'].sum())} nodes"
+
+
+def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
+    """The EXACT_NORMS against the scene's [exact] table (None without one):
+    `contact3d_errors.exact_errors`."""
+    section = model.scene.validated(SCENE_MODEL).exact
+    if section is None:
+        return None
+    state = None if model.contact is None else contact_state(model, sol)
+    return contact3d_errors.exact_errors(model, sol, section.compiled(), state)
 
 
 def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:

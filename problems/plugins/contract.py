@@ -27,6 +27,8 @@ declaration it needs with exit status 2, naming the declaration):
     mesh_size(model) -> float                  `mixvi study`: h of the built level
     exact_errors(model, sol) -> dict | None    `mixvi study`: the NORMS against the scene's exact
                                                solution (None: the scene has none)
+    EXACT_NORMS: tuple[str, ...]               `mixvi study`: the names of exact_errors' norms
+                                               where they differ from NORMS (default NORMS)
     reference_errors(model, sol, ref, ref_sol) `mixvi study`: the NORMS against the solution of a
                          -> dict               finer level `ref` of the same scene
     extremes() -> list[ExtremeRow]             `mixvi extremes`: this plug-in's extreme rows

@@ -206,7 +206,7 @@ def _errors(scene, element: str, levels=LEVELS) -> tuple[np.ndarray, list[dict],
         sol = solve(model.vi, "ssn", tol=1e-12)
         assert sol.converged
         hs.append(contact3d.mesh_size(model))
-        errs.append(contact3d_errors.exact_errors(model, sol))
+        errs.append(contact3d.exact_errors(model, sol))
         states.append((model, contact3d.contact_state(model, sol)))
     return np.array(hs), errs, states
 
