@@ -33,7 +33,8 @@ Re-measure them here when the memory per unknown changes.
 
 In 3D (the model's `dimension` 3) the fill of a sparse factor grows faster: MEMORY_MODEL_3D,
 fitted on 3D runs (below), b ≈ 1.26 instead of ≈ 1; AMG needs 161 bytes per stored entry of A
-(fitted on bracket3d levels 2 and 3, 49k and 340k unknowns) against 151 in 2D.
+(fitted on bracket3d levels 2 and 3, 49k and 340k unknowns) against 151 in 2D then (128.3
+since the 2D refit).
 
 Caps. A level whose upper estimate (the estimate divided by the smallest estimate / measured
 ratio seen for that solver, WORST_RATIO) exceeds the machine's memory (physical, cgroup or
@@ -78,9 +79,9 @@ MEMORY_MODEL_3D = {
     # no factor: x = nnz(A), b = 1 as in 2D, a fitted (least squares, base fixed) to `mixvi bench
     # --scenes bracket3d --levels 2..3 --linear-solvers amg` (tetrahedra; nnz(A) 1,757,043 and
     # 13,511,079: peaks 438 and 2,181 MiB; estimate / measured 0.87, 1.00): 161 B per stored
-    # entry against 151 in 2D (the 2D fit said 0.83, 0.94). block3d level 3 with cells
-    # [6, 6, 4] (hexahedra, 314,531 unknowns, nnz(A) 31,621,600, measured before the memory
-    # changes of the 2D refit): 5.2 GB estimated, 5.04 GB measured (×1.03)
+    # entry against 151 in 2D then, 128.3 since (the 2D fit of then said 0.83, 0.94). block3d
+    # level 3 with cells [6, 6, 4] (hexahedra, 314,531 unknowns, nnz(A) 31,621,600, measured
+    # before the memory changes of the 2D refit): 5.2 GB estimated, 5.04 GB measured (×1.03)
     "amg": ("nnz", 115e6, 161.3, 1.0),
 }
 # direct solvers: an assumed margin (two and one measurements); AMG: the smallest ratio seen
