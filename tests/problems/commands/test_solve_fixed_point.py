@@ -88,6 +88,7 @@ def test_cli_refuses_a_scene_without_contact_blocks(scene, tmp_path, capsys):
     assert not (tmp_path / "o" / "summary.json").exists()
 
 
+@pytest.mark.slow
 def test_a_load_path_by_the_fixed_point(tmp_path, capsys):
     out = tmp_path / "o"
     argv = ["solve", "shear_strip_path", "--level", "0", "--solver", "fixed_point"]

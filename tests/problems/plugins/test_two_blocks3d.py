@@ -26,7 +26,7 @@ def solved(level: int):
     return model, sol
 
 
-@pytest.mark.parametrize("level", [0, 1])
+@pytest.mark.parametrize("level", [0, pytest.param(1, marks=pytest.mark.slow)])
 def test_two_blocks3d(level):
     model, sol = solved(level)
     c = model.contact
