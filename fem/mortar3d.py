@@ -50,8 +50,12 @@ geometries.
 Rigid-body patch test: Σ_j M_kj = D_kk wherever the master covers the support of ψ_k;
 `fem.mortar.patch_defect` measures it on the multiplier rows.
 
-Limits: the master must be a graph over each slave face near it (a master that folds back under
-a slave face would be counted twice; 2D keeps the nearest hit, 3D does not yet); a projected
+Folded masters (`nearest_hits`): where the normal lines of a slave face meet two master faces
+(a master that folds back under it), the nearer one wins, as in 2D: the overlap of the two
+cells is integrated again for the farther face with weight −1 (exact for two sheets; a master
+folded twice under one slave face is refused).
+
+Limits: a projected
 slave face must be convex (true for any non-degenerate triangle and for quadrilaterals that are
 not badly warped); master faces are cut along the straight chords between their nodes' images
 (the images of their edges are curved where the normal field turns; the cells still tile the
@@ -392,11 +396,92 @@ def mortar_coupling3d(
     return couple(s, m, quad_order, reach)
 
 
+def _area(poly: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """(n,) signed areas of polygons (n, K, 2) with counts (n,) (shoelace)."""
+    i = np.arange(poly.shape[1])[None, :]  # (1, K)
+    nxt = np.take_along_axis(poly, np.where(i + 1 < count[:, None], i + 1, 0)[..., None], 1)
+    return 0.5 * np.where(i < count[:, None], _cross2(poly, nxt), 0.0).sum(axis=1)
+
+
+def _hit_distance(s: Surface, m: Surface, e, f, y, x0, E) -> np.ndarray:
+    """(n,) |x − π_f(x)| of the slave points x of faces e below plane points y (n, 2): how far
+    along the interpolated normal the line meets master face f."""
+    Xs, Xm = s.points[s.faces[e]], m.points[m.faces[f]]  # (n, m_s, 3), (n, m_m, 3)
+    Ps = np.einsum("nai,nij->naj", Xs - x0[e][:, None], E[e])  # (n, m_s, 2)
+    Pm = np.einsum("nai,nij->naj", Xm - x0[e][:, None], E[e])  # (n, m_m, 2)
+    phi = _values(s.face_type, inverse_map(s.face_type, Ps, y[:, None]))  # (n, 1, m_s)
+    x = np.einsum("nqa,nai->nqi", phi, Xs)  # (n, 1, 3)
+    nrm = np.einsum("nqa,nai->nqi", phi, s.normals[s.faces[e]])
+    xm = _rays(m.face_type, Xm, x, inverse_map(m.face_type, Pm, y[:, None]), dirs=nrm)
+    hit = np.einsum("nqb,nbi->nqi", _values(m.face_type, xm), Xm)  # (n, 1, 3)
+    return np.linalg.norm(hit - x, axis=2)[:, 0]
+
+
+def _overlapping(key: np.ndarray, poly: np.ndarray, count: np.ndarray, area: np.ndarray, tol):
+    """Pairs (a, b) of polygons (n, K, 2) with counts (n,) and the same key (n,) whose
+    intersection has more than tol × area[a] (convex polygons; Sutherland–Hodgman): (a, b,
+    intersections (n_o, K', 2), their counts)."""
+    order = np.argsort(key, kind="stable")
+    pa, pb = [np.zeros(0, dtype=int)], [np.zeros(0, dtype=int)]
+    for d in range(1, int(np.bincount(key).max(initial=1)) if key.size else 1):
+        same = key[order[:-d]] == key[order[d:]]
+        pa.append(order[:-d][same])
+        pb.append(order[d:][same])
+    a, b = np.concatenate(pa), np.concatenate(pb)
+    out = [(a[:0], b[:0], np.zeros((0, 3, 2)), np.zeros(0, dtype=int))]
+    for w in np.unique(count[b]):  # clip needs windows of one vertex count
+        sel = np.flatnonzero(count[b] == w)
+        P, c = clip(poly[a[sel]], count[a[sel]], poly[b[sel], :w])
+        ok = (c >= 3) & (np.abs(_area(P, c)) > tol * area[a[sel]])
+        out.append((a[sel][ok], b[sel][ok], P[ok], c[ok]))
+    width = max(o[2].shape[1] for o in out)
+    pad = [np.pad(o[2], ((0, 0), (0, width - o[2].shape[1]), (0, 0))) for o in out]
+    return (*(np.concatenate([o[i] for o in out]) for i in (0, 1)), np.concatenate(pad),
+            np.concatenate([o[3] for o in out]))  # fmt: skip
+
+
+def nearest_hits(s: Surface, m: Surface, e, f, poly, count, x0, E, tol: float = 1e-12):
+    """Overlap cells for a master that folds back under a slave face: where the cells of two
+    master faces overlap on one slave face (the normal line meets both), the nearer face wins
+    (as `fem.mortar` in 2D): the overlap polygon (the convex intersection of the two cells) is
+    appended as a cell of the FARTHER face with weight −1, so that its integral is taken back.
+    Nearer and farther are decided at the overlap's vertex mean (two sheets of one surface do
+    not cross). Exact for two sheets; three cells over one point (a second fold) would be taken
+    back twice: ValueError. Overlaps below tol × the slave face's area (cells of neighbouring
+    master faces touching along an edge) are ignored.
+
+    Returns (sign (n',), e, f, poly, count): the input cells with sign 1, then the overlaps.
+    """
+    sign = np.ones(e.size)
+    oa, ob, op, oc = _overlapping(e, poly, count, s.areas[e], tol)
+    if oa.size == 0:
+        return sign, e, f, poly, count
+    i = np.arange(op.shape[1])[None, :]
+    ctr = (op * (i < oc[:, None])[..., None]).sum(axis=1) / oc[:, None]  # (n_o, 2)
+    da = _hit_distance(s, m, e[oa], f[oa], ctr, x0, E)
+    db = _hit_distance(s, m, e[ob], f[ob], ctr, x0, E)
+    far = np.where(da <= db, ob, oa)  # (n_o,) the cell whose face is farther
+    if _overlapping(far, op, oc, s.areas[e[far]], tol)[0].size:
+        raise ValueError("a master surface folds more than once under a slave face")
+    width = max(poly.shape[1], op.shape[1])
+    poly = np.pad(poly, ((0, 0), (0, width - poly.shape[1]), (0, 0)))
+    op = np.pad(op, ((0, 0), (0, width - op.shape[1]), (0, 0)))
+    return (
+        np.concatenate([sign, -np.ones(oa.size)]),
+        np.concatenate([e, e[far]]),
+        np.concatenate([f, f[far]]),
+        np.concatenate([poly, op]),
+        np.concatenate([count, oc]),
+    )
+
+
 def couple(s: Surface, m: Surface, quad_order: int | None = None, reach: float = 1.0) -> Mortar3D:
     """`mortar_coupling3d` on two traces."""
     if quad_order is None:
         quad_order = max(QUAD_ORDER[s.face_type], QUAD_ORDER[m.face_type])
     e, f, poly, count, x0, n0, E = cells(s, m, reach)
+    n_cells = int(e.size)
+    sign, e, f, poly, count = nearest_hits(s, m, e, f, poly, count, x0, E)
     K = poly.shape[1]
     i = np.arange(K)[None, :]  # (1, K)
     valid = i < count[:, None]  # (n_c, K)
@@ -404,7 +489,7 @@ def couple(s: Surface, m: Surface, quad_order: int | None = None, reach: float =
     nxt = np.take_along_axis(poly, np.where(i + 1 < count[:, None], i + 1, 0)[..., None], 1)
     c, k = np.nonzero(valid)  # (n_t,) cell and vertex of every cell triangle
     a, b = poly[c, k] - ctr[c], nxt[c, k] - ctr[c]  # (n_t, 2) edge vectors from the centre
-    area2 = _cross2(a, b)  # (n_t,) twice the signed area
+    area2 = _cross2(a, b) * sign[c]  # (n_t,) twice the signed area (−: a taken-back overlap)
     pts, wq = triangle_rule(quad_order)  # (q, 2), (q,)
     y = ctr[c][:, None] + pts[None, :, :1] * a[:, None] + pts[None, :, 1:] * b[:, None]
     et, ft = e[c], f[c]  # (n_t,) slave and master face of each triangle
@@ -427,7 +512,7 @@ def couple(s: Surface, m: Surface, quad_order: int | None = None, reach: float =
     cols = np.broadcast_to(m.faces[ft][:, None, :], loc.shape)
     M = sp.csr_matrix((loc.ravel(), (rows.ravel(), cols.ravel())), shape=(s.faces.size, m.size))
     coverage = np.bincount(et, wt.sum(axis=1), minlength=s.faces.shape[0]) / s.areas
-    return Mortar3D(s, m, M, coverage, int(e.size))
+    return Mortar3D(s, m, M, coverage, n_cells)
 
 
 def nodal_rows(mo: Mortar3D) -> sp.csr_matrix:

@@ -168,11 +168,10 @@ def face_integrals(
     func: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
     order: int = 4,
 ) -> np.ndarray:
-    """(k,) ∫_Γ f φ_i dA of a scalar field f(x, y, z) (values at the quadrature points)."""
+    """(n_f, m) ∫_e f φ_{e,a} dA of a scalar field f(x, y, z) (values at the quadrature
+    points) per face e and local node a; a multiplier basis Q (`fem.mortar3d.multiplier_basis`)
+    turns them into ∫ f φ̃_k dA (Q @ result.ravel()), np.bincount(faces, …) into ∫ f φ_k dA."""
     x, N, w, phi = _face_quadrature(mesh.points[surf.nodes[surf.faces]], surf.face_type, order)
     dA = np.linalg.norm(N, axis=-1) * w[None, :]  # (n_f, n_qp)
     f = np.broadcast_to(np.asarray(func(x[..., 0], x[..., 1], x[..., 2]), float), dA.shape)
-    loc = (dA * f) @ phi  # (n_f, k)
-    out = np.zeros(surf.size)
-    np.add.at(out, surf.faces.ravel(), loc.ravel())
-    return out
+    return (dA * f) @ phi  # (n_f, m)

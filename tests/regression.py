@@ -114,6 +114,8 @@ def _strip(value):
     """The postprocess summary without rounding residues and file lists (nested dicts kept)."""
     if isinstance(value, dict):
         return {k: _strip(v) for k, v in value.items() if k not in RESIDUES | SKIP}
+    if isinstance(value, list):
+        return [_strip(v) for v in value]
     return value
 
 
@@ -227,6 +229,14 @@ def compare(base, now, rtol: float, path: str = "") -> list[str]:
                 f"{path}: {base} → {now} (relative {diff / max(size, 1e-300):.1e} > {rtol:.0e})"
             ]
         return []
+    if isinstance(base, list) and isinstance(now, list):  # e.g. a load path's steps: each entry
+        if len(base) != len(now):  # compared as above, its floats to rtol, never exactly
+            return [f"{path}: {len(base)} entries → {len(now)}"]
+        return [
+            d
+            for i, (a, b) in enumerate(zip(base, now, strict=True))
+            for d in compare(a, b, rtol, f"{path}[{i}]")
+        ]
     return [] if base == now else [f"{path}: {base!r} → {now!r}"]
 
 

@@ -82,3 +82,18 @@ def test_a_slack_beyond_rounding_is_caught():
     assert regression.check_case("curved_manufactured", 0, base, now) == []
     bad = {**now, "norms": {**now["norms"], "slack": 1e-6 * now["slack_scale"]}}
     assert any("slack" in d for d in regression.check_case("curved_manufactured", 0, base, bad))
+
+
+def test_floats_inside_lists_of_entries_are_compared_to_rounding_not_exactly():
+    """A load path's steps (a list of dicts) once compared with ==: a last-bit change on another
+    machine failed the suite there. Floats anywhere are compared to rtol; counts exactly."""
+    base = {"steps": [{"t": 1.0, "norm": 7.180038696610759e-06, "open": 10}]}
+    rounded = {"steps": [{"t": 1.0, "norm": 7.180038696610757e-06, "open": 10}]}
+    assert regression.compare(base, rounded, 1e-12) == []
+    moved = {"steps": [{"t": 1.0, "norm": 7.180045e-06, "open": 10}]}
+    assert regression.compare(base, moved, 1e-12) == [
+        ".steps[0].norm: 7.180038696610759e-06 → 7.180045e-06 (relative 8.8e-07 > 1e-12)"
+    ]
+    counted = {"steps": [{"t": 1.0, "norm": 7.180038696610759e-06, "open": 11}]}
+    assert regression.compare(base, counted, 1e-12) == [".steps[0].open: 10 → 11"]
+    assert regression.compare(base, {"steps": []}, 1e-12) == [".steps: 1 entries → 0"]

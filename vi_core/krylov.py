@@ -14,8 +14,20 @@ their node's frame (C the row norms of D) with F the free rows, the slave dofs o
 rows follow the others: u = T0 y + u_p, u_S = D^{-1}(C E_F s_F − E_T (B_R u_R)_T) + u_p,S. With
 0/1 rows of J this turns K u = r into Â y = T0ᵀ(…) with the symmetric Â = T0ᵀ A T0 — the
 stiffness of the bodies glued where they stick and free to slide where they slip — so a
-hierarchy of Â and an exact tied part make the preconditioner exact (`test_krylov`); rows with
-fractional J (a 3D slip disc) are counted as free, and FGMRES makes up the difference. Â is
+hierarchy of Â and an exact tied part make the preconditioner exact (`test_krylov`).
+Rows with fractional J (a slip disc in 3D: J = γ(I − ŷŷᵀ), γ = g/|y_t| < 1, W = I − J) are
+free rows with a spring: on the free rows F, W_FF λ_F = J_F·(B u) − q_F (W_FT = 0 but for
+Coulomb's dρ/dλ_n), so λ_F = M (B u)_F − W_FF^{-1}(q_F − J_FT q_T) with M = W_FF^{-1} J_FF,
+symmetric and ≥ 0, and the glued stiffness gains the spring: Â = T0ᵀ (A + B_Fᵀ M B_F) T0 — exact
+(`test_krylov`, a Ball with fractional rows). The spring κ = γ/(1 − γ) is unbounded where a
+disc has only just started to slip (γ → 1; γ = 1 to rounding occurs, W_FF singular), and a
+multigrid hierarchy of a matrix with springs of 1e16 fails (bracket3d level 2, first fine
+step, FGMRES iterations to 1e-8: 12 counting the slip rows free, 192 with the exact springs),
+so κ is capped smoothly at SPRING_CAP: exact where κ ≪ SPRING_CAP, a stiff spring between
+free and tied above. Measured on the same step and two later ones (hierarchy rebuilt, caps
+0.1, 1, 10, 1e3, none): 12, 11, 10, 19, 192 / 18, 13, 11, 14, 14 / 16, 12, 10, 11, 11, against
+12 / 21 / 19 with the slip rows free. Coulomb's coupling W_FT of a slip row to its (tied)
+normal multiplier is left out (FGMRES makes up that difference). Â is
 block lower triangular over the fields of the problem (`MixedVI.fields`, e.g. displacement
 then potential): one pyamg smoothed-aggregation hierarchy per field, built on the symmetric
 part of its diagonal block, with the field's near-null space (`MixedVI.near_null`, the
@@ -43,10 +55,11 @@ experiment on those matrices saved, FGMRES to 1e-8 from zero), V-cycles: 14, 16,
 
 **Inexact Newton.** Each step starts from the current iterate and stops when the linear residual
 is ≤ η_k times its initial value (Eisenstat–Walker, choice 2: η_k = 0.9 (F_k/F_{k−1})², at most
-ETA_MAX, or ETA_MAX_WARM from a warm start), but never asks for more than 0.1·tol relative to
-‖b‖: the step that brings the natural residual below tol is solved to about the requested
-tolerance, and convergence is judged from the natural residual of the iterate itself, as with a
-direct solve.
+ETA_MAX from a cold start; from a warm start ETA_MAX_WARM = 0: nested iteration's prediction of
+the active set usually holds, and then one step solved to tol is the answer), but never asks for
+more than 0.1·tol relative to ‖b‖: the step that brings the natural residual below tol is solved
+to about the requested tolerance, and convergence is judged from the natural residual of the
+iterate itself, as with a direct solve.
 
 **Fallback.** A solve whose true residual falls by less than a factor 0.9 over a restart cycle,
 or does not reach its tolerance within `max_cycles` cycles, is redone by the direct solver; the
@@ -66,17 +79,20 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .fgmres import fgmres_cycle
 from .linalg import BACKENDS
 
 LINEAR_SOLVERS = (*BACKENDS, "amg")  # the direct backends and the iterative path
 # the loosest relative linear tolerance of a Newton step, from a cold start and from a warm
-# start (u0/λ0 given: nested iteration, where the active set is nearly right and Newton needs 1–2
-# exact steps, so an inexact step only adds steps). Measured with the fine level of the paper
-# scene (FGMRES iterations / Newton steps): level 3 cold, 0.1 → 78 / 9, 1e-3 → 97 / 7; level 4
-# nested, 1e-4 → 98 / 4, 1e-8 → 71 / 2 (each step also costs a K_SS factorisation, residuals
-# and the line search)
+# start (u0/λ0 given: nested iteration, where the active set is nearly right and Newton needs
+# one exact step, so an inexact step only adds steps: 0 = every warm step is solved to the
+# requested tolerance, 0.1·tol·‖b‖). Measured with the fine level of the paper scene (FGMRES
+# iterations / Newton steps): level 3 cold, 0.1 → 78 / 9, 1e-3 → 97 / 7; level 4 nested,
+# 1e-4 → 98 / 4, 1e-8 → 71 / 2; with the warm start's stick/slip prediction at the transitions
+# (piezo_contact.warm_start) level 4 nested, 1e-8 → 13 + 6 its in 2 steps, 0 → 18 in 1 step,
+# 3.13 s → 3.04 s (each step also costs a K_SS factorisation, residuals and the line search)
 ETA_MAX = 0.1
-ETA_MAX_WARM = 1e-8
+ETA_MAX_WARM = 0.0
 # prolongation smoothing: energy minimisation (two CG steps) instead of one Jacobi step; CG on
 # the displacement block of the paper scene to 1e-8, levels 3, 4, 5: 14, 15, 17 iterations with
 # Jacobi, 11, 12, 12 with energy minimisation (set-up about twice as long)
@@ -88,6 +104,7 @@ CYCLE = "W"  # see the module docstring for the measurements
 # 6.2 s with 2 at 0.1, 6.5 s with 1 at 1.0 (more FGMRES iterations); nested to level 5: one
 # set-up on the fine level instead of two, 13 and 12 iterations either way
 REUSE = 0.1
+SPRING_CAP = 10.0  # the largest spring of a slip row (equilibrated units; module docstring)
 MAX_LEVELS = 30  # more than any hierarchy has (pyamg's default max_levels is 10)
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
@@ -105,10 +122,11 @@ def thread_settings() -> dict:
 def forcing_term(res: float, res_prev: float | None, tol: float, eta_max: float = ETA_MAX) -> float:
     """Eisenstat–Walker (choice 2, γ = 0.9, α = 2) forcing term for the next Newton step:
     η = 0.9 (res / res_prev)², at most eta_max (also on the first step, res_prev None), and not
-    below 0.1·tol/res (no step solved more accurately than reaching tol needs)."""
+    below 0.1·tol/res (no step solved more accurately than reaching tol needs, whatever
+    eta_max: with eta_max = 0 every step is solved to that floor)."""
     eta = eta_max if not res_prev else 0.9 * (res / res_prev) ** 2
     floor = 0.1 * tol / res if res > 0 else eta_max
-    return float(min(eta_max, max(eta, floor)))
+    return float(max(min(eta_max, eta), floor))
 
 
 def bodies(A: sp.spmatrix) -> np.ndarray:
@@ -119,6 +137,34 @@ def bodies(A: sp.spmatrix) -> np.ndarray:
     return connected_components(A, directed=False)[1]
 
 
+def block_inverse(W: sp.spmatrix) -> sp.csr_matrix:
+    """W⁻¹ of a block-diagonal W whose blocks (the connected components of its graph) are
+    small: the blocks of one size inverted together."""
+    from scipy.sparse.csgraph import connected_components
+
+    W = sp.csr_matrix(W)
+    k = W.shape[0]
+    _, comp = connected_components(W, directed=False)  # (k,) block of each row
+    order = np.argsort(comp, kind="stable")  # (k,) rows block by block
+    sizes = np.bincount(comp)  # (n_blocks,)
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])  # (n_blocks,) first row of each
+    rows, cols, vals = [], [], []
+    for size in np.unique(sizes):
+        first = start[sizes == size]  # (b,)
+        idx = order[first[:, None] + np.arange(size)]  # (b, size) the rows of each block
+        r = np.repeat(idx, size, axis=1).ravel()  # (b·size²,) entry (i, j) of each block
+        c = np.tile(idx, (1, size)).ravel()  # (b·size²,)
+        dense = np.asarray(W[r, c]).reshape(-1, size, size)  # (b, size, size)
+        rows.append(r)
+        cols.append(c)
+        vals.append(np.linalg.inv(dense).ravel())
+    if not rows:
+        return sp.csr_matrix((k, k))
+    return sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(k, k)
+    )
+
+
 class Split(Protocol):
     """What the iterative path needs of a condensation (`ssn.Condensation` has it)."""
 
@@ -126,6 +172,41 @@ class Split(Protocol):
     S: np.ndarray  # (m,) the slave column of each row of B
     D: sp.csr_matrix  # (m, m) B[:, S], block diagonal
     Dt_inv: sp.csr_matrix  # (m, m) D^{-T}
+
+
+@dataclass
+class Spring:
+    """The free rows F with fractional J (3D slip discs) of one Newton matrix: on them
+    λ_F = M (B u)_F − Wi (q_F − J_FT q_T) (module docstring)."""
+
+    M: sp.csr_matrix  # (k_F, k_F) W_FF^{-1} J_FF, symmetric ≥ 0 (block diagonal)
+    Wi: sp.csr_matrix  # (k_F, k_F) W_FF^{-1}
+    J_FT: sp.csr_matrix  # (k_F, k_T) J[F, T]
+    rows: np.ndarray  # (m,) bool: the free rows with J ≠ 0 (the springs)
+
+    @staticmethod
+    def of(tied: np.ndarray, W: sp.spmatrix | None, J: sp.spmatrix | None) -> Spring | None:
+        """The springs of the free rows, None where there are none (J = 0 on the free rows:
+        every 2D step, and 3D steps without a slip disc)."""
+        if W is None or J is None:
+            return None
+        F, T = np.flatnonzero(~tied), np.flatnonzero(tied)
+        J_F = sp.csr_matrix(J)[F]  # (k_F, m)
+        J_F.eliminate_zeros()
+        if J_F.nnz == 0:
+            return None
+        rows = np.zeros(tied.size, dtype=bool)
+        rows[F[np.diff(J_F.indptr) > 0]] = True
+        J_FF = J_F[:, F]
+        # M = W_FF^{-1} J_FF with its stiffness κ = γ/(1 − γ) capped smoothly at SPRING_CAP:
+        # (W_FF + J_FF/c)^{-1} J_FF = κ/(1 + κ/c) (never singular, also where γ = 1 exactly)
+        M = (block_inverse(sp.csr_matrix(W)[F][:, F] + J_FF / SPRING_CAP) @ J_FF).tocsr()
+        return Spring(M, (sp.identity(F.size) + M).tocsr(), J_F[:, T].tocsr(), rows)
+
+
+def _springs(spring: Spring | None, tied: np.ndarray) -> np.ndarray:
+    """(m,) bool: the rows that are springs (none without a Spring)."""
+    return np.zeros(tied.size, dtype=bool) if spring is None else spring.rows
 
 
 @dataclass
@@ -174,6 +255,32 @@ def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> list:
     return [("predefined", {"C": C})] + ["symmetric"] * MAX_LEVELS
 
 
+def field_blocks(K: sp.csr_matrix, fields: list[tuple], couple: bool = True) -> list[dict]:
+    """Per field (in order): its positions `index` (k,), the symmetric part `sym` (k, k) of its
+    diagonal block, its near-null rows `nn`, and `lower` = [(j, K[field, field j])] for the
+    earlier fields j (empty with couple=False). Nothing refers to K afterwards: the caller can
+    free it before the multigrid set-ups, where the peak memory falls."""
+    out: list[dict] = []
+    for name, mask, nn in fields:
+        index = np.flatnonzero(mask)
+        if index.size == 0:
+            continue
+        rows = K[index]  # (k, n) the field's rows: its block and its coupling blocks
+        lower = []
+        for j, prev in enumerate(out if couple else []):
+            C = rows[:, prev["index"]].tocsr()
+            C.eliminate_zeros()
+            if C.nnz:
+                lower.append((j, C))
+        Kf = rows[:, index]
+        del rows
+        sym = (Kf + Kf.T).tocsr()  # the symmetric part, halved in place (one copy fewer)
+        sym.data *= 0.5
+        del Kf
+        out.append({"name": name, "index": index, "sym": sym, "nn": nn, "lower": lower})
+    return out
+
+
 class BlockAMG:
     """x ≈ K⁻¹ r: one multigrid cycle per field, block lower triangular over the fields.
 
@@ -187,27 +294,27 @@ class BlockAMG:
         parts: np.ndarray | None = None,
         cycle: str = "V",
     ):
+        self._setup(field_blocks(K, fields, couple), parts, cycle)
+
+    @classmethod
+    def from_blocks(
+        cls, blocks: list[dict], parts: np.ndarray | None = None, cycle: str = "V"
+    ) -> BlockAMG:
+        """The preconditioner of `field_blocks`' output; each field's symmetric block is
+        dropped from `blocks` once its hierarchy is built."""
+        self = cls.__new__(cls)
+        self._setup(blocks, parts, cycle)
+        return self
+
+    def _setup(self, blocks: list[dict], parts: np.ndarray | None, cycle: str) -> None:
         import pyamg
 
         self.cycle = cycle
         t = time.perf_counter()
         self.blocks: list[FieldBlock] = []
-        for name, mask, nn in fields:
-            index = np.flatnonzero(mask)
-            if index.size == 0:
-                continue
-            rows = K[index]  # (k, n) the field's rows: its block and its coupling blocks
-            lower = []
-            for j, prev in enumerate(self.blocks if couple else []):
-                C = rows[:, prev.index].tocsr()
-                C.eliminate_zeros()
-                if C.nnz:
-                    lower.append((j, C))
-            Kf = rows[:, index]
-            del rows  # freed before the set-up, where the peak memory falls
-            sym = (Kf + Kf.T).tocsr()  # the symmetric part, halved in place (one copy fewer)
-            sym.data *= 0.5
-            del Kf
+        for blk in blocks:
+            index, nn = blk["index"], blk["nn"]
+            sym = blk.pop("sym")
             kw = {} if nn is None else {"B": np.asarray(nn, float).reshape(index.size, -1)}
             ml = pyamg.smoothed_aggregation_solver(
                 sym,
@@ -218,7 +325,7 @@ class BlockAMG:
                 **kw,
             )
             del sym
-            self.blocks.append(FieldBlock(name, index, ml, lower))
+            self.blocks.append(FieldBlock(blk["name"], index, ml, blk["lower"]))
         self.setup_time = time.perf_counter() - t
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
@@ -272,6 +379,7 @@ class KrylovSolver:
         self.R, self.S = np.asarray(cond.R), np.asarray(cond.S)
         self.Dt_inv = cond.Dt_inv  # (m, m) D^{-T}
         self.D_inv = sp.csr_matrix(cond.Dt_inv.T)  # (m, m) D^{-1}
+        self.B = sp.csr_matrix(B)  # (m, n)
         self.B_R = sp.csr_matrix(B[:, self.R])  # (m, n_R)
         D = sp.csr_matrix(cond.D)
         self.scale = np.sqrt(np.asarray(D.multiply(D).sum(axis=1)).ravel())  # (m,) row norms
@@ -283,6 +391,7 @@ class KrylovSolver:
         self.cycle = cycle
         self.amg: BlockAMG | None = None
         self.tied: np.ndarray | None = None  # (m,) the tied rows the hierarchy was built for
+        self.spring: Spring | None = None  # the free rows' springs it was built with
         self.setups: list[float] = []  # seconds of each hierarchy set-up
         self.steps: list[dict] = []  # per Newton step: iterations, tolerance, residual, …
         self.time = 0.0
@@ -316,19 +425,24 @@ class KrylovSolver:
             out.append((name, my, np.vstack([N[self.R][mask[self.R]], N_s[free][mask[S_F]]])))
         return out
 
-    def _hierarchy(self, tied: np.ndarray) -> None:
-        """(Re)build the hierarchies of Â = T0ᵀ A T0 for these tied rows (kept while they stay)."""
+    def _hierarchy(self, tied: np.ndarray, spring: Spring | None = None) -> None:
+        """(Re)build the hierarchies of Â = T0ᵀ (A + B_Fᵀ M B_F) T0 for these tied rows and the
+        free rows' springs M (kept while the tied rows stay)."""
         self.amg = None  # the old hierarchy is freed before the new one is built
         T0 = self._T0(tied)
         A_hat = (T0.T @ (self.A @ T0)).tocsr()
+        if spring is not None:
+            BT = (self.B @ T0)[np.flatnonzero(~tied)]  # (k_F, n_y) (B u)_F in y
+            A_hat = (A_hat + BT.T @ (spring.M @ BT)).tocsr()
+            del BT
         del T0
+        blocks = field_blocks(A_hat, self._fields_y(tied), couple=self.couple)
+        del A_hat  # freed before the set-ups (memory: the set-up is where the peak falls)
         parts = None
         if self.parts is not None:
             parts = np.concatenate([self.parts[self.R], self.parts[self.S][~tied]])
-        self.amg = BlockAMG(
-            A_hat, self._fields_y(tied), couple=self.couple, parts=parts, cycle=self.cycle
-        )
-        self.tied = tied.copy()
+        self.amg = BlockAMG.from_blocks(blocks, parts=parts, cycle=self.cycle)
+        self.tied, self.spring = tied.copy(), spring
         self.setups.append(self.amg.setup_time)
 
     def __call__(
@@ -339,9 +453,13 @@ class KrylovSolver:
         eta: float,
         tol: float,
         tied: np.ndarray,
+        W: sp.spmatrix | None = None,
+        J: sp.spmatrix | None = None,
     ) -> tuple[np.ndarray | None, dict]:
         """Solve K x = b to ‖b − Kx‖ ≤ max(η‖b − K x0‖, 0.1·tol·‖b‖); tied (m,) the rows whose
-        W row is zero (a tying condition (B u)_i = …; the others are stiffness rows).
+        W row is zero (a tying condition (B u)_i = …; the others are stiffness rows); W, J (m, m)
+        the step's matrices, where given the free rows with J ≠ 0 (3D slip discs) are springs
+        in the preconditioner (module docstring); without them such rows count as J = 0.
 
         Returns (x, record); x is None where the solve stagnated (record["fallback"] says why).
         """
@@ -351,14 +469,20 @@ class KrylovSolver:
         # the shared 2-core machine OpenBLAS's threads made the paper scene's level 3 solve 8×
         # slower (set-up 8.1 s → 0.3 s, FGMRES 5.9 s → 1.2 s with one thread)
         with threadpool_limits(limits=1, user_api="blas"):
-            return self._solve(K, b, x0, eta, tol, np.asarray(tied, dtype=bool))
+            tied = np.asarray(tied, dtype=bool)
+            return self._solve(K, b, x0, eta, tol, tied, Spring.of(tied, W, J))
 
-    def preconditioner(self, tied: np.ndarray):
-        """x ≈ K⁻¹ r for the Newton matrix K with these tied rows (module docstring)."""
-        if self.tied is None or (tied != self.tied).sum() > REUSE * tied.size:
-            self._hierarchy(tied)
-        tied = self.tied  # the exact inverse of a Newton matrix differing in a few S rows
-        A, R, S, amg = self.A, self.R, self.S, self.amg
+    def preconditioner(self, tied: np.ndarray, spring: Spring | None = None):
+        """x ≈ K⁻¹ r for the Newton matrix K with these tied rows and free rows' springs
+        (`Spring.of(tied, W, J)`; None: J = 0 on the free rows) (module docstring)."""
+        if (
+            self.tied is None
+            or ((tied != self.tied) | (_springs(spring, tied) != _springs(self.spring, tied))).sum()
+            > REUSE * tied.size
+        ):
+            self._hierarchy(tied, spring)
+        tied, spring = self.tied, self.spring  # the exact inverse of a Newton matrix differing
+        A, R, S, amg = self.A, self.R, self.S, self.amg  # in a few S rows (and springs)
         free = ~tied
         scale_F = self.scale[free]
         n_R = R.size
@@ -379,7 +503,10 @@ class KrylovSolver:
         def precondition(r):
             q = self.Dt_inv @ r[S]  # the S rows in multiplier coordinates
             u_p = self._lift(q, tied)
-            rhs = np.concatenate([r[R] + self.B_R.T @ np.where(free, q, 0.0), scale_F * q[free]])
+            q_F = q[free] if spring is None else spring.Wi @ (q[free] - spring.J_FT @ q[tied])
+            z = np.zeros(S.size)
+            z[free] = q_F
+            rhs = np.concatenate([r[R] + self.B_R.T @ z, scale_F * q_F])
             return T0(amg(rhs - T0t(A @ u_p))) + u_p
 
         return precondition
@@ -396,11 +523,9 @@ class KrylovSolver:
         S = self.S
         x[S] += spla.splu(sp.csc_matrix(K[S][:, S])).solve((b - K @ x)[S])
 
-    def _solve(self, K, b, x0, eta, tol, tied):
-        from pyamg.krylov import fgmres
-
+    def _solve(self, K, b, x0, eta, tol, tied, spring=None):
         t0 = time.perf_counter()
-        M = spla.LinearOperator(K.shape, matvec=self.preconditioner(tied), dtype=float)
+        M = self.preconditioner(tied, spring)
         x = np.zeros(self.n) if x0 is None else np.array(x0, dtype=float)
         nb = float(np.linalg.norm(b))
         r0 = float(np.linalg.norm(b - K @ x))
@@ -418,16 +543,7 @@ class KrylovSolver:
                 break
             with warnings.catch_warnings():  # a (near) breakdown is judged by the residual below
                 warnings.simplefilter("ignore", sla.LinAlgWarning)
-                x, _ = fgmres(
-                    K,
-                    b,
-                    x0=x,
-                    tol=target / nb,
-                    restart=min(self.restart, self.n),
-                    maxiter=1,
-                    M=M,
-                    callback=count,
-                )
+                x, _ = fgmres_cycle(K, b, x, M, target, min(self.restart, self.n), count)
             cycles += 1
             new = float(np.linalg.norm(b - K @ x))
             if new > 0.9 * res and new > target:
@@ -446,7 +562,7 @@ class KrylovSolver:
     def info(self) -> dict:
         """What the Newton solve's `info` reports about the iterative path."""
         return {
-            "krylov": "fgmres (pyamg, right preconditioned)",
+            "krylov": "fgmres (vi_core.fgmres, right preconditioned)",
             "restart": self.restart,
             "preconditioner": (
                 f"tied rows eliminated, smoothed aggregation per field ({self.cycle}-cycle)"

@@ -250,7 +250,7 @@ class _Stepper:
         u_new = None
         if self.krylov is not None:
             tied = np.asarray(abs(W).sum(axis=1)).ravel() == 0  # (m,) rows (B u)_i = …
-            u_new, _ = self.krylov(K, rhs, guess, forcing, self.tol, tied)
+            u_new, _ = self.krylov(K, rhs, guess, forcing, self.tol, tied, W, J)
         if u_new is None:  # direct, or the Krylov solve's fallback
             self.last = self.factorize(K)
             u_new = self.last(rhs)

@@ -85,15 +85,20 @@ def entries(args: argparse.Namespace, loaded: pipeline.Loaded, path: PathRun) ->
 
 
 def step_table(summary: dict) -> list[str]:
-    """The per-step lines of the console: t, Newton steps, residual, contact counts, time."""
+    """The per-step lines of the console: t, Newton steps (fixed-point iterations with
+    --solver fixed_point), residual, contact counts, time."""
     steps = summary["steps"]
     lp = summary["load_path"]
     newton = sum(s["iterations"] for s in steps)
+    fixed_point = summary.get("solver") == "fixed_point"
+    unit, column = (
+        ("fixed-point iterations", "iters") if fixed_point else ("Newton steps", "Newton")
+    )
     out = [
         f"  load path: {len(steps)} of {len(lp['t'])} steps, {lp['form']} form, each "
-        f"warm-started from {lp['warm_start']}; {newton} Newton steps in all "
+        f"warm-started from {lp['warm_start']}; {newton} {unit} in all "
         "(the state above is the last step's)",
-        f"  {'step':>5} {'t':>9} {'Newton':>6} {'residual':>9} {'stick':>6} {'slip':>6} "
+        f"  {'step':>5} {'t':>9} {column:>6} {'residual':>9} {'stick':>6} {'slip':>6} "
         f"{'open':>6} {'time [s]':>9}",
     ]
     for s in steps:

@@ -87,7 +87,11 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument(
         "--level", type=options.level, default=None, help="refinement level (default: scene's)"
     )
-    s.add_argument("--solver", default=None, help="ssn (default) or another vi_core method")
+    s.add_argument(
+        "--solver",
+        default=None,
+        help="ssn (default), conic, homotopy, auto, or fixed_point (Coulomb/unilateral contact)",
+    )
     s.add_argument(
         "--linear-solver",
         choices=LINEAR_SOLVERS,

@@ -11,7 +11,6 @@ from pathlib import Path
 from tqdm import tqdm
 
 import problems.pipeline as pipeline
-import vi_core
 from problems.errors import SceneError
 from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import jsonable, output_folder
@@ -35,8 +34,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
     loaded = load(args)
     scene, plugin = loaded.scene, loaded.plugin
     method = args.solver
-    if method is not None and method not in vi_core.METHODS:
-        raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
+    if method is not None and method not in pipeline.SOLVERS:
+        raise SceneError("--solver", method, "one of " + ", ".join(pipeline.SOLVERS))
     level = args.level if args.level is not None else resources.default_level(plugin, scene)
     option = "--level" if args.level is not None else "scene.level"  # where the level came from
     resources.check_levels(
@@ -162,9 +161,10 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         + " + ".join(f"{n:,} {k}" for k, n in dofs.items())
         + f" = {sum(dofs.values()):,} unknowns"
     ]
-    out.append(
-        f"  {'level':>5} {'unknowns':>10} {'Newton steps':>12} {'time [s]':>9} {'residual':>9}"
-    )
+    info = summary.get("solver_info") or {}
+    fixed_point = summary["solver"] == "fixed_point"  # iterations: fixed-point, not Newton
+    steps = "iterations" if fixed_point else "Newton steps"
+    out.append(f"  {'level':>5} {'unknowns':>10} {steps:>12} {'time [s]':>9} {'residual':>9}")
     for r in levels:
         out.append(
             f"  {r['level']:>5} {r['unknowns']:>10,} {r['iterations']:>12} "
@@ -178,8 +178,15 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
     elif summary.get("complementarity") is not None:
         identity = f"; complementarity defect {summary['complementarity']:.1e}"
     verdict = "converged" if summary["converged"] else "NOT converged"
+    if fixed_point:
+        rate = info.get("contraction")
+        steps = (
+            f"fixed-point iterations g ← F·λ_n (contraction "
+            f"{'n/a' if rate is None else f'{rate:.3g}'}, "
+            f"{sum(info.get('inner_iterations', []))} {info.get('inner')} Newton steps inside)"
+        )
     out.append(
-        f"  {verdict} in {summary['iterations']} Newton steps, residual "
+        f"  {verdict} in {summary['iterations']} {steps}, residual "
         f"{summary['residual']:.2e}{identity}"
     )
     c = summary.get("contact")
@@ -214,7 +221,6 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         if el.get("potential_gap_touching") is not None:
             line += f"; potential jump where touching {el['potential_gap_touching']:.6g} V"
         out.append(line)
-    info = summary.get("solver_info") or {}
     if "krylov_iterations" in info:
         fb = info["fallback"]
         out.append(

@@ -30,7 +30,11 @@ from problems.plugins.contract import problem_at as problem_at
 from problems.plugins.contract import solve_model as solve_model
 from problems.scene import Scene, SceneModel, load_scene
 from problems.scene.fields import load_parameter
+from vi_core.coulomb import ContactSet
 
+# what `solve_built` accepts as method: vi_core's for fixed convex sets, and the Coulomb fixed
+# point (`vi_core.tresca_fixed_point`) for contact sets
+SOLVERS = (*vi_core.METHODS, "fixed_point")
 CONDITION_LIMIT = 200_000  # estimate the Newton matrix's condition up to this many unknowns
 
 
@@ -109,19 +113,29 @@ def solve_built(
 ) -> Run:
     """Solve the built `model` of `loaded` as `solve` does (time_build left 0). A load step
     (`t`, the step's load parameter: the nested iteration's levels are built at t) after the
-    first passes the `previous` step's solution: ssn starts from it where it fits the model,
-    without a nested iteration, and `solution.info["warm_start"]` says whether it did."""
+    first passes the `previous` step's solution: ssn (and the Coulomb fixed point) starts from
+    it where it fits the model, without a nested iteration, and `solution.info["warm_start"]`
+    says whether it did. method "fixed_point" (`vi_core.tresca_fixed_point`) needs contact
+    blocks in Λ (SceneError naming --solver otherwise)."""
     method = method or model.options.get("method", "ssn")
-    if method not in vi_core.METHODS:
-        raise SceneError("--solver", method, "one of " + ", ".join(vi_core.METHODS))
+    if method not in SOLVERS:
+        raise SceneError("--solver", method, "one of " + ", ".join(SOLVERS))
+    if method == "fixed_point" and not has_contact_set(model.vi):
+        raise SceneError(
+            "--solver",
+            method,
+            f"{', '.join(vi_core.METHODS)} (the fixed point g ← F·λ_n iterates on Coulomb or "
+            f"unilateral Tresca contact; this scene's multiplier set {model.vi.Lambda!r} has "
+            "none)",
+        )
     tol = tol if tol is not None else model.options.get("tol", 1e-10)
     nested: list[dict] = []
     warm: dict = {}
-    if method == "ssn" and not cold:
+    if method in ("ssn", "fixed_point") and not cold:
         if previous is not None:
             if _same_shape(previous, model):
                 warm = {"u0": previous.u, "lam0": previous.lam}
-        elif hasattr(loaded.plugin, "warm_start") and model.level > 0:
+        elif method == "ssn" and hasattr(loaded.plugin, "warm_start") and model.level > 0:
             with load_parameter(t) if t is not None else nullcontext():
                 nested, warm = _nested(
                     loaded.plugin, loaded.scene, model, tol, linear_solver, on_level
@@ -137,6 +151,11 @@ def solve_built(
         nested.append(level_record(model.level, model, sol))
     t_solve = sum(r["time_s"] for r in nested) if nested else sol.time
     return Run(model, sol, method, tol, nested, linear_solver, 0.0, t_solve)
+
+
+def has_contact_set(vi: vi_core.MixedVI) -> bool:
+    """Whether Λ holds a contact block (Coulomb, unilateral Tresca: `vi_core.coulomb`)."""
+    return any(isinstance(b, ContactSet) for b in vi.Lambda.blocks())
 
 
 def _same_shape(sol: vi_core.Solution, model: Any) -> bool:

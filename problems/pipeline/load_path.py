@@ -1,12 +1,15 @@
 """Quasi-static load paths: a scene with a `[load_path]` solved step by step.
 
-    solve_path(loaded, level, method, tol, cold, linear_solver, on_step)  → PathRun
+    solve_path(loaded, level, method, tol, cold, linear_solver, on_step, rebuild)  → PathRun
 
 For each t of the path (`LoadPath.values()`): the scene is built with every expression at t
-(`problems.scene.fields.load_parameter`), the plug-in's optional `incremental(model, previous,
-previous_sol)` makes the step act on the increments since the previous step (a friction law on
-the slip increment; contract, docs/plugins.md), and the step is solved warm-started from the
-previous step's solution (ssn; the first step from the nested iteration like a single solve).
+(`problems.scene.fields.load_parameter`) — or, after the first step, the previous step's model
+is updated to t by the plug-in's optional `update(model, scene, t)` (only the loads and
+prescribed values re-read; mesh and operators kept) — the plug-in's optional
+`incremental(model, previous, previous_sol)` makes the step act on the increments since the
+previous step (a friction law on the slip increment; contract, docs/plugins.md), and the step
+is solved warm-started from the previous step's solution (ssn; the first step from the nested
+iteration like a single solve).
 `cold` solves every step from zero. `on_step(step)` is called while the step's model is alive
 (`mixvi solve` writes its files there); only the previous step is kept in memory.
 
@@ -73,15 +76,19 @@ def solve_path(
     cold: bool = False,
     linear_solver: str = "auto",
     on_step: Callable[[Step], None] | None = None,
+    rebuild: bool = False,
 ) -> PathRun:
     """Solve the load path of `loaded` (SceneError if it has none): one state per t, each
     warm-started from the one before unless `cold`, in the incremental form where the plug-in
-    declares `incremental`. Stops after the first step that does not converge (the later ones
-    would start from a wrong history)."""
+    declares `incremental`. After the first step a plug-in's `update(model, scene, t)` turns the
+    previous step's model into the next one (only the t-dependent data re-read; None: build
+    it); `rebuild` builds every step from the scene (the cross-check of update). Stops after
+    the first step that does not converge (the later ones would start from a wrong history)."""
     scene, plugin, spec = loaded.scene, loaded.plugin, loaded.spec
     if spec.load_path is None:
         raise SceneError("load_path", None, "a [load_path] section (this scene has none)")
     incremental = hasattr(plugin, "incremental")
+    update = None if rebuild else getattr(plugin, "update", None)
     prev: tuple[Any, vi_core.Solution] | None = None
     records: list[dict] = []
     last: Run | None = None
@@ -89,7 +96,10 @@ def solve_path(
     for index, t in enumerate(spec.load_path.values(), start=1):
         t0 = time.perf_counter()
         with load_parameter(t):
-            model = plugin.build(scene, level)
+            model = None if prev is None or update is None else update(prev[0], scene, t)
+            updated = model is not None
+            if model is None:
+                model = plugin.build(scene, level)
         if prev is not None and incremental:
             plugin.incremental(model, *prev)
         build_s = time.perf_counter() - t0
@@ -99,6 +109,7 @@ def solve_path(
         del previous  # only this step is kept once it is solved (prev, below)
         sol = run.solution
         rec = step_record(index, t, model, sol, build_s)
+        rec["updated"] = updated
         if run.nested:
             rec["nested"] = run.nested
         records.append(rec)

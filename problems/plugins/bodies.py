@@ -182,14 +182,10 @@ def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
     if t.geometry.BOUNDARIES is None:
         check_meshed(mesh, t.boundary_refs())
     body = Body(name, mesh, t.material.material(), offset)
-    material, N, d = body.material, body.n_nodes, body.dim
+    material, d = body.material, body.dim
     fem = assembly if d == 2 else assembly3d
-    f = np.zeros(body.size)
+    f = loads(t, body)
     fixed, values = dirichlet(t, body)
-    if t.body_force is not None:
-        f[: d * N] += fem.volume_load(mesh, vector(t.body_force), d)
-    for tt in t.traction:
-        f[: d * N] += fem.boundary_load(mesh, tt.boundary, vector(tt.value), d)
     K = fem.elasticity_matrix(mesh, material.C)
     H1 = (fem.mass_matrix(mesh) + fem.permittivity_matrix(mesh, np.eye(d))).tocsr()
     X_blocks = [sp.kron(H1, sp.identity(d)).tocsr()]  # node-major: dof d·i + k ↔ (i, k)
@@ -197,18 +193,33 @@ def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
         G = fem.coupling_matrix(mesh, material.e)
         P = fem.permittivity_matrix(mesh, material.kappa)
         A = sp.bmat([[K, G.T], [-G, P]], format="csr")
-        fphi = np.zeros(N)
-        if t.free_charge is not None:
-            fphi += fem.volume_load(mesh, t.free_charge, 1)
-        for tt in t.charge:
-            fphi -= fem.boundary_load(mesh, tt.boundary, tt.value, 1)
-        f[d * N :] = fphi
         X_blocks.append(H1)
     else:
         A = K.tocsr()
     body.A, body.f, body.fixed, body.values = A, f, fixed, values
     body.X = sp.block_diag(X_blocks, format="csr")
     return body
+
+
+def loads(t: BodySection, body: Body) -> np.ndarray:
+    """(n_b,) the body's load vector (body-local full numbering): body force and tractions on
+    the displacement rows, free charge and surface charge on the potential rows (piezoelectric
+    bodies), each expression at the current load parameter."""
+    mesh, N, d = body.mesh, body.n_nodes, body.dim
+    fem = assembly if d == 2 else assembly3d
+    f = np.zeros(body.size)
+    if t.body_force is not None:
+        f[: d * N] += fem.volume_load(mesh, vector(t.body_force), d)
+    for tt in t.traction:
+        f[: d * N] += fem.boundary_load(mesh, tt.boundary, vector(tt.value), d)
+    if body.has_potential:
+        fphi = np.zeros(N)
+        if t.free_charge is not None:
+            fphi += fem.volume_load(mesh, t.free_charge, 1)
+        for tt in t.charge:
+            fphi -= fem.boundary_load(mesh, tt.boundary, tt.value, 1)
+        f[d * N :] = fphi
+    return f
 
 
 def dirichlet(t: BodySection, body: Body) -> tuple[np.ndarray, np.ndarray]:

@@ -20,13 +20,25 @@ the tangent n × e_c (a line |λ_t| ≤ g); e_c ∥ n → the two tangents only 
 components with the free one e_f ∥ n → n only; with e_f ⟂ n → the tangent e_f only; anything
 else is refused (SceneError naming the nodes).
 
+Crosspoint basis (`[contact] ends`, `class_blocks`), per class (normal; tangential): "keep"
+drops the dual functions of the nodes the rules give no row of the class; "merge" (default;
+Wohlmuth's modification, the 2D default too) gives them to the class's carrying neighbours in each
+face (`fem.mortar3d.multiplier_basis`), so that Σ_k ψ̃_k = 1 on every face with a carrier. A
+line node keeps its tangential class (it cannot give away one tangent's function: the
+neighbours' rows would re-impose the tangent it keeps); its other tangent's function is dropped.
+The rows of node k in class c are then Σ_j S_c,kj d_kᵀu_s,j − Σ_j M_c,kj d_kᵀu_m,j with
+S_c = Q_c D_loc (S_c,kk = W_k; entries at the dropped nodes, whose displacement is prescribed,
+go into the gap) and M_c = Q_c M_loc; the class weights W_n,k, W_t,k = ∫ψ̃_k dA (row sums; = W_k
+under "keep") scale the jumps (B u)/W_c, the Lemma 4.2 sum, the force, the areas and Y, and
+g_k = ∫gφ̃_k / W_t,k (φ̃ = Q_t φ, as 2D).
+
 Unilateral contact (`[contact] law = "unilateral"`, the keys of `contact_law`): λ_n ≥ 0,
-gap ≥ 0, λ_n·gap = 0 and |λ_t| ≤ ρ with ρ = F_k λ_n (Coulomb, F_k = ∫Fφ_k / W_k) or g_k where
+gap ≥ 0, λ_n·gap = 0 and |λ_t| ≤ ρ with ρ = F_k λ_n (Coulomb, F_k = ∫Fφ̃_k / W_t,k) or g_k where
 the node touches (Tresca). The rows of a node are then side by side (`Contact3D.rows`):
 [n, t1, t2] per disc node (vi_core's contact set with dim 3), [n, t] per line node (dim 2),
 then the normal-only nodes (NonNegative); a node whose normal displacement is prescribed is
-refused. The initial gap is W_k·gap(x_k) for a rigid foundation (the scene's field) and the
-weighted mortar gap −n_k·(W_k x_s,k − Σ_j M_kj x_m,j) of the geometry for two bodies, which may
+refused. The initial gap is Σ_j S_n,kj gap(x_j) for a rigid foundation (the scene's field) and
+the weighted mortar gap −n_k·(Σ_j S_n,kj x_s,j − Σ_j M_n,kj x_m,j) for two bodies, which may
 start apart (an overlap beyond OVERLAP_TOL × the level-0 node size is refused).
 """
 
@@ -36,14 +48,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 import scipy.sparse as sp
 from pydantic import Field, model_validator
 from scipy.spatial import cKDTree
 
-from fem.mortar3d import covered_nodes, mortar_coupling3d, nodal_rows
+from fem.mortar3d import covered_nodes, dual_mass, mortar_coupling3d, multiplier_basis
 from fem.surface3d import Surface, face_integrals, frames, surface
 from problems.errors import SceneError
 from problems.scene import Scene, SceneModel
@@ -52,7 +64,14 @@ from problems.scene.fields3d import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
 
-from . import contact3d_checks, contact3d_extremes, contact3d_output, contact_law, contact_model
+from . import (
+    contact3d_checks,
+    contact3d_errors,
+    contact3d_extremes,
+    contact3d_output,
+    contact_law,
+    contact_model,
+)
 from .bodies import Body, build_body, dirichlet
 from .contact3d_bodies import SURFACE_ORDER, BodySection3, count3, field_data3
 from .contact_model import BodiesModel, reference
@@ -75,14 +94,15 @@ OVERLAP_TOL = 0.1
 class Coupling:
     """The master side of a two-body interface (`None` in `Contact3D` = rigid foundation).
 
-    M (k_slave, n_master_nodes): the mortar matrix Σ_j M_kj u_m,j of each slave node's row
-    (in the same dual basis as D = diag(W)); dofs (n_master_nodes, 3) the master's full
-    displacement dofs; `patch_defect` max_k |W_k − Σ_j M_kj| / W_k.
+    M_loc (m·n_f, n_master_nodes): the face-local mortar matrix ∫_e ψ_{e,a} φ_j^m dA of
+    `fem.mortar3d` (a class's rows are Q_c M_loc, `class_blocks`); dofs (n_master_nodes, 3) the
+    master's full displacement dofs; `patch_defect` max over the rows of
+    |W_c,k − Σ_j M_c,kj| / W_c,k.
     """
 
     body: Body
     part: str
-    M: sp.csr_matrix
+    M_loc: sp.csr_matrix
     dofs: np.ndarray
     patch_defect: float
     covered: np.ndarray | None = None  # (k_slave,) the master is behind the node's support
@@ -108,13 +128,16 @@ class Contact3D:
     disc: np.ndarray  # (N_b,)
     line: np.ndarray  # (N_l,)
     line_slot: np.ndarray  # (N_l,) 0: the kept tangent is t1, 1: it is t2
-    g: np.ndarray  # (k,) g_k = ∫gφ_k / W_k (Coulomb: 0)
+    g: np.ndarray  # (k,) g_k = ∫gφ̃_k / W_t,k (Coulomb: 0)
     B_full: sp.csr_matrix  # (N_n + 2 N_b + N_l, n_full)
+    W_n: np.ndarray  # (k,) ∫ψ̃_k dA of the normal class (W where the node carries no λ_n)
+    W_t: np.ndarray  # (k,) ∫ψ̃_k dA of the tangential class (W where no tangential row)
+    ends: str = "merge"  # the crosspoint basis: "keep" or "merge" (`class_blocks`)
     master: Coupling | None = None
     law: str = contact_law.LAWS[0]  # "bilateral" or "unilateral"
     friction: str = contact_law.FRICTIONS[0]  # "tresca" or "coulomb"
-    F: np.ndarray | None = None  # (k,) Coulomb F_k = ∫Fφ_k / W_k (friction = "coulomb")
-    gap0: np.ndarray | None = None  # (N_n,) initial gap rows W_k·gap_k (unilateral)
+    F: np.ndarray | None = None  # (k,) Coulomb F_k = ∫Fφ̃_k / W_t,k (friction = "coulomb")
+    gap0: np.ndarray | None = None  # (N_n,) initial gap rows Σ_j S_n,kj gap_j (unilateral)
     order: np.ndarray | None = None  # (m,) row of the bilateral order at each row of B_full
     gap_field: Callable | None = None  # the scene's gap(x, y, z) to a rigid foundation
     bound_field: Callable | None = None  # the scene's g(x, y, z) (tresca) or F(x, y, z)
@@ -144,8 +167,19 @@ class Contact3D:
 
     @property
     def W(self) -> np.ndarray:
-        """(k,) W_k = ∫_Γ3 φ_k dA, the diagonal of D."""
+        """(k,) W_k = ∫_Γ3 φ_k dA, the nodal quadrature weights (the diagonal of each class's
+        slave block; its row sums are W_n, W_t)."""
         return self.surf.weights
+
+    def row_weights(self) -> np.ndarray:
+        """(m,) the weight ∫ψ̃_k dA of every row of B_full (W_n on the normal rows, W_t on the
+        tangential ones): (B u)_r / w_r is the row's mean jump."""
+        idx_n, idx_b, idx_l = self.rows()
+        w = np.empty(self.B_full.shape[0])
+        w[idx_n] = self.W_n[self.rows_n]
+        w[idx_b] = self.W_t[self.disc, None]
+        w[idx_l] = self.W_t[self.line]
+        return w
 
     @property
     def line_dir(self) -> np.ndarray:
@@ -189,10 +223,13 @@ class ContactSection3(contact_law.contact_law(NonNegativeExpr3)):
     sign, the bodies stay in contact) or "unilateral" (λ_n ≥ 0, gap ≥ 0, λ_n·gap = 0; two
     bodies may start apart, the gap is the geometry's); friction = "tresca" (the disc
     |λ_t| ≤ g, g in Pa; unilateral: only where the bodies touch) or "coulomb" (|λ_t| ≤ F·λ_n;
-    unilateral only); gap = the initial normal distance to a rigid foundation (m, unilateral)."""
+    unilateral only); gap = the initial normal distance to a rigid foundation (m, unilateral);
+    ends = the crosspoint basis, "keep" (a dropped direction's dual functions are dropped) or
+    "merge" (they go to the neighbours, class by class: `class_blocks`)."""
 
     slave: str
     master: str = "rigid"
+    ends: Literal["keep", "merge"] = "merge"
 
 
 Head = head(NAME, 1)
@@ -251,23 +288,29 @@ def _build(scene: Scene, level: int | None) -> Model:
             check_meshed(bodies[mname].mesh, [("contact.master", mpart)])
             master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
         contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
-    vi, free, values = contact_model.mixed_vi(
+    vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
         None if contact is None else partial(_rows, contact),
         field_data3,
         {"scene": scene.name, "level": level},
     )
-    return Model(scene, level, list(bodies.values()), contact, vi, free, values, spec.options())
+    bodies_ = list(bodies.values())
+    return Model(scene, level, bodies_, contact, vi, free, values, spec.options(), rhs=rhs)
 
 
-def _rows(contact: Contact3D, free: np.ndarray, fixed: np.ndarray, values: np.ndarray):
-    """B restricted to the unknowns, the gap (Dirichlet data and the initial gap rows), Λ_h and
-    the Y Gram matrix of the contact rows."""
-    B = contact.B_full[:, free]
-    gap = -(contact.B_full[:, fixed] @ values[fixed])
+def update(model: Model, scene: Scene, t: float) -> Model | None:
+    """Load paths: the step t of `model` with only its loads and prescribed values re-read
+    (`contact_model.update`; None: rebuild the step)."""
+    return contact_model.update(model, scene.validated(SCENE_MODEL), t)
+
+
+def _rows(contact: Contact3D):
+    """B_full, the gap rows not from Dirichlet data (the initial gap rows), Λ_h and the Y Gram
+    matrix of the contact rows (`contact_model.mixed_vi`)."""
+    gap = np.zeros(contact.B_full.shape[0])  # (m,)
     if contact.gap0 is not None:
         gap[contact.rows()[0]] += contact.gap0
-    return B, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
+    return contact.B_full, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
 
 
 def count(scene: Scene, level: int) -> tuple[int, int, int]:
@@ -294,14 +337,17 @@ def count(scene: Scene, level: int) -> tuple[int, int, int]:
 
 
 def row_nodes(c: Contact3D) -> np.ndarray:
-    """(m,) the surface node of every multiplier row, in row order."""
-    return np.concatenate([c.rows_n, np.repeat(c.disc, 2), c.line])
+    """(m,) the surface node of every row of B_full, in its row order."""
+    idx_n, idx_b, idx_l = c.rows()
+    k = np.empty(c.B_full.shape[0], dtype=int)
+    k[idx_n], k[idx_b], k[idx_l] = c.rows_n, c.disc[:, None], c.line
+    return k
 
 
 def row_nodes_weights(c: Contact3D) -> np.ndarray:
-    """(m,) h_k W_k per multiplier row: the mesh-dependent H^{-1/2} Gram stand-in (Y)."""
-    k = row_nodes(c)
-    return c.surf.node_sizes()[k] * c.W[k]
+    """(m,) h_k W_c,k per row of B_full (W_c the row's class weight, `Contact3D.row_weights`):
+    the mesh-dependent H^{-1/2} Gram stand-in (Y)."""
+    return c.surf.node_sizes()[row_nodes(c)] * c.row_weights()
 
 
 def _where(body: Body, surf: Surface, i: int) -> str:
@@ -360,28 +406,61 @@ def carrying(
     return carry_n, n_tan, t1, t2, slot, bad
 
 
+def class_blocks(
+    surf: Surface,
+    carry: np.ndarray,
+    covered: np.ndarray,
+    ends: str,
+    M_loc: sp.csr_matrix | None = None,
+) -> tuple[sp.csr_matrix, sp.csr_matrix | None, np.ndarray, sp.csr_matrix]:
+    """The rows of one multiplier class (normal, or tangential) in the basis ψ̃ = Q ψ of
+    `fem.mortar3d.multiplier_basis(surf, carry, ends)`: carry (k,) the nodes the crosspoint
+    rules give a row of the class ("merge": the others give their dual functions to their
+    neighbours in each face; "keep": they are dropped). Rows of nodes whose support the master
+    does not cover (covered (k,) False) are then dropped as they are (never merged).
+
+    Returns S (k, k) the slave block Q_c D_loc (row k zero where node k has no row of the
+    class; S_kk = W_k by biorthogonality, S_kj ≠ 0 for j ≠ k only at nodes j that gave their
+    function away), Mc (k, k_m) = Q_c M_loc (None without a master), Wc (k,) the row sums
+    ∫ψ̃_k dA = W_k + what node k received (W_k where it has no row or received nothing) and
+    Qk (k, m·n_f) the basis in node rows.
+    """
+    idx = np.flatnonzero(carry)  # (n_c,) the node of each row of Q
+    Q = multiplier_basis(surf, carry, ends)  # (n_c, m n_f)
+    sel = covered[idx]
+    P = sp.csr_matrix(
+        (np.ones(int(sel.sum())), (idx[sel], np.flatnonzero(sel))), shape=(surf.size, idx.size)
+    )
+    Qk = (P @ Q).tocsr()  # (k, m n_f)
+    S = (Qk @ dual_mass(surf)).tocsr()  # (k, k)
+    C = Qk.tocoo()
+    given = surf.faces.ravel()[C.col] != C.row  # (nnz,) entries of another node's function
+    fw = surf.face_weights.ravel()  # (m n_f,) ∫_e φ_a = ∫_e ψ_{e,a}
+    received = np.bincount(C.row[given], C.data[given] * fw[C.col[given]], surf.size)  # (k,)
+    Wc = surf.weights + received  # (k,) = W exactly where nothing was merged in
+    Mc = None if M_loc is None else (Qk @ M_loc).tocsr()
+    return S, Mc, Wc, Qk
+
+
 def contact_rows(
-    W: np.ndarray,
-    dirs: list[tuple[np.ndarray, np.ndarray]],
+    dirs: list[tuple[np.ndarray, np.ndarray, sp.csr_matrix, sp.csr_matrix | None]],
     slave_dofs: np.ndarray,
     n_full: int,
-    master: Coupling | None = None,
+    master_dofs: np.ndarray | None = None,
 ) -> sp.csr_matrix:
-    """Rows W_k d_rᵀu_s,k − Σ_j M_kj d_rᵀu_m,j for each (nodes (r,), directions (r, 3)) of
-    `dirs`, in order. slave_dofs (k, 3) full dofs of the surface nodes."""
+    """Rows Σ_j S_kj d_rᵀu_s,j − Σ_j M_kj d_rᵀu_m,j for each (nodes (r,), directions (r, 3),
+    S (k, k), M (k, k_m) or None) of `dirs`, in order (S, M a class's blocks, `class_blocks`).
+    slave_dofs (k, 3) full dofs of the surface nodes, master_dofs (k_m, 3) the master's."""
     rows, cols, vals, offset = [], [], [], 0
-    for nodes, d in dirs:
-        r = offset + np.arange(nodes.size)
-        for c in range(3):
-            rows.append(r)
-            cols.append(slave_dofs[nodes, c])
-            vals.append(W[nodes] * d[:, c])
-        if master is not None:
-            M = sp.csr_matrix(master.M)[nodes].tocoo()
+    for nodes, d, S, M in dirs:
+        for mat, dofs, sign in ((S, slave_dofs, 1.0), (M, master_dofs, -1.0)):
+            if mat is None:
+                continue
+            C = mat[nodes].tocoo()  # (r, ·)
             for c in range(3):
-                rows.append(offset + M.row)
-                cols.append(master.dofs[M.col, c])
-                vals.append(-M.data * d[M.row, c])
+                rows.append(offset + C.row)
+                cols.append(dofs[C.col, c])
+                vals.append(sign * C.data * d[C.row, c])
         offset += nodes.size
     B = sp.csr_matrix(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(offset, n_full)
@@ -391,11 +470,11 @@ def contact_rows(
 
 
 def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Coupling:
-    """The master side of a two-body interface: the 3D dual mortar (`fem.mortar3d`) in the
-    nodal rows of the slave surface (D = diag(W)); nodes without the master behind their whole
-    support carry no multiplier (`covered`); patch_defect is set by `slave_contact`."""
+    """The master side of a two-body interface: the 3D dual mortar (`fem.mortar3d`), face-local
+    (a class's rows are Q_c M_loc); nodes without the master behind their whole support carry
+    no multiplier (`covered`); patch_defect is set by `slave_contact`."""
     try:
-        order = SURFACE_ORDER[slave.mesh.cell_type]  # that of W = diag(D) in slave_contact
+        order = SURFACE_ORDER[slave.mesh.cell_type]  # that of the slave block in slave_contact
         reach = 1.0 + _distance(slave, part, master, mpart)
         mo = mortar_coupling3d(slave.mesh, part, master.mesh, mpart, face_order=order, reach=reach)
     except ValueError as err:
@@ -403,7 +482,7 @@ def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Couplin
             "contact.master", f"{master.name}.{mpart}", f"a master surface facing the slave ({err})"
         ) from None
     dofs = master.u_dofs(mo.master.nodes)  # (k_m, 3)
-    return Coupling(master, mpart, nodal_rows(mo), dofs, np.nan, covered_nodes(mo), mo.n_cells)
+    return Coupling(master, mpart, mo.M, dofs, np.nan, covered_nodes(mo), mo.n_cells)
 
 
 def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
@@ -446,7 +525,7 @@ def slave_contact(
     """The contact of `slave`'s boundary `part` (a rigid foundation along it, or `master`):
     surface, frames, crosspoint rules, g_k (or F_k) and the rows; `law` is the [contact]
     table (`ContactSection3`: law, friction, g or F, gap). Unilateral contact puts the rows of a
-    node side by side (`Contact3D.rows`) and builds the initial gap rows: W_k·gap(x_k) for a
+    node side by side (`Contact3D.rows`) and builds the initial gap rows: Σ_j S_n,kj gap(x_j) for a
     rigid foundation, the weighted mortar gap −(D x_s − M x_m)·n_k of the geometry for two
     bodies (an overlap of more than OVERLAP_TOL × the level-0 node size is refused)."""
     unilateral = law.law == "unilateral"
@@ -461,13 +540,20 @@ def slave_contact(
         ) from None
     fixed = slave.fixed[slave.u_dofs(surf.nodes) - slave.offset]  # (k, 3) body-local dofs
     carry_n, n_tan, t1, t2, slot, bad = carrying(fixed, surf.normals, t1, t2)
-    if master is not None:  # uncovered nodes carry nothing; the rigid-body rows of the others
-        carry_n &= master.covered
-        n_tan = np.where(master.covered, n_tan, 0)
-        rows = carry_n | (n_tan > 0)
-        sums = np.asarray(master.M.sum(axis=1)).ravel()  # (k,)
-        rel = np.abs(surf.weights - sums) / surf.weights
-        master.patch_defect = float(rel[rows].max(initial=0.0))
+    # the two classes' bases from the crosspoint rules (a line node keeps its tangential class:
+    # it cannot give away one tangent's function), then the rows the master covers
+    covered = np.ones(surf.size, dtype=bool) if master is None else master.covered
+    M_loc = None if master is None else master.M_loc
+    S_n, M_n, W_n, _ = class_blocks(surf, carry_n, covered, law.ends, M_loc)
+    S_t, M_t, W_t, Q_t = class_blocks(surf, n_tan > 0, covered, law.ends, M_loc)
+    carry_n &= covered
+    n_tan = np.where(covered, n_tan, 0)
+    if master is not None:  # the rigid-body rows: Σ_j M_c,kj = W_c,k where covered
+        rel = [
+            np.abs(Wc - np.asarray(Mc.sum(axis=1)).ravel())[has] / Wc[has]
+            for Wc, Mc, has in ((W_n, M_n, carry_n), (W_t, M_t, n_tan > 0))
+        ]
+        master.patch_defect = float(np.concatenate(rel).max(initial=0.0))
     if bad:
         where = "; ".join(_where(slave, surf, i) for i in bad[:6])
         raise SceneError(
@@ -503,7 +589,12 @@ def slave_contact(
         return gv
 
     order = SURFACE_ORDER[slave.mesh.cell_type]
-    g = face_integrals(slave.mesh, surf, g_checked, order) / surf.weights
+    gloc = face_integrals(slave.mesh, surf, g_checked, order)  # (n_f, m) ∫_e g φ_{e,a}
+    g = np.where(  # ∫gφ̃_k / W_t,k; the plain nodal mean ∫gφ_k / W_k at the other nodes
+        n_tan > 0,
+        (Q_t @ gloc.ravel()) / W_t,
+        np.bincount(surf.faces.ravel(), gloc.ravel(), surf.size) / surf.weights,
+    )
     rows_n = np.flatnonzero(carry_n)
     disc = np.flatnonzero(n_tan == 2)
     line = np.flatnonzero(n_tan == 1)
@@ -511,11 +602,12 @@ def slave_contact(
     disc_nodes = np.repeat(disc, 2)
     disc_dirs = np.stack([t1[disc], t2[disc]], axis=1).reshape(-1, 3)
     dirs = [
-        (rows_n, surf.normals[rows_n]),
-        (disc_nodes, disc_dirs),
-        (line, np.where(slot[line, None] == 0, t1[line], t2[line])),
+        (rows_n, surf.normals[rows_n], S_n, M_n),
+        (disc_nodes, disc_dirs, S_t, M_t),
+        (line, np.where(slot[line, None] == 0, t1[line], t2[line]), S_t, M_t),
     ]
-    B = contact_rows(surf.weights, dirs, slave.u_dofs(surf.nodes), n_full, master)
+    sdofs, mdofs = slave.u_dofs(surf.nodes), None if master is None else master.dofs
+    B = contact_rows(dirs, sdofs, n_full, mdofs)
     perm = gap0 = None
     if unilateral:
         N_n, N_b = rows_n.size, disc.size
@@ -532,13 +624,13 @@ def slave_contact(
             ]
         )  # (m,) the bilateral row of each row of B_full
         B = B[perm]
-        if master is None:
-            gap0 = surf.weights[rows_n] * _rigid_gap(law.gap, slave.mesh.points[surf.nodes[rows_n]])
+        if master is None:  # Σ_j S_n,kj gap(x_j)
+            gap0 = S_n[rows_n] @ _rigid_gap(law.gap, slave.mesh.points[surf.nodes])
         else:
-            B_n = contact_rows(surf.weights, dirs[:1], slave.u_dofs(surf.nodes), n_full, master)
+            B_n = contact_rows(dirs[:1], sdofs, n_full, mdofs)
             gap0 = -(B_n @ _positions([slave, master.body], n_full))  # (N_n,)
             h0 = surf.node_sizes()[rows_n] * 2.0**level  # the level-0 node size
-            rel = gap0 / surf.weights[rows_n] / h0
+            rel = gap0 / W_n[rows_n] / h0
             if (rel < -OVERLAP_TOL).any():
                 i = int(np.argmin(rel))
                 raise SceneError(
@@ -562,6 +654,9 @@ def slave_contact(
         line_slot=slot[line],
         g=g if law.friction == "tresca" else np.zeros(surf.size),
         B_full=B,
+        W_n=W_n,
+        W_t=W_t,
+        ends=law.ends,
         master=master,
         law=law.law,
         friction=law.friction,
@@ -651,7 +746,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     node with rows for bilateral contact; λ_n beyond 1e-9 of the pressure scale `pressure`
     for unilateral), gap (the remaining normal gap (gap₀ − [u]_n), unilateral; NaN elsewhere),
     slip (k,) bool and state (stick, slip, normal_only, open, no_multiplier); the Lemma 4.2
-    identity λᵀ(B u − gap₀) = Σ_k ρ_k W_k |[u]_t,k| ([u]_t since the previous load step on a
+    identity λᵀ(B u − gap₀) = Σ_k ρ_k W_t,k |[u]_t,k| ([u]_t since the previous load step on a
     load path: `incremental`) and its relative defect (unilateral: relative
     to the larger of Σρ W|[u]_t| and the pressure scale times Σ|B u − gap₀|)."""
     c = model.contact
@@ -664,14 +759,14 @@ def contact_state(model: Model, sol: Solution) -> dict:
         key: np.full(k, np.nan)
         for key in ("lam_n", "lam_t1", "lam_t2", "jump_n", "jump_t1", "jump_t2")
     }
-    W = c.W
+    W, Wt = c.W, c.W_t  # W: the nodal weights (areas); Wt: the tangential rows' ∫ψ̃_k
     out["lam_n"][c.rows_n] = lam[idx_n]
-    out["jump_n"][c.rows_n] = Bu[idx_n] / W[c.rows_n]
+    out["jump_n"][c.rows_n] = Bu[idx_n] / c.W_n[c.rows_n]
     lb = lam[idx_b]  # (N_b, 2)
-    jb = Bu[idx_b] / W[c.disc, None]  # (N_b, 2)
+    jb = Bu[idx_b] / Wt[c.disc, None]  # (N_b, 2)
     out["lam_t1"][c.disc], out["lam_t2"][c.disc] = lb[:, 0], lb[:, 1]
     out["jump_t1"][c.disc], out["jump_t2"][c.disc] = jb[:, 0], jb[:, 1]
-    ll, jl = lam[idx_l], Bu[idx_l] / W[c.line]
+    ll, jl = lam[idx_l], Bu[idx_l] / Wt[c.line]
     for slot, (lk, jk) in enumerate((("lam_t1", "jump_t1"), ("lam_t2", "jump_t2"))):
         sel = c.line_slot == slot
         out[lk][c.line[sel]] = ll[sel]
@@ -710,15 +805,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
     Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
     b_uh_lam = float(lam @ (Bi - gap_rows))
     ji = np.zeros((k, 2))  # the tangential jump (since the origin) in the node's frame
-    ji[c.disc] = Bi[idx_b] / W[c.disc, None]
-    ji[c.line, 0] = Bi[idx_l] / W[c.line]
+    ji[c.disc] = Bi[idx_b] / Wt[c.disc, None]
+    ji[c.line, 0] = Bi[idx_l] / Wt[c.line]
     jt = np.linalg.norm(ji, axis=1)
-    g_abs = float(np.sum((rho * W * jt)[has_t]))
-    tiny = np.finfo(float).eps * float(np.sum(rho * W)) * max(np.abs(x_full).max(), 1e-300)
+    g_abs = float(np.sum((rho * Wt * jt)[has_t]))
+    tiny = np.finfo(float).eps * float(np.sum(rho * Wt)) * max(np.abs(x_full).max(), 1e-300)
     ref = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))  # unilateral: P × slack
     gap = np.full(k, np.nan)
     if c.law == "unilateral":
-        gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / W[c.rows_n]  # the remaining normal gap
+        gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / c.W_n[c.rows_n]  # the remaining normal gap
     return {
         **out,
         "lam_t_vec": vec,
@@ -757,7 +852,9 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
-NORMS = ("u_nodes", "phi_nodes", "lam_nodes")
+NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
+# against the scene's [exact] table: exact_errors (contact3d_errors)
+EXACT_NORMS = contact3d_errors.NORMS
 extremes = contact3d_extremes.rows
 
 
@@ -773,6 +870,16 @@ def draw(ax, model: Model, sol: Solution) -> str:
     ax.set_aspect("equal")
     ax.legend(fontsize=7)
     return f"slip {int(st['slip'].sum())} of {int(st['has_t'].sum())} nodes"
+
+
+def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
+    """The EXACT_NORMS against the scene's [exact] table (None without one):
+    `contact3d_errors.exact_errors`."""
+    section = model.scene.validated(SCENE_MODEL).exact
+    if section is None:
+        return None
+    state = None if model.contact is None else contact_state(model, sol)
+    return contact3d_errors.exact_errors(model, sol, section.compiled(), state)
 
 
 def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:

@@ -116,25 +116,67 @@ def solution_checks(model, sol) -> dict:
     return out
 
 
-def _nodal_means(mesh, part: str, f) -> np.ndarray:
-    """(N,) ∫f φ_i dA / ∫φ_i dA over boundary `part` by fem.assembly3d's face quadrature (the
-    nodal value of a friction field as the plug-in defines it, computed apart from it)."""
+def _shares(faces: np.ndarray, carry: np.ndarray | None) -> np.ndarray:
+    """(n_f, m, m) the part of each face's local function a (last axis) that node t (middle)
+    takes: the identity, or with carry (N,) bool ("merge") a node without carry gives its share
+    to the face's carrying nodes next to it along an edge (to all carrying ones if none is),
+    equally. Written apart from `fem.mortar3d.multiplier_basis`."""
+    n_f, m = faces.shape
+    if carry is None:
+        return np.broadcast_to(np.eye(m), (n_f, m, m))
+    c = carry[faces]  # (n_f, m)
+    out = np.where(c[:, :, None], np.eye(m)[None], 0.0)  # (n_f, m, m)
+    for a in range(m):
+        tgt = np.zeros_like(c)
+        tgt[:, [(a - 1) % m, (a + 1) % m]] = True
+        tgt &= c
+        tgt = np.where(tgt.any(axis=1, keepdims=True), tgt, c)
+        out[:, :, a] += tgt * (~c[:, a] / np.maximum(tgt.sum(axis=1), 1))[:, None]
+    return out
+
+
+def _nodal_means(mesh, part: str, f, carry: np.ndarray | None = None) -> np.ndarray:
+    """(N,) ∫f φ̃_i dA / ∫φ̃_i dA over boundary `part` by fem.assembly3d's face quadrature (the
+    nodal value of a friction field as the plug-in defines it, computed apart from it);
+    φ̃ = φ, or merged by `_shares` with carry (N,) ("merge")."""
     order = SURFACE_ORDER[mesh.cell_type]
     x, w, phi, _ = assembly3d.face_geometry(mesh, part, order)  # (n_f, q, 3), (n_f, q), (q, k)
     fv = np.broadcast_to(f(x[..., 0], x[..., 1], x[..., 2]), w.shape)  # (n_f, q)
-    faces = mesh.boundaries[part]  # (n_f, k)
+    faces = mesh.boundaries[part]  # (n_f, m)
+    sh = _shares(faces, carry)  # (n_f, m, m)
+    loc_f = np.einsum("fta,fa->ft", sh, (w * fv) @ phi)  # (n_f, m) ∫_e f φ̃_t
+    loc_1 = np.einsum("fta,fa->ft", sh, w @ phi)  # (n_f, m) ∫_e φ̃_t
     num, den = np.zeros(mesh.n_nodes), np.zeros(mesh.n_nodes)
-    np.add.at(num, faces.ravel(), ((w * fv) @ phi).ravel())
-    np.add.at(den, faces.ravel(), (w @ phi).ravel())
+    np.add.at(num, faces.ravel(), loc_f.ravel())
+    np.add.at(den, faces.ravel(), loc_1.ravel())
     return num / np.where(den > 0, den, 1.0)
+
+
+def _row_means(mesh, part: str, carry: np.ndarray | None, v: np.ndarray) -> np.ndarray:
+    """(N, ...) Σ_j w_kj v_j / Σ_j w_kj, w_kj = ∫φ̃_k φ_j dA (= δ_kj ∫φ_k under "keep": the
+    nodal values): what a contact row of node k reads of a nodal field v (N, ...), by
+    fem.assembly3d's face quadrature and `_shares` (biorthogonality: ∫ψ_{e,a} φ_{e,b} =
+    δ_ab ∫_e φ_a)."""
+    order = SURFACE_ORDER[mesh.cell_type]
+    _, w, phi, _ = assembly3d.face_geometry(mesh, part, order)  # (n_f, q), (q, m)
+    faces = mesh.boundaries[part]  # (n_f, m)
+    sh = _shares(faces, carry) * (w @ phi)[:, None, :]  # (n_f, m, m) w of (target, source)
+    tgt = np.broadcast_to(faces[:, :, None], sh.shape).ravel()
+    src = np.broadcast_to(faces[:, None, :], sh.shape).ravel()
+    num = np.zeros((mesh.n_nodes, *v.shape[1:]))
+    np.add.at(num, tgt, sh.ravel().reshape(-1, *([1] * (v.ndim - 1))) * v[src])
+    den = np.bincount(tgt, sh.ravel(), mesh.n_nodes)
+    return num / np.where(den > 0, den, 1.0).reshape(-1, *([1] * (v.ndim - 1)))
 
 
 def separation(model, sol) -> dict[str, float]:
     """A posteriori unilateral conditions of a solution, per normal node k: the remaining
     gap d_k, λ_n,k, |λ_t,k| and the slip. A rigid foundation: from the displacement itself, not
     from the assembled rows — d_k = gap(x_k) − n_k·u_k (n_k recomputed from `fem.assembly3d`'s
-    face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|. Two bodies,
-    and a step of a load path (its slip since the previous step): from the rows,
+    face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|; under
+    "merge" the gap and u are the means the rows read (`_row_means`: ψ̃_k reaches the dropped
+    neighbours), by a quadrature and a merge rule of this module. Two bodies, and a step of a
+    load path (its slip since the previous step): from the rows,
     d_k = (gap_k − (B u)_n,k)/W_k and the slip |(B u − origin)_t,k|/W_k (the discrete
     conditions as assembled; test_contact3d_unilateral checks the geometry apart).
 
@@ -155,24 +197,29 @@ def separation(model, sol) -> dict[str, float]:
     if c.master is None and model.slip_origin is None:
         _, N_ind = _independent_weights(body.mesh, c.slave_part)
         nrm = N_ind[nodes] / np.linalg.norm(N_ind[nodes], axis=1)[:, None]  # (N_n, 3)
-        u = x_full[body.u_dofs(nodes)]  # (N_n, 3)
-        x, y, z = body.mesh.points[nodes].T  # (N_n,) each
+        x, y, z = body.mesh.points.T  # (N,) each
         gap = np.zeros(x.size)
         if c.gap_field is not None:
             gap = np.broadcast_to(c.gap_field(x, y, z), x.shape)
-        un = np.einsum("ij,ij->i", nrm, u)  # (N_n,)
-        d = gap - un  # (N_n,) remaining gap
-        ut = np.linalg.norm(u - un[:, None] * nrm, axis=1)  # (N_n,) tangential slip
+        carry_n = carry_t = None  # "keep": the nodal values themselves
+        if c.ends == "merge":
+            carry_n = np.isin(np.arange(body.mesh.n_nodes), nodes)
+            carry_t = np.isin(np.arange(body.mesh.n_nodes), surf.nodes[np.r_[c.disc, c.line]])
+        mean_n = _row_means(body.mesh, c.slave_part, carry_n, np.c_[gap, u_all])[nodes]
+        un = np.einsum("ij,ij->i", nrm, mean_n[:, 1:])  # (N_n,) the normal rows' mean n_k·u
+        d = mean_n[:, 0] - un  # (N_n,) remaining gap
+        u = _row_means(body.mesh, c.slave_part, carry_t, u_all)[nodes]  # (N_n, 3)
+        ut = np.linalg.norm(u - np.einsum("ij,ij->i", nrm, u)[:, None] * nrm, axis=1)  # slip
         length = max(float(np.abs(gap).max(initial=0.0)), float(np.abs(u_all).max()), 1e-300)
     else:  # two bodies or a load step: the weighted gap and jump of the rows themselves
-        W = c.W[c.rows_n]  # (N_n,)
+        W = c.W_n[c.rows_n]  # (N_n,) the normal rows' ∫ψ̃_k
         Bu = c.B_full @ x_full  # (m,)
         d = (c.gap0 - Bu[c.rows()[0]]) / W
         if model.slip_origin is not None:
             Bu = Bu - model.slip_origin  # the slip of this load step
         jump = np.zeros((surf.size, 2))
-        jump[c.disc] = Bu[c.rows()[1]] / c.W[c.disc, None]
-        jump[c.line, 0] = Bu[c.rows()[2]] / c.W[c.line]
+        jump[c.disc] = Bu[c.rows()[1]] / c.W_t[c.disc, None]
+        jump[c.line, 0] = Bu[c.rows()[2]] / c.W_t[c.line]
         ut = np.linalg.norm(jump, axis=1)[c.rows_n]  # (N_n,) tangential mortar jump
         scale = float(np.abs(u_all).max())
         if c.master is not None:
@@ -187,7 +234,14 @@ def separation(model, sol) -> dict[str, float]:
     lam_t = lam_t[c.rows_n]
     p = max(float(lam_n.max(initial=0.0)), 1e-300)
     open_ = d > 1e-6 * length
-    bound = _nodal_means(body.mesh, c.slave_part, c.bound_field)[nodes]  # (N_n,)
+    carry = None
+    if c.ends == "merge":  # the tangential class's carriers (an uncovered node keeps its own)
+        tan = np.zeros(surf.size, dtype=bool)
+        tan[c.disc] = tan[c.line] = True
+        if c.master is not None:
+            tan |= ~c.master.covered
+        carry = np.isin(np.arange(body.mesh.n_nodes), surf.nodes[tan])
+    bound = _nodal_means(body.mesh, c.slave_part, c.bound_field, carry)[nodes]  # (N_n,)
     touch = lam_n > 1e-9 * p  # Tresca acts where the node presses on the foundation
     rho = bound * np.maximum(lam_n, 0.0) if c.friction == "coulomb" else bound * touch
     slips = ut > 1e-6 * length

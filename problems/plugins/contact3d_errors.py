@@ -16,32 +16,31 @@ from __future__ import annotations
 import numpy as np
 
 from fem import assembly3d
+from problems.scene.exact import Exact
 from vi_core import Solution
 
-from . import contact3d
+from .contact_model import BodiesModel, fields
 
-NORMS = ("u_L2", "u_H1", "phi_L2", "phi_H1", "lam")
+NORMS = ("u_L2", "u_H1", "phi_L2", "phi_H1", "lam")  # contact3d.EXACT_NORMS
 
 
-def exact_errors(model: contact3d.Model, sol: Solution) -> dict[str, float] | None:
-    """The NORMS of the module docstring against the scene's [exact] table (None without)."""
-    section = model.scene.validated(contact3d.SCENE_MODEL).exact
-    if section is None:
-        return None
-    exact = section.compiled()
+def exact_errors(model: BodiesModel, sol: Solution, exact: Exact, state: dict | None) -> dict:
+    """The NORMS of the module docstring of a contact3d model's solution `sol` against the
+    compiled [exact] table `exact`; `state` is the model's contact state at `sol`
+    (`contact3d.contact_state`; None without a contact interface). The plug-in's entry point
+    is `contact3d.exact_errors(model, sol)`."""
     sq = dict.fromkeys(NORMS, 0.0)
-    fields = contact3d.fields(model, sol)
+    nodal = fields(model, sol)
     for b in model.bodies:
-        m, disp = b.mesh, fields[f"{b.name}.displacement"]  # (N, 3)
+        m, disp = b.mesh, nodal[f"{b.name}.displacement"]  # (N, 3)
         sq["u_L2"] += assembly3d.l2_error(m, disp.ravel(), exact.u, 3) ** 2
         sq["u_H1"] += assembly3d.h1_seminorm_error(m, disp.ravel(), exact.grad_u, 3) ** 2
-        phi = fields.get(f"{b.name}.potential")  # (N,) or None
+        phi = nodal.get(f"{b.name}.potential")  # (N,) or None
         if phi is not None and exact.phi is not None:
             sq["phi_L2"] += assembly3d.l2_error(m, phi, exact.phi, 1) ** 2
             sq["phi_H1"] += assembly3d.h1_seminorm_error(m, phi, exact.grad_phi, 1) ** 2
-    c = model.contact
+    c, st = model.contact, state
     if c is not None:
-        st = contact3d.contact_state(model, sol)
         carried = np.isfinite(st["lam_n"]) | st["has_t"]  # (k,)
         lam_h = np.nan_to_num(st["lam_n"])[:, None] * c.normals + st["lam_t_vec"]  # (k, 3)
         P = c.slave.mesh.points[c.surf.nodes]  # (k, 3)

@@ -213,15 +213,15 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
         write_surface_vtu(outdir / "contact.vtu", model, st)
         contact_map(outdir / "contact_map.png", model, st, title=model.scene.name)
         files += ["contact.csv", "contact.vtu", "contact_map.png"]
-        lam = np.nan_to_num(st["lam_n"])[:, None] * c.normals + st["lam_t_vec"]  # (k, 3)
-        force = -(c.W[:, None] * lam).sum(axis=0)
+        lam = np.nan_to_num(st["lam_n"])[:, None] * c.W_n[:, None] * c.normals
+        force = -(lam + c.W_t[:, None] * st["lam_t_vec"]).sum(axis=0)  # -∫λ_h dA
         counts = {s: int((st["state"] == s).sum()) for s in STATES}
         summary["contact"] = {
             "nodes": int(st["has_t"].sum()),
             "stick": counts["stick"],
             "slip": counts["slip"],
             "counts": counts,
-            **{f"{s}_area": float(c.W[st["state"] == s].sum()) for s in STATES},
+            **{f"{s}_area": a for s, a in zip(STATES, areas(c, st), strict=True)},
             "force_on_slave": force.tolist(),
             "force_units": "N",
             "master": "rigid" if c.master is None else c.master.body.name,
@@ -244,6 +244,19 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
                 )
     summary["files"] = sorted(files)
     return summary
+
+
+def areas(c, st: dict) -> list[float]:
+    """The area of each of STATES: a node with rows counts with its class weight (W_t where it
+    has a tangential row, W_n where a normal one only: ∫ψ̃_k dA, which under "merge" includes
+    what its dropped neighbours gave it); no_multiplier gets the nodes without rows less what
+    they gave away, so the areas add up to the surface's."""
+    w = np.where(st["has_t"], c.W_t, c.W_n)  # (k,)
+    state = st["state"]
+    carried = state != "no_multiplier"
+    out = [float(w[state == s].sum()) for s in STATES[:-1]]
+    given = 0.0 if c.ends == "keep" else float((w[carried] - c.W[carried]).sum())
+    return [*out, float(c.W[~carried].sum()) - given]
 
 
 def uncovered(c) -> list[int]:

@@ -11,8 +11,9 @@ of a full vector into displacement (N, d) and potential (N,) or None.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -21,8 +22,11 @@ import scipy.sparse as sp
 from fem.dirichlet import expand, reduce_dirichlet
 from problems.errors import SceneError
 from problems.scene import Scene
-from problems.scene.model import refuse
+from problems.scene.fields import load_parameter
+from problems.scene.model import expressions, refuse
 from vi_core import MixedVI, Solution, product
+
+from .bodies import dirichlet, loads
 
 
 @dataclass
@@ -39,6 +43,7 @@ class BodiesModel:
     values: np.ndarray  # (n_full,) prescribed values (fixed entries)
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    rhs: Rhs | None = None  # f and gap from loads and values (load steps: `update`)
 
     def full_fields(self) -> dict[str, np.ndarray]:
         """Boolean masks over the full vector (prescribed entries included): which entries are
@@ -79,13 +84,14 @@ def mixed_vi(
     field_data: Callable,
     info: dict,
     check: Callable | None = None,
-) -> tuple[MixedVI, np.ndarray, np.ndarray]:
+) -> tuple[MixedVI, np.ndarray, np.ndarray, Rhs]:
     """The bodies' blocks side by side, reduced by their Dirichlet data, and the contact rows:
     (the MixedVI, free (n_free,) the full indices of the unknowns, values (n_full,) the
-    prescribed values). rows(free, fixed, values) → (B, gap, Λ, Y) of the contact (None: no
-    multipliers); field_data(bodies, free, n_full) → the MixedVI's `fields` and `near_null`;
-    check(A_full, f_full, values) may refuse the assembled data. Each body's Gram matrix X is
-    released (vi.X is the one copy kept: memory)."""
+    prescribed values, the `Rhs` that recomputes f and gap from other loads and values).
+    rows() → (B_full (m, n_full), gap0 (m,) the gap rows not from Dirichlet data, Λ, Y) of the
+    contact (None: no multipliers); field_data(bodies, free, n_full) → the MixedVI's `fields`
+    and `near_null`; check(A_full, f_full, values) may refuse the assembled data. Each body's
+    Gram matrix X is released (vi.X is the one copy kept: memory)."""
     A_full = sp.block_diag([b.A for b in bodies], format="csr")
     f_full = np.concatenate([b.f for b in bodies])
     fixed = np.concatenate([b.fixed for b in bodies])
@@ -95,11 +101,17 @@ def mixed_vi(
         b.X = None
     if check is not None:
         check(A_full, f_full, values)
-    A, f, free = reduce_dirichlet(A_full, f_full, fixed, values)
+    A, _, free = reduce_dirichlet(A_full, f_full, fixed, values)
+    dof = np.flatnonzero(fixed)  # (n_fixed,)
+    A_fixed = A_full[free][:, dof].tocsr()  # (n_free, n_fixed)
     if rows is None:
-        B, gap, Lam, Y = sp.csr_matrix((0, free.size)), None, product(), sp.csr_matrix((0, 0))
+        B, Lam, Y = sp.csr_matrix((0, free.size)), product(), sp.csr_matrix((0, 0))
+        rhs = Rhs(A_fixed, None, None, free, dof, fixed)
     else:
-        B, gap, Lam, Y = rows(free, fixed, values)
+        B_full, gap0, Lam, Y = rows()
+        B = B_full[:, free]
+        rhs = Rhs(A_fixed, B_full[:, dof].tocsr(), gap0, free, dof, fixed)
+    f, gap = rhs.at(f_full, values)
     vi = MixedVI(
         A=A,
         B=B,
@@ -111,7 +123,64 @@ def mixed_vi(
         info=info,
         **field_data(bodies, free, values.size),  # for the iterative linear path
     )
-    return vi, free, values
+    return vi, free, values, rhs
+
+
+@dataclass
+class Rhs:
+    """The right-hand side of a built model as a function of its loads and prescribed values
+    (a load step: `update`): f = f_full[free] − A_full[free, fixed] values[fixed] and
+    gap = gap0 − B_full[:, fixed] values[fixed], exactly as `reduce_dirichlet` and the contact
+    rows compute them at build."""
+
+    A_fixed: sp.csr_matrix  # (n_free, n_fixed) A_full's columns of the prescribed dofs
+    B_fixed: sp.csr_matrix | None  # (m, n_fixed) B_full's columns of the prescribed dofs
+    gap0: np.ndarray | None  # (m,) the gap rows not from Dirichlet data (initial gaps)
+    free: np.ndarray  # (n_free,) full indices of the unknowns
+    dof: np.ndarray  # (n_fixed,) full indices of the prescribed dofs
+    fixed: np.ndarray  # (n_full,) bool: which dofs are prescribed
+
+    def at(self, f_full: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """(f (n_free,), gap (m,) or None) for loads f_full (n_full,) and values (n_full,)."""
+        v = values[self.dof]  # (n_fixed,)
+        f = f_full[self.free] - self.A_fixed @ v
+        gap = None if self.B_fixed is None else self.gap0 - self.B_fixed @ v
+        return f, gap
+
+
+# where the load parameter t may appear for `update` (any other t-dependent value: rebuild)
+UPDATABLE = re.compile(
+    r"bodies\.[^.\[]+\.((displacement|traction|potential|charge)\[\d+\]\.value"
+    r"|body_force|free_charge)(\[\d+\])?"
+)
+
+
+def update(model: BodiesModel, spec: Any, t: float) -> BodiesModel | None:
+    """The load step t of a built model (the contract's `update`): a copy of `model` with the
+    loads and prescribed values of the validated scene model `spec` at t, and the MixedVI's f
+    and gap recomputed from them (`Rhs`); mesh, operators, contact rows and Λ are shared. None
+    where the step needs a rebuild: t in any other value (a gap, a friction bound), an outer
+    iteration that replaces model.vi (electrical contact), or data that are not finite (the
+    rebuild refuses them with the field named)."""
+    rhs = model.rhs
+    if rhs is None or getattr(model, "electrical", None) is not None:
+        return None
+    if any(e.uses_t and not UPDATABLE.fullmatch(e.path) for e in expressions(spec)):
+        return None
+    with load_parameter(t):
+        f_full = np.concatenate([loads(spec.bodies[b.name], b) for b in model.bodies])
+        data = [dirichlet(spec.bodies[b.name], b) for b in model.bodies]
+    fixed = np.concatenate([d[0] for d in data])
+    values = np.concatenate([d[1] for d in data])
+    finite = np.isfinite(f_full).all() and np.isfinite(values).all()
+    if not (finite and np.array_equal(fixed, rhs.fixed)):
+        return None
+    f, gap = rhs.at(f_full, values)
+    vi = model.vi.with_rhs(f=f, gap=gap)
+    out = replace(model, vi=vi, values=values, warnings=list(model.warnings))
+    if hasattr(out, "slip_origin"):
+        out.slip_origin = None
+    return out
 
 
 def fields(model: BodiesModel, sol: Solution) -> dict[str, np.ndarray]:

@@ -27,6 +27,8 @@ declaration it needs with exit status 2, naming the declaration):
     mesh_size(model) -> float                  `mixvi study`: h of the built level
     exact_errors(model, sol) -> dict | None    `mixvi study`: the NORMS against the scene's exact
                                                solution (None: the scene has none)
+    EXACT_NORMS: tuple[str, ...]               `mixvi study`: the names of exact_errors' norms
+                                               where they differ from NORMS (default NORMS)
     reference_errors(model, sol, ref, ref_sol) `mixvi study`: the NORMS against the solution of a
                          -> dict               finer level `ref` of the same scene
     extremes() -> list[ExtremeRow]             `mixvi extremes`: this plug-in's extreme rows
@@ -57,6 +59,14 @@ declaration it needs with exit status 2, naming the declaration):
                                                by model.vi.with_rhs(gap=...)). Without it
                                                every step is solved in total form (path-
                                                independent; the summary says so)
+    update(model, scene, t) -> Model | None    load paths: the next load step t from the
+                                               previous step's model, re-reading only what
+                                               depends on t (loads, prescribed displacements
+                                               and potentials) and sharing mesh and operators
+                                               (called inside `load_parameter(t)`; must not
+                                               change `model`); None: that step is built.
+                                               Without it every step is built from the scene
+                                               (the answers are the same to rounding)
     step_output(model, sol, outdir) -> dict    load paths: the files of one load step (cheap:
                                                VTU datasets, tables; no plots) and the summary
                                                entries "files" and "contact" (counts per state:

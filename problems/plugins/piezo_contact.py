@@ -287,14 +287,16 @@ def build_model(
         require_curve(bodies[bname].mesh, part, key, spec.output.potential_along)
         options["potential_along"] = (bname, part)
 
-    vi, free, values = contact_model.mixed_vi(
+    vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
         None if contact is None else partial(_contact_rows, contact),
         field_data,
         {"scene": scene.name, "level": level},
         check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
     )
-    model = model_class(scene, level, list(bodies.values()), contact, vi, free, values, options)
+    model = model_class(
+        scene, level, list(bodies.values()), contact, vi, free, values, options, rhs=rhs
+    )
     if ct is not None and ct.electrical is not None:
         model.electrical = _electrical(ct.electrical, contact, vi, free, values)
     if contact is not None:
@@ -387,10 +389,10 @@ def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None
             )
 
 
-def _contact_rows(contact: Contact, free, fixed, values):
-    """B restricted to the unknowns, the gap from Dirichlet data, Λ_h and the Y Gram matrix."""
-    B = contact.B_full[:, free]
-    gap = -(contact.B_full[:, fixed] @ values[fixed])
+def _contact_rows(contact: Contact):
+    """B_full, the gap rows not from Dirichlet data (the initial gap), Λ_h and the Y Gram
+    matrix (`contact_model.mixed_vi`)."""
+    gap = np.zeros(contact.B_full.shape[0])  # (N_n + N_t,)
     tr = contact.tr
     n_n, n_t = contact.sizes
     if contact.law == "bilateral":
@@ -407,7 +409,7 @@ def _contact_rows(contact: Contact, free, fixed, values):
     rows = np.empty(n_n + n_t, dtype=int)  # trace index of each row of B_full
     rows[contact.idx_n], rows[contact.idx_t] = contact.rows_n, contact.rows_t
     Y = sp.diags(h_i[rows] * tr.weights[rows])  # mesh-dependent H^{-1/2} stand-in
-    return B, gap, Lam, Y
+    return contact.B_full, gap, Lam, Y
 
 
 def _where(body: Body, tr: Trace, i: int) -> str:
@@ -715,7 +717,9 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     coefficients are interpolated, and the tangential ones through their ratio r = α/ρ to the
     friction radius ρ (g; Coulomb: F·λ_n): a fine node between two coarse slip nodes gets
     |r| = 1, i.e. it starts on the bound even where g varies, and the first Newton step starts
-    from the coarse stick/slip partition instead of rediscovering it.
+    from the coarse stick/slip partition instead of rediscovering it. A fine node between a
+    coarse stick and a coarse slip node starts on the bound where |r| extrapolated from the
+    stick side reaches 1 (`_slip_ahead`).
     """
     if coarse.contact is None or fine.contact is None:
         return {}
@@ -726,12 +730,41 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     rc = cc.bound(lam_c)
     ratio_c = np.divide(cc.tangential(lam_c), rc, out=np.zeros(rc.size), where=rc > 0)
     ratio = np.clip(np.interp(sf[fc.rows_t], sc[cc.rows_t], ratio_c), -1.0, 1.0)
-    on_bound = np.abs(ratio) >= 1.0 - 1e-9
+    on_bound = (np.abs(ratio) >= 1.0 - 1e-9) | _slip_ahead(sc[cc.rows_t], ratio_c, sf[fc.rows_t])
     ratio[on_bound] = np.sign(ratio[on_bound])
     lam0 = np.zeros(fc.B_full.shape[0])
     lam0[fc.idx_n] = lam_n
     lam0[fc.idx_t] = ratio * fc.bound(lam0)
     return {"lam0": lam0}
+
+
+def _slip_ahead(xc: np.ndarray, ratio_c: np.ndarray, xf: np.ndarray) -> np.ndarray:
+    """(M,) fine positions xf (M,) lying between a coarse stick node a and a coarse slip node
+    (coarse positions xc (K,) increasing, ratios α/ρ `ratio_c` (K,)) where |r| extrapolated
+    linearly from a and its other neighbour b (also stick) reaches 1.
+
+    Why: the ratio rises steeply towards a stick/slip transition, so interpolating it between a
+    and the slip node leaves the new node between them below 1 (stick) where the fine solution
+    slips. Paper scene, nested iteration: levels 4 and 5 found the new nodes next to both
+    transitions slipping (|r_a| = 0.937, |r_b| = 0.709 at level 3: extrapolated 1.05 at the
+    midpoint; 0.934, 0.784 at level 4: 1.009), which took the fine level a second Newton step
+    with its own linear solve; at levels 2 and 3 extrapolation gives 0.84 and 0.61: stick, as
+    the fine solutions have it."""
+    slip = np.abs(ratio_c) >= 1.0 - 1e-9  # (K,)
+    out = np.zeros(xf.size, dtype=bool)
+    if xc.size < 3:
+        return out
+    k = np.clip(np.searchsorted(xc, xf, side="right") - 1, 0, xc.size - 2)  # (M,) interval
+    edge = slip[k] != slip[k + 1]  # (M,) between a stick and a slip node
+    a = np.where(slip[k], k + 1, k)  # (M,) its stick end
+    b = np.where(slip[k], k + 2, k - 1)  # (M,) the stick end's other neighbour
+    ok = edge & (b >= 0) & (b < xc.size) & (xf > xc[k]) & (xf < xc[k + 1])
+    a, b = a[ok], b[ok]
+    ok_b = ~slip[b]
+    ra, rb = np.abs(ratio_c[a]), np.abs(ratio_c[b])
+    r = ra + (ra - rb) * (xf[ok] - xc[a]) / (xc[a] - xc[b])  # linear through b and a
+    out[np.flatnonzero(ok)[ok_b & (r >= 1.0)]] = True
+    return out
 
 
 # ------------------------------------------------------------------ post-processing
@@ -1000,6 +1033,12 @@ def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
         files += written
         out["contact"] = contact["counts"]
     return out
+
+
+def update(model: Model, scene: Scene, t: float) -> Model | None:
+    """Load paths: the step t of `model` with only its loads and prescribed values re-read
+    (`contact_model.update`; None: rebuild the step, e.g. with [contact.electrical])."""
+    return contact_model.update(model, scene.validated(SCENE_MODEL), t)
 
 
 def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:

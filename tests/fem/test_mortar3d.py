@@ -449,6 +449,32 @@ def test_mutation_keep_at_crosspoints_fails_the_tied_patch_test():
     assert np.abs(u - exact).max() > 1e-4
 
 
+@pytest.mark.parametrize("kind,es,em", [("sphere", HEX, TET), ("cylinder", TET, HEX)])
+def test_merge_ties_a_constant_multiplier_on_curved_non_matching_surfaces(kind, es, em):
+    """The tied patch test of the multiplier on curved non-matching surfaces whose rim carries
+    no multiplier (crosspoints): λ_h ≡ 1 in the modified basis (every coefficient 1) loads the
+    master with Σ_k (Q M)_kj, which must be the load of the constant itself over the faces
+    with a carrying node (Σ_a ψ_{e,a} = 1 on each face; a corner triangle of rim nodes only has
+    no multiplier at all), ≤ 1e-12; the rigid-body rows of the covered nodes stay exact too.
+    "keep" loses the rim faces' share of the constant (its mutation test)."""
+    s, m = pair(kind, es, em)
+    carry = np.ones(s.size, dtype=bool)
+    carry[rim_nodes(s.faces)] = False
+    some = np.repeat(carry[s.faces].any(axis=1), s.faces.shape[1])  # (m·n_f,) local rows
+    assert some.mean() > 0.9
+    mo = couple(s, m)
+    exact = some @ mo.M  # (k_m,) ∫ φ_j^m ∘ π dA over the faces with a carrying node
+    covered = fm3.covered_nodes(mo)[carry]
+    defects = {}
+    for ends in ("merge", "keep"):
+        Q = multiplier_basis(s, carry, ends)
+        load = np.asarray((Q @ mo.M).sum(axis=0)).ravel()
+        defects[ends] = np.abs(load - exact).max() / np.abs(exact).max()
+        rigid = patch_defect(Q @ dual_mass(s), Q @ mo.M)[covered]
+        assert rigid.max() <= 1e-12, (ends, rigid.max())
+    assert defects["merge"] <= 1e-12 and defects["keep"] > 1e-2, defects
+
+
 @pytest.mark.parametrize("element", [HEX, TET])
 def test_boundary_modified_basis_keeps_biorthogonality_and_constants(element):
     s, _ = pair("sphere", element, TET)
@@ -514,3 +540,51 @@ def test_mutation_primal_basis_fails_the_linear_transfer(monkeypatch):
     )  # fmt: skip
     mo = couple(broken, m)
     assert transfer_error(mo, lambda x: x[:, 0]) > 1e-3
+
+
+def _sheets(element: str, R=None, n: int = 2) -> Mesh3D:
+    """n master boxes one above the other under the slave, their tops in one part "top": a
+    master surface that the slave's normal lines meet n times (z = 1, 0.8, 0.6)."""
+    boxes = [((0.0, 1.0), (5, 3, 1)), ((0.3, 0.8), (4, 6, 1)), ((0.1, 0.6), (3, 3, 1))][:n]
+    meshes = [flat(z, cells, element, "top", R) for z, cells in boxes]
+    off = np.cumsum([0] + [b.points.shape[0] for b in meshes])
+    return Mesh3D(
+        np.vstack([b.points for b in meshes]),
+        np.vstack([b.cells + o for b, o in zip(meshes, off, strict=False)]),
+        {"top": np.vstack([b.boundaries["top"] + o for b, o in zip(meshes, off, strict=False)])},
+    )
+
+
+@pytest.mark.parametrize("es,em", [(HEX, TET), (TET, HEX)])
+def test_a_folded_master_couples_with_its_nearest_sheet_only(es, em):
+    """Nearest hit: with a second master sheet 0.2 below the first, M is the coupling with the
+    upper sheet alone (≤ 1e-13 × max) and the lower sheet's columns are zero; the coverage stays
+    1. Mutation: without the taken-back overlaps (nearest_hits a no-op) both sheets count."""
+    R = rotation(3)
+    s = trace(flat((1.0, 2.0), (3, 4, 1), es, "bottom", R), "bottom")
+    both = trace(_sheets(em, R), "top")
+    upper = trace(flat((0.0, 1.0), (5, 3, 1), em, "top", R), "top")
+    mo, ref = couple(s, both), couple(s, upper)
+    n_up = upper.size
+    assert np.array_equal(both.nodes[:n_up], upper.nodes)  # the upper sheet's nodes come first
+    M = mo.M.toarray()
+    scale = np.abs(ref.M).max()
+    assert np.abs(M[:, :n_up] - ref.M.toarray()).max() <= 1e-13 * scale
+    assert np.abs(M[:, n_up:]).max() <= 1e-13 * scale
+    np.testing.assert_allclose(mo.coverage, 1.0, atol=1e-12)
+
+
+def test_mutation_without_the_nearest_hit_both_sheets_count(monkeypatch):
+    def none(s, m, e, f, poly, count, *args):
+        return np.ones(e.size), e, f, poly, count
+
+    monkeypatch.setattr(fm3, "nearest_hits", none)
+    s = trace(flat((1.0, 2.0), (3, 4, 1), HEX, "bottom"), "bottom")
+    mo = couple(s, trace(_sheets(TET), "top"))
+    assert mo.coverage.min() > 1.9  # each slave face counted twice
+
+
+def test_a_master_folded_twice_is_refused():
+    s = trace(flat((1.0, 2.0), (3, 4, 1), HEX, "bottom"), "bottom")
+    with pytest.raises(ValueError, match="folds more than once"):
+        couple(s, trace(_sheets(TET, n=3), "top"))

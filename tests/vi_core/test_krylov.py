@@ -1,10 +1,12 @@
 """The iterative linear path (`vi_core.krylov`): agreement with the direct solver, forcing
 terms, field data, and the faults it must notice (dropped coupling, broken preconditioner)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from vi_core import Box, Free, MixedVI, NonNegative, product, solve
@@ -134,7 +136,10 @@ def test_forcing_term():
     assert kr.forcing_term(1e-6, 1e-3, 1e-10) == pytest.approx(0.1 * 1e-10 / 1e-6)
     # slow convergence: capped
     assert kr.forcing_term(0.5, 1.0, 1e-10) == kr.ETA_MAX
-    assert kr.forcing_term(0.5, 1.0, 1e-10, kr.ETA_MAX_WARM) == kr.ETA_MAX_WARM
+    # a warm start: every step solved to the floor of tol, also below a cap
+    assert kr.ETA_MAX_WARM == 0.0
+    assert kr.forcing_term(0.5, 1.0, 1e-10, kr.ETA_MAX_WARM) == pytest.approx(0.1 * 1e-10 / 0.5)
+    assert kr.forcing_term(1e-6, 1e-3, 1e-10, 1e-8) == pytest.approx(0.1 * 1e-10 / 1e-6)
 
 
 def test_field_data_is_checked_and_equilibrated():
@@ -179,12 +184,12 @@ def _lower_vi(rng: np.random.Generator, k: int) -> MixedVI:
     return MixedVI(A, B, np.ones(2 * n1), Box(-1.0, 1.0, size=k), fields=fields)
 
 
-def _newton_matrix(vi: MixedVI, cond, tied: np.ndarray) -> sp.csr_matrix:
-    """The condensed Newton matrix for J = diag(tied), W = I − J, written out from its
-    definition (rows R: A_R − B_Rᵀ D^{-T} A_S; rows S: Dᵀ(W D^{-T} A_S + J B))."""
+def _newton_matrix(vi: MixedVI, cond, tied: np.ndarray, J=None, W=None) -> sp.csr_matrix:
+    """The condensed Newton matrix for J (default diag(tied)), W (default I − J), written out
+    from its definition (rows R: A_R − B_Rᵀ D^{-T} A_S; rows S: Dᵀ(W D^{-T} A_S + J B))."""
     A, B = vi.A.tocsr(), vi.B.tocsr()
-    J = sp.diags(tied.astype(float))
-    W = sp.identity(vi.m) - J
+    J = sp.diags(tied.astype(float)) if J is None else J
+    W = sp.identity(vi.m) - J if W is None else W
     A_S = A[cond.S]
     K = sp.lil_matrix((vi.n, vi.n))
     K[cond.R] = A[cond.R] - B[:, cond.R].T @ (cond.Dt_inv @ A_S)
@@ -220,6 +225,118 @@ def test_preconditioner_is_exact_with_exact_hierarchies(seed):
     assert defect(flipped) > 1e-6
     if tied.any():
         assert defect(tied, lift=lambda q, t: np.zeros(vi.n)) > 1e-6
+
+
+def _disc_jacobian(rng: np.random.Generator, m: int) -> tuple[np.ndarray, sp.csr_matrix]:
+    """Rows in pairs (a friction disc per node, `Ball(g, 2)`), each disc sticking (J = I: both
+    rows tied), slipping (J = γ(I − ŷŷᵀ), γ in 0.05 … 0.95: fractional rows) or a free pair
+    (J = 0), as `Ball.jacobian` gives them; (tied (m,), J (m, m))."""
+    kind = rng.integers(0, 3, m // 2)  # (m/2,) 0 stick, 1 slip, 2 free
+    blocks = []
+    for c in kind:
+        if c == 0:
+            blocks.append(np.eye(2))
+        elif c == 1:
+            a = rng.uniform(0, 2 * np.pi)
+            yh = np.array([np.cos(a), np.sin(a)])
+            blocks.append(rng.uniform(0.05, 0.95) * (np.eye(2) - np.outer(yh, yh)))
+        else:
+            blocks.append(np.zeros((2, 2)))
+    return np.repeat(kind == 0, 2), sp.block_diag(blocks, format="csr")
+
+
+@given(seeds)
+def test_preconditioner_is_exact_with_slip_discs(seed):
+    """3D slip discs: fractional rows of J are free rows with a spring M = W_FF^{-1} J_FF, and
+    with one-level hierarchies the preconditioner is K⁻¹ again. Mutation: the slip rows counted
+    as J = 0 (the previous approximation) is not."""
+    from vi_core.ssn import Condensation
+
+    rng = np.random.default_rng(seed)
+    vi = _lower_vi(rng, 2 * int(rng.integers(3, 6)))  # an even number of rows: discs
+    cond = Condensation.detect(vi.B)
+    tied, J = _disc_jacobian(rng, vi.m)
+    W = sp.identity(vi.m, format="csr") - J
+    K = _newton_matrix(vi, cond, tied, J)
+    r = rng.standard_normal(vi.n)
+
+    def defect(spring):
+        ks = kr.KrylovSolver(vi.A.tocsr(), vi.B, cond, vi.fields, None)
+        x = ks.preconditioner(tied, spring)(r)
+        assert all(len(b.ml.levels) == 1 for b in ks.amg.blocks)
+        return np.linalg.norm(K @ x - r) / np.linalg.norm(r)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(kr, "SPRING_CAP", np.inf)  # uncapped: the exact springs
+        spring = kr.Spring.of(tied, W, J)
+    assert defect(spring) < 1e-10
+    if spring is not None:  # some disc slips
+        assert defect(None) > 1e-6
+
+
+@given(seeds)
+def test_preconditioner_is_exact_with_slip_rows_coupled_to_tied_rows(seed):
+    """J_FT ≠ 0 (a slip row depending on a tied row, as Coulomb's on its node's normal row)
+    with W_FT = 0: the springs' right-hand side W_FF^{-1}(q_F − J_FT q_T) keeps the
+    preconditioner exact. Mutations: that coupling's sign flipped, or dropped, are not."""
+    from vi_core.ssn import Condensation
+
+    rng = np.random.default_rng(seed)
+    vi = _lower_vi(rng, 2 * int(rng.integers(3, 6)))
+    cond = Condensation.detect(vi.B)
+    tied, J = _disc_jacobian(rng, vi.m)
+    slip = ~tied & (np.diff(J.indptr) > 0)  # (m,) the fractional rows
+    assume(slip.any() and tied.any())
+    W = sp.identity(vi.m, format="csr") - J  # W_FT = 0: the coupling is added to J only
+    C = np.zeros((vi.m, vi.m))
+    C[np.ix_(slip, tied)] = rng.uniform(-1.0, 1.0, (slip.sum(), tied.sum()))
+    J = (J + sp.csr_matrix(C)).tocsr()
+    K = _newton_matrix(vi, cond, tied, J, W)
+    r = rng.standard_normal(vi.n)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(kr, "SPRING_CAP", np.inf)  # uncapped: the exact springs
+        spring = kr.Spring.of(tied, W, J)
+
+    def defect(J_FT):
+        ks = kr.KrylovSolver(vi.A.tocsr(), vi.B, cond, vi.fields, None)
+        x = ks.preconditioner(tied, dataclasses.replace(spring, J_FT=J_FT))(r)
+        return np.linalg.norm(K @ x - r) / np.linalg.norm(r)
+
+    assert spring.J_FT.nnz > 0
+    assert defect(spring.J_FT) < 1e-10
+    assert defect(-spring.J_FT) > 1e-6
+    assert defect(0 * spring.J_FT) > 1e-6
+
+
+def test_springs_are_capped():
+    """A disc that has only just started to slip (γ = 1: W_FF singular) gets the spring
+    SPRING_CAP, one with γ = 0.5 (κ = 1) κ/(1 + κ/SPRING_CAP); the free row along ŷ none."""
+    yh = np.array([0.6, 0.8])
+    P = np.eye(2) - np.outer(yh, yh)  # the projection across ŷ
+    J = sp.csr_matrix(sp.block_diag([P, 0.5 * P]))
+    W = sp.identity(4, format="csr") - J
+    s = kr.Spring.of(np.zeros(4, dtype=bool), W, J)
+    kappa = np.linalg.eigvalsh(s.M.toarray())  # (4,) ascending
+    c = kr.SPRING_CAP
+    assert np.allclose(kappa, [0.0, 0.0, 1 / (1 + 1 / c), c], rtol=1e-12, atol=1e-12)
+    assert s.rows.all()
+
+
+def test_block_inverse():
+    """Blocks of sizes 1–3 in a permuted order: W⁻¹W = I; a dropped off-diagonal entry is not
+    the inverse."""
+    rng = np.random.default_rng(3)
+    blocks = [rng.standard_normal((s, s)) + 3 * np.eye(s) for s in rng.integers(1, 4, 40)]
+    W = sp.block_diag(blocks, format="csr")
+    p = rng.permutation(W.shape[0])
+    W = W[p][:, p]
+    eye = sp.identity(W.shape[0])
+    assert abs(kr.block_inverse(W) @ W - eye).max() < 1e-12
+    V = W.tolil()
+    i = next(i for i in range(W.shape[0]) if W[i].nnz > 1)
+    j = next(j for j in W[i].indices if j != i)
+    V[i, j] = 0.0
+    assert abs(kr.block_inverse(V.tocsr()) @ W - eye).max() > 1e-6
 
 
 @pytest.mark.parametrize("exact", [True, False])

@@ -206,7 +206,7 @@ def _errors(scene, element: str, levels=LEVELS) -> tuple[np.ndarray, list[dict],
         sol = solve(model.vi, "ssn", tol=1e-12)
         assert sol.converged
         hs.append(contact3d.mesh_size(model))
-        errs.append(contact3d_errors.exact_errors(model, sol))
+        errs.append(contact3d.exact_errors(model, sol))
         states.append((model, contact3d.contact_state(model, sol)))
     return np.array(hs), errs, states
 
@@ -268,10 +268,12 @@ def _wrong_states(model, st, h: float) -> tuple[np.ndarray, int]:
     return d[wrong], int((d < h).sum())
 
 
-def test_clamped_sides_keep_the_rates():
+@pytest.mark.parametrize("ends", ["keep", "merge"])
+def test_clamped_sides_keep_the_rates(ends):
     """Crosspoints: the left and front sides clamped to the exact u (their contact nodes carry
-    no multiplier; the plug-in's "keep" basis drops their dual functions) — same rates."""
-    scene = load_scene(NAME)
+    no multiplier; the "keep" basis drops their dual functions, "merge" gives them to their
+    neighbours, class by class) — same rates."""
+    scene = load_scene(NAME, [f"contact.ends={ends}"])
     blk = scene.data["bodies"]["block"]
     u = blk["displacement"][0]["value"]
     blk["traction"] = [t for t in blk["traction"] if t["boundary"] not in ("left", "front")]
