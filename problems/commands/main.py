@@ -15,6 +15,8 @@ interrupted by SIGINT / SIGTERM (one line; output folders as they were before th
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 import traceback
 
@@ -225,7 +227,8 @@ def _dispatch(argv: list[str]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `mixvi` command: the one place that maps failures to exit statuses
-    (SceneError → 2, SIGINT/SIGTERM → 130/143, anything else → 3 with a hint at --debug)."""
+    (SceneError → 2, SIGINT/SIGTERM → 130/143, stdout's reader gone → 141, anything else → 3
+    with a hint at --debug)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
@@ -241,6 +244,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # raised before the handler was installed
         print("mixvi: interrupted by SIGINT", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader of stdout left (`mixvi scenes | head -1`): no error
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # exit's flush is quiet
+        return 128 + signal.SIGPIPE  # 141, as for a tool the shell saw ended by SIGPIPE
     except Exception as err:
         if debug:
             traceback.print_exc()

@@ -1,10 +1,12 @@
 """The iterative linear path (`vi_core.krylov`): agreement with the direct solver, forcing
 terms, field data, and the faults it must notice (dropped coupling, broken preconditioner)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from vi_core import Box, Free, MixedVI, NonNegative, product, solve
@@ -182,12 +184,12 @@ def _lower_vi(rng: np.random.Generator, k: int) -> MixedVI:
     return MixedVI(A, B, np.ones(2 * n1), Box(-1.0, 1.0, size=k), fields=fields)
 
 
-def _newton_matrix(vi: MixedVI, cond, tied: np.ndarray, J=None) -> sp.csr_matrix:
-    """The condensed Newton matrix for J (default diag(tied)), W = I − J, written out from its
-    definition (rows R: A_R − B_Rᵀ D^{-T} A_S; rows S: Dᵀ(W D^{-T} A_S + J B))."""
+def _newton_matrix(vi: MixedVI, cond, tied: np.ndarray, J=None, W=None) -> sp.csr_matrix:
+    """The condensed Newton matrix for J (default diag(tied)), W (default I − J), written out
+    from its definition (rows R: A_R − B_Rᵀ D^{-T} A_S; rows S: Dᵀ(W D^{-T} A_S + J B))."""
     A, B = vi.A.tocsr(), vi.B.tocsr()
     J = sp.diags(tied.astype(float)) if J is None else J
-    W = sp.identity(vi.m) - J
+    W = sp.identity(vi.m) - J if W is None else W
     A_S = A[cond.S]
     K = sp.lil_matrix((vi.n, vi.n))
     K[cond.R] = A[cond.R] - B[:, cond.R].T @ (cond.Dt_inv @ A_S)
@@ -270,6 +272,40 @@ def test_preconditioner_is_exact_with_slip_discs(seed):
     assert defect(spring) < 1e-10
     if spring is not None:  # some disc slips
         assert defect(None) > 1e-6
+
+
+@given(seeds)
+def test_preconditioner_is_exact_with_slip_rows_coupled_to_tied_rows(seed):
+    """J_FT ≠ 0 (a slip row depending on a tied row, as Coulomb's on its node's normal row)
+    with W_FT = 0: the springs' right-hand side W_FF^{-1}(q_F − J_FT q_T) keeps the
+    preconditioner exact. Mutations: that coupling's sign flipped, or dropped, are not."""
+    from vi_core.ssn import Condensation
+
+    rng = np.random.default_rng(seed)
+    vi = _lower_vi(rng, 2 * int(rng.integers(3, 6)))
+    cond = Condensation.detect(vi.B)
+    tied, J = _disc_jacobian(rng, vi.m)
+    slip = ~tied & (np.diff(J.indptr) > 0)  # (m,) the fractional rows
+    assume(slip.any() and tied.any())
+    W = sp.identity(vi.m, format="csr") - J  # W_FT = 0: the coupling is added to J only
+    C = np.zeros((vi.m, vi.m))
+    C[np.ix_(slip, tied)] = rng.uniform(-1.0, 1.0, (slip.sum(), tied.sum()))
+    J = (J + sp.csr_matrix(C)).tocsr()
+    K = _newton_matrix(vi, cond, tied, J, W)
+    r = rng.standard_normal(vi.n)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(kr, "SPRING_CAP", np.inf)  # uncapped: the exact springs
+        spring = kr.Spring.of(tied, W, J)
+
+    def defect(J_FT):
+        ks = kr.KrylovSolver(vi.A.tocsr(), vi.B, cond, vi.fields, None)
+        x = ks.preconditioner(tied, dataclasses.replace(spring, J_FT=J_FT))(r)
+        return np.linalg.norm(K @ x - r) / np.linalg.norm(r)
+
+    assert spring.J_FT.nnz > 0
+    assert defect(spring.J_FT) < 1e-10
+    assert defect(-spring.J_FT) > 1e-6
+    assert defect(0 * spring.J_FT) > 1e-6
 
 
 def test_springs_are_capped():

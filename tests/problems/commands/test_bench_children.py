@@ -128,10 +128,11 @@ def test_failed_children_become_rows_and_the_table_is_still_written(site, tmp_pa
         (tmp_path / f"{m}.toml").write_text(scene_text(m))
     out = tmp_path / "bench.json"
     scenes = ",".join(str(tmp_path / f"{m}.toml") for m in modes)
-    t0 = time.monotonic()
-    argv = ["bench", "--scenes", scenes, "--levels", "0", "--timeout", "8", "--out", str(out)]
-    r = mixvi(argv, env, tmp_path)
-    elapsed = time.monotonic() - t0
+    # --timeout counts from the child's start, imports included: 8 s timed out the crashing
+    # children on a slow machine (one core shared with a busy process, niced) before they
+    # crashed; the subprocess timeout is what catches a wait without a limit
+    argv = ["bench", "--scenes", scenes, "--levels", "0", "--timeout", "20", "--out", str(out)]
+    r = mixvi(argv, env, tmp_path, timeout=600)
     assert r.returncode == 1, r.stderr
     assert "Traceback" not in r.stderr + r.stdout
     rows = json.loads(out.read_text())["records"]
@@ -143,10 +144,9 @@ def test_failed_children_become_rows_and_the_table_is_still_written(site, tmp_pa
     assert "status 7" in cause["exit"]
     assert "ValueError" in cause["raise"] and "internal error in the child" in cause["raise"]
     assert "out of memory" in cause["memory"]
-    assert "timed out after 8 s" in cause["hang"]
+    assert "timed out after 20 s" in cause["hang"]
     assert cause["none"] is None and rows[-1]["converged"]
     assert "FAILED" in r.stdout and r.stdout.count("FAILED") == 6
-    assert elapsed < 8 + 6 * 30  # nobody waited without a limit (generous: child start-up)
 
 
 def test_sigint_to_bench_ends_the_child_and_keeps_the_old_table(site, tmp_path):
@@ -171,7 +171,9 @@ def test_sigint_to_bench_ends_the_child_and_keeps_the_old_table(site, tmp_path):
     assert err.strip().splitlines() == ["mixvi: interrupted by SIGINT"]
     assert out.read_text() == '{"old": true}'
     assert not [f for f in os.listdir(tmp_path) if f.startswith(".mixvi-tmp")]
-    time.sleep(0.5)
+    deadline = time.monotonic() + 60  # no fixed pause: a slow machine reaps late
+    while not _gone(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
     assert _gone(child), "the child outlived the interrupted bench"
 
 
@@ -198,7 +200,8 @@ def test_an_internal_error_is_one_line_exit_3_and_debug_shows_the_traceback(site
 
 
 def test_run_case_reports_a_dead_child_at_once(site, tmp_path, monkeypatch):
-    """In-process: a killed child is seen by the liveness check, long before the timeout."""
+    """In-process: a killed child is seen by the liveness check, not by the timeout (the
+    cause says SIGKILL; the mutation below, without the check, says timed out)."""
     import multiprocessing as mp
 
     from problems.commands import bench
@@ -206,12 +209,10 @@ def test_run_case_reports_a_dead_child_at_once(site, tmp_path, monkeypatch):
     s, env = site
     monkeypatch.syspath_prepend(str(s))  # spawn children get the parent's sys.path
     (tmp_path / "kill.toml").write_text(scene_text("kill"))
-    t0 = time.monotonic()
     kind, cause = bench.run_case(
-        mp.get_context("spawn"), str(tmp_path / "kill.toml"), 0, ["ssn"], 1e-10, timeout=120
+        mp.get_context("spawn"), str(tmp_path / "kill.toml"), 0, ["ssn"], 1e-10, timeout=600
     )
     assert kind == "error" and "SIGKILL" in cause
-    assert time.monotonic() - t0 < 100  # not the timeout
 
 
 def test_mutation_without_the_liveness_check_only_the_timeout_ends_it(site, tmp_path, monkeypatch):
