@@ -15,8 +15,8 @@ class SceneError(Exception):
     def _message(self) -> str:
         where = f"{self.file}: " if self.file else ""
         shown = repr(self.value)
-        if len(shown) > 80:
-            shown = shown[:77] + "..."
+        if len(shown) > 80:  # both ends kept: a long path's file name is at its end
+            shown = shown[:37] + "..." + shown[-40:]
         return f"{where}{self.key} = {shown}: {self.allowed}"
 
     def in_file(self, file: str) -> SceneError:

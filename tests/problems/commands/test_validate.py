@@ -9,6 +9,8 @@ from pathlib import Path
 import meshio
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from fem.mesh_import import write_msh
 from fem.meshing import rectangle
@@ -217,3 +219,18 @@ def test_mutation_without_the_curve_check_two_pieces_are_not_refused(
     path, args, _, _ = _args(tmp_path, case)
     rc, _, err = _validate(path, capsys, *args)
     assert rc != 2, err  # passed silently (or a ValueError of the trace): not refused
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(1, 300))
+def test_a_long_value_keeps_both_ends_in_the_message(seed, depth):
+    """A missing mesh under a long folder (a deep TMPDIR, found under TMPDIR='/tmp/a dir'):
+    the message once cut the path after 77 characters, before its file name."""
+    from problems.errors import SceneError
+
+    rng = np.random.default_rng(seed)
+    folder = "/" + "".join(rng.choice(list("abc d/"), size=depth))
+    value = f"{folder}/nowhere_{seed}.msh"
+    message = str(SceneError("bodies.block.geometry.mesh", value, "an existing mesh file"))
+    shown = message.split(" = ", 1)[1].rsplit(": an existing", 1)[0]
+    assert len(shown) <= 80
+    assert shown.endswith(f"nowhere_{seed}.msh'") and shown.startswith(repr(value)[:10])
