@@ -59,7 +59,10 @@ Limits: a projected
 slave face must be convex (true for any non-degenerate triangle and for quadrilaterals that are
 not badly warped); master faces are cut along the straight chords between their nodes' images
 (the images of their edges are curved where the normal field turns; the cells still tile the
-slave face exactly, only the split between neighbouring master faces moves, by O(h³)).
+slave face exactly, only the split between neighbouring master faces moves, by O(h³)). Where
+a slave face's normal lines meet two master sheets (`nearest_hits`) the nearer by unsigned
+distance wins, as in 2D: a slave that has penetrated a thin master deeper than half its
+thickness is coupled to the far sheet.
 """
 
 from __future__ import annotations

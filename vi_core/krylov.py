@@ -56,10 +56,13 @@ experiment on those matrices saved, FGMRES to 1e-8 from zero), V-cycles: 14, 16,
 **Inexact Newton.** Each step starts from the current iterate and stops when the linear residual
 is ≤ η_k times its initial value (Eisenstat–Walker, choice 2: η_k = 0.9 (F_k/F_{k−1})², at most
 ETA_MAX from a cold start; from a warm start ETA_MAX_WARM = 0: nested iteration's prediction of
-the active set usually holds, and then one step solved to tol is the answer), but never asks for
-more than 0.1·tol relative to ‖b‖: the step that brings the natural residual below tol is solved
-to about the requested tolerance, and convergence is judged from the natural residual of the
-iterate itself, as with a direct solve.
+the active set usually holds, and then one step solved to tol is the answer; it applies to every
+warm start — load-path steps, homotopy steps, the Coulomb fixed point's inner solves, conic's
+polish — and on `mixvi solve shear_strip_path --level 3 --linear-solver amg` it takes mostly 1
+Newton step per load step where 1e-8 took 2 and 0.1 took 3, at the same wall time), but never
+asks for more than 0.1·tol relative to ‖b‖: the step that brings the natural residual below tol
+is solved to about the requested tolerance, and convergence is judged from the natural residual
+of the iterate itself, as with a direct solve.
 
 **Fallback.** A solve whose true residual falls by less than a factor 0.9 over a restart cycle,
 or does not reach its tolerance within `max_cycles` cycles, is redone by the direct solver; the
