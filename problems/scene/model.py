@@ -27,7 +27,10 @@ from .fields import NO_LOAD_PATH, Expression, Integer, Number, Text
 FORMAT = 2  # the current scene format; format 1 (no `format` key) is migrated on loading
 MAX_LEVEL = 12
 MAX_STEPS = 1000  # load steps of a [load_path]: each one is a full solve
-METHODS = ("auto", "ssn", "conic", "homotopy")  # vi_core.METHODS (a test keeps them equal)
+# every method `vi_core.solve` takes (vi_core.METHODS for fixed convex sets, CONTACT_METHODS for
+# contact blocks): the one list of a scene's [solver] method and of `mixvi solve --solver`
+# (problems.pipeline.SOLVERS); a test keeps it equal to vi_core's
+METHODS = ("auto", "ssn", "conic", "homotopy", "fixed_point")
 
 
 def did_you_mean(word: str, options: Iterable[str]) -> str:
