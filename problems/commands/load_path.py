@@ -9,13 +9,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tqdm import tqdm
-
 import problems.pipeline as pipeline
 from problems.output.collection import vtu_datasets
 from problems.pipeline.load_path import PathRun, Step, solve_path
 
 from .options import solver_options
+from .progress import bar as progress_bar
 
 COUNTS = ("nodes", "stick", "slip", "open")  # contact counts kept per step
 
@@ -28,7 +27,7 @@ def solve_steps(
     plugin = loaded.plugin
     datasets: list[tuple[float, str]] = []
     n = len(loaded.spec.load_path.values())
-    bar = tqdm(total=n, unit="step", disable=None, desc=f"solving {loaded.scene.name}", leave=False)
+    bar = progress_bar(total=n, unit="step", desc=f"solving {loaded.scene.name}", leave=False)
 
     def write_step(step: Step) -> None:
         sub = Path("steps") / f"{step.index:04d}"
