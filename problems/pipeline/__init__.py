@@ -37,6 +37,9 @@ from vi_core.coulomb import ContactSet
 # alike: vi_core's for fixed convex sets, and the Coulomb fixed point
 # (`vi_core.tresca_fixed_point`) for contact sets
 SOLVERS = METHODS
+# the methods a load step starts from the previous step's solution (conic, homotopy and auto
+# solve every step from zero)
+WARM_STARTED = ("ssn", "fixed_point")
 CONDITION_LIMIT = 200_000  # estimate the Newton matrix's condition up to this many unknowns
 
 
@@ -122,7 +125,7 @@ def solve_built(
     tol = tol if tol is not None else model.options.get("tol", 1e-10)
     nested: list[dict] = []
     warm: dict = {}
-    if method in ("ssn", "fixed_point") and not cold:
+    if method in WARM_STARTED and not cold:
         if previous is not None:
             if _same_shape(previous, model):
                 warm = {"u0": previous.u, "lam0": previous.lam}

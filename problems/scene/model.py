@@ -114,8 +114,9 @@ class LoadPath(Section):
 
     Every expression of the scene may then use the load parameter t. The path starts from the
     unloaded reference state and solves one state per value of t, each warm-started from the
-    one before and, with a plug-in that declares `incremental`, in the incremental form (a
-    friction law acts on the slip since the previous step). Either `steps = N`: t = end·k/N
+    one before (ssn and fixed_point; conic, homotopy and auto start every step from zero) and,
+    with a plug-in that declares `incremental`, in the incremental form (a friction law acts
+    on the slip since the previous step). Either `steps = N`: t = end·k/N
     for k = 1 … N (end = 1 unless given), or `t = [t1, t2, ...]`: increasing values ≥ 0.
     """
 
