@@ -13,13 +13,16 @@ the level-5 matrix to the exit (Python runs the handler only when the factorisat
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import pty
 import select
 import signal
+import struct
 import subprocess
 import sys
+import termios
 import time
 from pathlib import Path
 
@@ -93,9 +96,10 @@ def test_signal_while_writing(tmp_path, sig):
 
 
 def on_a_terminal(argv: list[str]) -> tuple[subprocess.Popen, int]:
-    """`mixvi argv` with stdout and stderr on a pseudo-terminal (a progress bar is drawn);
-    the process and the terminal's master end."""
+    """`mixvi argv` with stdout and stderr on a pseudo-terminal of 100 columns (a progress bar
+    is drawn; on a terminal of 0 columns tqdm draws nothing); the process and the master end."""
     master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 100, 0, 0))
     env = {k: v for k, v in ENV.items() if k != "TQDM_DISABLE"}  # whatever the machine sets
     proc = subprocess.Popen([MIXVI, *argv], env=env, stdout=slave, stderr=slave)
     os.close(slave)
