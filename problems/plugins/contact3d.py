@@ -63,7 +63,7 @@ from problems.scene.exact import ExactSection3
 from problems.scene.fields3d import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
-from vi_core.ssn import Condensation
+from vi_core.ssn import tied_start
 
 from . import (
     contact3d_checks,
@@ -682,12 +682,14 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     right this way).
 
     u0: the coarse displacement (and potential) at the fine nodes
-    (`contact3d_transfer.prolongate`), then moved on the slave dofs so that B u0 = gap on the
-    rows λ0 predicts tied (normal rows that touch, stick nodes), every other row of B u0
-    kept. Why: the first Newton step decides stick or slip from y = λ0 + B u0 − gap, and with
-    u0 = 0 a predicted slip node has |y_t| = ρ to rounding — the disc's boundary, counted as
-    stick (`vi_core.Ball`): bracket3d level 2 took its first step with 73 of the 201 slip
-    nodes free, then 8 Newton steps; the carried slip puts y outside the disc.
+    (`contact3d_transfer.prolongate`; fine nodes outside the coarse mesh, extrapolated, are
+    counted in start["outside_nodes"]), then moved on the slave dofs so that B u0 = gap on
+    the rows λ0 predicts tied (normal rows that touch, stick nodes; `vi_core.ssn.tied_start`),
+    every other row of B u0 kept. Why: the first Newton step decides stick or slip from
+    y = λ0 + B u0 − gap, and with u0 = 0 a predicted slip node has |y_t| = ρ to rounding —
+    the disc's boundary, counted as stick (`vi_core.Ball`): bracket3d level 2 took its first
+    step with 73 of the 201 slip nodes free, then 8 Newton steps; the carried slip puts y
+    outside the disc. The tied rows are given to `tied_start` for the same reason.
     """
     if coarse.contact is None or fine.contact is None:
         return {}
@@ -745,20 +747,16 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     tied[idx_n] = True if fc.law == "bilateral" else lam_n > 0
     tied[idx_b] = ((bound[fc.disc] > 0) & ~slip_b)[:, None]
     tied[idx_l] = (bound[fc.line] > 0) & ~slip_l
-    return {"lam0": lam0, "u0": _tied_start(coarse, coarse_sol, fine, tied)}
-
-
-def _tied_start(coarse: Model, coarse_sol: Solution, fine: Model, tied: np.ndarray) -> np.ndarray:
-    """(n,) the coarse solution carried to `fine` (`contact3d_transfer.prolongate`), its
-    slave dofs moved so that (B u)_i = gap_i on the rows `tied` (m,) and every other row of
-    B u unchanged (B[:, S] = D block diagonal: moving u_S by D^{-1} e moves B u by e)."""
-    x, _ = contact3d_transfer.prolongate(coarse, coarse.full(coarse_sol.u), fine)
-    u = x[fine.free]  # (n,)
-    vi = fine.vi
-    cond = Condensation.detect(sp.csr_matrix(vi.B))
-    if cond is not None:
-        u[cond.S] += cond.Dt_inv.T @ np.where(tied, vi.gap - vi.B @ u, 0.0)
-    return u
+    x, outside = contact3d_transfer.prolongate(coarse, coarse.full(coarse_sol.u), fine)
+    u0 = tied_start(fine.vi, x[fine.free], lam0, tied)
+    if u0 is None:
+        return {"lam0": lam0, "start": {"u0": "not carried: B has no condensation to tie it"}}
+    how = "the coarse displacement (and potential) interpolated (P1/Q1) at the fine nodes"
+    return {
+        "lam0": lam0,
+        "u0": u0,
+        "start": {"u0": f"{how}, tied on the rows λ0 predicts tied", "outside_nodes": outside},
+    }
 
 
 def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:

@@ -334,7 +334,7 @@ def test_warm_start_carries_u_and_the_first_newton_step_takes_its_partition(brac
     _, _, fine, warm = bracket_warm
     vi = fine.vi
     lam0, u0 = warm["lam0"], warm["u0"]
-    assert u0.shape == (vi.n,) and np.abs(u0).max() > 0
+    assert u0.shape == (vi.n,) and np.abs(u0).max() > 0 and warm["start"]["outside_nodes"] == 0
     idx_n, idx_b, _ = fine.contact.rows()
     slip = _predicted_slip(fine, lam0)  # (N_b,)
     res = vi.B @ u0 - vi.gap  # (m,)
@@ -353,7 +353,7 @@ def test_warm_start_carries_u_and_the_first_newton_step_takes_its_partition(brac
 def test_the_warm_started_fine_level_converges_to_the_cold_answer(bracket_warm):
     _, _, fine, warm = bracket_warm
     cold = vi_core.solve(fine.vi, method="ssn", tol=1e-12)
-    hot = vi_core.solve(fine.vi, method="ssn", tol=1e-12, **warm)
+    hot = vi_core.solve(fine.vi, method="ssn", tol=1e-12, lam0=warm["lam0"], u0=warm["u0"])
     assert cold.converged and hot.converged
     assert hot.iterations < cold.iterations
     np.testing.assert_allclose(hot.u, cold.u, rtol=0, atol=1e-9 * np.abs(cold.u).max())
