@@ -410,3 +410,17 @@ def test_tied_start_check_catches_a_transposed_inverse(monkeypatch):
 
     monkeypatch.setattr(ssn_module.Condensation, "detect", staticmethod(transposed))
     assert max(_tie_defects(s)[0] for s in range(5)) > 1e-3
+
+
+def test_tied_start_ties_the_rows_it_is_given():
+    """With `tied` given, those rows are closed whatever J(λ0) says: here λ0 of the second
+    row lies on the ball's boundary (J counts it inside, tied), and the caller frees it."""
+    from vi_core.ssn import tied_start
+
+    B = sp.csr_matrix(np.array([[1.0, 0.0, -0.5], [0.0, 1.0, -0.5]]))
+    vi = MixedVI(sp.identity(3), B, np.zeros(3), Ball(np.array([1.0]), 2), gap=np.zeros(2))
+    u0 = np.array([0.3, 0.2, 0.1])
+    lam0 = np.array([0.6, 0.8])  # |λ0| = 1: on the boundary
+    np.testing.assert_allclose(B @ tied_start(vi, u0, lam0), [0.0, 0.0], atol=1e-15)
+    u = tied_start(vi, u0, lam0, np.array([True, False]))
+    np.testing.assert_allclose(B @ u, [0.0, 0.15], atol=1e-15)
