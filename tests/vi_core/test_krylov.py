@@ -198,6 +198,39 @@ def _newton_matrix(vi: MixedVI, cond, tied: np.ndarray, J=None, W=None) -> sp.cs
 
 
 @given(seeds)
+def test_condensed_newton_operator_is_the_newton_matrix(seed):
+    """The iterative path's K, applied without being stored, and assembled for a fallback, is
+    the condensed Newton matrix of its definition. Mutations: the R rows' correction with the
+    wrong sign, or the S rows left as A's, are not."""
+    from vi_core.ssn import Condensation
+
+    rng = np.random.default_rng(seed)
+    vi = coupled_grid_vi(rng, int(rng.integers(5, 12)), float(rng.uniform(0.0, 2.0)))
+    cond = Condensation.detect(vi.B)
+    tied = rng.uniform(size=vi.m) < 0.5
+    A, B = vi.A.tocsr(), vi.B.tocsr()
+
+    def K_S(t):  # (m, n) the S rows for the tied rows t
+        J = sp.diags(t.astype(float))
+        return (cond.D.T @ ((sp.identity(vi.m) - J) @ (cond.Dt_inv @ A[cond.S]) + J @ B)).tocsr()
+
+    BR_t = sp.csr_matrix(B[:, cond.R].T)
+    K = _newton_matrix(vi, cond, tied)
+    x = rng.standard_normal(vi.n)
+    scale = np.linalg.norm(K @ x)
+
+    def defect(op):
+        return max(
+            np.linalg.norm(op @ x - K @ x) / scale,
+            np.linalg.norm(op.tocsr() @ x - K @ x) / scale,
+        )
+
+    assert defect(kr.CondensedNewton(A, cond.R, cond.S, BR_t, cond.Dt_inv, K_S(tied))) < 1e-12
+    assert defect(kr.CondensedNewton(A, cond.R, cond.S, -BR_t, cond.Dt_inv, K_S(tied))) > 1e-6
+    assert defect(kr.CondensedNewton(A, cond.R, cond.S, BR_t, cond.Dt_inv, K_S(~tied))) > 1e-6
+
+
+@given(seeds)
 def test_preconditioner_is_exact_with_exact_hierarchies(seed):
     """With one-level hierarchies (exact) and 0/1 rows of J, the preconditioner is K⁻¹ for
     every set of tied rows: the tied rows are eliminated exactly and Â = T0ᵀ A T0 is the rest.
