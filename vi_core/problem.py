@@ -254,13 +254,16 @@ class MixedVI:
 
     def _scaled_A(self, s_u: np.ndarray) -> sp.csr_matrix:
         """Su A Su on A's own index arrays (shared, not copied: a third of a copy of A less;
-        paper scene level 5: 34 MB). A not in canonical form (sorted, no duplicates) is first
-        replaced by a canonical copy (the same matrix; the caller's arrays untouched), so no
-        later operation reorders the shared indices."""
+        paper scene level 5: 34 MB). A not in canonical form (sorted, no duplicates) or with
+        explicit zeros is first replaced by a canonical copy without them (the same matrix; the
+        caller's arrays untouched), so no later operation reorders the shared indices, and e.A
+        has the structure of the product Su A Su (which drops zeros: a direct solver's
+        ordering follows the structure)."""
         A = self.A
-        if not A.has_canonical_format:
+        if not A.has_canonical_format or not A.data.all():
             A = self.A = A.copy()
             A.sum_duplicates()
+            A.eliminate_zeros()
         data = np.repeat(s_u, np.diff(A.indptr))  # (nnz,) s_i of each entry's row
         data *= A.data
         data *= s_u[A.indices]

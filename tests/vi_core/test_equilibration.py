@@ -61,8 +61,10 @@ def test_units_do_not_change_the_solution(seed):
 @given(st.integers(0, 2**32 - 1))
 def test_equilibrated_A_is_su_A_su_on_shared_index_arrays(seed):
     """e.A = Su A Su, stored on A's own index arrays (memory); a non-canonical A given by the
-    caller (unsorted, duplicates) is copied first and left as it was. Mutations: scaling the
-    rows only, or scaling the caller's arrays in place, are caught."""
+    caller (unsorted, duplicates, explicit zeros) is copied first and left as it was, and e.A
+    has the structure of the product Su A Su (no explicit zeros: a direct solver's ordering
+    follows it). Mutations: scaling the rows only, sorting the caller's arrays in place, or
+    keeping the zeros, are caught."""
     import scipy.sparse as sp
 
     from vi_core import Free, MixedVI
@@ -76,6 +78,9 @@ def test_equilibrated_A_is_su_A_su_on_shared_index_arrays(seed):
     col = np.concatenate([coo.col, [coo.col[dup]]])
     data = np.concatenate([coo.data, [coo.data[dup] / 2]])
     data[dup] /= 2
+    off = np.flatnonzero(coo.row != coo.col)
+    if off.size:  # an explicit zero: the product Su A Su drops it, so does e.A
+        data[off[0]] = 0.0
     order = rng.permutation(row.size)  # unsorted within rows
     A = sp.csr_matrix((n, n))
     A.indptr = np.concatenate([[0], np.cumsum(np.bincount(row, minlength=n))]).astype(np.int32)
@@ -83,12 +88,13 @@ def test_equilibrated_A_is_su_A_su_on_shared_index_arrays(seed):
     A.indices, A.data = col[by_row].astype(np.int32), data[by_row]
     A.has_canonical_format = A.has_sorted_indices = False
     before = (A.data.copy(), A.indices.copy(), A.indptr.copy())
+    dense = A.toarray()
     vi = MixedVI(A, sp.csr_matrix((0, n)), np.ones(n), Free(0))
     e = vi.equilibrated
     s = vi.scaling.s_u
-    expected = (sp.diags(s) @ M @ sp.diags(s)).toarray()
-    assert np.allclose(e.A.toarray(), expected, rtol=1e-13, atol=0)
-    assert np.allclose(vi.A.toarray(), M.toarray(), rtol=1e-13, atol=0)
+    assert np.allclose(e.A.toarray(), s[:, None] * dense * s, rtol=1e-13, atol=0)
+    assert np.allclose(vi.A.toarray(), dense, rtol=1e-13, atol=0)
     assert np.shares_memory(e.A.indices, vi.A.indices)
+    assert e.A.nnz == (sp.diags(s) @ A @ sp.diags(s)).tocsr().nnz
     for a, b in zip((A.data, A.indices, A.indptr), before, strict=True):
         assert np.array_equal(a, b)
