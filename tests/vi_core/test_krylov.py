@@ -417,3 +417,42 @@ def test_a_few_changed_rows_keep_the_old_preconditioner(monkeypatch):
         assert len(ks.setups) == setups
         K = _newton_matrix(vi, cond, old if setups == 1 else new)
         assert np.linalg.norm(K @ x - r) <= 1e-10 * np.linalg.norm(r)
+
+
+@pytest.mark.parametrize("field", ["displacement", "potential"])
+def test_smoothed_aggregation_is_pyamgs_hierarchy(field, monkeypatch):
+    """The memory-lean hierarchy (`smoothed_aggregation`, `energy_smoothing` on the finest
+    level) is pyamg's smoothed_aggregation_solver with the same options, to rounding: the
+    operators of every level and one W-cycle. Mutation: one CG step of the energy smoothing
+    fewer is not."""
+    import pyamg
+
+    from problems.plugins import piezo_contact as pc
+    from problems.scene import load_scene
+
+    e = pc.build(load_scene("paper_two_body"), 2).vi.equilibrated
+    mask = e.fields[field]
+    A = e.A[mask][:, mask]
+    A = ((A + A.T) * 0.5).tocsr()
+    nn = None if e.near_null is None else e.near_null.get(field)
+    part = kr.bodies(e.A)[mask]
+    strength = [("predefined", {"C": kr.strength_within_parts(A, part)})] + ["symmetric"] * 9
+    kw = {} if nn is None else {"B": nn}
+    ref = pyamg.smoothed_aggregation_solver(
+        A, max_coarse=500, coarse_solver="splu", smooth=kr.SMOOTH, strength=strength, **kw
+    )
+    r = np.random.default_rng(0).standard_normal(A.shape[0])
+
+    def cycle(ml):
+        return ml.solve(r, x0=np.zeros_like(r), tol=0.0, maxiter=1, cycle="W")
+
+    x_ref = cycle(ref)
+    ml = kr.smoothed_aggregation(A, nn, part)
+    assert len(ml.levels) == len(ref.levels) >= 2
+    for a, b in zip(ml.levels, ref.levels, strict=True):
+        scale = abs(b.A).max()
+        assert abs(sp.csr_matrix(a.A) - sp.csr_matrix(b.A)).max() <= 1e-12 * scale
+    assert np.linalg.norm(cycle(ml) - x_ref) <= 1e-12 * np.linalg.norm(x_ref)
+    monkeypatch.setattr(kr, "SMOOTH", ("energy", {**kr.SMOOTH[1], "maxiter": 1}))
+    ml = kr.smoothed_aggregation(A, nn, part)
+    assert np.linalg.norm(cycle(ml) - x_ref) > 1e-6 * np.linalg.norm(x_ref)
