@@ -279,24 +279,33 @@ def _fields(n: int, fields: dict | None, near_null: dict | None) -> list[tuple]:
     return out
 
 
-def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> sp.csr_matrix:
-    """The strength of connection of the finest level: pyamg's symmetric strength (θ = 0) of A
-    with every connection between two parts (bodies) dropped, so no aggregate spans two
-    bodies (without two parts, the symmetric strength itself; coarser levels use it too).
+def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> sp.csr_array:
+    """The strength of connection of the finest level, structure only (data float32 ones):
+    pyamg's symmetric strength with θ = 0 keeps every stored entry of A, and its values are
+    read by nothing downstream (standard aggregation and the pattern of the smoothed
+    prolongation use the structure), so it is A's structure with every connection between two
+    parts (bodies) dropped: no aggregate spans two bodies (without two parts, A's structure).
+    Built from A's index arrays (pyamg's strength and a COO filter made four full-size
+    temporaries: paper scene level 5, 241 MB above the set-up's start).
 
-    Why: where bodies slide along each other (slip rows), an aggregate across the interface
-    ties their tangential motions together, and the coarse spaces cannot represent the slip;
-    the FGMRES iterations then grow with the level (paper scene, CG on the glued displacement
-    block to 1e-8: 25, 26, 38 at levels 3–5 aggregating across, 19, 22, 31 within the bodies;
-    with energy-minimising prolongation 19, 20, 28 against 13, 17, 20)."""
-    from pyamg.strength import symmetric_strength_of_connection
-
-    C = symmetric_strength_of_connection(A, 0.0)
+    Why within parts: where bodies slide along each other (slip rows), an aggregate across the
+    interface ties their tangential motions together, and the coarse spaces cannot represent
+    the slip; the FGMRES iterations then grow with the level (paper scene, CG on the glued
+    displacement block to 1e-8: 25, 26, 38 at levels 3–5 aggregating across, 19, 22, 31
+    within the bodies; with energy-minimising prolongation 19, 20, 28 against 13, 17, 20)."""
+    A = sp.csr_array(A)
+    A.sort_indices()
+    n = A.shape[0]
     if part is None or np.unique(part).size < 2:
-        return C
-    C = C.tocoo()
-    keep = part[C.row] == part[C.col]
-    return sp.csr_matrix((C.data[keep], (C.row[keep], C.col[keep])), shape=A.shape)
+        indptr, indices = A.indptr.copy(), A.indices.copy()
+    else:
+        rows = np.repeat(np.arange(n, dtype=A.indices.dtype), np.diff(A.indptr))  # (nnz,)
+        keep = part[rows] == part[A.indices]  # (nnz,) within one part
+        indptr = np.zeros(n + 1, dtype=A.indptr.dtype)
+        np.cumsum(np.bincount(rows[keep], minlength=n), out=indptr[1:])
+        del rows
+        indices = A.indices[keep]
+    return sp.csr_array((np.ones(indices.size, dtype=np.float32), indices, indptr), shape=(n, n))
 
 
 def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
@@ -322,7 +331,7 @@ def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
     T.sort_indices()
     # the pattern of P: C times T's block pattern (degree 1), structure only
     ones = np.ones(C.nnz, dtype=np.float32)
-    Cs = sp.csr_array((ones, C.indices, C.indptr), shape=C.shape)
+    Cs = sp.csr_array((ones, C.indices, C.indptr), shape=C.shape)  # C's data may be any
     ones = np.ones(T.indices.size, dtype=np.float32)
     pat = (Cs @ sp.csr_array((ones, T.indices, T.indptr), shape=(n, n_agg))).tocsr()
     del Cs, ones

@@ -421,22 +421,33 @@ def test_a_few_changed_rows_keep_the_old_preconditioner(monkeypatch):
 
 @pytest.mark.parametrize("field", ["displacement", "potential"])
 def test_smoothed_aggregation_is_pyamgs_hierarchy(field, monkeypatch):
-    """The memory-lean hierarchy (`smoothed_aggregation`, `energy_smoothing` on the finest
-    level) is pyamg's smoothed_aggregation_solver with the same options, to rounding: the
-    operators of every level and one W-cycle. Mutation: one CG step of the energy smoothing
-    fewer is not."""
+    """The memory-lean hierarchy (`smoothed_aggregation`: `strength_within_parts` from A's
+    structure, `energy_smoothing` on the finest level) is pyamg's smoothed_aggregation_solver
+    with pyamg's strength cut between the bodies, to rounding: the operators of every level
+    and one W-cycle. Mutations: one CG step of the energy smoothing fewer, or the strength
+    not cut between the bodies, are not."""
     import pyamg
 
     from problems.plugins import piezo_contact as pc
     from problems.scene import load_scene
+    from vi_core.ssn import Condensation
 
     e = pc.build(load_scene("paper_two_body"), 2).vi.equilibrated
-    mask = e.fields[field]
-    A = e.A[mask][:, mask]
-    A = ((A + A.T) * 0.5).tocsr()
-    nn = None if e.near_null is None else e.near_null.get(field)
-    part = kr.bodies(e.A)[mask]
-    strength = [("predefined", {"C": kr.strength_within_parts(A, part)})] + ["symmetric"] * 9
+    ks = kr.KrylovSolver(e.A, e.B, Condensation.detect(e.B), e.fields, e.near_null)
+    tied = np.ones(e.m, dtype=bool)  # every row tied: the bodies glued, Â couples them
+    T0 = ks._T0(tied)
+    fields = ks._fields_y(tied)
+    blk = next(b for b in kr.field_blocks((T0.T @ e.A @ T0).tocsr(), fields) if b["name"] == field)
+    A, nn = blk["sym"], blk["nn"]
+    part = np.concatenate([kr.bodies(e.A)[ks.R], kr.bodies(e.A)[ks.S][~tied]])[blk["index"]]
+    # the reference strength: pyamg's symmetric strength (θ = 0) with the connections between
+    # the two bodies dropped
+    C = pyamg.strength.symmetric_strength_of_connection(A, 0.0).tocoo()
+    keep = part[C.row] == part[C.col]
+    C = sp.csr_matrix((C.data[keep], (C.row[keep], C.col[keep])), shape=A.shape)
+    cut = field == "displacement"  # the potential lives in one body (the cradle)
+    assert (C.nnz < A.nnz) == cut
+    strength = [("predefined", {"C": C})] + ["symmetric"] * 9
     kw = {} if nn is None else {"B": nn}
     ref = pyamg.smoothed_aggregation_solver(
         A, max_coarse=500, coarse_solver="splu", smooth=kr.SMOOTH, strength=strength, **kw
@@ -453,6 +464,9 @@ def test_smoothed_aggregation_is_pyamgs_hierarchy(field, monkeypatch):
         scale = abs(b.A).max()
         assert abs(sp.csr_matrix(a.A) - sp.csr_matrix(b.A)).max() <= 1e-12 * scale
     assert np.linalg.norm(cycle(ml) - x_ref) <= 1e-12 * np.linalg.norm(x_ref)
+    if cut:
+        ml = kr.smoothed_aggregation(A, nn, None)
+        assert np.linalg.norm(cycle(ml) - x_ref) > 1e-6 * np.linalg.norm(x_ref)
     monkeypatch.setattr(kr, "SMOOTH", ("energy", {**kr.SMOOTH[1], "maxiter": 1}))
     ml = kr.smoothed_aggregation(A, nn, part)
     assert np.linalg.norm(cycle(ml) - x_ref) > 1e-6 * np.linalg.norm(x_ref)
