@@ -49,7 +49,10 @@ class Body:
     mesh: CellMesh
     material: Material | Material3D
     offset: int  # first full dof of this body
-    A: sp.csr_matrix = None  # (n_b, n_b): [[K, Gᵀ], [−G, P]] or K
+    # (n_b, n_b): [[K, Gᵀ], [−G, P]] or K; released once the model's MixedVI holds it
+    # (`contact_model.mixed_vi`: memory), `operator(body)` assembles it again
+    A: sp.csr_matrix = None
+    A_fixed: sp.csr_matrix = None  # (n_fixed_b, n_b) A's rows of the prescribed dofs (kept)
     f: np.ndarray = None  # (n_b,)
     fixed: np.ndarray = None  # (n_b,) bool
     values: np.ndarray = None  # (n_b,) prescribed values on fixed dofs
@@ -186,19 +189,26 @@ def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
     fem = assembly if d == 2 else assembly3d
     f = loads(t, body)
     fixed, values = dirichlet(t, body)
-    K = fem.elasticity_matrix(mesh, material.C)
     H1 = (fem.mass_matrix(mesh) + fem.permittivity_matrix(mesh, np.eye(d))).tocsr()
     X_blocks = [sp.kron(H1, sp.identity(d)).tocsr()]  # node-major: dof d·i + k ↔ (i, k)
     if material.piezoelectric:
-        G = fem.coupling_matrix(mesh, material.e)
-        P = fem.permittivity_matrix(mesh, material.kappa)
-        A = sp.bmat([[K, G.T], [-G, P]], format="csr")
         X_blocks.append(H1)
-    else:
-        A = K.tocsr()
-    body.A, body.f, body.fixed, body.values = A, f, fixed, values
+    body.A, body.f, body.fixed, body.values = operator(body), f, fixed, values
     body.X = sp.block_diag(X_blocks, format="csr")
     return body
+
+
+def operator(body: Body) -> sp.csr_matrix:
+    """(n_b, n_b) the body's operator A assembled from its mesh and material: [[K, Gᵀ], [−G, P]]
+    with a piezoelectric material, else K."""
+    material = body.material
+    fem = assembly if body.dim == 2 else assembly3d
+    K = fem.elasticity_matrix(body.mesh, material.C)
+    if not material.piezoelectric:
+        return K.tocsr()
+    G = fem.coupling_matrix(body.mesh, material.e)
+    P = fem.permittivity_matrix(body.mesh, material.kappa)
+    return sp.bmat([[K, G.T], [-G, P]], format="csr")
 
 
 def loads(t: BodySection, body: Body) -> np.ndarray:
