@@ -61,7 +61,9 @@ class MixedVI:
     f : (n,) right-hand side.
     Lambda : the convex set, e.g. ``product(Free(k), Box(-g, g))``; rows of B follow its blocks.
     gap : (m,) optional offset of the constraint (default 0, the paper's Problem 3.1).
-    X, Y : optional Gram matrices of the norms of X (n × n) and Y (m × m) for `constants`.
+    X, Y : optional Gram matrices of the norms of X (n × n) and Y (m × m) for `constants`, or
+        functions returning them (assembled when `constants` asks: a model need not hold an
+        n × n matrix through its solve).
     info : free-form metadata of the plug-in (names of fields, dof counts, …).
     fields : optional {name: indices or boolean mask (n,)} of the unknowns' fields, in the order
         a block-triangular preconditioner takes them (e.g. displacement, then potential);

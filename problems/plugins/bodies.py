@@ -56,7 +56,6 @@ class Body:
     f: np.ndarray = None  # (n_b,)
     fixed: np.ndarray = None  # (n_b,) bool
     values: np.ndarray = None  # (n_b,) prescribed values on fixed dofs
-    X: sp.csr_matrix = None  # (n_b, n_b) H1 Gram matrix of the body's fields
 
     @property
     def dim(self) -> int:
@@ -185,17 +184,23 @@ def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
     if t.geometry.BOUNDARIES is None:
         check_meshed(mesh, t.boundary_refs())
     body = Body(name, mesh, t.material.material(), offset)
-    material, d = body.material, body.dim
-    fem = assembly if d == 2 else assembly3d
     f = loads(t, body)
     fixed, values = dirichlet(t, body)
-    H1 = (fem.mass_matrix(mesh) + fem.permittivity_matrix(mesh, np.eye(d))).tocsr()
-    X_blocks = [sp.kron(H1, sp.identity(d)).tocsr()]  # node-major: dof d·i + k ↔ (i, k)
-    if material.piezoelectric:
-        X_blocks.append(H1)
     body.A, body.f, body.fixed, body.values = operator(body), f, fixed, values
-    body.X = sp.block_diag(X_blocks, format="csr")
     return body
+
+
+def gram(body: Body) -> sp.csr_matrix:
+    """(n_b, n_b) the H1 Gram matrix of the body's fields (the norm of `vi_core.constants`),
+    assembled from its mesh: mass + stiffness per displacement component, and the same for the
+    potential of a piezoelectric material."""
+    d = body.dim
+    fem = assembly if d == 2 else assembly3d
+    H1 = (fem.mass_matrix(body.mesh) + fem.permittivity_matrix(body.mesh, np.eye(d))).tocsr()
+    blocks = [sp.kron(H1, sp.identity(d)).tocsr()]  # node-major: dof d·i + k ↔ (i, k)
+    if body.material.piezoelectric:
+        blocks.append(H1)
+    return sp.block_diag(blocks, format="csr")
 
 
 def operator(body: Body) -> sp.csr_matrix:
