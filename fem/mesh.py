@@ -57,3 +57,16 @@ class Mesh(CellMesh):
     def cell_type(self) -> str:
         """'triangle' or 'quad'."""
         return "triangle" if self.cells.shape[1] == 3 else "quad"
+
+    def refined_nodes(self, times: int) -> int:
+        """Nodes after `times` uniform refinements (`fem.meshing.refine`: every cell into 4 at
+        its edge midpoints, quads also at their centre), counted without refining: with V
+        nodes, E edges and C cells, one refinement gives V + E (+ C for quads) nodes,
+        2E + 3C (triangles) or 2E + 4C (quads) edges and 4C cells."""
+        k = self.cells.shape[1]
+        pairs = np.stack([self.cells, np.roll(self.cells, -1, axis=1)], axis=2)  # (C, k, 2)
+        V, C = self.n_nodes, self.n_cells
+        E = len(np.unique(np.sort(pairs.reshape(-1, 2), axis=1), axis=0))
+        for _ in range(times):
+            V, E, C = V + E + (C if k == 4 else 0), 2 * E + k * C, 4 * C
+        return V

@@ -41,6 +41,27 @@ class Mesh3D(CellMesh):
         """'tetra' or 'hexahedron' (meshio's names)."""
         return "tetra" if self.cells.shape[1] == 4 else "hexahedron"
 
+    def refined_nodes(self, times: int) -> int:
+        """Nodes after `times` uniform refinements (`refine`: every cell into 8), counted
+        without refining. With V nodes, E edges, F faces and C cells one refinement gives,
+        for tetrahedra (new nodes at edge midpoints), V + E nodes, 2E + 3F + C edges, 4F + 8C
+        faces; for hexahedra (also face and cell centres) V + E + F + C nodes, 2E + 4F + 6C
+        edges, 4F + 12C faces; 8C cells."""
+        ctype, C = self.cell_type, self.n_cells
+
+        def distinct(local: np.ndarray) -> int:  # local: (n_local, k) node lists per cell
+            items = self.cells[:, local].reshape(-1, local.shape[1])  # (C n_local, k)
+            return len(np.unique(np.sort(items, axis=1), axis=0))
+
+        V, E, F = self.n_nodes, distinct(EDGES[ctype]), distinct(FACES[ctype])
+        for _ in range(times):
+            if ctype == "tetra":
+                V, E, F = V + E, 2 * E + 3 * F + C, 4 * F + 8 * C
+            else:
+                V, E, F = V + E + F + C, 2 * E + 4 * F + 6 * C, 4 * F + 12 * C
+            C *= 8
+        return V
+
 
 def cofactors(J: np.ndarray) -> np.ndarray:
     """Cofactor matrices of a stack of 3×3 matrices (..., 3, 3): cof = det(J) J⁻ᵀ."""

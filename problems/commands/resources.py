@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from problems.errors import SceneError
+from problems.scene.geometry import check_sizes
 from vi_core.linalg import resolve_backend
 
 from .options import MAX_LEVEL
@@ -243,8 +244,15 @@ def check_levels(
 ) -> Sizes:
     """Refuse (SceneError naming `option` and its value `text`) a level range A..B outside
     0 ≤ A ≤ B ≤ the scene's cap, or whose largest level does not fit in the memory available
-    now; `force` skips the memory checks (the range must still be ordered, ≤ MAX_LEVEL)."""
+    now; `force` skips the memory checks (the range must still be ordered, ≤ MAX_LEVEL). A
+    body whose mesh at B would exceed `geometry.MAX_NODES` nodes is refused first (a SceneError
+    naming its key), with or without `force`."""
     a, b = levels
+    if 0 <= b <= MAX_LEVEL:
+        try:
+            check_sizes(scene.validated(plugin.SCENE_MODEL), b)
+        except SceneError as err:
+            raise err.in_file(scene.path) from None
     total, available = memory()
     sizes = Sizes(plugin, scene, linear_solver)
     cap = MAX_LEVEL if force else sizes.cap(total)

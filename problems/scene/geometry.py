@@ -6,8 +6,10 @@ Kinds, a union told apart by `kind`: "rectangle" (structured P1/Q1), "half_disc"
 path relative to the scene file). The built-in kinds name their boundary parts (BOUNDARIES,
 checked against the scene's references before anything is built); a file's parts are known
 only once it is read (BOUNDARIES None: the plug-ins check them after meshing, `check_meshed`).
-A mesh that would exceed MAX_CELLS cells, or that the mesher refuses (inverted or degenerate
-cells), is a SceneError naming the key.
+A mesh that would exceed MAX_NODES nodes, or that the mesher refuses (inverted or degenerate
+cells), is a SceneError naming the key. Every geometry counts its nodes at a level before
+meshing (`GeometryTable.nodes`, exact), so a command refuses a level range before it solves the
+coarser levels (`problems.commands.resources.check_levels`).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from fem.meshing import rectangle
 from problems.errors import SceneError
 
 from .fields import Cells, Integer, Interval, Number, Pair, Point, Text
-from .imported import geo_mesh, imported_mesh, resolve
+from .imported import file_mesh, geo_base, geo_mesh, imported_mesh, resolve
 from .model import UNION_TAGS, Section, refuse
 
 
@@ -44,14 +46,43 @@ def _grading(v: list) -> list:
 
 
 Grading = Annotated[Pair, AfterValidator(_grading)]
-MAX_CELLS = 4_000_000  # cells of one body at the requested level (≈ 12M piezo unknowns)
+# nodes of one body at the requested level (2D piezo: 12M unknowns; 3D with a potential: 16M);
+# counted in nodes, not cells: a tetrahedral mesh has about 5 cells per node, a quad mesh 1
+MAX_NODES = 4_000_000
 
 
-class Rectangle(Section):
+class GeometryTable(Section):
+    """A body's geometry table: `nodes(level)` counts the mesh's nodes at a level without
+    meshing; `check_size(level)` refuses more than MAX_NODES, naming SIZE_KEY."""
+
+    SIZE_KEY: ClassVar[str]  # the key that sets the mesh's size, blamed for a refusal
+
+    def nodes(self, level: int) -> int:
+        """Nodes of the mesh at refinement `level` (exact), before it is built."""
+        raise NotImplementedError
+
+    def size_value(self) -> Any:
+        """The value of SIZE_KEY, shown in a refusal."""
+        return getattr(self, self.SIZE_KEY)
+
+    def check_size(self, level: int) -> None:
+        """SceneError naming SIZE_KEY if the mesh at `level` would exceed MAX_NODES nodes."""
+        n = self.nodes(level)
+        if n > MAX_NODES:
+            raise SceneError(
+                self.key(self.SIZE_KEY),
+                self.size_value(),
+                f"a mesh of at most {MAX_NODES:,} nodes per body at the requested level "
+                f"(this geometry would have {n:,} at level {level})",
+            )
+
+
+class Rectangle(GeometryTable):
     """[x0, x1] × [y0, y1] in nx × ny cells (quads, or each split into two triangles),
     optionally graded towards a point (`focus`, powers `grading`: `fem.meshing.graded`)."""
 
     BOUNDARIES: ClassVar[tuple[str, ...]] = ("bottom", "right", "top", "left")
+    SIZE_KEY: ClassVar[str] = "cells"
     kind: Literal["rectangle"]
     x: Interval
     y: Interval
@@ -73,11 +104,16 @@ class Rectangle(Section):
             raise refuse(["focus"], f, "a point of the rectangle x × y")
         return self
 
+    def nodes(self, level: int) -> int:
+        """(nx·2^level + 1)(ny·2^level + 1) (triangles split the quads without new nodes)."""
+        nx, ny = self.cells
+        return (nx * 2**level + 1) * (ny * 2**level + 1)
+
     def mesh(self, level: int) -> Mesh:
         """The structured mesh at refinement `level` (each level halves the cells' size)."""
+        self.check_size(level)
         s = 2**level
         nx, ny = self.cells
-        _check_size(self, "cells", self.cells, nx * ny * s**2)
         focus = None if self.focus is None else tuple(self.focus)
         return _meshed(
             self,
@@ -91,7 +127,8 @@ class Rectangle(Section):
         )
 
 
-class _Arc(Section):
+class _Arc(GeometryTable):
+    SIZE_KEY: ClassVar[str] = "n_contact"
     center: Point = [0.0, 1.5]
     radius: Annotated[Number, Field(gt=0.0)] = 1.0
     angle: Annotated[Number, Field(gt=0.0, lt=np.pi)] = np.pi / 2
@@ -104,18 +141,25 @@ class HalfDisc(_Arc):
     kind: Literal["half_disc"]
     n_contact: Annotated[Integer, Field(ge=1)] = 8
 
+    def _args(self, level: int) -> tuple:
+        return (self.center, self.radius, self.angle, self.n_contact, level)
+
+    def nodes(self, level: int) -> int:
+        """Nodes of `fem.shapes.half_disc`'s four blocks glued into a disc-like mesh: with C
+        cells and B boundary edges, V = C + B/2 + 1 (Euler: V − E + C = 1, 4C = 2E − B)."""
+        k, h = 2**level, self.angle / self.n_contact
+        n_c = self.n_contact * k
+        n_f = max(1, round((np.pi / 2 - self.angle / 2) / h)) * k  # cells along a free arc
+        n_r = max(1, round(0.5 / h)) * k  # cells along the spokes
+        cells = (n_c + 2 * n_f) * n_r + n_c * n_f
+        return cells + (n_r + n_c + n_f) + 1  # B/2: half of top 2n_r + n_c, arcs 2n_f + n_c
+
     def mesh(self, level: int) -> Mesh:
         """The mesh at refinement `level`."""
         from fem import shapes
 
-        # shapes.half_disc: n_f cells along each free arc, n_r along the spokes (level 0)
-        h = self.angle / self.n_contact
-        n_f = max(1, round((np.pi / 2 - self.angle / 2) / h))
-        n_r = max(1, round(0.5 / h))
-        cells = (self.n_contact + 2 * n_f) * n_r + self.n_contact * n_f
-        _check_size(self, "n_contact", self.n_contact, cells * 4**level)
-        args = (self.center, self.radius, self.angle, self.n_contact, level)
-        return _meshed(self, shapes.half_disc, *args)
+        self.check_size(level)
+        return _meshed(self, shapes.half_disc, *self._args(level))
 
 
 class Cradle(_Arc):
@@ -127,19 +171,28 @@ class Cradle(_Arc):
     p2: Point = [-1.0, 0.0]
     p3: Point = [1.0, 0.0]
 
-    def mesh(self, level: int) -> Mesh:
-        """The mesh at refinement `level`."""
+    def _args(self, level: int) -> tuple:
+        return (self.p2, self.p3, self.center, self.radius, self.angle, self.n_contact, level)
+
+    def nodes(self, level: int) -> int:
+        """(n_c + 1)(n_y + 1): `fem.shapes.cradle` is one block of n_contact·2^level cells
+        along the arc and n_y·2^level across."""
         from fem import shapes
 
         Cl, Cr = shapes.contact_ends(self.center, self.radius, self.angle)
         height = 0.5 * (np.hypot(*(Cl - self.p2)) + np.hypot(*(Cr - self.p3)))
         n_y = max(1, round(height / (self.radius * self.angle / self.n_contact)))
-        _check_size(self, "n_contact", self.n_contact, self.n_contact * n_y * 4**level)
-        args = (self.p2, self.p3, self.center, self.radius, self.angle, self.n_contact, level)
-        return _meshed(self, shapes.cradle, *args)
+        return (self.n_contact * 2**level + 1) * (n_y * 2**level + 1)
+
+    def mesh(self, level: int) -> Mesh:
+        """The mesh at refinement `level`."""
+        from fem import shapes
+
+        self.check_size(level)
+        return _meshed(self, shapes.cradle, *self._args(level))
 
 
-class _File(Section):
+class _File(GeometryTable):
     BOUNDARIES: ClassVar[None] = None  # the file's physical curve groups, known once read
     FILE_KEY: ClassVar[str]  # the scene key naming the file
     FILE_ATTR: ClassVar[str]  # the field holding it
@@ -170,6 +223,15 @@ class _File(Section):
         """The file, resolved against the scene file's folder."""
         return resolve(self._dir, getattr(self, self.FILE_ATTR))
 
+    @property
+    def SIZE_KEY(self) -> str:  # noqa: N802 (the name every geometry has)
+        """The file's key."""
+        return self.FILE_KEY
+
+    def size_value(self) -> str:
+        """The resolved file."""
+        return str(self.resolved())
+
 
 class MeshFile(_File):
     """`{ mesh = "FILE", body = "GROUP" }`: a mesh file (gmsh .msh or any meshio format), the
@@ -179,9 +241,14 @@ class MeshFile(_File):
     FILE_ATTR: ClassVar[str] = "mesh_file"  # `mesh` is the method
     mesh_file: Text = Field(alias="mesh", description="the file, relative to the scene file")
 
+    def nodes(self, level: int) -> int:
+        """The file's mesh's nodes after `level` uniform refinements."""
+        return file_mesh(self.resolved(), self.body, self.key("mesh")).refined_nodes(level)
+
     def mesh(self, level: int) -> Mesh:
         """The body's mesh at refinement `level`."""
-        return imported_mesh(self.resolved(), self.body, level, self.key("mesh"), MAX_CELLS)
+        self.check_size(level)
+        return imported_mesh(self.resolved(), self.body, level, self.key("mesh"))
 
 
 class GeoFile(_File):
@@ -192,9 +259,15 @@ class GeoFile(_File):
     FILE_ATTR: ClassVar[str] = "geo"
     geo: Text = Field(description="the .geo file, relative to the scene file")
 
+    def nodes(self, level: int) -> int:
+        """gmsh's level-0 mesh's nodes after `level` uniform refinements (gmsh refines by
+        splitting every cell as `fem.meshing.refine` does)."""
+        return geo_base(self.resolved(), self.body, self.key("geo")).refined_nodes(level)
+
     def mesh(self, level: int) -> Mesh:
         """The body's mesh at refinement `level`."""
-        return geo_mesh(self.resolved(), self.body, level, self.key("geo"), MAX_CELLS)
+        self.check_size(level)
+        return geo_mesh(self.resolved(), self.body, level, self.key("geo"))
 
 
 def _tag(v: Any) -> str | None:
@@ -241,14 +314,21 @@ GEOMETRIES = (*KINDS, "mesh", "geo")
 UNION_TAGS.update(("geometry", k) for k in GEOMETRIES)
 
 
-def _check_size(t: Section, key: str, value, cells: float) -> None:
-    if cells > MAX_CELLS:
-        raise SceneError(
-            t.key(key),
-            value,
-            f"a mesh of at most {MAX_CELLS:,} cells per body at the requested level "
-            f"(this geometry would have about {cells:.3g})",
-        )
+def check_sizes(model: Section, level: int) -> None:
+    """`check_size(level)` of every geometry in the validated scene `model` (any plug-in's:
+    the tables are walked), so a level too large for one body is refused before anything is
+    built or solved."""
+    todo: list[Any] = [model]
+    while todo:
+        item = todo.pop()
+        if isinstance(item, GeometryTable):
+            item.check_size(level)
+        elif isinstance(item, Section):
+            todo.extend(getattr(item, name) for name in type(item).model_fields)
+        elif isinstance(item, dict):
+            todo.extend(item.values())
+        elif isinstance(item, list | tuple):
+            todo.extend(item)
 
 
 def _meshed(t: Section, mesher, *args) -> Mesh:

@@ -11,7 +11,8 @@ layers of hexahedra (`fem.mesh3d.extrude`; a level refines the section and doubl
 layers); its parts are the section's (surfaces over its curves) and "z0"/"z1" (the ends). A mesh
 file, `{ mesh = "part.msh", body = "bracket" }` (no kind): a physical volume group of linear
 tetrahedra or hexahedra, its physical surface groups the parts (`problems.scene.imported`). A mesh
-of more than MAX_CELLS cells, or one the map inverts, is a SceneError naming the key.
+of more than MAX_NODES nodes (`geometry.GeometryTable`, counted before meshing), or one the map
+inverts, is a SceneError naming the key.
 """
 
 from __future__ import annotations
@@ -26,17 +27,16 @@ from problems.errors import SceneError
 
 from .fields import Integer, Text
 from .fields3d import Cells3, Expression3, Interval
-from .geometry import Cradle, HalfDisc, MeshFile, Rectangle
-from .imported import imported_mesh3d
-from .model import UNION_TAGS, Section
-
-MAX_CELLS = 4_000_000  # cells of one body at the requested level
+from .geometry import Cradle, GeometryTable, HalfDisc, MeshFile, Rectangle
+from .imported import file_mesh, imported_mesh3d
+from .model import UNION_TAGS
 
 
-class Box(Section):
+class Box(GeometryTable):
     """A box of hexahedra or tetrahedra, optionally with a curved bottom (`bottom_lift`)."""
 
     BOUNDARIES: ClassVar[tuple[str, ...]] = ("left", "right", "front", "back", "bottom", "top")
+    SIZE_KEY: ClassVar[str] = "cells"
     kind: Literal["box"]
     x: Interval
     y: Interval
@@ -46,20 +46,13 @@ class Box(Section):
     bottom_lift: Expression3 | None = None
     top_lift: Expression3 | None = None
 
-    def n_cells(self, level: int) -> int:
-        """Cells of the mesh at `level`."""
-        return int(np.prod(self.cells)) * 8**level * (6 if self.element == "tetra" else 1)
+    def nodes(self, level: int) -> int:
+        """The grid's nodes (tetrahedra split the hexahedra without new nodes)."""
+        return int(np.prod([c * 2**level + 1 for c in self.cells]))
 
     def mesh(self, level: int) -> Mesh3D:
         """The mesh at refinement `level`."""
-        n = self.n_cells(level)
-        if n > MAX_CELLS:
-            raise SceneError(
-                self.key("cells"),
-                self.cells,
-                f"a mesh of at most {MAX_CELLS:,} cells per body at the requested level "
-                f"(this geometry would have {n:,} at level {level})",
-            )
+        self.check_size(level)
         try:
             mesh = box(
                 tuple(self.x), tuple(self.y), tuple(self.z), tuple(self.cells), self.element, level
@@ -89,9 +82,10 @@ class Box(Section):
         return mesh
 
 
-class Extruded(Section):
+class Extruded(GeometryTable):
     """A built-in 2D geometry extruded along z in layers of hexahedra (plane-strain scenes)."""
 
+    SIZE_KEY: ClassVar[str] = "layers"
     kind: Literal["extruded"]
     section: Annotated[Rectangle | HalfDisc | Cradle, Field(discriminator="kind")]
     z: Interval
@@ -102,18 +96,15 @@ class Extruded(Section):
         """The section's parts and the two ends."""
         return (*self.section.BOUNDARIES, *END_PARTS)
 
+    def nodes(self, level: int) -> int:
+        """The section's nodes times the node layers, layers·2^level + 1."""
+        return self.section.nodes(level) * (self.layers * 2**level + 1)
+
     def mesh(self, level: int) -> Mesh3D:
         """The section's mesh at `level` extruded in layers·2^level layers."""
+        self.check_size(level)
         m2 = self.section.mesh(level)
         layers = self.layers * 2**level
-        n = m2.cells.shape[0] * layers
-        if n > MAX_CELLS:
-            raise SceneError(
-                self.key("layers"),
-                self.layers,
-                f"a mesh of at most {MAX_CELLS:,} cells per body at the requested level "
-                f"(this geometry would have {n:,} at level {level})",
-            )
         if m2.cells.shape[1] != 4:
             raise SceneError(
                 self.key("section"), self.section.model_dump(), "a section of quadrilaterals"
@@ -130,9 +121,15 @@ class MeshFile3(MeshFile):
         None, description="a physical volume group (omitted: every volume cell of the file)"
     )
 
+    def nodes(self, level: int) -> int:
+        """The file's mesh's nodes after `level` uniform refinements (each cell into 8)."""
+        key = self.key("mesh")
+        return file_mesh(self.resolved(), self.body, key, False).refined_nodes(level)
+
     def mesh(self, level: int) -> Mesh3D:  # type: ignore[override]
         """The body's mesh at refinement `level`."""
-        return imported_mesh3d(self.resolved(), self.body, level, self.key("mesh"), MAX_CELLS)
+        self.check_size(level)
+        return imported_mesh3d(self.resolved(), self.body, level, self.key("mesh"))
 
 
 def _tag(v: Any) -> str | None:

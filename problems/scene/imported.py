@@ -61,65 +61,51 @@ def _stat(path: Path, key: str, what: str):
         ) from None
 
 
-def _check_cells(
-    n_cells: int, level: int, key: str, path: Path, max_cells: int | None, children: int = 4
-) -> None:
-    cells = n_cells * children**level
-    if max_cells is not None and cells > max_cells:
-        raise SceneError(
-            key,
-            str(path),
-            f"a mesh of at most {max_cells:,} cells per body at the requested level "
-            f"({n_cells} cells refined {level} times would have {cells:,})",
-        )
-
-
-def imported_mesh(
-    path: Path, body: str | None, level: int, key: str, max_cells: int | None = None
-) -> Mesh:
-    """The body `body` of the mesh file `path`, refined `level` times (new boundary nodes on
-    the file's polyline).
-
-    SceneError naming `key` (the scene's mesh key) and the file for a missing or unusable file,
-    an unknown group (the available ones listed), unsupported or invalid cells, and a mesh that
-    would exceed `max_cells` cells at this level.
-    """
+def file_mesh(path: Path, body: str | None, key: str, planar: bool = True):
+    """The body `body` of the mesh file `path`, unrefined: a 2D `Mesh` (planar) or a 3D
+    `fem.mesh3d.Mesh3D`. SceneError naming `key` and the file for a missing or unusable file,
+    an unknown group (the available ones listed), unsupported or invalid cells."""
     st = _stat(path, key, "mesh file")
     try:
-        mesh = body_mesh(_read(str(path), st.st_mtime_ns, st.st_size), body)
+        mf = _read(str(path), st.st_mtime_ns, st.st_size, planar)
+        return body_mesh(mf, body) if planar else body_mesh3d(mf, body)
     except MeshImportError as err:
         raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
-    _check_cells(mesh.n_cells, level, key, path, max_cells)
-    return refine(mesh, level)
 
 
-def imported_mesh3d(
-    path: Path, body: str | None, level: int, key: str, max_cells: int | None = None
-) -> mesh3d.Mesh3D:
+def geo_base(path: Path, body: str | None, key: str) -> Mesh:
+    """The body `body` of the gmsh geometry `path` meshed at level 0 (refusals as for
+    `geo_mesh`)."""
+    st = _stat(path, key, "gmsh geometry file")
+    try:
+        return body_mesh(_geo(str(path), st.st_mtime_ns, st.st_size, 0), body)
+    except MeshImportError as err:
+        raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
+
+
+def imported_mesh(path: Path, body: str | None, level: int, key: str) -> Mesh:
+    """The body `body` of the mesh file `path`, refined `level` times (new boundary nodes on
+    the file's polyline); SceneErrors naming `key` (the scene's mesh key) as for `file_mesh`.
+    """
+    return refine(file_mesh(path, body, key), level)
+
+
+def imported_mesh3d(path: Path, body: str | None, level: int, key: str) -> mesh3d.Mesh3D:
     """The body `body` (a physical volume group) of the 3D mesh file `path`, refined `level`
     times (each cell into 8, new nodes on the file's faces); refusals as for `imported_mesh`."""
-    st = _stat(path, key, "mesh file")
-    try:
-        mesh = body_mesh3d(_read(str(path), st.st_mtime_ns, st.st_size, False), body)
-    except MeshImportError as err:
-        raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
-    _check_cells(mesh.n_cells, level, key, path, max_cells, 8)
-    return mesh3d.refine(mesh, level)
+    return mesh3d.refine(file_mesh(path, body, key, False), level)
 
 
-def geo_mesh(
-    path: Path, body: str | None, level: int, key: str, max_cells: int | None = None
-) -> Mesh:
+def geo_mesh(path: Path, body: str | None, level: int, key: str) -> Mesh:
     """The body `body` of the gmsh geometry `path` (.geo), meshed and refined `level` times by
     gmsh (optional dependency): new boundary nodes lie on the geometry's curves, so rates on
     curved domains do not stall at a polyline's error. Refusals as for `imported_mesh`, and
     without gmsh a SceneError saying how to install it or what to give instead."""
+    base = geo_base(path, body, key)
+    if level == 0:
+        return base
     st = _stat(path, key, "gmsh geometry file")
     try:
-        base = body_mesh(_geo(str(path), st.st_mtime_ns, st.st_size, 0), body)
-        _check_cells(base.n_cells, level, key, path, max_cells)
-        if level == 0:
-            return base
         return body_mesh(_geo(str(path), st.st_mtime_ns, st.st_size, level), body)
     except MeshImportError as err:
         raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None

@@ -144,11 +144,12 @@ def test_a_contact_boundary_of_two_pieces_is_refused(tmp_path):
         pc.build(scene, 0)
 
 
-def test_too_many_cells_after_refinement_are_refused(tmp_path, monkeypatch):
+def test_too_many_nodes_after_refinement_are_refused(tmp_path, monkeypatch):
     from problems.scene import geometry
 
-    monkeypatch.setattr(geometry, "MAX_CELLS", 100)
-    assert "at most 100 cells" in _bad(tmp_path, level=2)  # 8 cells · 4² = 128
+    monkeypatch.setattr(geometry, "MAX_NODES", 152)  # 4 × 2 quads, level 2: 17 · 9 = 153
+    msg = _bad(tmp_path, level=2)
+    assert "at most 152 nodes" in msg and "would have 153 at level 2" in msg
 
 
 @pytest.mark.parametrize("name", ["wavy_two_body", "plate_with_hole"])

@@ -79,12 +79,16 @@ def test_a_2d_mesh_file_is_refused_naming_the_key(tmp_path):
     assert "a volume with tetrahedra or hexahedra" in str(err)
 
 
-def test_too_many_cells_after_refinement_are_refused(tmp_path, monkeypatch):
-    from problems.scene import geometry3d
+def test_too_many_nodes_after_refinement_are_refused(tmp_path, monkeypatch):
+    from problems.scene import geometry
 
-    monkeypatch.setattr(geometry3d, "MAX_CELLS", 1000)
-    err = _refused(tmp_path, lambda d: None, level=2)  # 32 cells · 8² = 2048
-    assert err.key == "bodies.block.geometry.mesh" and "at most 1,000 cells" in str(err)
+    monkeypatch.setattr(geometry, "MAX_NODES", 2600)  # level 2: 17 · 17 · 9 = 2601 nodes
+    err = _refused(tmp_path, lambda d: None, level=2)
+    assert err.key == "bodies.block.geometry.mesh" and "at most 2,600 nodes" in str(err)
+    assert "would have 2,601 at level 2" in str(err)
+    monkeypatch.setattr(geometry, "MAX_NODES", 2601)  # exactly the limit: accepted
+    scene = _imported("block3d", {"block": box(*BLOCK)}, tmp_path)
+    assert contact3d.build(scene, 2).vi.n > 0
 
 
 def test_the_shipped_bracket_solves_with_stick_and_slip(tmp_path, capsys):
