@@ -269,6 +269,38 @@ class _Stepper:
         return u_new, lam_new
 
 
+def tied_start(
+    vi: MixedVI, u0: np.ndarray, lam0: np.ndarray, tied: np.ndarray | None = None
+) -> np.ndarray | None:
+    """u0 (n,) moved on the slave columns of the condensation so that (B u)_i = gap_i on the
+    rows that the first Newton step from (u = 0, λ0) ties (W = I − J(y) zero in row i, y the
+    equilibrated λ0 − gap: stick, bilateral or touching rows, where the answer has
+    B u = gap), or on the rows `tied` (m,) bool where the caller knows them, every other row
+    of B u0 unchanged; None where B has no condensation (`Condensation`). From (u0, λ0) the
+    first step then ties the same rows (y is the same on them): the active set λ0 predicts,
+    with u0's fields. (A 3D friction disc gives `tied`: its λ0 on the bound has |y| = radius
+    to rounding, which J counts as inside, `contact3d.warm_start`.)
+
+    Why: a warm start u0 carried from another mesh (nested iteration) does not satisfy the
+    fine level's tying conditions, and its residual there, added to λ0 in the first active set
+    (y = λ + B u − gap), calls rows slip that λ0 predicts stick (paper scene, level 3: the new
+    nodes beside both stick/slip transitions, |λ0| at 87 % of the bound plus a jump of 17 %,
+    and a second Newton step). Why y from λ0 − gap, not λ0: rows apart by a gap whose λ0 is
+    rounding (> 0) are not touching (hertz_piezo, level 2)."""
+    cond = Condensation.detect(sp.csr_matrix(vi.B))
+    if cond is None:
+        return None
+    if tied is None:
+        e, sc = vi.equilibrated, vi.scaling
+        y = np.asarray(lam0, float) / sc.s_lam - e.gap  # (m,) ssn's y at (0, λ0)
+        W = sp.identity(vi.m, format="csr") - e.Lambda.jacobian(y)
+        tied = np.asarray(abs(W).sum(axis=1)).ravel() == 0  # (m,)
+    u = np.array(u0, dtype=float)
+    # B[:, S] = D: moving u_S by D^{-1} e moves B u by e, on the rows of e only
+    u[cond.S] += cond.Dt_inv.T @ np.where(tied, vi.gap - vi.B @ u, 0.0)
+    return u
+
+
 def solve_ssn(
     vi: MixedVI,
     tol: float = 1e-10,

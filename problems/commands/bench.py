@@ -55,7 +55,7 @@ def _nested_ssn(plugin, scene, level: int, tol: float, linear_solver: str = "aut
     for lev in range(level + 1):
         model = plugin.build(scene, lev)
         t = time.perf_counter()
-        kw = plugin.warm_start(*prev, model) if prev and warm else {}
+        kw = pipeline.nested_start(plugin, *prev, model)[0] if prev and warm else {}
         prev = None  # the coarser level is not alive while this one is solved (memory)
         sol = pipeline.solve_model(
             plugin, model, method="ssn", tol=tol, linear_solver=linear_solver, **kw

@@ -26,6 +26,7 @@ from problems.errors import SceneError
 from problems.plugins import registry
 
 # the commands' one entry point to solve a scene's model, and the problem its answer solves
+from problems.plugins.contract import nested_start as nested_start
 from problems.plugins.contract import problem_at as problem_at
 from problems.plugins.contract import solve_model as solve_model
 from problems.scene import Scene, SceneModel, load_scene
@@ -131,13 +132,14 @@ def solve_built(
     tol = tol if tol is not None else model.options.get("tol", 1e-10)
     nested: list[dict] = []
     warm: dict = {}
+    start: dict = {}
     if method in ("ssn", "fixed_point") and not cold:
         if previous is not None:
             if _same_shape(previous, model):
                 warm = {"u0": previous.u, "lam0": previous.lam}
         elif method == "ssn" and hasattr(loaded.plugin, "warm_start") and model.level > 0:
             with load_parameter(t) if t is not None else nullcontext():
-                nested, warm = _nested(
+                nested, warm, start = _nested(
                     loaded.plugin, loaded.scene, model, tol, linear_solver, on_level
                 )
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
@@ -147,6 +149,8 @@ def solve_built(
     )
     if t is not None:
         sol.info["warm_start"] = "u0" in warm
+    if start:
+        sol.info["nested_start"] = start
     if nested:
         nested.append(level_record(model.level, model, sol))
     t_solve = sum(r["time_s"] for r in nested) if nested else sol.time
@@ -170,21 +174,24 @@ def _nested(
     tol: float,
     linear_solver: str,
     on_level: Callable[[Any, vi_core.Solution], None] | None = None,
-) -> tuple[list[dict], dict]:
+) -> tuple[list[dict], dict, dict]:
     """Nested iteration: levels 0 … L−1 solved first, each warm-starting the next; returns
-    their records and the warm start of `model`. The coarse models are gone when it returns
-    (none of them is alive while the fine level is factorised)."""
+    their records, the warm start of `model` and its description (`nested_start`). The
+    coarse models are gone when it returns (none of them is alive while the fine level is
+    factorised)."""
     nested, prev = [], None
     for lev in range(model.level):
         coarse = plugin.build(scene, lev)
-        kw = plugin.warm_start(*prev, coarse) if prev else {}
+        kw, start = nested_start(plugin, *prev, coarse) if prev else ({}, {})
         prev = None  # the level before is no longer needed
         csol = solve_model(plugin, coarse, method="ssn", tol=tol, linear_solver=linear_solver, **kw)
+        if start:
+            csol.info["nested_start"] = start
         nested.append(level_record(lev, coarse, csol))
         if on_level is not None:
             on_level(coarse, csol)
         prev = (coarse, csol)
-    return nested, plugin.warm_start(*prev, model)
+    return nested, *nested_start(plugin, *prev, model)
 
 
 def level_record(level: int, model: Any, sol: vi_core.Solution) -> dict:

@@ -63,12 +63,14 @@ from problems.scene.exact import ExactSection3
 from problems.scene.fields3d import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
+from vi_core.ssn import tied_start
 
 from . import (
     contact3d_checks,
     contact3d_errors,
     contact3d_extremes,
     contact3d_output,
+    contact3d_transfer,
     contact_law,
     contact_model,
 )
@@ -670,9 +672,25 @@ def slave_contact(
 
 # ------------------------------------------------------------------ nested iteration
 def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
-    """Initial guess for `fine` from the coarser level's solution: λ_n and the friction ratio
-    r = λ_t/g (as a 3-vector, then in the fine frames, clipped to |r| ≤ 1 and put on the
-    bound where it reaches it) interpolated linearly over the contact surface."""
+    """Initial guess for `fine` from the coarser level's solution (nested iteration).
+
+    λ0: λ_n and the friction ratio r = λ_t/ρ (ρ the friction radius) interpolated linearly
+    over the contact surface, |r| and the direction of r separately (then in the fine frames,
+    clipped to |r| ≤ 1 and put on the bound where it reaches it), so a fine node between
+    coarse slip nodes starts slipping: interpolating the vector r shortens it wherever the
+    slip direction turns (bracket3d level 1: 25 of the 71 slip nodes predicted, 78 with 67
+    right this way).
+
+    u0: the coarse displacement (and potential) at the fine nodes
+    (`contact3d_transfer.prolongate`; fine nodes outside the coarse mesh, extrapolated, are
+    counted in start["outside_nodes"]), then moved on the slave dofs so that B u0 = gap on
+    the rows λ0 predicts tied (normal rows that touch, stick nodes; `vi_core.ssn.tied_start`),
+    every other row of B u0 kept. Why: the first Newton step decides stick or slip from
+    y = λ0 + B u0 − gap, and with u0 = 0 a predicted slip node has |y_t| = ρ to rounding —
+    the disc's boundary, counted as stick (`vi_core.Ball`): bracket3d level 2 took its first
+    step with 73 of the 201 slip nodes free, then 8 Newton steps; the carried slip puts y
+    outside the disc. The tied rows are given to `tied_start` for the same reason.
+    """
     if coarse.contact is None or fine.contact is None:
         return {}
     from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
@@ -706,21 +724,39 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     ratio_c = np.divide(
         st["lam_t_vec"], rho[:, None], out=np.zeros((cc.surf.size, 3)), where=rho[:, None] > 0
     )
-    r = interp(ratio_c, has_t)  # (k_f, 3)
+    mag = interp(np.linalg.norm(ratio_c, axis=1), has_t)  # (k_f,) |r|
+    r = interp(ratio_c, has_t)  # (k_f, 3) its direction
+    length = np.linalg.norm(r, axis=1)  # (k_f,)
+    r *= np.divide(mag, length, out=np.zeros_like(mag), where=length > 0)[:, None]
     r1 = np.einsum("ij,ij->i", r, fc.t1)
     r2 = np.einsum("ij,ij->i", r, fc.t2)
     rd = np.stack([r1[fc.disc], r2[fc.disc]], axis=1)  # (N_b, 2)
     norm = np.linalg.norm(rd, axis=1)
-    rd = np.where((norm >= 1.0 - 1e-9)[:, None], rd / np.maximum(norm, 1e-300)[:, None], rd)
+    slip_b = norm >= 1.0 - 1e-9  # (N_b,)
+    rd = np.where(slip_b[:, None], rd / np.maximum(norm, 1e-300)[:, None], rd)
     rl = np.clip(np.einsum("ij,ij->i", r[fc.line], fc.line_dir), -1.0, 1.0)
-    rl = np.where(np.abs(rl) >= 1.0 - 1e-9, np.sign(rl), rl)
+    slip_l = np.abs(rl) >= 1.0 - 1e-9  # (N_l,)
+    rl = np.where(slip_l, np.sign(rl), rl)
     idx_n, idx_b, idx_l = fc.rows()
     lam0 = np.zeros(fc.B_full.shape[0])
     lam0[idx_n] = lam_n
     bound = fc.bound(lam0)  # (k_f,) the fine radius at the interpolated λ_n
     lam0[idx_b] = rd * bound[fc.disc, None]
     lam0[idx_l] = rl * bound[fc.line]
-    return {"lam0": lam0}
+    tied = np.zeros(lam0.size, dtype=bool)  # (m,) the rows λ0 predicts tied
+    tied[idx_n] = True if fc.law == "bilateral" else lam_n > 0
+    tied[idx_b] = ((bound[fc.disc] > 0) & ~slip_b)[:, None]
+    tied[idx_l] = (bound[fc.line] > 0) & ~slip_l
+    x, outside = contact3d_transfer.prolongate(coarse, coarse.full(coarse_sol.u), fine)
+    u0 = tied_start(fine.vi, x[fine.free], lam0, tied)
+    if u0 is None:
+        return {"lam0": lam0, "start": {"u0": "not carried: B has no condensation to tie it"}}
+    how = "the coarse displacement (and potential) interpolated (P1/Q1) at the fine nodes"
+    return {
+        "lam0": lam0,
+        "u0": u0,
+        "start": {"u0": f"{how}, tied on the rows λ0 predicts tied", "outside_nodes": outside},
+    }
 
 
 def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:

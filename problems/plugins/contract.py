@@ -33,7 +33,10 @@ declaration it needs with exit status 2, naming the declaration):
                          -> dict               finer level `ref` of the same scene
     extremes() -> list[ExtremeRow]             `mixvi extremes`: this plug-in's extreme rows
     warm_start(coarse, coarse_sol, fine)       `mixvi solve`, `bench`: nested iteration's
-                         -> dict               initial guess (keyword arguments of solve)
+                         -> dict               initial guess: keyword arguments of solve
+                                               (lam0, u0), and optionally "start", a dict
+                                               saying how they were obtained, which goes to
+                                               solver_info["nested_start"] (`nested_start`)
     count(scene, level) -> (unknowns, nnz, n)  level caps and memory estimates: the sizes of
                                                a level without building it (else it is built)
     solve(model, **options) -> Solution       `mixvi solve`, the Python API, the regression
@@ -279,6 +282,18 @@ def solve_model(plugin: Any, model: Any, **options: Any) -> Solution:
     if hasattr(plugin, "solve"):
         return plugin.solve(model, **options)
     return vi_core.solve(model.vi, **options)
+
+
+def nested_start(plugin: Any, coarse: Any, coarse_sol: Solution, fine: Any) -> tuple[dict, dict]:
+    """Nested iteration's start of `fine` from the solved `coarse` level (the plug-in's
+    `warm_start`): the keyword arguments of `solve_model`, and what the start carries, for
+    solver_info["nested_start"]: the coarse level, the arguments given ("lam0": the
+    multipliers, "u0": the primal unknowns; without "u0" the first Newton step starts from
+    u = 0) and the plug-in's "start" entry."""
+    kw = dict(plugin.warm_start(coarse, coarse_sol, fine))
+    start = {"from_level": coarse.level, "carries": sorted(k for k in kw if k != "start")}
+    start.update(kw.pop("start", {}))
+    return kw, start
 
 
 def problem_at(plugin: Any, model: Any, sol: Solution) -> MixedVI:

@@ -22,31 +22,83 @@ def _outside(cell_type: str, xi: np.ndarray) -> np.ndarray:
     return np.maximum(np.abs(s), np.abs(t)) - 1
 
 
-def evaluate(mesh: Mesh, nodal: np.ndarray, pts: np.ndarray, candidates: int = 8) -> np.ndarray:
-    """The P1/Q1 function with nodal values `nodal` (N, k) at points `pts` (M, 2): (M, k).
+CHUNK = 65_536  # point-cell pairs tried at once (memory: arrays of (CHUNK, 4, 2) floats)
+OUTSIDE_TOL = 1e-9  # reference coordinates: a point farther out of a cell is outside it
 
-    Each point is located among the `candidates` cells with the nearest centroids by inverting
-    the cell maps (Newton; exact after one step for P1); a point outside every candidate (a
-    refined curved boundary) is extrapolated from the candidate it is least outside of.
+
+def locate(
+    mesh: Mesh, pts: np.ndarray, candidates: int = 8
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The cell (M,) and reference coordinates (M, 2) of each point of `pts` (M, 2) in
+    `mesh`, and how far each lies outside that cell in reference coordinates (M,) (≤ 0
+    inside: `_outside`).
+
+    A point is looked for in the cell with the nearest centroid, then, if it lies outside that
+    one by more than OUTSIDE_TOL, among the `candidates` cells with the nearest centroids, by
+    inverting the cell maps (Newton; exact after one step for P1); a point outside every
+    candidate (a refined curved boundary) gets the candidate it is least outside of.
     """
-    ref = reference_element(mesh.cell_type)
-    X = mesh.points[mesh.cells]  # (n_cells, n_loc, 2)
+    tree = cKDTree(mesh.points[mesh.cells].mean(axis=1))  # cell centroids
+    cell = tree.query(pts, k=1)[1]  # (M,)
+    xi, out = _invert(mesh, pts, cell[:, None])
+    cell, xi, out = cell.astype(np.int64), xi[:, 0], out[:, 0]
+    retry = np.flatnonzero(out > OUTSIDE_TOL)
     k = min(candidates, mesh.n_cells)
-    _, cand = cKDTree(X.mean(axis=1)).query(pts, k=k)  # (M, k)
-    cand = cand.reshape(len(pts), k)
-    Xc = X[cand]  # (M, k, n_loc, 2)
-    xi = np.broadcast_to(ref.centroid, cand.shape + (2,)).copy()  # (M, k, 2)
-    for _ in range(6):
-        flat = xi.reshape(-1, 2)
-        phi = ref.values(flat).reshape(xi.shape[:2] + (-1,))  # (M, k, n_loc)
-        dphi = ref.gradients(flat).reshape(xi.shape[:2] + (-1, 2))  # (M, k, n_loc, 2)
-        r = np.einsum("mka,mkai->mki", phi, Xc) - pts[:, None, :]  # (M, k, 2)
-        J = np.einsum("mkai,mkaj->mkij", Xc, dphi)  # (M, k, 2, 2) ∂x_i/∂ξ_j
-        xi = xi - np.linalg.solve(J, r[..., None])[..., 0]
-    best = np.argmin(_outside(mesh.cell_type, xi), axis=1)  # (M,)
-    rows = np.arange(len(pts))
-    phi = ref.values(xi[rows, best])  # (M, n_loc)
-    vals = np.asarray(nodal, dtype=float).reshape(mesh.n_nodes, -1)[mesh.cells[cand[rows, best]]]
+    if retry.size and k > 1:
+        cand = tree.query(pts[retry], k=k)[1].reshape(retry.size, k)  # (M_r, k)
+        xr, outr = _invert(mesh, pts[retry], cand)  # (M_r, k, 2), (M_r, k)
+        best = np.argmin(outr, axis=1)  # (M_r,)
+        rows = np.arange(retry.size)
+        cell[retry], xi[retry], out[retry] = cand[rows, best], xr[rows, best], outr[rows, best]
+    return cell, xi, out
+
+
+def _invert(mesh: Mesh, pts: np.ndarray, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Reference coordinates (M, k, 2) of the points `pts` (M, 2) in each of their candidate
+    cells `cand` (M, k), and how far outside each cell they lie (M, k), CHUNK pairs at a time."""
+    ref = reference_element(mesh.cell_type)
+    M, k = cand.shape
+    xi = np.empty((M, k, 2))
+    step = max(1, CHUNK // k)
+    for lo in range(0, M, step):
+        c = cand[lo : lo + step].reshape(-1)  # (c k,)
+        p = np.repeat(pts[lo : lo + step], k, axis=0)  # (c k, 2)
+        X = mesh.points[mesh.cells[c]]  # (c k, n_loc, 2)
+        x = np.broadcast_to(ref.centroid, p.shape).copy()  # (c k, 2)
+        for _ in range(6):
+            phi, dphi = ref.values(x), ref.gradients(x)  # (c k, n_loc), (c k, n_loc, 2)
+            r = (phi[:, :, None] * X).sum(axis=1) - p  # (c k, 2)
+            J = (X[:, :, :, None] * dphi[:, :, None, :]).sum(axis=1)  # (c k, 2, 2) ∂x_i/∂ξ_j
+            det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]  # (c k,)
+            dx = (
+                np.stack(
+                    [
+                        J[:, 1, 1] * r[:, 0] - J[:, 0, 1] * r[:, 1],
+                        J[:, 0, 0] * r[:, 1] - J[:, 1, 0] * r[:, 0],
+                    ],
+                    axis=1,
+                )
+                / det[:, None]
+            )  # (c k, 2)
+            x -= dx
+            if np.abs(dx).max(initial=0.0) < 1e-14:  # converged (an affine cell: one step)
+                break
+        xi[lo : lo + step] = x.reshape(-1, k, 2)
+    return xi, _outside(mesh.cell_type, xi)
+
+
+def evaluate(mesh: Mesh, nodal: np.ndarray, pts: np.ndarray, candidates: int = 8) -> np.ndarray:
+    """The P1/Q1 function with nodal values `nodal` (N, k) at points `pts` (M, 2): (M, k);
+    a point outside the mesh is extrapolated from the cell `locate` gives it."""
+    cell, xi, _ = locate(mesh, pts, candidates)
+    return _values(mesh, nodal, cell, xi)
+
+
+def _values(mesh: Mesh, nodal: np.ndarray, cell: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """(M, k): the P1/Q1 function with nodal values `nodal` (N, k) at reference points xi
+    (M, 2) of the cells `cell` (M,)."""
+    phi = reference_element(mesh.cell_type).values(xi)  # (M, n_loc)
+    vals = np.asarray(nodal, dtype=float).reshape(mesh.n_nodes, -1)[mesh.cells[cell]]
     return np.einsum("ma,mak->mk", phi, vals)  # (M, k)
 
 
@@ -84,3 +136,27 @@ def scalar_reference_errors(model: Any, sol: Any, ref: Any, ref_sol: Any) -> dic
     """‖u_h − u_ref‖ in H¹ and L² against the finer level `ref` (contract: `reference_errors`)
     for a plug-in whose model maps its unknowns to nodal values with `model.full`."""
     return nodal_reference_errors(model.mesh, model.full(sol.u), ref.mesh, ref.full(ref_sol.u))
+
+
+def prolongate(coarse: Any, x: np.ndarray, fine: Any) -> tuple[np.ndarray, int]:
+    """The full vector x (n_full,) of a coarse level of a bodies model (`BodiesModel`) carried
+    to the finer level `fine` (the same scene): each body's displacement and potential, P1/Q1
+    nodal fields, evaluated at the fine body's nodes (`evaluate`). For nested meshes this is
+    the multigrid prolongation; where the fine mesh is not nested in the coarse one (new nodes
+    of a refined curved boundary, meshes generated per level) it is interpolation, and a fine
+    node outside the coarse mesh is extrapolated from the nearest cell. Returns the fine full
+    vector (n_full_fine,) and the number of fine nodes outside the coarse mesh (by more than
+    OUTSIDE_TOL in reference coordinates)."""
+    out = np.zeros(fine.values.size)
+    outside = 0
+    for bc, bf in zip(coarse.bodies, fine.bodies, strict=True):
+        u, phi = bc.split(x[bc.offset : bc.offset + bc.size])  # (N, d), (N,) or None
+        nodal = u if phi is None else np.column_stack([u, phi])  # (N, d [+ 1])
+        cell, xi, dist = locate(bc.mesh, bf.mesh.points)
+        vals = _values(bc.mesh, nodal, cell, xi)  # (N_f, d [+ 1])
+        d = bf.dim
+        out[bf.offset : bf.offset + d * bf.n_nodes] = vals[:, :d].ravel()  # node-major
+        if bf.has_potential:
+            out[bf.offset + d * bf.n_nodes : bf.offset + bf.size] = vals[:, d]
+        outside += int((dist > OUTSIDE_TOL).sum())
+    return out, outside

@@ -349,3 +349,78 @@ def test_a_transposed_block_inverse_is_seen_by_the_definition_check(monkeypatch)
             cond = Condensation.detect(B)
         seen += cond is not None and "Dt_inv is not D^{-T}" in _condensation_defects(B, cond)
     assert seen >= 5
+
+
+def _tie_defects(seed: int) -> tuple[float, float, float]:
+    """`tied_start` on 3D contact nodes (normal rows Free with a gap, tangential pairs a Ball
+    without, λ0 inside the ball at some nodes, outside at others): the largest |B u − gap| on
+    the tied rows, the largest change of B u on the others, the largest change of u off the
+    slave columns."""
+    from vi_core.ssn import Condensation, tied_start
+
+    rng = np.random.default_rng(seed)
+    k, n = 4, 24
+    B = _frame_rows_b(rng, k, n)
+    radius = rng.uniform(0.5, 1.0, k)
+    gap = np.concatenate([rng.standard_normal(k), np.zeros(2 * k)])
+    vi = MixedVI(sp.identity(n), B, np.zeros(n), product(Free(k), Ball(radius, 2)), gap=gap)
+    lam0 = rng.standard_normal(3 * k)
+    t = lam0[k:].reshape(k, 2)
+    inside = rng.random(k) < 0.5
+    t *= (np.where(inside, 0.5, 2.0) * radius / np.linalg.norm(t, axis=1))[:, None]
+    tied = np.concatenate([np.ones(k, bool), np.repeat(inside, 2)])  # (3k,)
+    u0 = rng.standard_normal(n)
+    u = tied_start(vi, u0, lam0)
+    off = np.setdiff1d(np.arange(n), Condensation.detect(B).S)
+    return (
+        float(np.abs(B @ u - vi.gap)[tied].max()),
+        float(np.abs(B @ (u - u0))[~tied].max(initial=0.0)),
+        float(np.abs(u - u0)[off].max()),
+    )
+
+
+@given(seeds)
+def test_tied_start_ties_the_predicted_rows_only(seed):
+    """u moves on the slave columns only, B u = gap on the rows λ0 predicts tied (normal rows,
+    tangential pairs strictly inside the ball), the other rows of B u unchanged."""
+    tied, others, off = _tie_defects(seed)
+    assert tied <= 1e-12 and others <= 1e-12 and off == 0.0
+
+
+def test_tied_start_leaves_rows_apart_by_a_gap():
+    """Unilateral rows: a rounding-level λ0 > 0 across a gap is not touching (the first Newton
+    step from λ0 does not tie it), a clear λ0 is: only that row is closed."""
+    from vi_core.ssn import tied_start
+
+    B = sp.csr_matrix(np.array([[1.0, 0.0, -0.5], [0.0, 1.0, -0.5]]))
+    vi = MixedVI(sp.identity(3), B, np.zeros(3), NonNegative(2), gap=np.array([0.1, 0.1]))
+    u = tied_start(vi, np.zeros(3), np.array([1e-13, 1.0]))
+    np.testing.assert_allclose(B @ u, [0.0, 0.1], atol=1e-15)
+
+
+def test_tied_start_check_catches_a_transposed_inverse(monkeypatch):
+    """The mutation: D^{-T} where D^{-1} belongs (the blocks W·Q are not symmetric)."""
+    import vi_core.ssn as ssn_module
+
+    detect = ssn_module.Condensation.detect
+
+    def transposed(B):
+        c = detect(B)
+        return ssn_module.Condensation(S=c.S, R=c.R, D=c.D, Dt_inv=sp.csr_matrix(c.Dt_inv.T))
+
+    monkeypatch.setattr(ssn_module.Condensation, "detect", staticmethod(transposed))
+    assert max(_tie_defects(s)[0] for s in range(5)) > 1e-3
+
+
+def test_tied_start_ties_the_rows_it_is_given():
+    """With `tied` given, those rows are closed whatever J(λ0) says: here λ0 of the second
+    row lies on the ball's boundary (J counts it inside, tied), and the caller frees it."""
+    from vi_core.ssn import tied_start
+
+    B = sp.csr_matrix(np.array([[1.0, 0.0, -0.5], [0.0, 1.0, -0.5]]))
+    vi = MixedVI(sp.identity(3), B, np.zeros(3), Ball(np.array([1.0]), 2), gap=np.zeros(2))
+    u0 = np.array([0.3, 0.2, 0.1])
+    lam0 = np.array([0.6, 0.8])  # |λ0| = 1: on the boundary
+    np.testing.assert_allclose(B @ tied_start(vi, u0, lam0), [0.0, 0.0], atol=1e-15)
+    u = tied_start(vi, u0, lam0, np.array([True, False]))
+    np.testing.assert_allclose(B @ u, [0.0, 0.15], atol=1e-15)

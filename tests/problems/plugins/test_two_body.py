@@ -8,6 +8,7 @@ import scipy.sparse.linalg as spla
 from problems.commands.main import main
 from problems.plugins import piezo_balance
 from problems.plugins import piezo_contact as pc
+from problems.plugins.contract import nested_start
 from problems.scene import load_scene
 from vi_core import solve
 
@@ -98,7 +99,7 @@ def test_nested_iteration_keeps_newton_steps_bounded():
     prev = None
     for level in range(4):
         model = pc.build(scene, level)
-        kw = pc.warm_start(*prev, model) if prev else {}
+        kw = nested_start(pc, *prev, model)[0] if prev else {}
         sol = solve(model.vi, "ssn", tol=1e-12, **kw)
         assert sol.converged
         if level > 0:
