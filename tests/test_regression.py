@@ -4,6 +4,8 @@ and the comparison catches a perturbed answer."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 import vi_core
@@ -97,3 +99,22 @@ def test_floats_inside_lists_of_entries_are_compared_to_rounding_not_exactly():
     counted = {"steps": [{"t": 1.0, "norm": 7.180038696610759e-06, "open": 11}]}
     assert regression.compare(base, counted, 1e-12) == [".steps[0].open: 10 → 11"]
     assert regression.compare(base, {"steps": []}, 1e-12) == [".steps: 1 entries → 0"]
+
+
+def test_the_flux_of_an_insulated_contact_is_a_residue_of_a_conducting_one_an_answer():
+    """hertz_piezo (law "none": D·n = 0 on the contact) stored flux_max 7.6e-16 and measured
+    6.1e-16 on another machine: rounding of a zero, not compared. electrical_block conducts:
+    its flux_max moved by 1e-6 relative is a difference."""
+    insulated = regression.baseline("hertz_piezo")["0"]
+    moved = json.loads(json.dumps(insulated))
+    moved["summary"]["electrical"]["flux_max"] *= 0.8
+    moved["summary"] = regression._strip(moved["summary"])  # as run_case returns it
+    assert regression.check_case("hertz_piezo", 0, insulated, moved) == []
+    conducting = regression.baseline("electrical_block")["0"]
+    assert conducting["summary"]["electrical"]["kind"] != "none"
+    assert conducting["summary"]["electrical"]["flux_max"] > 0
+    moved = json.loads(json.dumps(conducting))
+    moved["summary"]["electrical"]["flux_max"] *= 1 + 1e-6
+    moved["summary"] = regression._strip(moved["summary"])
+    diffs = regression.check_case("electrical_block", 0, conducting, moved)
+    assert any("flux_max" in d for d in diffs), diffs

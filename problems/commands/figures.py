@@ -13,8 +13,6 @@ import math
 import sys
 from pathlib import Path
 
-from tqdm import tqdm
-
 import problems.pipeline as pipeline
 from problems.errors import SceneError
 from problems.output import plots
@@ -25,6 +23,7 @@ from problems.scene import Scene, load_scene
 
 from . import resources
 from .options import DEFAULT_SCENE
+from .progress import bar as progress_bar
 
 
 def sweep_values(sweep: Sweep, scene: Scene) -> list[float]:
@@ -68,7 +67,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("out") / f"{probe.name}_figures"
     with output_folder(out, "--out", overwrite=args.overwrite) as folder:
         panels = []
-        for v in tqdm(values, desc=f"solving for each {sweep.path}", unit="solve", disable=None):
+        for v in progress_bar(iterable=values, desc=f"solving for each {sweep.path}", unit="solve"):
             scene = load_scene(name, [*(args.set or []), f"{sweep.path}={v!r}"])
             model = plugin.build(scene, level)
             sol = pipeline.solve_model(plugin, model, method="ssn")  # the scene's problem

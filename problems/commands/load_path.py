@@ -9,14 +9,18 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tqdm import tqdm
-
 import problems.pipeline as pipeline
 from problems.output.collection import vtu_datasets
 from problems.pipeline.load_path import PathRun, Step, solve_path
 
 from .options import solver_options
+from .progress import bar as progress_bar
 
+STARTS = {  # the console's words for load_path.warm_start
+    "previous step": "warm-started from the previous step",
+    "cold": "solved from zero (--cold)",
+    "none": "solved from zero ({solver} takes no warm start)",
+}
 COUNTS = ("nodes", "stick", "slip", "open")  # contact counts kept per step
 
 
@@ -28,7 +32,7 @@ def solve_steps(
     plugin = loaded.plugin
     datasets: list[tuple[float, str]] = []
     n = len(loaded.spec.load_path.values())
-    bar = tqdm(total=n, unit="step", disable=None, desc=f"solving {loaded.scene.name}", leave=False)
+    bar = progress_bar(total=n, unit="step", desc=f"solving {loaded.scene.name}", leave=False)
 
     def write_step(step: Step) -> None:
         sub = Path("steps") / f"{step.index:04d}"
@@ -71,13 +75,21 @@ def path_warnings(loaded: pipeline.Loaded, path: PathRun) -> list[str]:
     return out
 
 
+def warm_start(args: argparse.Namespace, path: PathRun) -> str:
+    """summary.json's load_path.warm_start: "previous step" (ssn, the fixed point), "cold"
+    (--cold) or "none" (conic, homotopy and auto solve every step from zero)."""
+    if args.cold:
+        return "cold"
+    return "previous step" if path.run.method in pipeline.WARM_STARTED else "none"
+
+
 def entries(args: argparse.Namespace, loaded: pipeline.Loaded, path: PathRun) -> dict:
     """summary.json's load_path and steps entries."""
     return {
         "load_path": {
             "t": loaded.spec.load_path.values(),
             "form": "incremental" if path.incremental else "total",
-            "warm_start": "cold" if args.cold else "previous step",
+            "warm_start": warm_start(args, path),
             "steps_solved": len(path.steps),
         },
         "steps": path.steps,
@@ -96,8 +108,8 @@ def step_table(summary: dict) -> list[str]:
     )
     out = [
         f"  load path: {len(steps)} of {len(lp['t'])} steps, {lp['form']} form, each "
-        f"warm-started from {lp['warm_start']}; {newton} {unit} in all "
-        "(the state above is the last step's)",
+        f"{STARTS[lp['warm_start']].format(solver=summary.get('solver'))}; {newton} {unit} in "
+        "all (the state above is the last step's)",
         f"  {'step':>5} {'t':>9} {column:>6} {'residual':>9} {'stick':>6} {'slip':>6} "
         f"{'open':>6} {'time [s]':>9}",
     ]

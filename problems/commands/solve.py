@@ -8,8 +8,6 @@ import sys
 import time
 from pathlib import Path
 
-from tqdm import tqdm
-
 import problems.pipeline as pipeline
 from problems.errors import SceneError
 from problems.output.collection import vtu_datasets, write_pvd
@@ -18,6 +16,7 @@ from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 
 from . import load_path, resources
 from .options import DEFAULT_SCENE, solver_options
+from .progress import bar as progress_bar
 
 # --accuracy presets: (level, tol); measured time and error on the paper scene in the README
 ACCURACY = {"fast": (1, 1e-6), "balanced": (2, 1e-8), "fine": (3, 1e-10)}
@@ -128,7 +127,7 @@ def _solve_levels(
     level, the second value)."""
     plugin = loaded.plugin
     coarse: dict[int, list[str]] = {}  # level → its files under levels/L/
-    bar = tqdm(total=level + 1, unit="level", desc="solving", disable=None, leave=False)
+    bar = progress_bar(total=level + 1, unit="level", desc="solving", leave=False)
 
     def on_level(model, sol) -> None:  # a coarse level is solved
         bar.update(1)

@@ -49,7 +49,6 @@ from typing import Any
 
 import numpy as np
 from threadpoolctl import threadpool_limits
-from tqdm import tqdm
 
 import problems.pipeline as pipeline
 import vi_core
@@ -62,6 +61,7 @@ from problems.scene import Scene, load_scene
 
 from . import options, resources
 from .options import level_range
+from .progress import bar as progress_bar
 
 SOLVERS = ("ssn", "conic", "homotopy")
 RATE_LEVELS = 3
@@ -147,7 +147,7 @@ def run_study(
     needs(plugin, "mixvi study", *STUDY_NEEDS)
     tols = sorted(tols, reverse=True)
     cases = [(level, solver) for level in levels for solver in solvers]
-    bar = tqdm(total=len(cases) * len(tols), disable=not progress, unit="solve")
+    bar = progress_bar(total=len(cases) * len(tols), shown=progress, unit="solve")
     done: dict[tuple, list[tuple]] = {}
     try:
         if client is None:

@@ -31,11 +31,16 @@ from problems.plugins.contract import problem_at as problem_at
 from problems.plugins.contract import solve_model as solve_model
 from problems.scene import Scene, SceneModel, load_scene
 from problems.scene.fields import load_parameter
+from problems.scene.model import METHODS
 from vi_core.coulomb import ContactSet
 
-# what `solve_built` accepts as method: vi_core's for fixed convex sets, and the Coulomb fixed
-# point (`vi_core.tresca_fixed_point`) for contact sets
-SOLVERS = (*vi_core.METHODS, "fixed_point")
+# what `solve_built` accepts as method, `mixvi solve --solver` and a scene's [solver] method
+# alike: vi_core's for fixed convex sets, and the Coulomb fixed point
+# (`vi_core.tresca_fixed_point`) for contact sets
+SOLVERS = METHODS
+# the methods a load step starts from the previous step's solution (conic, homotopy and auto
+# solve every step from zero)
+WARM_STARTED = ("ssn", "fixed_point")
 CONDITION_LIMIT = 200_000  # estimate the Newton matrix's condition up to this many unknowns
 
 
@@ -116,24 +121,13 @@ def solve_built(
     (`t`, the step's load parameter: the nested iteration's levels are built at t) after the
     first passes the `previous` step's solution: ssn (and the Coulomb fixed point) starts from
     it where it fits the model, without a nested iteration, and `solution.info["warm_start"]`
-    says whether it did. method "fixed_point" (`vi_core.tresca_fixed_point`) needs contact
-    blocks in Λ (SceneError naming --solver otherwise)."""
-    method = method or model.options.get("method", "ssn")
-    if method not in SOLVERS:
-        raise SceneError("--solver", method, "one of " + ", ".join(SOLVERS))
-    if method == "fixed_point" and not has_contact_set(model.vi):
-        raise SceneError(
-            "--solver",
-            method,
-            f"{', '.join(vi_core.METHODS)} (the fixed point g ← F·λ_n iterates on Coulomb or "
-            f"unilateral Tresca contact; this scene's multiplier set {model.vi.Lambda!r} has "
-            "none)",
-        )
+    says whether it did. The method must suit the model's multiplier set (`method_of`)."""
+    method = method_of(loaded, model, method)
     tol = tol if tol is not None else model.options.get("tol", 1e-10)
     nested: list[dict] = []
     warm: dict = {}
     start: dict = {}
-    if method in ("ssn", "fixed_point") and not cold:
+    if method in WARM_STARTED and not cold:
         if previous is not None:
             if _same_shape(previous, model):
                 warm = {"u0": previous.u, "lam0": previous.lam}
@@ -155,6 +149,33 @@ def solve_built(
         nested.append(level_record(model.level, model, sol))
     t_solve = sum(r["time_s"] for r in nested) if nested else sol.time
     return Run(model, sol, method, tol, nested, linear_solver, 0.0, t_solve)
+
+
+def method_of(loaded: Loaded, model: Any, method: str | None = None) -> str:
+    """The method a solve of `model` (built from `loaded`) uses: `method` (--solver), else the
+    scene's [solver] method, else ssn. It must suit the model's multiplier set: vi_core.METHODS
+    for fixed convex sets, vi_core.CONTACT_METHODS (the fixed point among them) for contact
+    blocks; a SceneError otherwise, naming where it came from (--solver, or solver.method and
+    the scene file), the value and the methods allowed."""
+    key, file = ("--solver", None) if method else ("solver.method", str(loaded.scene.path))
+    method = method or model.options.get("method", "ssn")
+    if method not in SOLVERS:
+        raise SceneError(key, method, "one of " + ", ".join(SOLVERS), file)
+    contact = has_contact_set(model.vi)
+    allowed = vi_core.CONTACT_METHODS if contact else vi_core.METHODS
+    if method not in allowed:
+        if contact:
+            why = (
+                f"conic and homotopy need a fixed convex set; this scene's multiplier set "
+                f"{model.vi.Lambda!r} holds Coulomb or unilateral Tresca contact blocks"
+            )
+        else:
+            why = (
+                "the fixed point g ← F·λ_n iterates on Coulomb or unilateral Tresca contact; "
+                f"this scene's multiplier set {model.vi.Lambda!r} has none"
+            )
+        raise SceneError(key, method, f"one of {', '.join(allowed)} ({why})", file)
+    return method
 
 
 def has_contact_set(vi: vi_core.MixedVI) -> bool:

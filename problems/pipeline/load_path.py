@@ -8,7 +8,8 @@ is updated to t by the plug-in's optional `update(model, scene, t)` (only the lo
 prescribed values re-read; mesh and operators kept) — the plug-in's optional
 `incremental(model, previous, previous_sol)` makes the step act on the increments since the
 previous step (a friction law on the slip increment; contract, docs/plugins.md), and the step
-is solved warm-started from the previous step's solution (ssn; the first step from the nested
+is solved warm-started from the previous step's solution (ssn and the fixed point,
+`WARM_STARTED`; conic, homotopy and auto from zero; the first ssn step from the nested
 iteration like a single solve).
 `cold` solves every step from zero. `on_step(step)` is called while the step's model is alive
 (`mixvi solve` writes its files there); only the previous step is kept in memory.

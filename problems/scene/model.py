@@ -27,7 +27,10 @@ from .fields import NO_LOAD_PATH, Expression, Integer, Number, Text
 FORMAT = 2  # the current scene format; format 1 (no `format` key) is migrated on loading
 MAX_LEVEL = 12
 MAX_STEPS = 1000  # load steps of a [load_path]: each one is a full solve
-METHODS = ("auto", "ssn", "conic", "homotopy")  # vi_core.METHODS (a test keeps them equal)
+# every method `vi_core.solve` takes (vi_core.METHODS for fixed convex sets, CONTACT_METHODS for
+# contact blocks): the one list of a scene's [solver] method and of `mixvi solve --solver`
+# (problems.pipeline.SOLVERS); a test keeps it equal to vi_core's
+METHODS = ("auto", "ssn", "conic", "homotopy", "fixed_point")
 
 
 def did_you_mean(word: str, options: Iterable[str]) -> str:
@@ -111,8 +114,9 @@ class LoadPath(Section):
 
     Every expression of the scene may then use the load parameter t. The path starts from the
     unloaded reference state and solves one state per value of t, each warm-started from the
-    one before and, with a plug-in that declares `incremental`, in the incremental form (a
-    friction law acts on the slip since the previous step). Either `steps = N`: t = end·k/N
+    one before (ssn and fixed_point; conic, homotopy and auto start every step from zero) and,
+    with a plug-in that declares `incremental`, in the incremental form (a friction law acts
+    on the slip since the previous step). Either `steps = N`: t = end·k/N
     for k = 1 … N (end = 1 unless given), or `t = [t1, t2, ...]`: increasing values ≥ 0.
     """
 

@@ -419,3 +419,71 @@ def test_mutation_dropped_normal_complementarity_is_caught(monkeypatch):
     check = Checker.of(vi)
     assert check.contact(wrong.u, wrong.lam).normal_sign > 1e-3  # … the checker is not
     assert check(wrong.u, wrong.lam).relative > 1e-4
+
+
+# ---------------------------------------------------------------------- the update, by hand
+# The multiplier update of semismooth Newton is the combined map P(y), y = λ + c(Bu − gap), node
+# by node: (y_n, y_t) → (max(y_n, 0), y_t clipped to the radius ρ). Two nodes per set, worked
+# out on paper: Coulomb ρ = F·y_n⁺; unilateral Tresca ρ = g where y_n > 0, 0 apart; classical
+# Tresca (contact_only=False) ρ = g on every node.
+BY_HAND = [
+    # F = 0.5: ρ = 1, y_t = 3 slips to 1; node 1 is apart: (0, 0)
+    (lambda: Coulomb([0.5, 2.0], 2), [2.0, 3.0, -1.0, 0.7], [2.0, 1.0, 0.0, 0.0]),
+    # ρ = 2: y_t = −1 sticks; ρ = 2: y_t = −5 slips to −2
+    (lambda: Coulomb([0.5, 2.0], 2), [4.0, -1.0, 1.0, -5.0], [4.0, -1.0, 1.0, -2.0]),
+    # 3D: ρ = 1, y_t = (3, 4) of length 5 → (0.6, 0.8); ρ = 1, |(0.3, −0.4)| = 0.5 sticks
+    (
+        lambda: Coulomb([0.5, 1.0], 3),
+        [2.0, 3.0, 4.0, 1.0, 0.3, -0.4],
+        [2.0, 0.6, 0.8, 1.0, 0.3, -0.4],
+    ),
+    # g = 1.5 in contact: −3 → −1.5; apart: nothing transmitted
+    (lambda: UnilateralTresca([1.5, 0.4], 2), [2.0, -3.0, -1.0, 0.3], [2.0, -1.5, 0.0, 0.0]),
+    # the classical Tresca problem bounds λ_t apart too: 0.3 ≤ 0.4 kept
+    (
+        lambda: UnilateralTresca([1.5, 0.4], 2, False),
+        [2.0, -3.0, -1.0, 0.3],
+        [2.0, -1.5, 0.0, 0.3],
+    ),
+]
+
+
+def _by_hand_mismatch() -> float:
+    """The largest difference between P(y) and the values worked out by hand."""
+    return max(
+        float(np.abs(make().project(np.array(y)) - np.array(p)).max()) for make, y, p in BY_HAND
+    )
+
+
+def test_the_update_is_the_projection_worked_out_by_hand():
+    assert _by_hand_mismatch() <= 1e-15
+
+
+def _flip_tangential(project):
+    def flipped(self, y):
+        out = project(self, y).reshape(self.k, self.dim)
+        out[:, 1:] *= -1.0  # −y_t clipped: still inside the cone, the wrong direction
+        return out.ravel()
+
+    return flipped
+
+
+def _flip_normal(project):
+    def flipped(self, y):
+        out = project(self, y).reshape(self.k, self.dim)
+        out[:, 0] = np.maximum(-np.asarray(y, float).reshape(self.k, self.dim)[:, 0], 0.0)
+        return out.ravel()
+
+    return flipped
+
+
+@pytest.mark.parametrize("fault", [_flip_tangential, _flip_normal], ids=["tangential", "normal"])
+def test_mutation_a_sign_flip_in_the_update_fails_the_hand_values(fault, monkeypatch):
+    monkeypatch.setattr(
+        coulomb_module.ContactSet, "project", fault(coulomb_module.ContactSet.project)
+    )
+    assert _by_hand_mismatch() > 0.5
+    if fault is _flip_tangential:  # the set-membership test above cannot see this one
+        S = Coulomb([0.5, 2.0], 2)
+        P = S.project(np.array([2.0, 3.0, 1.0, -5.0])).reshape(2, 2)
+        assert (np.abs(P[:, 1]) <= S.F * P[:, 0]).all()

@@ -245,3 +245,58 @@ def test_scenes_lists_broken_plugins_and_scenes_and_goes_on(site, tmp_path):
     assert any("fine.toml" in ln and "wobbly" in ln for ln in lines)
     assert any(ln.strip().startswith("paper_two_body") for ln in lines)
     assert any(ln.strip().startswith("signorini") for ln in lines)
+
+
+# ------------------------------------------------------------------ --timeout counts the imports
+# A module that sleeps when it is imported anywhere but in the process that wrote it (a bench
+# child: the plug-in below), the way a plug-in with a slow or hanging import would.
+SLEEPY = """
+import multiprocessing, time
+if multiprocessing.parent_process() is not None or {guard}:
+    time.sleep(3600)
+"""
+
+
+def test_a_child_that_hangs_importing_its_plugin_is_a_timeout_row(tmp_path):
+    """`mixvi bench --timeout 3`: the plug-in of the scene hangs while the child imports it
+    (the parent imports it too, for the memory estimate, and must not hang): the row is a
+    timeout and the table is written. No timed assertion: the subprocess bound only catches a
+    wait without a limit."""
+    site = tmp_path / "site"
+    site.mkdir()
+    plugin = WOBBLY.replace('NAME = "wobbly"', 'NAME = "sleepy"')
+    (site / "sleepy.py").write_text(SLEEPY.format(guard="False") + plugin)
+    info = site / "sleepy_test-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: sleepy-test\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[mixvi.plugins]\nsleepy = sleepy\n")
+    scene = tmp_path / "sleepy.toml"
+    scene.write_text(scene_text("none").replace('plugin = "wobbly"', 'plugin = "sleepy"'))
+    env = {**os.environ, "PYTHONPATH": str(site), "MPLBACKEND": "Agg"}
+    out = tmp_path / "bench.json"
+    argv = ["bench", "--scenes", str(scene), "--levels", "0", "--timeout", "3", "--out", str(out)]
+    r = mixvi(argv, env, tmp_path, timeout=600)
+    assert r.returncode == 1 and "Traceback" not in r.stderr + r.stdout, r.stderr
+    [row] = json.loads(out.read_text())["records"]
+    assert "timed out after 3 s (--timeout)" in row["error"] and not row["converged"]
+    assert "FAILED" in r.stdout
+
+
+def test_run_case_times_out_a_child_hanging_in_its_start_up_imports(tmp_path, monkeypatch):
+    """In-process: the child's target lives in a module that sleeps when the spawned
+    interpreter imports it (unpickling the target, before any of mixvi's code runs in the
+    child): `run_case` ends it at its timeout and says so."""
+    import multiprocessing as mp
+
+    from problems.commands import bench
+
+    (tmp_path / "slow_start.py").write_text(
+        SLEEPY.format(guard=f"__import__('os').getpid() != {os.getpid()}")
+        + "\ndef child(*args):\n    args[4].put(('ok', []))\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))  # spawn children get the parent's sys.path
+    import slow_start
+
+    monkeypatch.setattr(bench, "_child", slow_start.child)
+    kind, cause = bench.run_case(mp.get_context("spawn"), "obstacle", 0, ["ssn"], 1e-10, timeout=2)
+    assert (kind, cause) == ("error", "timed out after 2 s (--timeout)")

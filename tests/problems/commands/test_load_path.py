@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import signal
-import time
 import xml.etree.ElementTree as ET
 
 import pytest
@@ -41,6 +40,30 @@ def test_a_load_path_writes_every_step_and_the_collection(tmp_path, capsys):
     assert [float(r[1]) for r in table if len(r) == 8] == ts
 
 
+@pytest.mark.parametrize(
+    ("solver", "start", "words"),
+    [
+        ("ssn", "previous step", "each warm-started from the previous step"),
+        ("conic", "none", "each solved from zero (conic takes no warm start)"),
+        ("homotopy", "none", "each solved from zero (homotopy takes no warm start)"),
+    ],
+)
+def test_the_summary_says_what_each_solver_carries_between_steps(
+    tmp_path, capsys, solver, start, words
+):
+    """ssn starts each step after the first from the one before; conic and homotopy from
+    zero, and summary.json and the console say so (they said "previous step" for every
+    solver). The incremental form carries the history either way."""
+    out = tmp_path / "o"
+    argv = ["solve", "shear_strip_path", "--level", "0", "--set", "load_path.steps=3"]
+    assert main([*argv, "--solver", solver, "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["load_path"]["warm_start"] == start
+    assert summary["load_path"]["form"] == "incremental"
+    assert [s["warm"] for s in summary["steps"]] == [False, *[start != "none"] * 2]
+    assert words in " ".join(capsys.readouterr().out.split())
+
+
 def test_a_scene_without_a_load_path_writes_no_steps(tmp_path):
     out = tmp_path / "o"
     assert main(["solve", "shear_strip", "--level", "0", "--out", str(out)]) == 0
@@ -67,8 +90,7 @@ def test_an_interrupt_during_a_load_path_leaves_nothing(tmp_path, sig):
     def some_steps_written() -> bool:
         return any(out.glob(".mixvi-tmp-*/steps/0002"))
 
-    wait_for(some_steps_written, proc)
-    time.sleep(0.2)
+    wait_for(some_steps_written, proc)  # the handshake: no fixed pause after it
     proc.send_signal(sig)
     check_clean_interrupt(proc, sig, out, before)
 

@@ -1,6 +1,10 @@
-"""Long work shows a progress bar on a terminal, and nothing of it in a pipe or a log file."""
+"""Long work shows a progress bar on a terminal, and nothing of it in a pipe or a log file, nor
+with TQDM_DISABLE set (tqdm's own switch: an explicit `disable=` in a call overrides it, so the
+commands read it themselves, `problems.commands.progress`). Every command's bar is made there."""
 
+import ast
 import fcntl
+import io
 import os
 import pty
 import struct
@@ -14,13 +18,14 @@ import pytest
 MIXVI = str(Path(sys.executable).parent / "mixvi")
 
 
-def _on_a_terminal(argv, cwd) -> str:
+def _on_a_terminal(argv, cwd, **env) -> str:
     """Run `mixvi argv` with stdout and stderr on a pseudo-terminal of 100 columns, as on a
     machine so fast that every step ends within tqdm's display interval (TQDM_MININTERVAL):
     the bar's last state must still be shown (it once was only when a step took > 0.1 s)."""
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 100, 0, 0))
-    env = {**os.environ, "TQDM_MININTERVAL": "1000"}
+    base = {k: v for k, v in os.environ.items() if k != "TQDM_DISABLE"}  # whatever is set here
+    env = {**base, "TQDM_MININTERVAL": "1000", **env}
     proc = subprocess.Popen([MIXVI, *argv], cwd=cwd, stdout=slave, stderr=slave, env=env)
     os.close(slave)
     chunks = []
@@ -37,23 +42,81 @@ def _on_a_terminal(argv, cwd) -> str:
     return b"".join(chunks).decode(errors="replace")
 
 
-@pytest.mark.parametrize(
+STUDY = ["study", "obstacle", "--levels", "0..0", "--solvers", "ssn", "--tols", "1e-6"]
+COMMANDS = pytest.mark.parametrize(
     ("argv", "bar"),
     [
         (["solve", "rigid_foundation", "--level", "2", "--out", "o"], "3/3"),
         (["figures", "rigid_foundation", "--level", "0", "--out", "o"], "3/3"),
         (["solve", "shear_strip_path", "--level", "0", "--out", "o"], "30/30"),
+        ([*STUDY, "--out", "o"], "1/1"),
     ],
     ids=[
         "solve: levels of the nested iteration",
         "figures: one solve per value",
         "solve: steps of a load path",
+        "study: one bar over the solves",
     ],
 )
+
+
+@COMMANDS
 def test_a_terminal_gets_a_progress_bar_and_a_pipe_does_not(tmp_path, argv, bar):
     (tmp_path / "tty").mkdir()
     (tmp_path / "pipe").mkdir()
     text = _on_a_terminal(argv, tmp_path / "tty")
-    assert "solving" in text and bar in text
+    assert "%|" in text and bar in text
     run = subprocess.run([MIXVI, *argv], cwd=tmp_path / "pipe", capture_output=True, text=True)
-    assert run.returncode == 0 and "solving" not in run.stderr and "%|" not in run.stderr
+    assert run.returncode == 0 and "%|" not in run.stderr and bar not in run.stderr
+
+
+@COMMANDS
+def test_tqdm_disable_turns_the_bar_off_on_a_terminal(tmp_path, argv, bar):
+    text = _on_a_terminal(argv, tmp_path, TQDM_DISABLE="1")
+    assert "%|" not in text and f"| {bar} [" not in text
+
+
+def test_every_bar_is_made_by_the_one_helper():
+    """No command module but problems.commands.progress imports tqdm (a new bar made directly
+    would skip TQDM_DISABLE or show in a pipe)."""
+    root = Path(__file__).resolve().parents[3]
+    users = []
+    for path in sorted((root / "problems").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else []
+            module = node.module if isinstance(node, ast.ImportFrom) else None
+            if "tqdm" in [*names, module] or str(module).startswith("tqdm."):
+                users.append(path.relative_to(root).as_posix())
+    assert users == ["problems/commands/progress.py"]
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize(
+    ("tty", "env", "shown", "drawn"),
+    [
+        (True, None, True, True),
+        (True, "1", True, False),
+        (True, "", True, True),  # set but empty: tqdm's reading, not disabled
+        (False, None, True, False),
+        (True, None, False, False),  # --no-progress
+    ],
+)
+def test_the_helper_draws_only_on_a_terminal_without_tqdm_disable(
+    monkeypatch, tty, env, shown, drawn
+):
+    from problems.commands import progress
+
+    stderr = _Terminal() if tty else io.StringIO()
+    monkeypatch.setattr(sys, "stderr", stderr)
+    if env is None:
+        monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    else:
+        monkeypatch.setenv("TQDM_DISABLE", env)
+    with progress.bar(total=2, shown=shown, desc="solving") as bar:
+        bar.update(2)
+        bar.refresh()
+    assert ("2/2" in stderr.getvalue()) == drawn

@@ -13,11 +13,16 @@ the level-5 matrix to the exit (Python runs the handler only when the factorisat
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import pty
+import select
 import signal
+import struct
 import subprocess
 import sys
+import termios
 import time
 from pathlib import Path
 
@@ -72,9 +77,10 @@ def check_clean_interrupt(proc, sig, out: Path, before: dict) -> None:
 def test_signal_during_the_solve(tmp_path, sig):
     out = tmp_path / "o"
     before = previous_run(out)
-    proc = start(["solve", "--level", "3", "--out", str(out)])
-    wait_for(lambda: (out / ".mixvi-lock").exists(), proc)  # claimed: building and solving
-    time.sleep(0.5)
+    proc = start(["solve", "--level", "3", "--write-levels", "--out", str(out)])
+    # the handshake: level 1 of the nested iteration is solved (its results folder is made),
+    # levels 2 and 3 are still to solve — however fast or loaded the machine
+    wait_for(lambda: any(out.glob(".mixvi-tmp-*/levels/1")), proc)
     proc.send_signal(sig)
     check_clean_interrupt(proc, sig, out, before)
 
@@ -89,15 +95,52 @@ def test_signal_while_writing(tmp_path, sig):
     check_clean_interrupt(proc, sig, out, before)
 
 
+def on_a_terminal(argv: list[str]) -> tuple[subprocess.Popen, int]:
+    """`mixvi argv` with stdout and stderr on a pseudo-terminal of 100 columns (a progress bar
+    is drawn; on a terminal of 0 columns tqdm draws nothing); the process and the master end."""
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 100, 0, 0))
+    env = {k: v for k, v in ENV.items() if k != "TQDM_DISABLE"}  # whatever the machine sets
+    proc = subprocess.Popen([MIXVI, *argv], env=env, stdout=slave, stderr=slave)
+    os.close(slave)
+    return proc, master
+
+
+def read_until(master: int, proc: subprocess.Popen, text: str, timeout: float = 120.0) -> str:
+    """What the terminal shows until `text` appears (or, with text "", until it closes)."""
+    deadline, seen = time.monotonic() + timeout, b""
+    while not (text and text.encode() in seen):
+        assert time.monotonic() < deadline, f"{text!r} never appeared: {seen[-300:]!r}"
+        if not select.select([master], [], [], 0.5)[0]:
+            continue
+        try:
+            data = os.read(master, 65536)
+        except OSError:  # the child closed the terminal
+            data = b""
+        if not data:
+            assert not text, f"the terminal closed before {text!r}: {seen[-300:]!r}"
+            break
+        seen += data
+    return seen.decode(errors="replace")
+
+
 def test_signal_during_study_with_progress_bar(tmp_path):
     out = tmp_path / "s"
-    proc = start(["study", "paper_two_body", "--levels", "0..3", "--out", str(out)])
-    wait_for(lambda: out.exists() and (out / ".mixvi-lock").exists(), proc)
-    time.sleep(1.0)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130 and "Traceback" not in err
-    assert err.strip().splitlines()[-1] == "mixvi: interrupted by SIGINT"
+    argv = ["study", "paper_two_body", "--levels", "0..3", "--out", str(out)]
+    proc, master = on_a_terminal(argv)
+    try:
+        # the handshake: the bar names the case being solved; level 0's are done, the
+        # larger levels are still to solve
+        read_until(master, proc, "level 1 ")
+        proc.send_signal(signal.SIGINT)
+        shown = read_until(master, proc, "")
+        assert proc.wait(timeout=120) == 130 and "Traceback" not in shown
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+    last = shown.replace("\r\n", "\n").strip().splitlines()[-1].split("\r")[-1]
+    assert last.strip() == "mixvi: interrupted by SIGINT"
     assert not out.exists()  # the folder this run created is gone again
 
 

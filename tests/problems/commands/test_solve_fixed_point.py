@@ -4,6 +4,11 @@ Newton's on the same scenes (independent computations) for drawn F inside the ra
 converge (docs/coulomb.md); beyond it (coulomb_strip, level 1, F = 15) it must say "NOT
 converged" and exit 1; a scene without contact blocks is refused naming --solver.
 
+The methods are one list: `mixvi solve --solver`, a scene's `[solver] method` (and the JSON
+Schema of scenes) and `vi_core.solve` accept the same names, and a method the scene's multiplier
+set cannot take is refused (exit 2) naming where it came from (--solver or solver.method), the
+value and the methods allowed, by `mixvi solve` and `mixvi validate` alike.
+
 Mutation: a fixed point whose Tresca bound is g ← F·λ_n / 2 (a dropped factor) must fail the
 cross-check and report itself not converged."""
 
@@ -17,7 +22,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import problems.pipeline as pipeline
+import vi_core
 from problems.commands.main import main
+from problems.commands.schema import scene_schema
+from problems.scene.model import METHODS
 from vi_core import tresca_fixed_point
 
 AGREE = 1e-7  # relative: both solve to tol 1e-10; the problem's conditioning costs the rest
@@ -99,3 +107,47 @@ def test_a_load_path_by_the_fixed_point(tmp_path, capsys):
     assert all(s["converged"] for s in summary["steps"])
     assert [s["warm"] for s in summary["steps"]] == [False, True]
     assert "fixed-point iterations in all" in capsys.readouterr().out
+
+
+def test_one_list_of_methods(capsys):
+    """--solver, [solver] method, the JSON Schema and vi_core.solve accept the same names."""
+    assert pipeline.SOLVERS == METHODS
+    assert set(METHODS) == set(vi_core.METHODS) | set(vi_core.CONTACT_METHODS)
+    enum = scene_schema()["$defs"]["Solver"]["properties"]["method"]["anyOf"][0]["enum"]
+    assert enum == list(METHODS)
+    with pytest.raises(SystemExit):
+        main(["solve", "--help"])
+    helptext = " ".join(capsys.readouterr().out.split())
+    assert all(m in helptext for m in METHODS)
+
+
+def test_a_scene_may_choose_the_fixed_point(tmp_path, capsys):
+    out = tmp_path / "o"
+    argv = ["solve", "coulomb_strip", "--level", "0", "--set", 'solver={method="fixed_point"}']
+    assert main([*argv, "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["solver"] == "fixed_point" and summary["converged"]
+    assert "fixed-point iterations" in capsys.readouterr().out
+
+
+REFUSED = [  # scene, method, where it is given, the key the error names, the methods allowed
+    ("shear_strip", "fixed_point", "scene", "solver.method", "auto, ssn, conic, homotopy"),
+    ("coulomb_strip", "conic", "scene", "solver.method", "auto, ssn, fixed_point"),
+    ("coulomb_strip", "homotopy", "cli", "--solver", "auto, ssn, fixed_point"),
+    ("coulomb_strip", "newton", "scene", "solver.method", ", ".join(METHODS)),
+]
+CASES = [("solve", *c) for c in REFUSED] + [("validate", *c) for c in REFUSED if c[2] == "scene"]
+
+
+@pytest.mark.parametrize(("command", "scene", "method", "given", "key", "allowed"), CASES)
+def test_a_method_the_scene_cannot_take_is_refused_naming_its_source(
+    command, scene, method, given, key, allowed, tmp_path, capsys
+):
+    argv = [command, scene]
+    argv += ["--solver", method] if given == "cli" else ["--set", f'solver={{method="{method}"}}']
+    if command == "solve":
+        argv += ["--level", "0", "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"{key} = {method!r}" in err and allowed in err and "internal error" not in err
+    assert not (tmp_path / "o" / "summary.json").exists()

@@ -193,10 +193,12 @@ def test_mutation_validate_without_the_build_misses_a_misspelt_group(tmp_path, c
     from types import SimpleNamespace
 
     from problems.plugins import piezo_contact
+    from vi_core import Free, product
 
-    monkeypatch.setattr(
-        piezo_contact, "build", lambda scene, level=None: SimpleNamespace(warnings=[])
+    unchecked = SimpleNamespace(
+        warnings=[], options={}, vi=SimpleNamespace(Lambda=product(Free(1)))
     )
+    monkeypatch.setattr(piezo_contact, "build", lambda scene, level=None: unchecked)
     path, args, _, _ = _args(tmp_path, "misspelt boundary group")
     rc, _, _ = _validate(path, capsys, *args)
     assert rc == 0
