@@ -68,6 +68,8 @@ class Constants:
 def _gram(G: Any, size: int, name: str) -> sp.csr_matrix:
     if G is None:
         return sp.identity(size, format="csr")
+    if callable(G):  # a function assembling it when needed (`MixedVI.X`)
+        G = G()
     G = sp.csr_matrix(G, dtype=float)
     if G.shape != (size, size):
         raise ValueError(f"{name} must be {size}×{size}, got {G.shape}")

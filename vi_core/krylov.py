@@ -108,7 +108,7 @@ CYCLE = "W"  # see the module docstring for the measurements
 # set-up on the fine level instead of two, 13 and 12 iterations either way
 REUSE = 0.1
 SPRING_CAP = 10.0  # the largest spring of a slip row (equilibrated units; module docstring)
-MAX_LEVELS = 30  # more than any hierarchy has (pyamg's default max_levels is 10)
+MAX_LEVELS = 10  # levels of a hierarchy at most (pyamg's default)
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
@@ -177,6 +177,47 @@ class Split(Protocol):
     Dt_inv: sp.csr_matrix  # (m, m) D^{-T}
 
 
+class CondensedNewton:
+    """The condensed Newton matrix K of the iterative path, applied without being stored:
+    rows R are A_R − B_Rᵀ D^{-T} A_S (fixed), rows S the step's K_S (m, n), so K x is A x
+    with the R rows corrected by B_Rᵀ D^{-T} (A x)_S and the S rows replaced by K_S x.
+
+    Why: stored, K is a second copy of A (its R rows are A's but where B_R reaches, and its
+    pattern is kept for the direct solvers' one analysis); FGMRES only applies it, and the
+    exact S-row solve needs K_SS only. paper scene level 5 (386k unknowns): K and its
+    pattern were 112 MB held through the multigrid set-up. `tocsr` assembles it where a
+    direct solve needs it (the fallback)."""
+
+    def __init__(
+        self,
+        A: sp.csr_matrix,
+        R: np.ndarray,
+        S: np.ndarray,
+        BR_t: sp.csr_matrix,
+        Dt_inv: sp.csr_matrix,
+        K_S: sp.csr_matrix,
+    ):
+        self.A, self.R, self.S = A, R, S  # (n, n), (n − m,), (m,)
+        self.BR_t, self.Dt_inv = BR_t, Dt_inv  # (n − m, m) B_Rᵀ, (m, m) D^{-T}
+        self.K_S = K_S  # (m, n) the S rows, in the order of S
+        self.shape = A.shape
+        self.nnz = A.nnz + K_S.nnz  # stored entries (A is shared, not copied)
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        y = self.A @ x  # (n,)
+        y[self.R] -= self.BR_t @ (self.Dt_inv @ y[self.S])
+        y[self.S] = self.K_S @ x
+        return y
+
+    def tocsr(self) -> sp.csr_matrix:
+        """K assembled (n, n)."""
+        R, S, n = self.R, self.S, self.shape[0]
+        K_R = self.A[R] - self.BR_t @ (self.Dt_inv @ self.A[S])  # (n − m, n)
+        rows = np.concatenate([R, S])  # stacked row i is row rows[i] of K
+        P = sp.csr_matrix((np.ones(n), (rows, np.arange(n))), shape=(n, n))
+        return (P @ sp.vstack([K_R, self.K_S], format="csr")).tocsr()
+
+
 @dataclass
 class Spring:
     """The free rows F with fractional J (3D slip discs) of one Newton matrix: on them
@@ -238,24 +279,167 @@ def _fields(n: int, fields: dict | None, near_null: dict | None) -> list[tuple]:
     return out
 
 
-def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> list:
-    """pyamg's `strength` argument: the symmetric strength of connection (θ = 0) of A on the
-    finest level with every connection between two parts (bodies) dropped, so no aggregate
-    spans two bodies; the default on coarser levels.
+def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> sp.csr_array:
+    """The strength of connection of the finest level, structure only (data float32 ones):
+    pyamg's symmetric strength with θ = 0 keeps every stored entry of A, and its values are
+    read by nothing downstream (standard aggregation and the pattern of the smoothed
+    prolongation use the structure), so it is A's structure with every connection between two
+    parts (bodies) dropped: no aggregate spans two bodies (without two parts, A's structure).
+    Built from A's index arrays (pyamg's strength and a COO filter made four full-size
+    temporaries: paper scene level 5, 241 MB above the set-up's start).
 
-    Why: where bodies slide along each other (slip rows), an aggregate across the interface
-    ties their tangential motions together, and the coarse spaces cannot represent the slip;
-    the FGMRES iterations then grow with the level (paper scene, CG on the glued displacement
-    block to 1e-8: 25, 26, 38 at levels 3–5 aggregating across, 19, 22, 31 within the bodies;
-    with energy-minimising prolongation 19, 20, 28 against 13, 17, 20)."""
-    from pyamg.strength import symmetric_strength_of_connection
-
+    Why within parts: where bodies slide along each other (slip rows), an aggregate across the
+    interface ties their tangential motions together, and the coarse spaces cannot represent
+    the slip; the FGMRES iterations then grow with the level (paper scene, CG on the glued
+    displacement block to 1e-8: 25, 26, 38 at levels 3–5 aggregating across, 19, 22, 31
+    within the bodies; with energy-minimising prolongation 19, 20, 28 against 13, 17, 20)."""
+    A = sp.csr_array(A)
+    A.sort_indices()
+    n = A.shape[0]
     if part is None or np.unique(part).size < 2:
-        return ["symmetric"] * MAX_LEVELS
-    C = symmetric_strength_of_connection(A, 0.0).tocoo()
-    keep = part[C.row] == part[C.col]
-    C = sp.csr_matrix((C.data[keep], (C.row[keep], C.col[keep])), shape=A.shape)
-    return [("predefined", {"C": C})] + ["symmetric"] * MAX_LEVELS
+        indptr, indices = A.indptr.copy(), A.indices.copy()
+    else:
+        rows = np.repeat(np.arange(n, dtype=A.indices.dtype), np.diff(A.indptr))  # (nnz,)
+        keep = part[rows] == part[A.indices]  # (nnz,) within one part
+        indptr = np.zeros(n + 1, dtype=A.indptr.dtype)
+        np.cumsum(np.bincount(rows[keep], minlength=n), out=indptr[1:])
+        del rows
+        indices = A.indices[keep]
+    return sp.csr_array((np.ones(indices.size, dtype=np.float32), indices, indptr), shape=(n, n))
+
+
+def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
+    """pyamg's energy_prolongation_smoother(A, T, C, B, None, (False, {}), **SMOOTH[1]) for a
+    scalar (csr) A — the same prolongation to rounding (`test_krylov`) — computed on one
+    shared sparsity pattern: the CG iterates are data arrays of the pattern, updated in place,
+    where pyamg makes a new bsr matrix with its own index arrays for each operation of its
+    loop and copies C. Memory: the finest level's smoothing was the peak of the whole solve
+    (paper scene level 5, displacement block: 308 MB above its start with pyamg's, 133 MB
+    with this one). T (n, n_agg·k) tentative prolongation (bsr, blocks 1 × k), C (n, n) the
+    strength graph (structure only), B (n_agg·k, k) the coarse near-null vectors."""
+    from pyamg import amg_core
+    from pyamg.aggregation.smooth import satisfy_constraints
+    from pyamg.util.utils import compute_BtBinv
+
+    opts = SMOOTH[1]
+    assert SMOOTH[0] == "energy" and opts["krylov"] == "cg" and opts["degree"] == 1
+    assert opts["weighting"] == "local"
+    n = A.shape[0]
+    k = T.blocksize[1]  # columns per block: the near-null dimension
+    n_agg = T.shape[1] // k
+    T = sp.bsr_array(T)
+    T.sort_indices()
+    # the pattern of P: C times T's block pattern (degree 1), structure only
+    ones = np.ones(C.nnz, dtype=np.float32)
+    Cs = sp.csr_array((ones, C.indices, C.indptr), shape=C.shape)  # C's data may be any
+    ones = np.ones(T.indices.size, dtype=np.float32)
+    pat = (Cs @ sp.csr_array((ones, T.indices, T.indptr), shape=(n, n_agg))).tocsr()
+    del Cs, ones
+    pat.sort_indices()
+    indptr, indices = pat.indptr, pat.indices  # (n + 1,), (nb,) the blocks of the pattern
+    nb = indices.size
+    del pat
+
+    def bsr(data):  # (nb, 1, k) data on the pattern → (n, n_agg·k) bsr sharing its indices
+        return sp.bsr_array((data, indices, indptr), shape=(n, n_agg * k))
+
+    BtBinv = compute_BtBinv(B, bsr(np.ones((nb, 1, k))))  # (n, k, k)
+    rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr))  # (nb,) row of each block
+    Td = np.zeros((nb, 1, k))  # T on the pattern (T's blocks are among them: C has A's diagonal)
+    keys_T = np.repeat(np.arange(n, dtype=np.int64), np.diff(T.indptr)) * n_agg + T.indices
+    Td[np.searchsorted(rows * n_agg + indices, keys_T)] = T.data
+    del keys_T, T
+    D = np.abs(A) @ np.ones(n)  # (n,) the local weighting: row sums of |A|
+    Dinv = np.zeros(n)
+    Dinv[D != 0] = 1.0 / D[D != 0]
+    Dinv = Dinv[rows][:, None, None]  # (nb, 1, 1)
+    del rows, D
+
+    def times_A(Xd, out):  # out ← (A X) on the pattern
+        out[:] = 0.0
+        amg_core.incomplete_mat_mult_bsr(
+            A.indptr, A.indices, np.ravel(A.data), indptr, indices, np.ravel(Xd),
+            indptr, indices, np.ravel(out), n, n_agg, 1, 1, k,
+        )  # fmt: skip
+
+    Rd = np.empty((nb, 1, k))  # the residual −A T, projected onto the constraints
+    times_A(Td, Rd)
+    Rd *= -1.0
+    satisfy_constraints(bsr(Rd), B, BtBinv)
+    APd = np.empty_like(Rd)
+    Pd, oldsum = None, 1.0
+    for i in range(opts["maxiter"]):
+        Zd = Rd * Dinv
+        newsum = float(np.vdot(Rd, Zd))
+        if newsum < 1e-8:  # pyamg's tol
+            break
+        if i == 0:
+            Pd = Zd
+        else:
+            Pd *= newsum / oldsum
+            Pd += Zd
+        del Zd
+        oldsum = newsum
+        times_A(Pd, APd)
+        satisfy_constraints(bsr(APd), B, BtBinv)
+        alpha = newsum / float(np.vdot(Pd, APd))
+        Td += alpha * Pd
+        Rd -= alpha * APd
+    del Rd, APd, Pd, BtBinv
+    P = bsr(Td)
+    P.eliminate_zeros()
+    return P
+
+
+def smoothed_aggregation(A: sp.csr_matrix, B: np.ndarray | None, part: np.ndarray | None):
+    """pyamg.smoothed_aggregation_solver(A, B, max_coarse=500, coarse_solver="splu",
+    smooth=SMOOTH, strength=[("predefined", {"C": strength_within_parts(A, part)})] +
+    ["symmetric"] …) with its other defaults (MAX_LEVELS, standard aggregation, the
+    near-null vectors improved by 4 symmetric block Gauss–Seidel sweeps on the finest level,
+    R = Pᵀ, Galerkin coarse operators, symmetric block Gauss–Seidel smoothers): the same
+    hierarchy to rounding (`test_krylov`), built with less memory — the finest level's
+    prolongation by `energy_smoothing`, its strength graph freed once used."""
+    from pyamg.aggregation.aggregate import standard_aggregation
+    from pyamg.aggregation.smooth import energy_prolongation_smoother
+    from pyamg.aggregation.tentative import fit_candidates
+    from pyamg.multilevel import MultilevelSolver
+    from pyamg.relaxation.smoothing import change_smoothers
+    from pyamg.relaxation.utils import relaxation_as_linear_operator
+    from pyamg.strength import symmetric_strength_of_connection
+    from pyamg.util.utils import get_blocksize
+
+    A = sp.csr_array(A)
+    A.symmetry = "hermitian"
+    n = A.shape[0]
+    B = np.ones((n, 1)) if B is None else np.asarray(B, dtype=float).reshape(n, -1)
+    levels = [MultilevelSolver.Level()]
+    levels[0].A, levels[0].B = A, B
+    C = strength_within_parts(A, part)
+    while len(levels) < MAX_LEVELS and A.shape[0] // get_blocksize(A) > 500:
+        if C is None:
+            C = symmetric_strength_of_connection(A, 0.0)
+        AggOp = standard_aggregation(sp.csr_array(C))[0]
+        if len(levels) == 1:
+            relax = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 4})
+            B = relaxation_as_linear_operator(relax, A, np.zeros((n, 1))) @ B
+            levels[0].B = B
+        T, B = fit_candidates(AggOp, B)
+        del AggOp
+        if len(levels) == 1:
+            P = energy_smoothing(A, T, C, B)
+        else:  # coarser levels (bsr, blocks of the near-null dimension) are small
+            P = energy_prolongation_smoother(A, T, C, B, None, (False, {}), **SMOOTH[1])
+        del T
+        C = None
+        levels[-1].P, levels[-1].R = P, P.T.conjugate()
+        A = levels[-1].R @ A @ P
+        A.symmetry = "hermitian"
+        levels.append(MultilevelSolver.Level())
+        levels[-1].A, levels[-1].B = A, B
+    ml = MultilevelSolver(levels, coarse_solver="splu")
+    smoother = ("block_gauss_seidel", {"sweep": "symmetric"})
+    change_smoothers(ml, smoother, smoother)
+    return ml
 
 
 def field_blocks(K: sp.csr_matrix, fields: list[tuple], couple: bool = True) -> list[dict]:
@@ -310,23 +494,13 @@ class BlockAMG:
         return self
 
     def _setup(self, blocks: list[dict], parts: np.ndarray | None, cycle: str) -> None:
-        import pyamg
-
         self.cycle = cycle
         t = time.perf_counter()
         self.blocks: list[FieldBlock] = []
         for blk in blocks:
             index, nn = blk["index"], blk["nn"]
             sym = blk.pop("sym")
-            kw = {} if nn is None else {"B": np.asarray(nn, float).reshape(index.size, -1)}
-            ml = pyamg.smoothed_aggregation_solver(
-                sym,
-                max_coarse=500,
-                coarse_solver="splu",
-                smooth=SMOOTH,
-                strength=strength_within_parts(sym, None if parts is None else parts[index]),
-                **kw,
-            )
+            ml = smoothed_aggregation(sym, nn, None if parts is None else parts[index])
             del sym
             self.blocks.append(FieldBlock(blk["name"], index, ml, blk["lower"]))
         self.setup_time = time.perf_counter() - t
@@ -450,7 +624,7 @@ class KrylovSolver:
 
     def __call__(
         self,
-        K: sp.csr_matrix,
+        K: sp.csr_matrix | CondensedNewton,
         b: np.ndarray,
         x0: np.ndarray | None,
         eta: float,
@@ -524,7 +698,8 @@ class KrylovSolver:
         """x_S += K_SS⁻¹ (b − K x)_S in place: the S rows solved exactly (one block Gauss–Seidel
         step; a slip row's multiplier is then on its bound to rounding, module docstring)."""
         S = self.S
-        x[S] += spla.splu(sp.csc_matrix(K[S][:, S])).solve((b - K @ x)[S])
+        K_S = K.K_S if isinstance(K, CondensedNewton) else K[S]  # (m, n)
+        x[S] += spla.splu(sp.csc_matrix(K_S[:, S])).solve((b - K @ x)[S])
 
     def _solve(self, K, b, x0, eta, tol, tied, spring=None):
         t0 = time.perf_counter()

@@ -39,6 +39,7 @@ from .krylov import (
     ETA_MAX,
     ETA_MAX_WARM,
     LINEAR_SOLVERS,
+    CondensedNewton,
     KrylovSolver,
     bodies,
     forcing_term,
@@ -179,7 +180,8 @@ class _Stepper:
         iterative = linear_solver == "amg"
         self.factorize = Refactorizer("auto" if iterative else linear_solver)
         self.last = None  # factorisation of the last Newton matrix
-        self.nnz: list[int] = []  # nonzeros stored in each Newton matrix (constant)
+        self.nnz: list[int] = []  # nonzeros of each Newton matrix stored (constant; the
+        # iterative path stores one only for a direct fallback)
         self.cond = Condensation.detect(e.B) if condense else None
         self.tol = tol
         self.krylov = None  # the iterative path (condensed steps only)
@@ -187,16 +189,20 @@ class _Stepper:
             self.krylov = KrylovSolver(
                 e.A.tocsr(), e.B, self.cond, e.fields, e.near_null, parts=bodies(e.A)
             )
-        G = _block_structure(e.Lambda.block_sizes())  # (m, m) structure of J and W
         if self.cond is not None:
             c = self.cond
             A = e.A.tocsr()
             self.A_S = A[c.S]  # (m, n)
             self.f_S = e.f[c.S]
+            self.BR_t = sp.csr_matrix(e.B[:, c.R].T)  # (n−m, m)
+            self.rhs_R = e.f[c.R] - self.BR_t @ (c.Dt_inv @ self.f_S)
+        if self.krylov is not None:
+            return  # the iterative path applies K without storing it (`krylov.CondensedNewton`)
+        G = _block_structure(e.Lambda.block_sizes())  # (m, m) structure of J and W
+        if self.cond is not None:
+            c = self.cond
             # fixed rows: A_R − B_Rᵀ D^{-T} A_S
-            BR_t = sp.csr_matrix(e.B[:, c.R].T)  # (n−m, m)
-            self.K_R = (A[c.R] - BR_t @ (c.Dt_inv @ self.A_S)).tocsr()
-            self.rhs_R = e.f[c.R] - BR_t @ (c.Dt_inv @ self.f_S)
+            self.K_R = (A[c.R] - self.BR_t @ (c.Dt_inv @ self.A_S)).tocsr()
             # row permutation: rows stacked [R; S] go to their natural dof positions
             n = e.n
             rows = np.concatenate([c.R, c.S])
@@ -242,18 +248,23 @@ class _Stepper:
         # Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)   (rhs_c = p − Jy − J gap)
         K_S = (Dt @ (W @ (c.Dt_inv @ self.A_S)) + Dt @ (J @ e.B)).tocsr()
         rhs_S = Dt @ (W @ (c.Dt_inv @ self.f_S) - rhs_c)
-        K = self.K
-        K.data[self.S_pos] = _on_pattern(K_S, self.pattern_S).data
-        del K_S  # what the factorisation does not need is freed before it runs
-        self.nnz.append(K.nnz)
-        rhs = self.P @ np.concatenate([self.rhs_R, rhs_S])
-        u_new = None
+        rhs = np.empty(e.n)  # the rows stacked [R; S] at their natural dof positions
+        rhs[c.R], rhs[c.S] = self.rhs_R, rhs_S
         if self.krylov is not None:
+            K = CondensedNewton(e.A, c.R, c.S, self.BR_t, c.Dt_inv, K_S)
             tied = np.asarray(abs(W).sum(axis=1)).ravel() == 0  # (m,) rows (B u)_i = …
             u_new, _ = self.krylov(K, rhs, guess, forcing, self.tol, tied, W, J)
-        if u_new is None:  # direct, or the Krylov solve's fallback
-            self.last = self.factorize(K)
-            u_new = self.last(rhs)
+            if u_new is not None:
+                lam_new = c.Dt_inv @ (self.f_S - self.A_S @ u_new)
+                return u_new, lam_new
+            K = K.tocsr()  # the Krylov solve's fallback: a direct solve of K assembled
+        else:
+            K = self.K
+            K.data[self.S_pos] = _on_pattern(K_S, self.pattern_S).data
+        del K_S  # what the factorisation does not need is freed before it runs
+        self.nnz.append(K.nnz)
+        self.last = self.factorize(K)
+        u_new = self.last(rhs)
         lam_new = c.Dt_inv @ (self.f_S - self.A_S @ u_new)
         return u_new, lam_new
 

@@ -49,11 +49,13 @@ class Body:
     mesh: CellMesh
     material: Material | Material3D
     offset: int  # first full dof of this body
-    A: sp.csr_matrix = None  # (n_b, n_b): [[K, Gᵀ], [−G, P]] or K
+    # (n_b, n_b): [[K, Gᵀ], [−G, P]] or K; released once the model's MixedVI holds it
+    # (`contact_model.mixed_vi`: memory), `operator(body)` assembles it again
+    A: sp.csr_matrix = None
+    A_fixed: sp.csr_matrix = None  # (n_fixed_b, n_b) A's rows of the prescribed dofs (kept)
     f: np.ndarray = None  # (n_b,)
     fixed: np.ndarray = None  # (n_b,) bool
     values: np.ndarray = None  # (n_b,) prescribed values on fixed dofs
-    X: sp.csr_matrix = None  # (n_b, n_b) H1 Gram matrix of the body's fields
 
     @property
     def dim(self) -> int:
@@ -182,23 +184,36 @@ def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
     if t.geometry.BOUNDARIES is None:
         check_meshed(mesh, t.boundary_refs())
     body = Body(name, mesh, t.material.material(), offset)
-    material, d = body.material, body.dim
-    fem = assembly if d == 2 else assembly3d
     f = loads(t, body)
     fixed, values = dirichlet(t, body)
-    K = fem.elasticity_matrix(mesh, material.C)
-    H1 = (fem.mass_matrix(mesh) + fem.permittivity_matrix(mesh, np.eye(d))).tocsr()
-    X_blocks = [sp.kron(H1, sp.identity(d)).tocsr()]  # node-major: dof d·i + k ↔ (i, k)
-    if material.piezoelectric:
-        G = fem.coupling_matrix(mesh, material.e)
-        P = fem.permittivity_matrix(mesh, material.kappa)
-        A = sp.bmat([[K, G.T], [-G, P]], format="csr")
-        X_blocks.append(H1)
-    else:
-        A = K.tocsr()
-    body.A, body.f, body.fixed, body.values = A, f, fixed, values
-    body.X = sp.block_diag(X_blocks, format="csr")
+    body.A, body.f, body.fixed, body.values = operator(body), f, fixed, values
     return body
+
+
+def gram(body: Body) -> sp.csr_matrix:
+    """(n_b, n_b) the H1 Gram matrix of the body's fields (the norm of `vi_core.constants`),
+    assembled from its mesh: mass + stiffness per displacement component, and the same for the
+    potential of a piezoelectric material."""
+    d = body.dim
+    fem = assembly if d == 2 else assembly3d
+    H1 = (fem.mass_matrix(body.mesh) + fem.permittivity_matrix(body.mesh, np.eye(d))).tocsr()
+    blocks = [sp.kron(H1, sp.identity(d)).tocsr()]  # node-major: dof d·i + k ↔ (i, k)
+    if body.material.piezoelectric:
+        blocks.append(H1)
+    return sp.block_diag(blocks, format="csr")
+
+
+def operator(body: Body) -> sp.csr_matrix:
+    """(n_b, n_b) the body's operator A assembled from its mesh and material: [[K, Gᵀ], [−G, P]]
+    with a piezoelectric material, else K."""
+    material = body.material
+    fem = assembly if body.dim == 2 else assembly3d
+    K = fem.elasticity_matrix(body.mesh, material.C)
+    if not material.piezoelectric:
+        return K.tocsr()
+    G = fem.coupling_matrix(body.mesh, material.e)
+    P = fem.permittivity_matrix(body.mesh, material.kappa)
+    return sp.bmat([[K, G.T], [-G, P]], format="csr")
 
 
 def loads(t: BodySection, body: Body) -> np.ndarray:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -26,7 +27,7 @@ from problems.scene.fields import load_parameter
 from problems.scene.model import expressions, refuse
 from vi_core import MixedVI, Solution, product
 
-from .bodies import dirichlet, loads
+from .bodies import dirichlet, gram, loads
 
 
 @dataclass
@@ -91,14 +92,17 @@ def mixed_vi(
     rows() → (B_full (m, n_full), gap0 (m,) the gap rows not from Dirichlet data, Λ, Y) of the
     contact (None: no multipliers); field_data(bodies, free, n_full) → the MixedVI's `fields`
     and `near_null`; check(A_full, f_full, values) may refuse the assembled data. Each body's
-    Gram matrix X is released (vi.X is the one copy kept: memory)."""
+    operator A is released (vi.A is the copy kept: memory; paper scene level 5: 117 MB of
+    bodies' A); a body keeps A's rows of its prescribed dofs, `A_fixed` (its reactions:
+    `piezo_balance`). vi.X, the norm of `vi_core.constants`, is a function that assembles it
+    when asked (held for the whole solve, it was 73 MB at level 5, and `constants` refuses
+    sizes above 200,000 unknowns)."""
     A_full = sp.block_diag([b.A for b in bodies], format="csr")
+    for b in bodies:
+        b.A_fixed, b.A = b.A[np.flatnonzero(b.fixed)], None
     f_full = np.concatenate([b.f for b in bodies])
     fixed = np.concatenate([b.fixed for b in bodies])
     values = np.concatenate([b.values for b in bodies])
-    X_full = sp.block_diag([b.X for b in bodies], format="csr")
-    for b in bodies:
-        b.X = None
     if check is not None:
         check(A_full, f_full, values)
     A, _, free = reduce_dirichlet(A_full, f_full, fixed, values)
@@ -118,12 +122,17 @@ def mixed_vi(
         f=f,
         Lambda=Lam,
         gap=gap,
-        X=sp.csr_matrix(X_full[free][:, free]),
+        X=partial(_gram, bodies, free),
         Y=Y,
         info=info,
         **field_data(bodies, free, values.size),  # for the iterative linear path
     )
     return vi, free, values, rhs
+
+
+def _gram(bodies: list[Any], free: np.ndarray) -> sp.csr_matrix:
+    """(n_free, n_free) the bodies' H1 Gram matrices side by side on the unknowns."""
+    return sp.csr_matrix(sp.block_diag([gram(b) for b in bodies], format="csr")[free][:, free])
 
 
 @dataclass

@@ -89,10 +89,10 @@ def force_balance(model: Any, sol: Any) -> dict:
     worst = 0.0
     for b in model.bodies:
         xb = x_full[b.offset : b.offset + b.size]
-        r = b.A @ xb - b.f + on_fixed[b.offset : b.offset + b.size]  # (n_b,)
+        dof = np.flatnonzero(b.fixed)  # (n_fixed_b,) the prescribed dofs
+        r = b.A_fixed @ xb - b.f[dof] + on_fixed[b.offset + dof]  # (n_fixed_b,) their reactions
         N2 = 2 * b.n_nodes
-        fixed_u = np.flatnonzero(b.fixed[:N2])
-        support = np.array([r[fixed_u[fixed_u % 2 == c]].sum() for c in range(2)])
+        support = np.array([r[(dof < N2) & (dof % 2 == c)].sum() for c in range(2)])
         external = np.array([b.f[c:N2:2].sum() for c in range(2)])
         on_body = np.zeros(2)
         if model.contact is not None and b is model.contact.slave:

@@ -65,3 +65,17 @@ def test_wrong_gram_shape():
     vi = random_vi(0, n=20, m=8)
     with pytest.raises(ValueError, match="X must be 20×20"):
         constants(vi, X=np.eye(3))
+
+
+def test_gram_matrix_given_as_a_function():
+    """vi.X may be a function returning the Gram matrix (a model assembles it when asked):
+    the constants are those of the matrix itself. Mutation: a function that returns the
+    identity instead is caught (the norms differ)."""
+    vi = _two_by_two(1.0)
+    X = np.diag([2.0, 3.0])
+    direct = constants(vi, X=X)
+    lazy = MixedVI(A=vi.A, B=vi.B, f=vi.f, Lambda=vi.Lambda, X=lambda: X)
+    assert constants(lazy).m_a == pytest.approx(direct.m_a, rel=1e-12)
+    assert constants(lazy).M_b == pytest.approx(direct.M_b, rel=1e-12)
+    wrong = MixedVI(A=vi.A, B=vi.B, f=vi.f, Lambda=vi.Lambda, X=lambda: np.eye(2))
+    assert constants(wrong).m_a != pytest.approx(direct.m_a, rel=1e-3)

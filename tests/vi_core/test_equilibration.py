@@ -56,3 +56,45 @@ def test_units_do_not_change_the_solution(seed):
     assert sa.converged and sb.converged
     np.testing.assert_allclose(sb.lam, b.lam, rtol=1e-7, atol=1e-9)
     np.testing.assert_allclose(sa.lam, a.lam, rtol=1e-7, atol=1e-9)
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_equilibrated_A_is_su_A_su_on_shared_index_arrays(seed):
+    """e.A = Su A Su, stored on A's own index arrays (memory); a non-canonical A given by the
+    caller (unsorted, duplicates, explicit zeros) is copied first and left as it was, and e.A
+    has the structure of the product Su A Su (no explicit zeros: a direct solver's ordering
+    follows it). Mutations: scaling the rows only, sorting the caller's arrays in place, or
+    keeping the zeros, are caught."""
+    import scipy.sparse as sp
+
+    from vi_core import Free, MixedVI
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 20))
+    M = sp.random(n, n, density=0.3, random_state=rng) + sp.identity(n) * n
+    coo = sp.coo_matrix(M)
+    dup = rng.integers(0, coo.nnz)  # one entry split into two halves: a duplicate
+    row = np.concatenate([coo.row, [coo.row[dup]]])
+    col = np.concatenate([coo.col, [coo.col[dup]]])
+    data = np.concatenate([coo.data, [coo.data[dup] / 2]])
+    data[dup] /= 2
+    off = np.flatnonzero(coo.row != coo.col)
+    if off.size:  # an explicit zero: the product Su A Su drops it, so does e.A
+        data[off[0]] = 0.0
+    order = rng.permutation(row.size)  # unsorted within rows
+    A = sp.csr_matrix((n, n))
+    A.indptr = np.concatenate([[0], np.cumsum(np.bincount(row, minlength=n))]).astype(np.int32)
+    by_row = order[np.argsort(row[order], kind="stable")]
+    A.indices, A.data = col[by_row].astype(np.int32), data[by_row]
+    A.has_canonical_format = A.has_sorted_indices = False
+    before = (A.data.copy(), A.indices.copy(), A.indptr.copy())
+    dense = A.toarray()
+    vi = MixedVI(A, sp.csr_matrix((0, n)), np.ones(n), Free(0))
+    e = vi.equilibrated
+    s = vi.scaling.s_u
+    assert np.allclose(e.A.toarray(), s[:, None] * dense * s, rtol=1e-13, atol=0)
+    assert np.allclose(vi.A.toarray(), dense, rtol=1e-13, atol=0)
+    assert np.shares_memory(e.A.indices, vi.A.indices)
+    assert e.A.nnz == (sp.diags(s) @ A @ sp.diags(s)).tocsr().nnz
+    for a, b in zip((A.data, A.indices, A.indptr), before, strict=True):
+        assert np.array_equal(a, b)

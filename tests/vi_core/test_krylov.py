@@ -198,6 +198,39 @@ def _newton_matrix(vi: MixedVI, cond, tied: np.ndarray, J=None, W=None) -> sp.cs
 
 
 @given(seeds)
+def test_condensed_newton_operator_is_the_newton_matrix(seed):
+    """The iterative path's K, applied without being stored, and assembled for a fallback, is
+    the condensed Newton matrix of its definition. Mutations: the R rows' correction with the
+    wrong sign, or the S rows left as A's, are not."""
+    from vi_core.ssn import Condensation
+
+    rng = np.random.default_rng(seed)
+    vi = coupled_grid_vi(rng, int(rng.integers(5, 12)), float(rng.uniform(0.0, 2.0)))
+    cond = Condensation.detect(vi.B)
+    tied = rng.uniform(size=vi.m) < 0.5
+    A, B = vi.A.tocsr(), vi.B.tocsr()
+
+    def K_S(t):  # (m, n) the S rows for the tied rows t
+        J = sp.diags(t.astype(float))
+        return (cond.D.T @ ((sp.identity(vi.m) - J) @ (cond.Dt_inv @ A[cond.S]) + J @ B)).tocsr()
+
+    BR_t = sp.csr_matrix(B[:, cond.R].T)
+    K = _newton_matrix(vi, cond, tied)
+    x = rng.standard_normal(vi.n)
+    scale = np.linalg.norm(K @ x)
+
+    def defect(op):
+        return max(
+            np.linalg.norm(op @ x - K @ x) / scale,
+            np.linalg.norm(op.tocsr() @ x - K @ x) / scale,
+        )
+
+    assert defect(kr.CondensedNewton(A, cond.R, cond.S, BR_t, cond.Dt_inv, K_S(tied))) < 1e-12
+    assert defect(kr.CondensedNewton(A, cond.R, cond.S, -BR_t, cond.Dt_inv, K_S(tied))) > 1e-6
+    assert defect(kr.CondensedNewton(A, cond.R, cond.S, BR_t, cond.Dt_inv, K_S(~tied))) > 1e-6
+
+
+@given(seeds)
 def test_preconditioner_is_exact_with_exact_hierarchies(seed):
     """With one-level hierarchies (exact) and 0/1 rows of J, the preconditioner is K⁻¹ for
     every set of tied rows: the tied rows are eliminated exactly and Â = T0ᵀ A T0 is the rest.
@@ -384,3 +417,56 @@ def test_a_few_changed_rows_keep_the_old_preconditioner(monkeypatch):
         assert len(ks.setups) == setups
         K = _newton_matrix(vi, cond, old if setups == 1 else new)
         assert np.linalg.norm(K @ x - r) <= 1e-10 * np.linalg.norm(r)
+
+
+@pytest.mark.parametrize("field", ["displacement", "potential"])
+def test_smoothed_aggregation_is_pyamgs_hierarchy(field, monkeypatch):
+    """The memory-lean hierarchy (`smoothed_aggregation`: `strength_within_parts` from A's
+    structure, `energy_smoothing` on the finest level) is pyamg's smoothed_aggregation_solver
+    with pyamg's strength cut between the bodies, to rounding: the operators of every level
+    and one W-cycle. Mutations: one CG step of the energy smoothing fewer, or the strength
+    not cut between the bodies, are not."""
+    import pyamg
+
+    from problems.plugins import piezo_contact as pc
+    from problems.scene import load_scene
+    from vi_core.ssn import Condensation
+
+    e = pc.build(load_scene("paper_two_body"), 2).vi.equilibrated
+    ks = kr.KrylovSolver(e.A, e.B, Condensation.detect(e.B), e.fields, e.near_null)
+    tied = np.ones(e.m, dtype=bool)  # every row tied: the bodies glued, Â couples them
+    T0 = ks._T0(tied)
+    fields = ks._fields_y(tied)
+    blk = next(b for b in kr.field_blocks((T0.T @ e.A @ T0).tocsr(), fields) if b["name"] == field)
+    A, nn = blk["sym"], blk["nn"]
+    part = np.concatenate([kr.bodies(e.A)[ks.R], kr.bodies(e.A)[ks.S][~tied]])[blk["index"]]
+    # the reference strength: pyamg's symmetric strength (θ = 0) with the connections between
+    # the two bodies dropped
+    C = pyamg.strength.symmetric_strength_of_connection(A, 0.0).tocoo()
+    keep = part[C.row] == part[C.col]
+    C = sp.csr_matrix((C.data[keep], (C.row[keep], C.col[keep])), shape=A.shape)
+    cut = field == "displacement"  # the potential lives in one body (the cradle)
+    assert (C.nnz < A.nnz) == cut
+    strength = [("predefined", {"C": C})] + ["symmetric"] * 9
+    kw = {} if nn is None else {"B": nn}
+    ref = pyamg.smoothed_aggregation_solver(
+        A, max_coarse=500, coarse_solver="splu", smooth=kr.SMOOTH, strength=strength, **kw
+    )
+    r = np.random.default_rng(0).standard_normal(A.shape[0])
+
+    def cycle(ml):
+        return ml.solve(r, x0=np.zeros_like(r), tol=0.0, maxiter=1, cycle="W")
+
+    x_ref = cycle(ref)
+    ml = kr.smoothed_aggregation(A, nn, part)
+    assert len(ml.levels) == len(ref.levels) >= 2
+    for a, b in zip(ml.levels, ref.levels, strict=True):
+        scale = abs(b.A).max()
+        assert abs(sp.csr_matrix(a.A) - sp.csr_matrix(b.A)).max() <= 1e-12 * scale
+    assert np.linalg.norm(cycle(ml) - x_ref) <= 1e-12 * np.linalg.norm(x_ref)
+    if cut:
+        ml = kr.smoothed_aggregation(A, nn, None)
+        assert np.linalg.norm(cycle(ml) - x_ref) > 1e-6 * np.linalg.norm(x_ref)
+    monkeypatch.setattr(kr, "SMOOTH", ("energy", {**kr.SMOOTH[1], "maxiter": 1}))
+    ml = kr.smoothed_aggregation(A, nn, part)
+    assert np.linalg.norm(cycle(ml) - x_ref) > 1e-6 * np.linalg.norm(x_ref)

@@ -200,10 +200,17 @@ def test_independent_row_and_kernel_checks_hold_and_catch_each_fault(monkeypatch
     m.contact.B_full = sp.csr_matrix((B.data[keep], (B.row[keep], B.col[keep])), shape=B.shape)
     assert contact3d_checks.contact_row_defects(m)["weights"] > 0.1
     # a dropped entry of K: the rigid-body modes leave its kernel
-    K = m.bodies[0].A.tolil()
-    K[7, 7] = 0.0
-    m.bodies[0].A = K.tocsr()
+    real_K = bodies.assembly3d.elasticity_matrix
+
+    def dropped(*args):
+        K = real_K(*args).tolil()
+        K[7, 7] = 0.0
+        return K.tocsr()
+
+    assert contact3d_checks.rigid_body_defect(m.bodies[0]) < 1e-10
+    monkeypatch.setattr(bodies.assembly3d, "elasticity_matrix", dropped)
     assert contact3d_checks.rigid_body_defect(m.bodies[0]) > 1e-3
+    monkeypatch.setattr(bodies.assembly3d, "elasticity_matrix", real_K)
     # a wrong sign in the tangent frame (t2 = t1 × n): the handedness check
     real = contact3d.frames
     monkeypatch.setattr(contact3d, "frames", lambda n, a=None: (real(n, a)[0], -real(n, a)[1]))

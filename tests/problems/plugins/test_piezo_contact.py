@@ -96,3 +96,19 @@ def test_elastic_body_has_no_potential():
     assert model.vi.structure == "symmetric"
     sol = solve(model.vi, "ssn")
     assert sol.converged
+
+
+def test_a_models_gram_matrix_is_assembled_when_asked():
+    """The contact plug-ins' vi.X is a function giving the bodies' H1 Gram matrices on the
+    unknowns: symmetric positive definite, and the Dirichlet-reduced block of the full one."""
+    import scipy.sparse as sp
+
+    from problems.plugins import bodies
+
+    model = pc.build(load_scene("paper_two_body"), 0)
+    X = model.vi.X()
+    assert X.shape == (model.vi.n, model.vi.n)
+    assert abs(X - X.T).max() <= 1e-14 * abs(X).max()
+    assert np.linalg.eigvalsh(X.toarray()).min() > 0
+    full = sp.block_diag([bodies.gram(b) for b in model.bodies], format="csr")
+    assert abs(X - full[model.free][:, model.free]).max() == 0
