@@ -256,14 +256,9 @@ def check_levels(
     """Refuse (SceneError naming `option` and its value `text`) a level range A..B outside
     0 ≤ A ≤ B ≤ the scene's cap, or whose largest level does not fit in the memory available
     now; `force` skips the memory checks (the range must still be ordered, ≤ MAX_LEVEL). A
-    body whose mesh at B would exceed `geometry.MAX_NODES` nodes is refused first (a SceneError
-    naming its key), with or without `force`."""
+    body whose mesh at B would exceed `geometry.MAX_NODES` nodes is refused too, before any
+    level is solved (a SceneError naming its key), with or without `force`."""
     a, b = levels
-    if 0 <= b <= MAX_LEVEL:
-        try:
-            check_sizes(scene.validated(plugin.SCENE_MODEL), b)
-        except SceneError as err:
-            raise err.in_file(scene.path) from None
     total, available = memory()
     sizes = Sizes(plugin, scene, linear_solver)
     cap = MAX_LEVEL if force else sizes.cap(total)
@@ -276,6 +271,10 @@ def check_levels(
         )
         allowed = f"A..B with 0 ≤ A ≤ B ≤ {cap}" if ".." in text else f"a level from 0 to {cap}"
         raise SceneError(option, text, f"expected {allowed}{why}")
+    try:  # before anything is solved (the range's coarser levels are solved first)
+        check_sizes(scene.validated(plugin.SCENE_MODEL), b)
+    except SceneError as err:
+        raise err.in_file(scene.path) from None
     e = sizes.estimate(b)
     if not force and e.upper_bytes > available:
         raise SceneError(

@@ -136,7 +136,13 @@ def uniaxial_electrical_defect(model: Any, sol: vi_core.Solution) -> dict[str, f
     }
 
 
-ELECTRICAL_MATCH = 1e-8  # Q1 holds the uniaxial fields exactly: rounding and tol 1e-10
+# Q1 holds the uniaxial fields exactly, so the defect is the rounding of the solve: κ·ε of the
+# piezoelectric system, not the Newton tolerance (grounded two-body row, V = 100 V: φ 2.2e-8
+# with SuperLU at tol 1e-10, 1e-12 and 1e-14 alike, 1.4e-8 with PARDISO, 3.9e-7 with AMG at its
+# Krylov tolerance; below 1e-8 with SuperLU on the machine of earlier CI runs, so 1e-8 was at
+# the floor). A wrong law, sign or coupling is off by O(1) (tests/problems/plugins/
+# test_electrical_contact.py's fault injections).
+ELECTRICAL_MATCH = 1e-7
 
 
 def electrical_checks(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):

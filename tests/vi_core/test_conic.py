@@ -117,7 +117,11 @@ def test_scale_invariance(seed):
     for factor in (1e-12, 1e-6, 1e6, 1e12):
         sol = solve(_scaled(mf.vi, factor), "conic", tol=TOL, polish=0)
         assert sol.info["status"] == "optimal", factor
-        assert sol.residual == pytest.approx(base.residual, rel=1e-2), factor
+        # as accurate at every scale: within one order of magnitude of the unscaled residual
+        # (not equal to 1 %: the normalised data differ from the unscaled by rounding, and the
+        # interior-point iterates' last digits follow it — 2.7e-8 unscaled, 4.6e-9 at 1e12 with
+        # Clarabel 0.11.1 here; the mutation below, no normalisation, gives > 1e-3)
+        assert sol.residual <= 10 * max(base.residual, TOL), factor
         np.testing.assert_allclose(sol.u / factor, base.u, rtol=1e-6, atol=1e-9)
         np.testing.assert_allclose(sol.lam / factor, base.lam, rtol=1e-6, atol=1e-9)
 

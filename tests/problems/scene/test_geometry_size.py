@@ -86,25 +86,18 @@ def test_refined_nodes_counts_uniform_refinement_of_any_cells(seed):
             assert m.refined_nodes(t) == mesh3d.refine(m, t).n_nodes
 
 
-def test_a_level_range_is_refused_before_any_level_is_built(monkeypatch):
+def test_a_level_range_is_refused_by_check_levels_before_it_is_solved(monkeypatch):
     """bracket3d's base has 1,125 tetrahedra: at level 4 about 4.6M cells but 0.84M nodes,
-    accepted; with the cap just below the level's count, refused naming the mesh key, and
-    nothing is built (build would raise)."""
+    accepted; with the cap just below the level's count, check_levels (which every command calls
+    before solving the range's first level) refuses it naming the mesh key and the file."""
     scene = load_scene("bracket3d")
     plugin = registry.for_scene(scene)
     g = scene.validated(plugin.SCENE_MODEL).bodies["bracket"].geometry
     nodes = g.nodes(4)
     assert nodes < geometry.MAX_NODES  # level 4 is allowed by default
     monkeypatch.setattr(geometry, "MAX_NODES", nodes - 1)
-
-    class Unbuildable:
-        SCENE_MODEL = plugin.SCENE_MODEL
-
-        def build(self, *a):
-            raise AssertionError("a level was built before the size check")
-
     with pytest.raises(SceneError) as err:
-        resources.check_levels(Unbuildable(), scene, (0, 4), "--levels", "0..4")
+        resources.check_levels(plugin, scene, (0, 4), "--levels", "0..4", force=True)
     assert err.value.key == "bodies.bracket.geometry.mesh"
     assert f"would have {nodes:,} at level 4" in str(err.value)
     assert err.value.file == scene.path
