@@ -5,7 +5,7 @@ non-symmetric n × n system K u⁺ = b in the primal unknowns, with rows R fixed
 steps (A_R − B_Rᵀ D^{-T} A_S) and rows S (the slave dofs) replaced by the active-set conditions
 Dᵀ(W D^{-T} A_S + J B), which change from step to step (D = B[:, S], block diagonal).
 
-**Preconditioner** (right, for restarted FGMRES): the tied rows eliminated exactly, one
+**Preconditioner** (right, for restarted GMRES): the tied rows eliminated exactly, one
 multigrid cycle per field for the rest. Premultiplied by D^{-T}, row i of S reads
 (W D^{-T} A_S u + J B u)_i. Where row i of W is zero (a stick or bilateral-normal row: "tied")
 it is the tying condition (B u)_i = …; elsewhere (J = 0: slip, inactive) it is the stiffness
@@ -22,12 +22,12 @@ symmetric and ≥ 0, and the glued stiffness gains the spring: Â = T0ᵀ (A + B
 (`test_krylov`, a Ball with fractional rows). The spring κ = γ/(1 − γ) is unbounded where a
 disc has only just started to slip (γ → 1; γ = 1 to rounding occurs, W_FF singular), and a
 multigrid hierarchy of a matrix with springs of 1e16 fails (bracket3d level 2, first fine
-step, FGMRES iterations to 1e-8: 12 counting the slip rows free, 192 with the exact springs),
+step, GMRES iterations to 1e-8: 12 counting the slip rows free, 192 with the exact springs),
 so κ is capped smoothly at SPRING_CAP: exact where κ ≪ SPRING_CAP, a stiff spring between
 free and tied above. Measured on the same step and two later ones (hierarchy rebuilt, caps
 0.1, 1, 10, 1e3, none): 12, 11, 10, 19, 192 / 18, 13, 11, 14, 14 / 16, 12, 10, 11, 11, against
 12 / 21 / 19 with the slip rows free. Coulomb's coupling W_FT of a slip row to its (tied)
-normal multiplier is left out (FGMRES makes up that difference). Â is
+normal multiplier is left out (GMRES makes up that difference). Â is
 block lower triangular over the fields of the problem (`MixedVI.fields`, e.g. displacement
 then potential): one pyamg smoothed-aggregation hierarchy per field, built on the symmetric
 part of its diagonal block, with the field's near-null space (`MixedVI.near_null`, the
@@ -37,20 +37,20 @@ piezoelectric coupling) are applied exactly. The hierarchies depend on which row
 they are rebuilt when more than REUSE of the rows changed type since they were built; below
 that the whole preconditioner of the old tied rows is kept — the exact inverse (with exact
 hierarchies) of a Newton matrix that differs from K in the changed S rows only, a low-rank
-difference FGMRES absorbs in a few iterations (passing the old hierarchy on with the changed
-rows merely left out made FGMRES stagnate).
-After FGMRES the S rows are solved exactly once more (K_SS by SuperLU): a slip row's
+difference GMRES absorbs in a few iterations (passing the old hierarchy on with the changed
+rows merely left out made GMRES stagnate).
+After GMRES the S rows are solved exactly once more (K_SS by SuperLU): a slip row's
 multiplier is then on its bound to rounding, as after a direct solve — nested iteration reads
 the stick/slip partition of the coarse answer, and without it the paper scene's level 5 took 8
 Newton steps instead of 2.
 
 Measured on the paper scene (`mixvi bench --scenes paper_two_body --levels 2..5 --linear-solvers
-amg`; the tied linear system to 1e-11 from zero): 14, 15, 16, 16 FGMRES iterations at levels 2–5
+amg`; the tied linear system to 1e-11 from zero): 14, 15, 16, 16 GMRES iterations at levels 2–5
 (16 at level 6, 1.5M unknowns) with this preconditioner and W-cycles; 19, 23, 28, 35 with the
 previous one (the R rows' operator A_R − B_Rᵀ D^{-T} A_S with a direct solve of K_SS, which
 misses the coupling of the slave dofs to the rest: its Schur complement differs from it by a
 term of the rank of the interface). On the Newton systems of the first nested fine step (an
-experiment on those matrices saved, FGMRES to 1e-8 from zero), V-cycles: 14, 16, 20, 24 (levels
+experiment on those matrices saved, GMRES to 1e-8 from zero), V-cycles: 14, 16, 20, 24 (levels
 2–5), W-cycles 14, 14, 17, 18, and W costs less time at level 5 (6.6 s against 9.3 s).
 
 **Inexact Newton.** Each step starts from the current iterate and stops when the linear residual
@@ -82,14 +82,14 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .fgmres import fgmres_cycle
+from .gmres import gmres_cycle
 from .linalg import BACKENDS
 
 LINEAR_SOLVERS = (*BACKENDS, "amg")  # the direct backends and the iterative path
 # the loosest relative linear tolerance of a Newton step, from a cold start and from a warm
 # start (u0/λ0 given: nested iteration, where the active set is nearly right and Newton needs
 # one exact step, so an inexact step only adds steps: 0 = every warm step is solved to the
-# requested tolerance, 0.1·tol·‖b‖). Measured with the fine level of the paper scene (FGMRES
+# requested tolerance, 0.1·tol·‖b‖). Measured with the fine level of the paper scene (GMRES
 # iterations / Newton steps): level 3 cold, 0.1 → 78 / 9, 1e-3 → 97 / 7; level 4 nested,
 # 1e-4 → 98 / 4, 1e-8 → 71 / 2; with the warm start's stick/slip prediction at the transitions
 # (piezo_contact.warm_start) level 4 nested, 1e-8 → 13 + 6 its in 2 steps, 0 → 18 in 1 step,
@@ -104,7 +104,7 @@ CYCLE = "W"  # see the module docstring for the measurements
 # the hierarchy is rebuilt only when more than this fraction of the rows changed between tied
 # and free since it was built; otherwise the preconditioner of the old tied rows is used as it
 # is (module docstring). Paper scene, level 4 from a cold start: 10.5 s with 8 set-ups at 0,
-# 6.2 s with 2 at 0.1, 6.5 s with 1 at 1.0 (more FGMRES iterations); nested to level 5: one
+# 6.2 s with 2 at 0.1, 6.5 s with 1 at 1.0 (more GMRES iterations); nested to level 5: one
 # set-up on the fine level instead of two, 13 and 12 iterations either way
 REUSE = 0.1
 SPRING_CAP = 10.0  # the largest spring of a slip row (equilibrated units; module docstring)
@@ -183,7 +183,7 @@ class CondensedNewton:
     with the R rows corrected by B_Rᵀ D^{-T} (A x)_S and the S rows replaced by K_S x.
 
     Why: stored, K is a second copy of A (its R rows are A's but where B_R reaches, and its
-    pattern is kept for the direct solvers' one analysis); FGMRES only applies it, and the
+    pattern is kept for the direct solvers' one analysis); GMRES only applies it, and the
     exact S-row solve needs K_SS only. paper scene level 5 (386k unknowns): K and its
     pattern were 112 MB held through the multigrid set-up. `tocsr` assembles it where a
     direct solve needs it (the fallback)."""
@@ -290,7 +290,7 @@ def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> sp.csr_a
 
     Why within parts: where bodies slide along each other (slip rows), an aggregate across the
     interface ties their tangential motions together, and the coarse spaces cannot represent
-    the slip; the FGMRES iterations then grow with the level (paper scene, CG on the glued
+    the slip; the GMRES iterations then grow with the level (paper scene, CG on the glued
     displacement block to 1e-8: 25, 26, 38 at levels 3–5 aggregating across, 19, 22, 31
     within the bodies; with energy-minimising prolongation 19, 20, 28 against 13, 17, 20)."""
     A = sp.csr_array(A)
@@ -644,7 +644,7 @@ class KrylovSolver:
 
         # the BLAS calls of set-up and Krylov vectors are far too small to gain from threads: on
         # the shared 2-core machine OpenBLAS's threads made the paper scene's level 3 solve 8×
-        # slower (set-up 8.1 s → 0.3 s, FGMRES 5.9 s → 1.2 s with one thread)
+        # slower (set-up 8.1 s → 0.3 s, GMRES 5.9 s → 1.2 s with one thread)
         with threadpool_limits(limits=1, user_api="blas"):
             tied = np.asarray(tied, dtype=bool)
             return self._solve(K, b, x0, eta, tol, tied, Spring.of(tied, W, J))
@@ -717,11 +717,11 @@ class KrylovSolver:
         res, cycles = r0, 0
         while res > target:
             if cycles == self.max_cycles:
-                record["fallback"] = f"no convergence in {cycles} FGMRES({self.restart}) cycles"
+                record["fallback"] = f"no convergence in {cycles} GMRES({self.restart}) cycles"
                 break
             with warnings.catch_warnings():  # a (near) breakdown is judged by the residual below
                 warnings.simplefilter("ignore", sla.LinAlgWarning)
-                x, _ = fgmres_cycle(K, b, x, M, target, min(self.restart, self.n), count)
+                x, _ = gmres_cycle(K, b, x, M, target, min(self.restart, self.n), count)
             cycles += 1
             new = float(np.linalg.norm(b - K @ x))
             if new > 0.9 * res and new > target:
@@ -740,7 +740,7 @@ class KrylovSolver:
     def info(self) -> dict:
         """What the Newton solve's `info` reports about the iterative path."""
         return {
-            "krylov": "fgmres (vi_core.fgmres, right preconditioned)",
+            "krylov": "gmres (vi_core.gmres, right preconditioned)",
             "restart": self.restart,
             "preconditioner": (
                 f"tied rows eliminated, smoothed aggregation per field ({self.cycle}-cycle)"

@@ -100,7 +100,7 @@ def _record(
     model, sol, t_nl, iters = _nested_ssn(plugin, scene, level, tol, linear_solver)
     vi = pipeline.problem_at(plugin, model, sol)  # the problem ssn's answer solves
     # the linear reference: same matrix size, same linear solver (for amg: hierarchy set-up
-    # and one FGMRES solve to tol — ssn solves a linear VI's first step to tol at once)
+    # and one GMRES solve to tol — ssn solves a linear VI's first step to tol at once)
     tied = stick_limit(vi)
     t = time.perf_counter()
     lin = vi_core.solve(tied, "ssn", tol=tol, linear_solver=linear_solver)

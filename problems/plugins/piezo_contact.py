@@ -727,7 +727,7 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     (`transfer.prolongate`: the Q1/P1 prolongation of nested meshes; the new nodes of a curved
     boundary lie outside the coarse mesh and are extrapolated, counted in
     start["outside_nodes"]), then tied where λ0 predicts a tied row (`vi_core.ssn.tied_start`):
-    the first Newton step's FGMRES starts from it (paper scene, levels 2–5: 12, 13, 15, 16
+    the first Newton step's GMRES starts from it (paper scene, levels 2–5: 12, 13, 15, 16
     iterations instead of 14, 15, 18, 19 from u = 0).
     """
     if coarse.contact is None or fine.contact is None:

@@ -101,7 +101,7 @@ def test_not_condensable_falls_back_to_direct():
 
 
 def test_stagnation_falls_back_to_the_direct_solver(monkeypatch):
-    """A preconditioner that returns nothing on R: FGMRES stalls, the step is redone directly,
+    """A preconditioner that returns nothing on R: GMRES stalls, the step is redone directly,
     the fallback is reported, and the answer is still the direct one."""
     vi = coupled_grid_vi(np.random.default_rng(5), 14, 1.0)
     monkeypatch.setattr(kr.BlockAMG, "__call__", lambda self, r: np.zeros_like(r))
@@ -377,7 +377,7 @@ def test_krylov_step_solves_the_s_rows_exactly(exact, monkeypatch):
     """An inexact step (η = 1e-6) still meets the S rows to rounding, so a slip row's multiplier
     λ = D^{-T}(f_S − A_S u) is on its bound as after a direct solve (nested iteration reads the
     stick/slip partition from it; paper scene level 5: 8 Newton steps instead of 2 without).
-    Mutation (exact=False): without the exact S rows after FGMRES they are off by about η."""
+    Mutation (exact=False): without the exact S rows after GMRES they are off by about η."""
     from vi_core.ssn import Condensation
 
     rng = np.random.default_rng(7)
@@ -398,7 +398,7 @@ def test_krylov_step_solves_the_s_rows_exactly(exact, monkeypatch):
 
 def test_a_few_changed_rows_keep_the_old_preconditioner(monkeypatch):
     """One row changing type keeps the hierarchy: the preconditioner stays the exact inverse
-    of the Newton matrix of the old tied rows (so FGMRES sees a rank-one difference only).
+    of the Newton matrix of the old tied rows (so GMRES sees a rank-one difference only).
     Mutation (REUSE = 0: rebuild on every change): a second set-up."""
     from vi_core.ssn import Condensation
 

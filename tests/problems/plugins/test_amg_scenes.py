@@ -65,7 +65,7 @@ def test_field_data_rigid_body_modes_are_null_vectors(name):
 
 
 def _tied_iterations(vi: MixedVI) -> int:
-    """FGMRES iterations of one condensed Newton system (every multiplier tied) to 1e-8."""
+    """GMRES iterations of one condensed Newton system (every multiplier tied) to 1e-8."""
     e = vi.equilibrated
     st = ssn_module._Stepper(e, True, "amg", TOL)
     st.step(sp.identity(e.m, format="csr"), sp.csr_matrix((e.m, e.m)), np.zeros(e.m), None, 1e-8)

@@ -1,4 +1,4 @@
-"""vi_core.fgmres against an independent computation: after k iterations with a fixed linear
+"""vi_core.gmres against an independent computation: after k iterations with a fixed linear
 preconditioner M, GMRES's iterate is x0 + M c with c minimising ‖r0 − K M c‖ over the Krylov
 space span{r0, (KM) r0, …, (KM)^{k−1} r0} (a least-squares problem solved here by numpy)."""
 
@@ -7,7 +7,7 @@ import scipy.sparse as sp
 from hypothesis import given
 from hypothesis import strategies as st
 
-from vi_core.fgmres import fgmres_cycle
+from vi_core.gmres import gmres_cycle
 
 
 def _system(seed: int):
@@ -38,7 +38,7 @@ def _check(seed: int, solver_M) -> list[str]:
     K, b, x0, P = _system(seed)
     faults = []
     for k in (1, 3, 6):
-        x, est = fgmres_cycle(K, b, x0, solver_M(P), 0.0, k)
+        x, est = gmres_cycle(K, b, x0, solver_M(P), 0.0, k)
         true = float(np.linalg.norm(b - K @ x))
         best = _minimal_residual(K, b, x0, P, k)
         if abs(true - best) > 1e-8 * np.linalg.norm(b):
@@ -49,11 +49,11 @@ def _check(seed: int, solver_M) -> list[str]:
 
 
 @given(st.integers(0, 2**32 - 1))
-def test_fgmres_iterate_is_the_minimal_residual_one(seed):
+def test_gmres_iterate_is_the_minimal_residual_one(seed):
     assert _check(seed, lambda P: lambda v: P @ v) == []
 
 
-def test_fgmres_check_catches_a_wrong_iterate():
+def test_gmres_check_catches_a_wrong_iterate():
     """Mutation: a preconditioner other than the one the check assumes (a transposed P)
     changes the iterates, and the check says so."""
     assert _check(0, lambda P: lambda v: P @ v) == []
@@ -61,22 +61,57 @@ def test_fgmres_check_catches_a_wrong_iterate():
 
 
 @given(st.integers(0, 2**32 - 1))
-def test_fgmres_stops_at_the_target(seed):
+def test_gmres_stops_at_the_target(seed):
     """Exact preconditioner: one iteration; a target: the true residual is below it, with
     the iterations counted by the callback."""
     K, b, x0, _ = _system(seed)
     Kd = K.toarray()
-    x, est = fgmres_cycle(K, b, x0, lambda v: np.linalg.solve(Kd, v), 0.0, 1)
+    x, est = gmres_cycle(K, b, x0, lambda v: np.linalg.solve(Kd, v), 0.0, 1)
     assert np.linalg.norm(b - K @ x) <= 1e-10 * np.linalg.norm(b)
     its = []
     target = 1e-6 * np.linalg.norm(b)
-    x, est = fgmres_cycle(K, b, x0, lambda v: v, target, K.shape[0], its.append)
+    x, est = gmres_cycle(K, b, x0, lambda v: v, target, K.shape[0], its.append)
     assert np.linalg.norm(b - K @ x) <= 1.01 * target
     assert 1 < len(its) <= K.shape[0] and its[-1] == est <= target
 
 
-def test_fgmres_without_progress_returns_the_start():
+def test_gmres_without_progress_returns_the_start():
     """A preconditioner returning 0 (K M v = 0): no division by zero, x0 and its residual."""
     K, b, x0, _ = _system(1)
-    x, est = fgmres_cycle(K, b, x0, np.zeros_like, 0.0, 5)
+    x, est = gmres_cycle(K, b, x0, np.zeros_like, 0.0, 5)
     assert np.array_equal(x, x0) and est == np.linalg.norm(b - K @ x0)
+
+
+def _peak_vectors(keep_preconditioned: bool) -> float:
+    """Peak memory of a 12-iteration cycle in units of one vector (n floats), by tracemalloc
+    (numpy reports its buffers to it). keep_preconditioned: M stores every vector it returns,
+    as flexible GMRES's list Z would (the mutation of the memory check)."""
+    import tracemalloc
+
+    n, k = 100_000, 12
+    rng = np.random.default_rng(3)
+    K = sp.diags(rng.uniform(1.0, 100.0, n)).tocsr()  # k iterations do not converge exactly
+    b = rng.standard_normal(n)
+    kept = []
+
+    def M(v):
+        z = 0.5 * v
+        if keep_preconditioned:
+            kept.append(z)
+        return z
+
+    tracemalloc.start()
+    base = tracemalloc.get_traced_memory()[0]
+    x, _ = gmres_cycle(K, b, np.zeros(n), M, 0.0, k)
+    peak = tracemalloc.get_traced_memory()[1] - base
+    tracemalloc.stop()
+    assert np.linalg.norm(b - K @ x) < np.linalg.norm(b)
+    return peak / (8 * n)
+
+
+def test_gmres_holds_one_vector_per_iteration():
+    """The cycle's memory is the Arnoldi vectors (k + 1 after k iterations) and a few work
+    vectors, not two vectors per iteration. Mutation: a preconditioner that keeps what it
+    returns (the z_j of flexible GMRES) adds k vectors and fails the bound."""
+    assert _peak_vectors(False) <= 12 + 6  # measured 16.0 (FGMRES before: 30.0)
+    assert _peak_vectors(True) > 12 + 6  # measured 28.0
