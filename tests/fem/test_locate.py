@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from fem import locate, mesh3d, meshing
+from fem.shapes import half_disc
 
 ELEMENTS = ["triangle", "quad", "tetra", "hexahedron"]
 
@@ -107,3 +108,17 @@ def test_a_point_outside_the_mesh_is_found_outside_and_extrapolated(element):
     assert (locate.locate(coarse, pts)[2] > locate.OUTSIDE_TOL).tolist() == [False, True]
     vals = locate.evaluate(coarse, nodal[:, None], pts)  # (2, 1)
     np.testing.assert_allclose(vals[:, 0], pts @ coef, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "mesh", [meshing.rectangle((0, 2), (0, 1), (3, 2), "triangle"), half_disc()]
+)
+def test_evaluate_reproduces_linear_fields_exactly(mesh):
+    """A linear field at points inside cells (convex combinations of a cell's nodes) of a
+    triangle mesh and of the curved half disc (mapped quads) is reproduced."""
+    lin = lambda p: np.stack([1 + 2 * p[:, 0] - p[:, 1], 3 * p[:, 1]], axis=1)  # noqa: E731
+    rng = np.random.default_rng(1)
+    cells = rng.integers(0, mesh.n_cells, 200)
+    w = rng.dirichlet(np.ones(mesh.cells.shape[1]), 200)  # (200, n_loc) convex weights
+    pts = np.einsum("ma,mai->mi", w, mesh.points[mesh.cells[cells]])  # points inside cells
+    np.testing.assert_allclose(locate.evaluate(mesh, lin(mesh.points), pts), lin(pts), atol=1e-12)
