@@ -109,6 +109,7 @@ CYCLE = "W"  # see the module docstring for the measurements
 REUSE = 0.1
 SPRING_CAP = 10.0  # the largest spring of a slip row (equilibrated units; module docstring)
 MAX_LEVELS = 10  # levels of a hierarchy at most (pyamg's default)
+CHUNK = 1 << 20  # entries per chunk of the one-pass gathers (`gather_rows`): its temporaries
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
@@ -306,6 +307,83 @@ def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> sp.csr_a
         del rows
         indices = A.indices[keep]
     return sp.csr_array((np.ones(indices.size, dtype=np.float32), indices, indptr), shape=(n, n))
+
+
+def gather_rows(
+    A: sp.csr_matrix,
+    row_of: np.ndarray,
+    col_of: np.ndarray,
+    shape: tuple[int, int],
+    extra: sp.csr_matrix | None = None,
+) -> sp.csr_matrix:
+    """The (shape) csr matrix holding, in row row_of[r] ≥ 0, the nonzero entries (c, v) of A's
+    row r with col_of[c] ≥ 0, at column col_of[c]; where `extra` (shape, few stored rows) has
+    a stored row, that row replaces it. row_of must increase over the rows it keeps, col_of
+    over the columns. Built from A's index arrays in chunks of about CHUNK entries: the only
+    full-size arrays are the result's (fancy indexing such as A[rows][:, cols] makes an
+    intermediate of the rows, and a sum a copy of both)."""
+    n_rows, n_cols = shape
+    row_of = np.asarray(row_of)  # (A.shape[0],)
+    col_of = np.asarray(col_of)  # (A.shape[1],)
+    if extra is None:
+        extra = sp.csr_matrix(shape)
+    extra = sp.csr_matrix(extra)
+    extra.sum_duplicates()
+    replaced = np.diff(extra.indptr) > 0  # (n_rows,) the rows extra replaces
+    take = row_of >= 0
+    take[take] = ~replaced[row_of[take]]  # (A.shape[0],) A's rows that land in the result
+
+    def chunks():  # (rows (k,) of A's row chunk, its entries' rows (e,), kept (e,), slice)
+        r0, n = 0, A.shape[0]
+        while r0 < n:
+            r1 = int(np.searchsorted(A.indptr, A.indptr[r0] + CHUNK, side="right")) - 1
+            r1 = min(max(r1, r0 + 1), n)
+            lo, hi = int(A.indptr[r0]), int(A.indptr[r1])
+            rows = np.repeat(np.arange(r0, r1), np.diff(A.indptr[r0 : r1 + 1]))  # (e,)
+            cols = A.indices[lo:hi]  # (e,)
+            kept = take[rows] & (col_of[cols] >= 0) & (A.data[lo:hi] != 0)  # (e,)
+            yield rows[kept], slice(lo, hi), kept
+            r0 = r1
+
+    count = np.zeros(n_rows, dtype=np.int64)  # (n_rows,) entries per row of the result
+    for rows, _, _ in chunks():
+        count += np.bincount(row_of[rows], minlength=n_rows)
+    count[replaced] = np.diff(extra.indptr)[replaced]
+    nnz = int(count.sum())
+    idx = np.int32 if max(nnz, n_rows, n_cols) < np.iinfo(np.int32).max else np.int64
+    indptr = np.zeros(n_rows + 1, dtype=idx)
+    np.cumsum(count, out=indptr[1:])
+    del count
+    indices = np.empty(nnz, dtype=idx)
+    data = np.empty(nnz, dtype=np.result_type(A.dtype, extra.dtype))
+    for rows, sl, kept in chunks():
+        # rank of each kept entry within its row (rows ascending: a row's entries adjoin)
+        rank = np.arange(rows.size) - np.searchsorted(rows, rows)  # (k,)
+        dest = indptr[row_of[rows]] + rank  # (k,)
+        indices[dest] = col_of[A.indices[sl][kept]]
+        data[dest] = A.data[sl][kept]
+    rows = np.repeat(np.arange(n_rows), np.diff(extra.indptr))  # (extra.nnz,)
+    dest = indptr[rows] + np.arange(extra.nnz) - extra.indptr[rows]  # (extra.nnz,)
+    indices[dest] = extra.indices
+    data[dest] = extra.data
+    out = sp.csr_matrix((data, indices, indptr), shape=shape)
+    out.sort_indices()
+    return out
+
+
+def restricted_plus(A: sp.csr_matrix, R: np.ndarray, Z: sp.csr_matrix) -> sp.csr_matrix:
+    """A[R][:, R] (R increasing) in the leading block of Z's shape (n_y ≥ R.size) plus Z, whose
+    stored rows are few: A's rows outside Z's pattern gathered from A's index arrays
+    (`gather_rows`), Z's rows summed with A's there (a small sum)."""
+    n, n_R, n_y = A.shape[0], R.size, Z.shape[0]
+    pos = np.full(n, -1, dtype=np.int64)  # (n,) position of each unknown in R, or −1
+    pos[R] = np.arange(n_R)
+    Z = sp.csr_matrix(Z)
+    t = np.flatnonzero(np.diff(Z.indptr[: n_R + 1]) > 0)  # (k,) Z's stored rows within R
+    P_R = sp.csr_matrix((np.ones(n_R), (R, np.arange(n_R))), shape=(n, n_y))
+    sel = sp.csr_matrix((np.ones(t.size), (t, np.arange(t.size))), shape=(n_y, t.size))
+    Z = (Z + sel @ (A[R[t]] @ P_R)).tocsr()  # (n_y, n_y) A's rows there added
+    return gather_rows(A, pos, pos, (n_y, n_y), extra=Z)
 
 
 def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
@@ -573,16 +651,38 @@ class KrylovSolver:
         self.steps: list[dict] = []  # per Newton step: iterations, tolerance, residual, …
         self.time = 0.0
 
-    def _T0(self, tied: np.ndarray) -> sp.csr_matrix:
-        """(n, n_R + n_F) y = (u_R, s_F) ↦ u: u_S = D^{-1}(C E_F s_F − E_T (B_R u_R)_T)."""
-        R, S, n = self.R, self.S, self.n
+    def _U_S(self, tied: np.ndarray) -> sp.csr_matrix:
+        """(m, n_R + n_F) y = (u_R, s_F) ↦ u_S = D^{-1}(C E_F s_F − E_T (B_R u_R)_T)."""
         F = np.flatnonzero(~tied)
         keep_T = sp.diags(tied.astype(float))
         E_F = sp.csr_matrix((self.scale[F], (F, np.arange(F.size))), shape=(tied.size, F.size))
-        U_S = sp.hstack([-(self.D_inv @ (keep_T @ self.B_R)), self.D_inv @ E_F])  # (m, n_y)
-        P_R = sp.csr_matrix((np.ones(R.size), (R, np.arange(R.size))), shape=(n, R.size + F.size))
-        P_S = sp.csr_matrix((np.ones(S.size), (S, np.arange(S.size))), shape=(n, S.size))
-        return (P_R + P_S @ U_S).tocsr()
+        return sp.hstack([-(self.D_inv @ (keep_T @ self.B_R)), self.D_inv @ E_F]).tocsr()
+
+    def _P_R(self, n_y: int) -> sp.csr_matrix:
+        """(n, n_y) y ↦ u_R at the positions R (zero on S)."""
+        R = self.R
+        return sp.csr_matrix((np.ones(R.size), (R, np.arange(R.size))), shape=(self.n, n_y))
+
+    def _glued(self, tied: np.ndarray, spring: Spring | None = None) -> sp.csr_matrix:
+        """Â = T0ᵀ (A + B_Fᵀ M B_F) T0 (n_y, n_y) with one full-size temporary (the result):
+        with T0 = P_R + P_S U_S and U_S (m, n_y) of the few contact rows,
+        Â = P_Rᵀ A P_R + P_Rᵀ (A P_S) U_S + U_Sᵀ (P_Sᵀ A P_R + A_SS U_S) + (B T0)_Fᵀ M (B T0)_F:
+        A restricted to R × R (`restricted_plus`, from A's index arrays) plus corrections of
+        rank ≤ m. Forming T0ᵀ (A T0) made three full-size products (paper scene level 5:
+        365 → 685 MB)."""
+        return restricted_plus(self.A, self.R, sum(self._corrections(tied, spring)))
+
+    def _corrections(self, tied: np.ndarray, spring: Spring | None) -> list[sp.csr_matrix]:
+        """The terms of Â beyond A's R × R block (`_glued`), each (n_y, n_y) with few rows."""
+        U_S = self._U_S(tied)  # (m, n_y)
+        P_R = self._P_R(U_S.shape[1])  # (n, n_y)
+        AU = self.A[:, self.S] @ U_S  # (n, n_y) A P_S U_S: the rows near the contact
+        out = [P_R.T @ AU, U_S.T @ (self.A[self.S] @ P_R), U_S.T @ AU[self.S]]
+        if spring is not None:
+            F = np.flatnonzero(~tied)
+            BT = self.B[F] @ P_R + self.D[F] @ U_S  # (k_F, n_y) (B T0)_F = (B u)_F in y
+            out.append(BT.T @ (spring.M @ BT))
+        return out
 
     def _fields_y(self, tied: np.ndarray) -> list[tuple]:
         """The fields over y = (u_R, s_F) (masks, near-null rows): s_i = (C^{-1} D u_S)_i is the
@@ -606,13 +706,7 @@ class KrylovSolver:
         """(Re)build the hierarchies of Â = T0ᵀ (A + B_Fᵀ M B_F) T0 for these tied rows and the
         free rows' springs M (kept while the tied rows stay)."""
         self.amg = None  # the old hierarchy is freed before the new one is built
-        T0 = self._T0(tied)
-        A_hat = (T0.T @ (self.A @ T0)).tocsr()
-        if spring is not None:
-            BT = (self.B @ T0)[np.flatnonzero(~tied)]  # (k_F, n_y) (B u)_F in y
-            A_hat = (A_hat + BT.T @ (spring.M @ BT)).tocsr()
-            del BT
-        del T0
+        A_hat = self._glued(tied, spring)
         blocks = field_blocks(A_hat, self._fields_y(tied), couple=self.couple)
         del A_hat  # freed before the set-ups (memory: the set-up is where the peak falls)
         parts = None

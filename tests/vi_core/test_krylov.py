@@ -341,6 +341,92 @@ def test_preconditioner_is_exact_with_slip_rows_coupled_to_tied_rows(seed):
     assert defect(0 * spring.J_FT) > 1e-6
 
 
+def _t0(ks: kr.KrylovSolver, tied: np.ndarray) -> sp.csr_matrix:
+    """T0 (n, n_R + n_F) written out from its definition, column by column: y = (u_R, s_F) ↦ u
+    with u_R = y_R, u_S = D^{-1}(C E_F s_F − E_T (B_R u_R)_T) (module docstring)."""
+    n_R, F = ks.R.size, np.flatnonzero(~tied)
+    D_inv = np.linalg.inv(ks.D.toarray())
+    T0 = np.zeros((ks.n, n_R + F.size))
+    for j in range(n_R + F.size):
+        y = np.zeros(n_R + F.size)
+        y[j] = 1.0
+        z = np.zeros(tied.size)  # D u_S
+        z[F] = ks.scale[F] * y[n_R:]
+        z[tied] = -(ks.B_R @ y[:n_R])[tied]
+        T0[ks.R, j] = y[:n_R]
+        T0[ks.S, j] = D_inv @ z
+    return sp.csr_matrix(T0)
+
+
+@given(seeds)
+def test_glued_operator_is_t0t_a_t0(seed):
+    """Â formed from A's R × R block and the low-rank corrections (`_glued`) is
+    T0ᵀ (A + B_Fᵀ M B_F) T0 formed from T0, with and without springs, for A with
+    non-symmetric coupling. Mutation: any one correction term dropped is not."""
+    from vi_core.ssn import Condensation
+
+    rng = np.random.default_rng(seed)
+    vi = _lower_vi(rng, 2 * int(rng.integers(3, 6)))
+    cond = Condensation.detect(vi.B)
+    tied, J = _disc_jacobian(rng, vi.m)
+    spring = kr.Spring.of(tied, sp.identity(vi.m, format="csr") - J, J)
+    ks = kr.KrylovSolver(vi.A.tocsr(), vi.B, cond, vi.fields, None)
+    T0 = _t0(ks, tied)
+    A = vi.A.tocsr()
+    if spring is not None:
+        B_F = vi.B.tocsr()[np.flatnonzero(~tied)]
+        A = A + B_F.T @ spring.M @ B_F
+    ref = (T0.T @ A @ T0).toarray()
+    scale = np.abs(ref).max()
+
+    def defect():
+        return np.abs(ks._glued(tied, spring).toarray() - ref).max() / scale
+
+    assert defect() < 1e-12
+    terms = ks._corrections(tied, spring)
+    assert len(terms) == 3 + (spring is not None)
+    for i, term in enumerate(terms):
+        if abs(term).max() == 0:
+            continue
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(
+                ks, "_corrections", lambda *a, i=i: [t for j, t in enumerate(terms) if j != i]
+            )
+            assert defect() > 1e-6
+
+
+@given(seeds)
+def test_restricted_plus_is_the_block_plus_the_corrections(seed):
+    """`restricted_plus` (A's R × R block gathered in chunks from its index arrays, a few rows
+    replaced by their sum with Z) is A[R][:, R] + Z, with explicit zeros in A dropped as a sum
+    drops them, over chunks of a few entries. Mutation: Z's rows put in place of A's rows
+    instead of added to them is not."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 40))
+    A = sp.random(n, n, density=0.3, format="csr", random_state=rng)
+    A.data[rng.uniform(size=A.nnz) < 0.1] = 0.0  # explicit zeros
+    R = np.flatnonzero(rng.uniform(size=n) < 0.7)
+    n_y = R.size + int(rng.integers(0, 5))
+    Z = sp.random(n_y, n_y, density=0.3, format="csr", random_state=rng)
+    Z = sp.diags((rng.uniform(size=n_y) < 0.3).astype(float)) @ Z  # a few rows
+    ref = sp.lil_matrix((n_y, n_y))
+    ref[: R.size, : R.size] = A[R][:, R].toarray()
+    ref = (ref.tocsr() + Z).tocsr()
+    ref.eliminate_zeros()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(kr, "CHUNK", int(rng.integers(1, 8)))
+        out = kr.restricted_plus(A, R, Z)
+    assert out.has_sorted_indices
+    assert (out != ref).nnz == 0 and abs(out - ref).max() == 0
+    assert sp.csr_matrix(ref.astype(bool)).nnz == out.nnz  # no stored zeros
+    pos = np.full(n, -1)
+    pos[R] = np.arange(R.size)
+    replaced = kr.gather_rows(A, pos, pos, (n_y, n_y), extra=Z)
+    rows_Z = np.diff(Z.indptr)[: R.size] > 0  # (n_R,) rows of Z within A's block
+    if (rows_Z & (abs(A[R][:, R]) @ np.ones(R.size) > 0)).any():  # A's row there not zero
+        assert abs(replaced - ref).max() > 0
+
+
 def test_springs_are_capped():
     """A disc that has only just started to slip (γ = 1: W_FF singular) gets the spring
     SPRING_CAP, one with γ = 0.5 (κ = 1) κ/(1 + κ/SPRING_CAP); the free row along ŷ none."""
@@ -435,9 +521,8 @@ def test_smoothed_aggregation_is_pyamgs_hierarchy(field, monkeypatch):
     e = pc.build(load_scene("paper_two_body"), 2).vi.equilibrated
     ks = kr.KrylovSolver(e.A, e.B, Condensation.detect(e.B), e.fields, e.near_null)
     tied = np.ones(e.m, dtype=bool)  # every row tied: the bodies glued, Â couples them
-    T0 = ks._T0(tied)
     fields = ks._fields_y(tied)
-    blk = next(b for b in kr.field_blocks((T0.T @ e.A @ T0).tocsr(), fields) if b["name"] == field)
+    blk = next(b for b in kr.field_blocks(ks._glued(tied), fields) if b["name"] == field)
     A, nn = blk["sym"], blk["nn"]
     part = np.concatenate([kr.bodies(e.A)[ks.R], kr.bodies(e.A)[ks.S][~tied]])[blk["index"]]
     # the reference strength: pyamg's symmetric strength (θ = 0) with the connections between
