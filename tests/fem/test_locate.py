@@ -68,7 +68,8 @@ def _misplaced(element: str, seed: int) -> int:
     """How many of 200 random points of the (graded, in 2D) coarse mesh `locate` puts in a
     cell that does not hold them: reference coordinates outside the reference cell by more
     than OUTSIDE_TOL (judged here, not by `locate.outside`), or a cell map that does not give
-    the point back."""
+    the point back. (The nearest centroids alone, without `_search_ball`, misplaced a point
+    for 111 of 300 seeds on the graded triangles and 5 of 300 on the tetrahedra.)"""
     mesh = _nested(element, graded=True)[0]
     lo, hi = mesh.points.min(axis=0), mesh.points.max(axis=0)  # (d,) each: a box domain
     pts = np.random.default_rng(seed).uniform(lo, hi, (200, lo.size))  # (200, d)
