@@ -106,7 +106,9 @@ class Condensation:
         Dt_inv = sp.csr_matrix(
             (np.concatenate(inv_v), (np.concatenate(inv_r), np.concatenate(inv_c))), shape=(m, m)
         )
-        R = np.setdiff1d(np.arange(n), S)
+        keep = np.ones(n, dtype=bool)  # (n,) the remaining columns, in order (a mask: numpy's
+        keep[S] = False  # setdiff1d sorted n values, 0.3 s per call at 386k unknowns)
+        R = np.flatnonzero(keep)
         return Condensation(S=S, R=R, D=D, Dt_inv=Dt_inv)
 
 

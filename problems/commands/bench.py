@@ -7,7 +7,11 @@ For each (scene, level) a child process builds the model and times
 - one linear solve of the same matrix size: the stick limit (every multiplier Free, i.e. the
   tied problem), by the same machinery (ssn on a linear problem = one condensed factorisation
   and solve);
-and reports their ratio, the child's peak resident memory (ru_maxrss, which — unlike
+and reports their ratio in wall-clock time and in CPU time (`time.process_time` of the child,
+all its threads: the iterative path runs BLAS on one thread; on a machine shared with other
+jobs the wall-clock ratio moves with the load — paper scene level 6, the same code: 1.15 at a
+load average of 4 against 1.78 on an idle machine — where the CPU-time ratio measures the work
+done, 1.73 in the loaded run), the child's peak resident memory (ru_maxrss, which — unlike
 tracemalloc — includes the sparse factorisations' C allocations), that peak in bytes per
 unknown, and the memory estimate of `resources` for the same level (made before the child
 starts), so the model can be checked. A second table (JSON key "memory") lists per case the
@@ -50,20 +54,23 @@ POLL = 0.2  # seconds between liveness checks of a child
 
 
 def _nested_ssn(plugin, scene, level: int, tol: float, linear_solver: str = "auto"):
-    prev, iters, total = None, [], 0.0
+    """(model, solution) of the finest level, the wall-clock and CPU seconds of the whole nested
+    solve (the models' construction excluded) and the Newton steps per level."""
+    prev, iters, total, cpu = None, [], 0.0, 0.0
     warm = hasattr(plugin, "warm_start")  # without one: levels solved from cold starts
     for lev in range(level + 1):
         model = plugin.build(scene, lev)
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         kw = pipeline.nested_start(plugin, *prev, model)[0] if prev and warm else {}
         prev = None  # the coarser level is not alive while this one is solved (memory)
         sol = pipeline.solve_model(
             plugin, model, method="ssn", tol=tol, linear_solver=linear_solver, **kw
         )
         total += time.perf_counter() - t
+        cpu += time.process_time() - c
         iters.append(sol.iterations)
         prev = (model, sol)
-    return prev[0], prev[1], total, iters
+    return prev[0], prev[1], total, cpu, iters
 
 
 def stick_limit(vi: MixedVI) -> MixedVI:
@@ -97,14 +104,14 @@ def _record(
         pipeline.solve_model(
             plugin, plugin.build(scene, 0), method="ssn", tol=tol, linear_solver=backend
         )
-    model, sol, t_nl, iters = _nested_ssn(plugin, scene, level, tol, linear_solver)
+    model, sol, t_nl, c_nl, iters = _nested_ssn(plugin, scene, level, tol, linear_solver)
     vi = pipeline.problem_at(plugin, model, sol)  # the problem ssn's answer solves
     # the linear reference: same matrix size, same linear solver (for amg: hierarchy set-up
     # and one GMRES solve to tol — ssn solves a linear VI's first step to tol at once)
     tied = stick_limit(vi)
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     lin = vi_core.solve(tied, "ssn", tol=tol, linear_solver=linear_solver)
-    t_lin = time.perf_counter() - t
+    t_lin, c_lin = time.perf_counter() - t, time.process_time() - c
     if not lin.converged:
         raise RuntimeError(f"the tied linear solve did not converge ({lin.residual:.1e})")
     base = {"scene": scene_name, "level": level, "unknowns": vi.n + vi.m}
@@ -118,6 +125,9 @@ def _record(
             "time_nonlinear_s": t_nl,
             "time_linear_s": t_lin,
             "ratio": t_nl / t_lin,
+            "cpu_nonlinear_s": c_nl,
+            "cpu_linear_s": c_lin,
+            "cpu_ratio": c_nl / c_lin,
             "linear_solver": sol.info.get("linear_solver"),
             "krylov_iterations": sol.info.get("krylov_iterations"),  # per fine-level step
             "krylov_iterations_linear": (lin.info.get("krylov_iterations") or [None])[0],
@@ -128,7 +138,9 @@ def _record(
     for meth in solvers:
         if meth == "ssn" or (meth == "conic" and vi.structure == "general"):
             continue
+        c = time.process_time()
         s = pipeline.solve_model(plugin, model, method=meth, tol=tol)
+        c = time.process_time() - c
         out.append(
             {
                 **base,
@@ -138,6 +150,9 @@ def _record(
                 "time_nonlinear_s": s.time,
                 "time_linear_s": t_lin,
                 "ratio": s.time / t_lin,
+                "cpu_nonlinear_s": c,
+                "cpu_linear_s": c_lin,
+                "cpu_ratio": c / c_lin,
                 "difference_to_ssn": float(
                     np.linalg.norm(s.u - sol.u) / max(np.linalg.norm(sol.u), 1e-300)
                 ),
@@ -249,7 +264,8 @@ def _timeout(text: str) -> float:
 HEAD = (
     f"{'scene':<18}{'level':>6}{'unknowns':>10}{'solver':>10}{'linear':>9}{'iter':>6}"
     f"{'krylov/step':>12}"
-    f"{'nonlinear [s]':>15}{'linear [s]':>12}{'ratio':>8}{'peak [MB]':>11}{'B/unknown':>11}"
+    f"{'nonlinear [s]':>15}{'linear [s]':>12}{'ratio':>8}{'cpu ratio':>11}{'peak [MB]':>11}"
+    f"{'B/unknown':>11}"
 )
 MEMORY_HEAD = (
     f"{'scene':<18}{'level':>6}{'linear':>9}{'unknowns':>10}{'peak [MB]':>11}{'B/unknown':>11}"
@@ -268,7 +284,8 @@ def _line(r: dict) -> str:
         f"{r['scene']:<18}{r['level']:>6}{r['unknowns']:>10}{r['solver']:>10}"
         f"{r.get('linear_solver') or '-':>9}{r['iterations']:>6}{kry:>12}"
         f"{r['time_nonlinear_s']:>15.2f}{r['time_linear_s']:>12.2f}"
-        f"{r['ratio']:>8.2f}{r['peak_mem_mb']:>11.0f}{r['bytes_per_unknown']:>11.0f}"
+        f"{r['ratio']:>8.2f}{r['cpu_ratio']:>11.2f}{r['peak_mem_mb']:>11.0f}"
+        f"{r['bytes_per_unknown']:>11.0f}"
     )
 
 

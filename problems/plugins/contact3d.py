@@ -63,16 +63,15 @@ from problems.scene.exact import ExactSection3
 from problems.scene.fields3d import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
-from vi_core.ssn import tied_start
 
 from . import (
     contact3d_checks,
     contact3d_errors,
     contact3d_extremes,
     contact3d_output,
-    contact3d_transfer,
     contact_law,
     contact_model,
+    transfer,
 )
 from .bodies import Body, build_body, dirichlet
 from .contact3d_bodies import SURFACE_ORDER, BodySection3, count3, field_data3
@@ -682,7 +681,7 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     right this way).
 
     u0: the coarse displacement (and potential) at the fine nodes
-    (`contact3d_transfer.prolongate`; fine nodes outside the coarse mesh, extrapolated, are
+    (`transfer.prolongate`; fine nodes outside the coarse mesh, extrapolated, are
     counted in start["outside_nodes"]), then moved on the slave dofs so that B u0 = gap on
     the rows λ0 predicts tied (normal rows that touch, stick nodes; `vi_core.ssn.tied_start`),
     every other row of B u0 kept. Why: the first Newton step decides stick or slip from
@@ -747,16 +746,7 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     tied[idx_n] = True if fc.law == "bilateral" else lam_n > 0
     tied[idx_b] = ((bound[fc.disc] > 0) & ~slip_b)[:, None]
     tied[idx_l] = (bound[fc.line] > 0) & ~slip_l
-    x, outside = contact3d_transfer.prolongate(coarse, coarse.full(coarse_sol.u), fine)
-    u0 = tied_start(fine.vi, x[fine.free], lam0, tied)
-    if u0 is None:
-        return {"lam0": lam0, "start": {"u0": "not carried: B has no condensation to tie it"}}
-    how = "the coarse displacement (and potential) interpolated (P1/Q1) at the fine nodes"
-    return {
-        "lam0": lam0,
-        "u0": u0,
-        "start": {"u0": f"{how}, tied on the rows λ0 predicts tied", "outside_nodes": outside},
-    }
+    return transfer.carried_start(coarse, coarse_sol, fine, lam0, tied)
 
 
 def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:

@@ -43,7 +43,6 @@ from problems.scene.fields import NonNegativeExpr, Text
 from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
 from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
-from vi_core.ssn import tied_start
 
 from . import (
     contact_law,
@@ -744,16 +743,7 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     lam0 = np.zeros(fc.B_full.shape[0])
     lam0[fc.idx_n] = lam_n
     lam0[fc.idx_t] = ratio * fc.bound(lam0)
-    x, outside = transfer.prolongate(coarse, coarse.full(coarse_sol.u), fine)
-    u0 = tied_start(fine.vi, x[fine.free], lam0)
-    if u0 is None:
-        return {"lam0": lam0, "start": {"u0": "not carried: B has no condensation to tie it"}}
-    how = "the coarse displacement and potential interpolated (P1/Q1) at the fine nodes"
-    return {
-        "lam0": lam0,
-        "u0": u0,
-        "start": {"u0": f"{how}, tied on the rows λ0 predicts tied", "outside_nodes": outside},
-    }
+    return transfer.carried_start(coarse, coarse_sol, fine, lam0)
 
 
 def _slip_ahead(xc: np.ndarray, ratio_c: np.ndarray, xf: np.ndarray) -> np.ndarray:

@@ -27,9 +27,8 @@ import numpy as np
 
 from fem import assembly
 from fem.boundary import dual_basis_on_segment
+from fem.locate import evaluate
 from problems.scene.exact import Exact
-
-from .transfer import evaluate
 
 GAUSS_T, GAUSS_W = np.polynomial.legendre.leggauss(4)
 GAUSS_T, GAUSS_W = 0.5 * (GAUSS_T + 1), 0.5 * GAUSS_W  # (4,) on [0, 1], weights sum 1

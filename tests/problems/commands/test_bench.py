@@ -33,6 +33,9 @@ def test_bench_writes_the_contract(tmp_path, capsys):
         "time_nonlinear_s",
         "time_linear_s",
         "ratio",
+        "cpu_nonlinear_s",
+        "cpu_linear_s",
+        "cpu_ratio",
         "peak_mem_mb",
         "bytes_per_unknown",
     }
@@ -41,6 +44,8 @@ def test_bench_writes_the_contract(tmp_path, capsys):
         assert keys <= set(r)
         assert r["converged"] and r["time_linear_s"] > 0 and r["peak_mem_mb"] > 0
         assert abs(r["ratio"] - r["time_nonlinear_s"] / r["time_linear_s"]) < 1e-12
+        assert r["cpu_linear_s"] > 0 and r["cpu_nonlinear_s"] > 0
+        assert abs(r["cpu_ratio"] - r["cpu_nonlinear_s"] / r["cpu_linear_s"]) < 1e-12
         assert abs(r["bytes_per_unknown"] * r["unknowns"] - r["peak_mem_mb"] * 2**20) < 1.0
     mem = data["memory"]
     assert [(m["scene"], m["level"]) for m in mem] == [
@@ -51,7 +56,12 @@ def test_bench_writes_the_contract(tmp_path, capsys):
         assert m["peak_mem_mb"] == r["peak_mem_mb"] and m["bytes_per_unknown"] > 1000
         assert abs(m["estimate_ratio"] - m["estimate_mem_mb"] / m["peak_mem_mb"]) < 1e-12
     out = capsys.readouterr().out
-    assert "ratio" in out and "B/unknown" in out and "peak resident memory" in out
+    assert (
+        "ratio" in out
+        and "cpu ratio" in out
+        and "B/unknown" in out
+        and "peak resident memory" in out
+    )
 
 
 def test_bench_bad_input_exits_2(tmp_path, capsys):
@@ -69,7 +79,7 @@ def test_bench_times_the_electrical_contact_problem(fault, monkeypatch):
     if fault:
         drop_electrical(monkeypatch)
     scene = load_scene(SCENE)
-    model, sol, _, iters = bench._nested_ssn(registry.for_scene(scene), scene, 1, 1e-10)
+    model, sol, _, _, iters = bench._nested_ssn(registry.for_scene(scene), scene, 1, 1e-10)
     assert sol.converged and len(iters) == 2
     assert matches(model, sol) != fault
     records = bench._record(SCENE, 0, ["ssn", "conic"], 1e-10)

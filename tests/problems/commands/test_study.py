@@ -5,12 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from fem.meshing import rectangle
-from fem.shapes import half_disc
 from problems.commands import study
 from problems.commands.main import main
 from problems.plugins import piezo_contact as pc
-from problems.plugins.piezo_errors import evaluate
 from problems.scene import load_scene
 
 from .electrical import SCENE, drop_electrical, matches
@@ -101,16 +98,6 @@ def test_bad_input_exits_2_with_one_message(args, word, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and err[0].startswith("mixvi: error: ") and word in err[0]
     assert not out.exists()
-
-
-@pytest.mark.parametrize("mesh", [rectangle((0, 2), (0, 1), (3, 2), "triangle"), half_disc()])
-def test_evaluate_reproduces_linear_fields_exactly(mesh):
-    lin = lambda p: np.stack([1 + 2 * p[:, 0] - p[:, 1], 3 * p[:, 1]], axis=1)  # noqa: E731
-    rng = np.random.default_rng(1)
-    cells = rng.integers(0, mesh.n_cells, 200)
-    w = rng.dirichlet(np.ones(mesh.cells.shape[1]), 200)  # (200, n_loc) convex weights
-    pts = np.einsum("ma,mai->mi", w, mesh.points[mesh.cells[cells]])  # points inside cells
-    np.testing.assert_allclose(evaluate(mesh, lin(mesh.points), pts), lin(pts), atol=1e-12)
 
 
 def test_rates_against_the_finest_level_leave_the_reference_out():

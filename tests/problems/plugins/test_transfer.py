@@ -1,12 +1,13 @@
 """`transfer.prolongate`: a coarse level's displacement and potential carried to the next
-level of a two-body scene, checked on affine fields (which P1/Q1 interpolation and
-extrapolation reproduce exactly, curved boundaries included)."""
+level of a 2D two-body scene, checked on affine fields (which P1/Q1 interpolation and
+extrapolation reproduce exactly, curved boundaries included), and of a 3D scene with the fine
+prescribed values kept."""
 
 import numpy as np
 import pytest
 
+from problems.plugins import contact3d, transfer
 from problems.plugins import piezo_contact as pc
-from problems.plugins import transfer
 from problems.scene import load_scene
 
 
@@ -23,13 +24,16 @@ def _affine(model, coef: np.ndarray) -> np.ndarray:
 
 
 def _error(name: str, seed: int) -> tuple[float, int]:
-    """max |prolongate(affine) − affine| / max |affine| from level 0 to 1, and the fine nodes
-    found outside the coarse mesh."""
+    """max |prolongate(affine) − affine| / max |affine| from level 0 to 1 (the fine prescribed
+    values on the fixed entries), and the fine nodes found outside the coarse mesh."""
     scene = load_scene(name)
     coarse, fine = pc.build(scene, 0), pc.build(scene, 1)
     coef = np.random.default_rng(seed).standard_normal((3, 3))
     y, outside = transfer.prolongate(coarse, _affine(coarse, coef), fine)
     want = _affine(fine, coef)
+    fixed = np.ones(want.size, dtype=bool)
+    fixed[fine.free] = False
+    want[fixed] = fine.values[fixed]
     return float(np.abs(y - want).max() / np.abs(want).max()), outside
 
 
@@ -46,14 +50,35 @@ def test_affine_fields_are_carried_exactly(name):
 def test_affine_check_catches_faults(monkeypatch):
     """The check above fails for the fields' columns mixed up and for cells not inverted
     (every point at its cell's centre)."""
-    values, locate = transfer._values, transfer.locate
-    monkeypatch.setattr(transfer, "_values", lambda *a: np.roll(values(*a), 1, axis=1))
+    values, locate = transfer.interpolate, transfer.locate
+    monkeypatch.setattr(transfer, "interpolate", lambda *a: np.roll(values(*a), 1, axis=1))
     assert _error("paper_two_body", 0)[0] > 1e-3
-    monkeypatch.setattr(transfer, "_values", values)
+    monkeypatch.setattr(transfer, "interpolate", values)
 
-    def centres(mesh, pts, candidates=8):
+    def centres(mesh, pts, candidates=None):
         cell, xi, out = locate(mesh, pts, candidates)
         return cell, np.zeros_like(xi) + (1 / 3 if mesh.cell_type == "triangle" else 0), out
 
     monkeypatch.setattr(transfer, "locate", centres)
     assert _error("shear_strip_two_body", 0)[0] > 1e-3
+
+
+def test_prolongate_keeps_the_fine_prescribed_values():
+    """3D: the fixed entries of the fine full vector are the fine level's Dirichlet values,
+    the free ones the coarse field: an affine coarse displacement (P1 exact) on the bracket."""
+    scene = load_scene("bracket3d")
+    coarse, fine = contact3d.build(scene, 0), contact3d.build(scene, 1)
+    x = np.zeros(coarse.values.size)
+    for b in coarse.bodies:
+        d = b.u_dofs(np.arange(b.n_nodes))  # (N, 3)
+        x[d] = b.mesh.points @ np.array([[1.0, 0.0, 2.0], [0.0, -1.0, 0.0], [0.5, 0.0, 1.0]])
+    out, outside = transfer.prolongate(coarse, x, fine)
+    assert outside == 0
+    fixed = np.ones(out.size, dtype=bool)
+    fixed[fine.free] = False
+    np.testing.assert_array_equal(out[fixed], fine.values[fixed])
+    for b in fine.bodies:
+        d = b.u_dofs(np.arange(b.n_nodes))  # (N, 3)
+        want = b.mesh.points @ np.array([[1.0, 0.0, 2.0], [0.0, -1.0, 0.0], [0.5, 0.0, 1.0]])
+        free = ~fixed[d]
+        np.testing.assert_allclose(out[d][free], want[free], rtol=0, atol=1e-12)

@@ -1,0 +1,124 @@
+"""fem.locate: a coarse P1/Q1 field at the nodes of a finer mesh, 2D and 3D."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fem import locate, mesh3d, meshing
+from fem.shapes import half_disc
+
+ELEMENTS = ["triangle", "quad", "tetra", "hexahedron"]
+
+
+def _nested(element: str, graded: bool):
+    """(coarse, fine): a coarse mesh of `element` and its uniform refinement; `graded` (2D):
+    node lines graded towards a corner, so that the cell with the nearest centroid is not
+    always the one that holds a fine node."""
+    if element in ("triangle", "quad"):
+        kw = {"focus": (0.0, 0.0), "grading": (2.5, 2.5)} if graded else {}
+        grid = ((0.0, 1.0), (0.0, 2.0))
+        return (
+            meshing.rectangle(*grid, (2, 3), element, **kw),
+            meshing.rectangle(*grid, (4, 6), element, **kw),
+        )
+    box = ((0.0, 1.0), (0.0, 2.0), (0.0, 0.5), (2, 3, 1), element)
+    return mesh3d.box(*box, 0), mesh3d.box(*box, 1)
+
+
+def _nested_error(element: str, graded: bool) -> float:
+    """max |evaluate − expected| over the fine nodes on coarse nodes (the coarse value) and on
+    coarse edges (the two values interpolated linearly: P1 and Q1 are linear along edges), for
+    random nodal values, so a wrong cell or wrong reference coordinates show."""
+    coarse, fine = _nested(element, graded)
+    assert (locate.locate(coarse, fine.points)[2] <= locate.OUTSIDE_TOL).all()
+    rng = np.random.default_rng(7)
+    nodal = rng.standard_normal((coarse.n_nodes, 2))  # (N_c, 2) two components
+    vals = locate.evaluate(coarse, nodal, fine.points)  # (N_f, 2)
+    expect = np.full((fine.n_nodes, 2), np.nan)
+    for i, p in enumerate(coarse.points):
+        expect[np.flatnonzero(np.abs(fine.points - p).max(axis=1) < 1e-12)] = nodal[i]
+    cells = coarse.cells  # (n_cells, n_loc): the edges of the cell types
+    pairs = {tuple(sorted((a, b))) for c in cells for a in c for b in c if a != b}
+    simplex = element in ("triangle", "tetra")
+    for a, b in pairs:
+        if not simplex and np.count_nonzero(coarse.points[a] != coarse.points[b]) != 1:
+            continue  # not an edge (quads, hexahedra: the edges are axis-parallel)
+        pa, e = coarse.points[a], coarse.points[b] - coarse.points[a]  # (d,) each
+        t = (fine.points - pa) @ e / (e @ e)  # (N_f,) the position along the edge
+        off = np.abs(fine.points - pa - t[:, None] * e).max(axis=1)  # (N_f,) off its line
+        at = np.flatnonzero((off < 1e-12) & (t > 1e-12) & (t < 1 - 1e-12))
+        expect[at] = (1 - t[at, None]) * nodal[a] + t[at, None] * nodal[b]  # linear on edges
+    known = ~np.isnan(expect[:, 0])
+    assert known.sum() > coarse.n_nodes  # coarse nodes and edge midpoints were checked
+    return float(np.abs(vals[known] - expect[known]).max())
+
+
+@pytest.mark.parametrize(
+    "element, graded", [(e, False) for e in ELEMENTS] + [("triangle", True), ("quad", True)]
+)
+def test_nested_nodes_get_the_coarse_values_and_edge_midpoints_their_mean(element, graded):
+    """On nested meshes the transfer is the prolongation (`_nested_error`)."""
+    assert _nested_error(element, graded) <= 1e-12
+
+
+def _misplaced(element: str, seed: int) -> int:
+    """How many of 200 random points of the (graded, in 2D) coarse mesh `locate` puts in a
+    cell that does not hold them: reference coordinates outside the reference cell by more
+    than OUTSIDE_TOL (judged here, not by `locate.outside`), or a cell map that does not give
+    the point back."""
+    mesh = _nested(element, graded=True)[0]
+    lo, hi = mesh.points.min(axis=0), mesh.points.max(axis=0)  # (d,) each: a box domain
+    pts = np.random.default_rng(seed).uniform(lo, hi, (200, lo.size))  # (200, d)
+    cell, xi, _ = locate.locate(mesh, pts)
+    if element in ("triangle", "tetra"):
+        out = np.maximum(-xi.min(axis=1), xi.sum(axis=1) - 1)  # (200,)
+    else:
+        out = np.abs(xi).max(axis=1) - 1  # (200,)
+    back = locate.interpolate(mesh, mesh.points, cell, xi)  # (200, d)
+    return int(((out > locate.OUTSIDE_TOL) | (np.abs(back - pts).max(axis=1) > 1e-12)).sum())
+
+
+@pytest.mark.parametrize("element", ELEMENTS)
+def test_random_points_are_found_in_a_cell_that_holds_them(element):
+    assert _misplaced(element, int(np.random.default_rng().integers(2**32))) == 0
+
+
+def test_placement_check_catches_every_point_taken_in_the_nearest_cell(monkeypatch):
+    """The check above fails when every point counts as inside the cell with the nearest
+    centroid (the search among the other candidates skipped)."""
+    monkeypatch.setattr(locate, "outside", lambda cell_type, xi: np.zeros(xi.shape[:-1]) - 1)
+    assert _misplaced("quad", 0) > 0
+    assert _misplaced("tetra", 0) > 0
+
+
+@pytest.mark.parametrize("element", ELEMENTS)
+def test_a_point_outside_the_mesh_is_found_outside_and_extrapolated(element):
+    """A point beyond the unit square / cube lies outside it by more than OUTSIDE_TOL, and an
+    affine field (P1/Q1 exact) is extrapolated to it exactly."""
+    if element in ("triangle", "quad"):
+        coarse = meshing.rectangle((0.0, 1.0), (0.0, 1.0), (1, 1), element)
+    else:
+        coarse = mesh3d.box((0.0, 1.0), (0.0, 1.0), (0.0, 1.0), (1, 1, 1), element, 0)
+    dim = coarse.points.shape[1]
+    pts = np.full((2, dim), 0.5)  # (2, d) inside, outside
+    pts[1, 0] = 1.5
+    coef = np.array([1.0, 2.0, -3.0])[:dim]
+    nodal = coarse.points @ coef  # (N,) an affine field
+    assert (locate.locate(coarse, pts)[2] > locate.OUTSIDE_TOL).tolist() == [False, True]
+    vals = locate.evaluate(coarse, nodal[:, None], pts)  # (2, 1)
+    np.testing.assert_allclose(vals[:, 0], pts @ coef, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "mesh", [meshing.rectangle((0, 2), (0, 1), (3, 2), "triangle"), half_disc()]
+)
+def test_evaluate_reproduces_linear_fields_exactly(mesh):
+    """A linear field at points inside cells (convex combinations of a cell's nodes) of a
+    triangle mesh and of the curved half disc (mapped quads) is reproduced."""
+    lin = lambda p: np.stack([1 + 2 * p[:, 0] - p[:, 1], 3 * p[:, 1]], axis=1)  # noqa: E731
+    rng = np.random.default_rng(1)
+    cells = rng.integers(0, mesh.n_cells, 200)
+    w = rng.dirichlet(np.ones(mesh.cells.shape[1]), 200)  # (200, n_loc) convex weights
+    pts = np.einsum("ma,mai->mi", w, mesh.points[mesh.cells[cells]])  # points inside cells
+    np.testing.assert_allclose(locate.evaluate(mesh, lin(mesh.points), pts), lin(pts), atol=1e-12)
