@@ -7,7 +7,10 @@ A point is looked for in the cell with the nearest centroid, then, if it lies ou
 one by more than OUTSIDE_TOL, among the cells with the nearest centroids, by inverting the
 cell maps (Newton; exact after one step for P1). A point outside every candidate (a refined
 curved boundary's new node, which lies outside the coarse mesh) gets the candidate it is
-least outside of, and the field there is extrapolated from that cell.
+least outside of, and the field there is extrapolated from that cell. So is a point inside
+the mesh whose cell is not among the candidates (possible on strongly graded meshes, whose
+nearest centroids need not be those of the cells around a point); `locate`'s third output
+tells both apart from points found inside.
 """
 
 from __future__ import annotations
