@@ -109,7 +109,7 @@ CYCLE = "W"  # see the module docstring for the measurements
 REUSE = 0.1
 SPRING_CAP = 10.0  # the largest spring of a slip row (equilibrated units; module docstring)
 MAX_LEVELS = 10  # levels of a hierarchy at most (pyamg's default)
-CHUNK = 1 << 20  # entries per chunk of the one-pass gathers (`gather_rows`): its temporaries
+CHUNK = 1 << 18  # entries per chunk of the one-pass gathers (`gather_rows`): its temporaries
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
@@ -309,46 +309,43 @@ def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> sp.csr_a
     return sp.csr_array((np.ones(indices.size, dtype=np.float32), indices, indptr), shape=(n, n))
 
 
+def _row_chunks(A: sp.csr_matrix):
+    """(rows (e,), slice) per chunk of A's rows of about CHUNK entries: the row of each entry
+    of the chunk and the chunk's slice of A's index and data arrays."""
+    r0, n = 0, A.shape[0]
+    while r0 < n:
+        r1 = int(np.searchsorted(A.indptr, A.indptr[r0] + CHUNK, side="right")) - 1
+        r1 = min(max(r1, r0 + 1), n)
+        rows = np.repeat(np.arange(r0, r1), np.diff(A.indptr[r0 : r1 + 1]))  # (e,)
+        yield rows, slice(int(A.indptr[r0]), int(A.indptr[r1]))
+        r0 = r1
+
+
 def gather_rows(
     A: sp.csr_matrix,
     row_of: np.ndarray,
     col_of: np.ndarray,
     shape: tuple[int, int],
-    extra: sp.csr_matrix | None = None,
+    extra: sp.csr_matrix,
 ) -> sp.csr_matrix:
-    """The (shape) csr matrix holding, in row row_of[r] ≥ 0, the nonzero entries (c, v) of A's
-    row r with col_of[c] ≥ 0, at column col_of[c]; where `extra` (shape, few stored rows) has
-    a stored row, that row replaces it. row_of must increase over the rows it keeps, col_of
-    over the columns. Built from A's index arrays in chunks of about CHUNK entries: the only
-    full-size arrays are the result's (fancy indexing such as A[rows][:, cols] makes an
-    intermediate of the rows, and a sum a copy of both)."""
+    """The (shape) csr matrix holding, in row row_of[r] ≥ 0, the stored entries (c, v) of A's
+    row r with col_of[c] ≥ 0, at column col_of[c], and the rows of `extra` (shape, few stored
+    rows, none of them a row row_of gives). row_of must increase over the rows it keeps,
+    col_of over the columns. Built from A's index arrays in chunks of about CHUNK entries:
+    the only full-size arrays are the result's (fancy indexing such as A[rows][:, cols] makes
+    an intermediate of the rows, a sum a copy of both)."""
     n_rows, n_cols = shape
-    row_of = np.asarray(row_of)  # (A.shape[0],)
-    col_of = np.asarray(col_of)  # (A.shape[1],)
-    if extra is None:
-        extra = sp.csr_matrix(shape)
     extra = sp.csr_matrix(extra)
     extra.sum_duplicates()
-    replaced = np.diff(extra.indptr) > 0  # (n_rows,) the rows extra replaces
-    take = row_of >= 0
-    take[take] = ~replaced[row_of[take]]  # (A.shape[0],) A's rows that land in the result
 
-    def chunks():  # (rows (k,) of A's row chunk, its entries' rows (e,), kept (e,), slice)
-        r0, n = 0, A.shape[0]
-        while r0 < n:
-            r1 = int(np.searchsorted(A.indptr, A.indptr[r0] + CHUNK, side="right")) - 1
-            r1 = min(max(r1, r0 + 1), n)
-            lo, hi = int(A.indptr[r0]), int(A.indptr[r1])
-            rows = np.repeat(np.arange(r0, r1), np.diff(A.indptr[r0 : r1 + 1]))  # (e,)
-            cols = A.indices[lo:hi]  # (e,)
-            kept = take[rows] & (col_of[cols] >= 0) & (A.data[lo:hi] != 0)  # (e,)
-            yield rows[kept], slice(lo, hi), kept
-            r0 = r1
+    def kept():  # A's entries that land in the result, per chunk: (their rows (k,), slice, mask)
+        for rows, sl in _row_chunks(A):
+            keep = (row_of[rows] >= 0) & (col_of[A.indices[sl]] >= 0)  # (e,)
+            yield rows[keep], sl, keep
 
-    count = np.zeros(n_rows, dtype=np.int64)  # (n_rows,) entries per row of the result
-    for rows, _, _ in chunks():
+    count = np.diff(extra.indptr).astype(np.int64)  # (n_rows,) entries per row of the result
+    for rows, _, _ in kept():
         count += np.bincount(row_of[rows], minlength=n_rows)
-    count[replaced] = np.diff(extra.indptr)[replaced]
     nnz = int(count.sum())
     idx = np.int32 if max(nnz, n_rows, n_cols) < np.iinfo(np.int32).max else np.int64
     indptr = np.zeros(n_rows + 1, dtype=idx)
@@ -356,12 +353,12 @@ def gather_rows(
     del count
     indices = np.empty(nnz, dtype=idx)
     data = np.empty(nnz, dtype=np.result_type(A.dtype, extra.dtype))
-    for rows, sl, kept in chunks():
+    for rows, sl, keep in kept():
         # rank of each kept entry within its row (rows ascending: a row's entries adjoin)
         rank = np.arange(rows.size) - np.searchsorted(rows, rows)  # (k,)
         dest = indptr[row_of[rows]] + rank  # (k,)
-        indices[dest] = col_of[A.indices[sl][kept]]
-        data[dest] = A.data[sl][kept]
+        indices[dest] = col_of[A.indices[sl][keep]]
+        data[dest] = A.data[sl][keep]
     rows = np.repeat(np.arange(n_rows), np.diff(extra.indptr))  # (extra.nnz,)
     dest = indptr[rows] + np.arange(extra.nnz) - extra.indptr[rows]  # (extra.nnz,)
     indices[dest] = extra.indices
@@ -371,19 +368,103 @@ def gather_rows(
     return out
 
 
-def restricted_plus(A: sp.csr_matrix, R: np.ndarray, Z: sp.csr_matrix) -> sp.csr_matrix:
-    """A[R][:, R] (R increasing) in the leading block of Z's shape (n_y ≥ R.size) plus Z, whose
-    stored rows are few: A's rows outside Z's pattern gathered from A's index arrays
-    (`gather_rows`), Z's rows summed with A's there (a small sum)."""
-    n, n_R, n_y = A.shape[0], R.size, Z.shape[0]
-    pos = np.full(n, -1, dtype=np.int64)  # (n,) position of each unknown in R, or −1
-    pos[R] = np.arange(n_R)
-    Z = sp.csr_matrix(Z)
-    t = np.flatnonzero(np.diff(Z.indptr[: n_R + 1]) > 0)  # (k,) Z's stored rows within R
-    P_R = sp.csr_matrix((np.ones(n_R), (R, np.arange(n_R))), shape=(n, n_y))
-    sel = sp.csr_matrix((np.ones(t.size), (t, np.arange(t.size))), shape=(n_y, t.size))
-    Z = (Z + sel @ (A[R[t]] @ P_R)).tocsr()  # (n_y, n_y) A's rows there added
-    return gather_rows(A, pos, pos, (n_y, n_y), extra=Z)
+def restricted_plus(
+    A: sp.csr_matrix,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    Z: sp.csr_matrix,
+    lone: tuple[np.ndarray, np.ndarray] | None = None,
+) -> sp.csr_matrix:
+    """(k_r, k_c) A[rows][:, cols] + Z, where an entry −1 of rows/cols stands for a row/column
+    of zeros (their other entries increasing) and Z has few stored rows: A's rows outside Z's
+    gathered from A's index arrays (`gather_rows`), Z's rows summed with A's there (a small
+    sum). Stored zeros are kept; given lone = `lone_entries(A)` (with rows = cols) the pattern
+    is widened by stored zeros to a symmetric one (`symmetric_part` then needs no transpose):
+    the transposes of Z's entries and of the lone entries in the block."""
+    row_of = np.full(A.shape[0], -1, dtype=np.int64)  # (n,) the result's row of A's rows
+    row_of[rows[rows >= 0]] = np.flatnonzero(rows >= 0)
+    col_of = np.full(A.shape[1], -1, dtype=np.int64)  # (n,) the result's column of A's
+    col_of[cols[cols >= 0]] = np.flatnonzero(cols >= 0)
+    Z = sp.coo_matrix(Z)
+    if lone is not None:  # Zᵀ's pattern and that of the lone entries' transposes, as zeros
+        r, c = lone
+        inside = (row_of[r] >= 0) & (col_of[c] >= 0)  # (k,) the lone entries in the block
+        add_r = np.concatenate([Z.col, col_of[c[inside]]])
+        add_c = np.concatenate([Z.row, row_of[r[inside]]])
+        Z = sp.coo_matrix(
+            (np.concatenate([Z.data, np.zeros(add_r.size)]),
+             (np.concatenate([Z.row, add_r]), np.concatenate([Z.col, add_c]))),
+            shape=Z.shape,
+        )  # fmt: skip
+    t = np.unique(Z.row[rows[Z.row] >= 0])  # (k,) Z's rows that have a row of A
+    row_of[rows[t]] = -1  # those rows come from the sum below
+    A_t = A[rows[t]]  # (k, n) A's rows there
+    r = np.repeat(t, np.diff(A_t.indptr))  # (nnz_t,) their rows in the result
+    c = col_of[A_t.indices]  # (nnz_t,) their columns in the result, −1 dropped
+    Z = sp.coo_matrix(  # (k_r, k_c) the sum on Z's rows, stored zeros kept (tocsr)
+        (np.concatenate([Z.data, A_t.data[c >= 0]]),
+         (np.concatenate([Z.row, r[c >= 0]]), np.concatenate([Z.col, c[c >= 0]]))),
+        shape=Z.shape,
+    ).tocsr()  # fmt: skip
+    return gather_rows(A, row_of, col_of, Z.shape, extra=Z)
+
+
+def _find(A: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """(k,) the position in A's index arrays of each entry (rows[t], cols[t]), −1 where it is
+    not stored (A canonical: sorted indices, no duplicates): a binary search within each row."""
+    end = A.indptr[rows + 1].astype(np.int64)  # (k,)
+    lo, hi = A.indptr[rows].astype(np.int64), end.copy()  # (k,) the search interval
+    last = max(A.nnz - 1, 0)
+    while (active := lo < hi).any():
+        mid = (lo + hi) // 2
+        right = active & (A.indices[np.minimum(mid, last)] < cols)
+        lo = np.where(right, mid + 1, lo)
+        hi = np.where(active & ~right, mid, hi)
+    found = lo < end
+    found[found] = A.indices[lo[found]] == cols[found]
+    return np.where(found, lo, -1)
+
+
+def lone_entries(A: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
+    """(rows (k,), cols (k,)) the stored entries of a square csr A (made canonical in place,
+    the same values) whose transpose A does not store (`_find`, in chunks): A's pattern is
+    symmetric but for exact zeros dropped on one side (4 entries at the paper scene's level
+    5)."""
+    A.sum_duplicates()
+    out_r, out_c = [], []
+    for r, sl in _row_chunks(A):
+        c = A.indices[sl]  # (e,)
+        lone = _find(A, c, r) < 0  # (e,)
+        out_r.append(r[lone])
+        out_c.append(c[lone])
+    return np.concatenate(out_r), np.concatenate(out_c)
+
+
+def symmetric_part(K: sp.csr_matrix) -> sp.csr_matrix:
+    """(K + Kᵀ)/2 of a square csr K, its zeros dropped, computed in K's data in place for each
+    stored (i, j) above the diagonal with a stored (j, i): the same numbers as the sum, without
+    the transpose copy and the sum's arrays. Where K's pattern is not symmetric, that sum of
+    the result follows (its averaged pairs are (v + v)/2 = v exactly: the same numbers)."""
+    K.sum_duplicates()
+    n_upper = n_lower = 0
+    matched = True
+    for rows, sl in _row_chunks(K):
+        cols = K.indices[sl]  # (e,)
+        upper = cols > rows  # (e,)
+        n_upper += int(upper.sum())
+        n_lower += int((cols < rows).sum())
+        e = np.flatnonzero(upper) + sl.start  # (k,) the entries (i, j) above the diagonal
+        p = _find(K, cols[upper], rows[upper])  # (k,) their (j, i)
+        matched &= bool((p >= 0).all())
+        e, p = e[p >= 0], p[p >= 0]
+        v = 0.5 * (K.data[e] + K.data[p])  # (k,) as (a + b)·0.5 in the sum: the same numbers
+        K.data[e] = v
+        K.data[p] = v
+    if not matched or n_upper != n_lower:
+        K = (K + K.T).tocsr()
+        K.data *= 0.5
+    K.eliminate_zeros()
+    return K
 
 
 def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
@@ -520,28 +601,42 @@ def smoothed_aggregation(A: sp.csr_matrix, B: np.ndarray | None, part: np.ndarra
     return ml
 
 
-def field_blocks(K: sp.csr_matrix, fields: list[tuple], couple: bool = True) -> list[dict]:
-    """Per field (in order): its positions `index` (k,), the symmetric part `sym` (k, k) of its
-    diagonal block, its near-null rows `nn`, and `lower` = [(j, K[field, field j])] for the
-    earlier fields j (empty with couple=False). Nothing refers to K afterwards: the caller can
-    free it before the multigrid set-ups, where the peak memory falls."""
+def field_blocks(
+    K: sp.csr_matrix,
+    fields: list[tuple],
+    couple: bool = True,
+    R: np.ndarray | None = None,
+    Z: sp.csr_matrix | None = None,
+    lone: tuple[np.ndarray, np.ndarray] | None = None,
+) -> list[dict]:
+    """The blocks of Â = K[R][:, R] in the leading block of y plus Z (n_y, n_y, few stored
+    rows) — by default R all of K's rows and Z none: Â = K — for the fields over y (masks
+    (n_y,)): per field (in order) its positions `index` (k,), the symmetric part `sym` (k, k)
+    of its diagonal block, its near-null rows `nn`, and `lower` = [(j, Â[field, field j])] for
+    the earlier fields j (empty with couple=False). Each block is gathered from K's index
+    arrays (`restricted_plus`) and Â is never formed: the only full-size arrays are the
+    blocks' (forming Â and taking its blocks by fancy indexing peaked at 685 MB from 365 held,
+    paper scene level 5). lone: `lone_entries(K)` where known (computed otherwise). Nothing
+    refers to K afterwards."""
+    n_y = fields[0][1].size if fields else K.shape[0]
+    R = np.arange(K.shape[0]) if R is None else np.asarray(R)
+    R_y = np.full(n_y, -1, dtype=np.int64)  # (n_y,) K's row of each position, −1 beyond R
+    R_y[: R.size] = R
+    Z = sp.csr_matrix((n_y, n_y)) if Z is None else sp.csr_matrix(Z)
+    lone = lone_entries(K) if lone is None else lone
     out: list[dict] = []
     for name, mask, nn in fields:
         index = np.flatnonzero(mask)
         if index.size == 0:
             continue
-        rows = K[index]  # (k, n) the field's rows: its block and its coupling blocks
+        Z_f = Z[index]  # (k, n_y) Z's rows of the field (few stored)
         lower = []
         for j, prev in enumerate(out if couple else []):
-            C = rows[:, prev["index"]].tocsr()
+            C = restricted_plus(K, R_y[index], R_y[prev["index"]], Z_f[:, prev["index"]])
             C.eliminate_zeros()
             if C.nnz:
                 lower.append((j, C))
-        Kf = rows[:, index]
-        del rows
-        sym = (Kf + Kf.T).tocsr()  # the symmetric part, halved in place (one copy fewer)
-        sym.data *= 0.5
-        del Kf
+        sym = symmetric_part(restricted_plus(K, R_y[index], R_y[index], Z_f[:, index], lone))
         out.append({"name": name, "index": index, "sym": sym, "nn": nn, "lower": lower})
     return out
 
@@ -645,6 +740,7 @@ class KrylovSolver:
         self.restart, self.max_cycles, self.couple = restart, max_cycles, couple
         self.cycle = cycle
         self.amg: BlockAMG | None = None
+        self.lone: tuple | None = None  # `lone_entries(A)`, found at the first set-up
         self.tied: np.ndarray | None = None  # (m,) the tied rows the hierarchy was built for
         self.spring: Spring | None = None  # the free rows' springs it was built with
         self.setups: list[float] = []  # seconds of each hierarchy set-up
@@ -663,17 +759,20 @@ class KrylovSolver:
         R = self.R
         return sp.csr_matrix((np.ones(R.size), (R, np.arange(R.size))), shape=(self.n, n_y))
 
-    def _glued(self, tied: np.ndarray, spring: Spring | None = None) -> sp.csr_matrix:
-        """Â = T0ᵀ (A + B_Fᵀ M B_F) T0 (n_y, n_y) with one full-size temporary (the result):
-        with T0 = P_R + P_S U_S and U_S (m, n_y) of the few contact rows,
+    def _blocks(self, tied: np.ndarray, spring: Spring | None = None) -> list[dict]:
+        """The field blocks (`field_blocks`) of Â = T0ᵀ (A + B_Fᵀ M B_F) T0 (n_y, n_y), never
+        formed: with T0 = P_R + P_S U_S and U_S (m, n_y) of the few contact rows,
         Â = P_Rᵀ A P_R + P_Rᵀ (A P_S) U_S + U_Sᵀ (P_Sᵀ A P_R + A_SS U_S) + (B T0)_Fᵀ M (B T0)_F:
-        A restricted to R × R (`restricted_plus`, from A's index arrays) plus corrections of
-        rank ≤ m. Forming T0ᵀ (A T0) made three full-size products (paper scene level 5:
-        365 → 685 MB)."""
-        return restricted_plus(self.A, self.R, sum(self._corrections(tied, spring)))
+        A restricted to R × R plus corrections of rank ≤ m (`_corrections`), each block
+        gathered from A's index arrays. Forming T0ᵀ (A T0) made three full-size products
+        (paper scene level 5: 365 → 685 MB)."""
+        if self.lone is None:  # A is fixed: its lone entries are found once
+            self.lone = lone_entries(self.A)
+        Z = sum(self._corrections(tied, spring))
+        return field_blocks(self.A, self._fields_y(tied), self.couple, self.R, Z, self.lone)
 
     def _corrections(self, tied: np.ndarray, spring: Spring | None) -> list[sp.csr_matrix]:
-        """The terms of Â beyond A's R × R block (`_glued`), each (n_y, n_y) with few rows."""
+        """The terms of Â beyond A's R × R block (`_blocks`), each (n_y, n_y) with few rows."""
         U_S = self._U_S(tied)  # (m, n_y)
         P_R = self._P_R(U_S.shape[1])  # (n, n_y)
         AU = self.A[:, self.S] @ U_S  # (n, n_y) A P_S U_S: the rows near the contact
@@ -706,9 +805,7 @@ class KrylovSolver:
         """(Re)build the hierarchies of Â = T0ᵀ (A + B_Fᵀ M B_F) T0 for these tied rows and the
         free rows' springs M (kept while the tied rows stay)."""
         self.amg = None  # the old hierarchy is freed before the new one is built
-        A_hat = self._glued(tied, spring)
-        blocks = field_blocks(A_hat, self._fields_y(tied), couple=self.couple)
-        del A_hat  # freed before the set-ups (memory: the set-up is where the peak falls)
+        blocks = self._blocks(tied, spring)
         parts = None
         if self.parts is not None:
             parts = np.concatenate([self.parts[self.R], self.parts[self.S][~tied]])

@@ -359,10 +359,11 @@ def _t0(ks: kr.KrylovSolver, tied: np.ndarray) -> sp.csr_matrix:
 
 
 @given(seeds)
-def test_glued_operator_is_t0t_a_t0(seed):
-    """Â formed from A's R × R block and the low-rank corrections (`_glued`) is
-    T0ᵀ (A + B_Fᵀ M B_F) T0 formed from T0, with and without springs, for A with
-    non-symmetric coupling. Mutation: any one correction term dropped is not."""
+def test_field_blocks_are_those_of_t0t_a_t0(seed):
+    """The field blocks of Â gathered from A's R × R block and the low-rank corrections
+    (`_blocks`) are those of T0ᵀ (A + B_Fᵀ M B_F) T0 formed from T0 written out, with and
+    without springs, for A with non-symmetric coupling: the symmetric part of each diagonal
+    block and the coupling block. Mutation: any one correction term dropped is not."""
     from vi_core.ssn import Condensation
 
     rng = np.random.default_rng(seed)
@@ -376,11 +377,19 @@ def test_glued_operator_is_t0t_a_t0(seed):
     if spring is not None:
         B_F = vi.B.tocsr()[np.flatnonzero(~tied)]
         A = A + B_F.T @ spring.M @ B_F
-    ref = (T0.T @ A @ T0).toarray()
+    ref = (T0.T @ A @ T0).toarray()  # (n_y, n_y)
     scale = np.abs(ref).max()
 
     def defect():
-        return np.abs(ks._glued(tied, spring).toarray() - ref).max() / scale
+        blocks = ks._blocks(tied, spring)
+        assert [b["name"] for b in blocks] == ["a", "b"] and blocks[0]["lower"] == []
+        a, b = (blk["index"] for blk in blocks)
+        worst = max(
+            np.abs(blk["sym"].toarray() - (ref[np.ix_(i, i)] + ref[np.ix_(i, i)].T) / 2).max()
+            for blk, i in zip(blocks, (a, b), strict=True)
+        )
+        [(j, C)] = blocks[1]["lower"]
+        return max(worst, np.abs(C.toarray() - ref[np.ix_(b, a)]).max()) / scale
 
     assert defect() < 1e-12
     terms = ks._corrections(tied, spring)
@@ -395,36 +404,101 @@ def test_glued_operator_is_t0t_a_t0(seed):
             assert defect() > 1e-6
 
 
+def _block(A: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """(k_r, k_c) dense A[rows][:, cols], rows/columns −1 zero."""
+    out = np.zeros((rows.size, cols.size))
+    out[np.ix_(rows >= 0, cols >= 0)] = A[rows[rows >= 0]][:, cols[cols >= 0]].toarray()
+    return out
+
+
 @given(seeds)
 def test_restricted_plus_is_the_block_plus_the_corrections(seed):
-    """`restricted_plus` (A's R × R block gathered in chunks from its index arrays, a few rows
-    replaced by their sum with Z) is A[R][:, R] + Z, with explicit zeros in A dropped as a sum
-    drops them, over chunks of a few entries. Mutation: Z's rows put in place of A's rows
-    instead of added to them is not."""
+    """`restricted_plus` (A's rows and columns gathered in chunks from its index arrays, a few
+    rows replaced by their sum with Z) is A[rows][:, cols] + Z, with rows/columns −1 zero and
+    explicit zeros in A, over chunks of a few entries; given A's lone entries its pattern is
+    symmetric, also where A's lacks one transpose. Mutations: Z's rows put in place of A's
+    rows instead of added to them, or Zᵀ's pattern and A's lone entries left out, are not."""
     rng = np.random.default_rng(seed)
     n = int(rng.integers(5, 40))
     A = sp.random(n, n, density=0.3, format="csr", random_state=rng)
     A.data[rng.uniform(size=A.nnz) < 0.1] = 0.0  # explicit zeros
-    R = np.flatnonzero(rng.uniform(size=n) < 0.7)
-    n_y = R.size + int(rng.integers(0, 5))
-    Z = sp.random(n_y, n_y, density=0.3, format="csr", random_state=rng)
-    Z = sp.diags((rng.uniform(size=n_y) < 0.3).astype(float)) @ Z  # a few rows
-    ref = sp.lil_matrix((n_y, n_y))
-    ref[: R.size, : R.size] = A[R][:, R].toarray()
-    ref = (ref.tocsr() + Z).tocsr()
+
+    def some():  # (k,) an increasing subset of A's rows, then a few −1
+        sub = np.flatnonzero(rng.uniform(size=n) < 0.7)
+        return np.concatenate([sub, -np.ones(int(rng.integers(0, 5)), dtype=int)])
+
+    rows, cols = some(), some()
+    Z = sp.random(rows.size, cols.size, density=0.3, format="csr", random_state=rng)
+    Z = sp.diags((rng.uniform(size=rows.size) < 0.3).astype(float)) @ Z  # a few rows
+    ref = _block(A, rows, cols) + Z.toarray()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(kr, "CHUNK", int(rng.integers(1, 8)))
+        out = kr.restricted_plus(A, rows, cols, Z)
+    assert out.has_sorted_indices
+    assert np.array_equal(out.toarray(), ref)
+    row_of = np.full(n, -1)
+    row_of[rows[rows >= 0]] = np.flatnonzero(rows >= 0)
+    col_of = np.full(n, -1)
+    col_of[cols[cols >= 0]] = np.flatnonzero(cols >= 0)
+    stored = np.diff(Z.indptr) > 0  # (k_r,) Z's rows
+    row_of[rows[stored & (rows >= 0)]] = -1
+    replaced = kr.gather_rows(A, row_of, col_of, Z.shape, extra=Z)
+    if (stored & (np.abs(ref - Z.toarray()).sum(axis=1) > 0)).any():  # A's row there not zero
+        assert not np.array_equal(replaced.toarray(), ref)
+    # symmetric: the pattern of A's pattern (symmetric but for one entry) plus a square Z is
+    S = (A + A.T).tocsr()
+    i, j = S.nonzero()
+    if (i != j).any():  # one entry (i, j) dropped, (j, i) kept
+        k = np.flatnonzero(i != j)[0]
+        S[i[k], j[k]] = 0.0
+        S.eliminate_zeros()
+    Z = sp.random(rows.size, rows.size, density=0.3, format="csr", random_state=rng)
+    Z = sp.diags((rng.uniform(size=rows.size) < 0.3).astype(float)) @ Z
+
+    def pattern(symmetric):  # (k_r, k_r) 0/1 and whether the values are right
+        out = kr.restricted_plus(S, rows, rows, Z, kr.lone_entries(S) if symmetric else None)
+        ok = np.array_equal(out.toarray(), _block(S, rows, rows) + Z.toarray())
+        out.data[:] = 1.0
+        return out.toarray(), ok
+
+    P, ok = pattern(True)
+    assert ok and np.array_equal(P, P.T)
+    P, ok = pattern(False)
+    ones = sp.csr_matrix((np.ones(S.nnz), S.indices, S.indptr), shape=S.shape)
+    Q = (_block(ones, rows, rows) + abs(Z).toarray()) > 0  # (k_r, k_r) the two patterns
+    assert ok and np.array_equal(P > 0, Q)
+    if not np.array_equal(Q, Q.T):  # without Zᵀ's pattern the result's is not symmetric
+        assert not np.array_equal(P, P.T)
+
+
+@given(seeds)
+def test_symmetric_part(seed):
+    """`symmetric_part` is (K + Kᵀ)/2 as the sum computes it, the same numbers, with its zeros
+    dropped: in place for a symmetric pattern (values not symmetric, explicit zeros, entries
+    with a zero symmetric part), and by the sum for a pattern that is not symmetric."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 30))
+    mask = rng.uniform(size=(n, n)) < 0.3  # (n, n) the pattern
+    if rng.uniform() < 0.7:
+        mask |= mask.T  # symmetric
+    Kd = np.where(mask, rng.standard_normal((n, n)), 0.0)  # (n, n) values not symmetric
+    i, j = np.nonzero(np.triu(mask, 1))
+    Kd[j[:2], i[:2]] = -Kd[i[:2], j[:2]]  # pairs with a zero symmetric part
+    P = sp.csr_matrix(mask.astype(float))
+    P.sort_indices()
+    data = Kd[np.repeat(np.arange(n), np.diff(P.indptr)), P.indices]  # (nnz,)
+    data[rng.uniform(size=data.size) < 0.1] = 0.0  # explicit zeros
+    K = sp.csr_matrix((data, P.indices, P.indptr), shape=(n, n))
+    K.sort_indices()
+    ref = (K + K.T).tocsr()
+    ref.data *= 0.5
     ref.eliminate_zeros()
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(kr, "CHUNK", int(rng.integers(1, 8)))
-        out = kr.restricted_plus(A, R, Z)
-    assert out.has_sorted_indices
-    assert (out != ref).nnz == 0 and abs(out - ref).max() == 0
-    assert sp.csr_matrix(ref.astype(bool)).nnz == out.nnz  # no stored zeros
-    pos = np.full(n, -1)
-    pos[R] = np.arange(R.size)
-    replaced = kr.gather_rows(A, pos, pos, (n_y, n_y), extra=Z)
-    rows_Z = np.diff(Z.indptr)[: R.size] > 0  # (n_R,) rows of Z within A's block
-    if (rows_Z & (abs(A[R][:, R]) @ np.ones(R.size) > 0)).any():  # A's row there not zero
-        assert abs(replaced - ref).max() > 0
+        out = kr.symmetric_part(K.copy())
+    out.sort_indices()
+    assert np.array_equal(out.indptr, ref.indptr) and np.array_equal(out.indices, ref.indices)
+    assert np.array_equal(out.data, ref.data)
 
 
 def test_springs_are_capped():
@@ -521,8 +595,7 @@ def test_smoothed_aggregation_is_pyamgs_hierarchy(field, monkeypatch):
     e = pc.build(load_scene("paper_two_body"), 2).vi.equilibrated
     ks = kr.KrylovSolver(e.A, e.B, Condensation.detect(e.B), e.fields, e.near_null)
     tied = np.ones(e.m, dtype=bool)  # every row tied: the bodies glued, Â couples them
-    fields = ks._fields_y(tied)
-    blk = next(b for b in kr.field_blocks(ks._glued(tied), fields) if b["name"] == field)
+    blk = next(b for b in ks._blocks(tied) if b["name"] == field)
     A, nn = blk["sym"], blk["nn"]
     part = np.concatenate([kr.bodies(e.A)[ks.R], kr.bodies(e.A)[ks.S][~tied]])[blk["index"]]
     # the reference strength: pyamg's symmetric strength (θ = 0) with the connections between
