@@ -150,12 +150,6 @@ def _assemble_forms(
     )
 
 
-def _assemble(local: np.ndarray, rows: np.ndarray, cols: np.ndarray, shape) -> sp.csr_matrix:
-    """Sum local matrices already computed for all cells (n_cells, r, c) into a sparse matrix
-    (duplicates added; the same pattern-and-scatter path as the chunked 2D forms)."""
-    return _assemble_chunks(lambda cells: local[cells], rows, cols, shape)
-
-
 def _strain_operator(grad: np.ndarray) -> np.ndarray:
     """Voigt strain-displacement matrices B: (n_cells, n_qp, 3, 2 n_loc), local dof 2 a + k."""
     n_cells, n_qp, n_loc, _ = grad.shape

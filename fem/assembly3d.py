@@ -1,5 +1,11 @@
 """Vectorised (over cells) assembly of 3D P1/Q1 forms, loads, post-processing and error norms.
 
+Matrices are assembled in chunks of `fem.assembly.CHUNK` cells, by the 2D path's pattern and
+scatter (`fem.assembly._assemble_chunks`): the quadrature data and local matrices of one chunk
+are alive at a time. Computed for all cells at once, the elasticity matrix's were the peak of a
+3D solve with AMG (3,456 B per tetrahedron: bracket3d level 2, 406 MiB against the AMG set-up's
+246 MiB).
+
 Dof numbering: displacement component k of node i is dof 3 i + k; scalar fields (the electric
 potential) have dof = node index. Voigt order (xx, yy, zz, yz, xz, xy) with engineering shear
 strains γ_ij = 2 ε_ij (see `fem.tensors`). Sign convention of the paper:
@@ -18,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .assembly import _assemble, _check_matrix, _scatter
+from .assembly import CHUNK, _assemble_chunks, _check_matrix, _scatter
 from .elements import reference_element
 from .elements3d import FACE_TYPE, reference_element3d
 from .mesh3d import Mesh3D, check_cells, cofactors
@@ -43,9 +49,12 @@ class Geometry3D:
     grad: np.ndarray
 
 
-def _geometry(mesh: Mesh3D, pts: np.ndarray, wts: np.ndarray) -> Geometry3D:
+def _geometry(
+    mesh: Mesh3D, pts: np.ndarray, wts: np.ndarray, cells: slice = slice(None)
+) -> Geometry3D:
+    """Quadrature data of the cells mesh.cells[cells] (a slice), not checked for inversion."""
     ref = reference_element3d(mesh.cell_type)
-    X = mesh.points[mesh.cells]  # (n_cells, n_loc, 3)
+    X = mesh.points[mesh.cells[cells]]  # (n_cells, n_loc, 3)
     phi = ref.values(pts)  # (n_qp, n_loc)
     dphi = ref.gradients(pts)  # (n_qp, n_loc, 3)
     # J is constant on a tetrahedron: compute it once per cell
@@ -68,6 +77,24 @@ def cell_geometry(mesh: Mesh3D, order: int = 2) -> Geometry3D:
     check_cells(mesh)
     pts, wts = reference_element3d(mesh.cell_type).quadrature(order)
     return _geometry(mesh, pts, wts)
+
+
+def _assemble_forms(
+    mesh: Mesh3D,
+    kernel: Callable[[Geometry3D], np.ndarray],
+    order: int,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    shape: tuple[int, int],
+    chunk: int,
+) -> sp.csr_matrix:
+    """Σ over cells of kernel(g) (k, r, c), g the quadrature data (rule of `order`) of a chunk
+    of k cells, computed chunk by chunk; the cells are checked once first (`check_cells`)."""
+    check_cells(mesh)
+    pts, wts = reference_element3d(mesh.cell_type).quadrature(order)
+    return _assemble_chunks(
+        lambda cells: kernel(_geometry(mesh, pts, wts, cells)), rows, cols, shape, chunk
+    )
 
 
 def _order(mesh: Mesh3D) -> int:
@@ -95,35 +122,45 @@ def strain_operator(grad: np.ndarray) -> np.ndarray:
     return B.reshape(*lead, 6, 3 * n_loc)
 
 
-def elasticity_matrix(mesh: Mesh3D, C: np.ndarray) -> sp.csr_matrix:
-    """(3N × 3N) ∫ C ε(u)·ε(v), C the 6×6 Voigt matrix."""
+def elasticity_matrix(mesh: Mesh3D, C: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
+    """(3N × 3N) ∫ C ε(u)·ε(v), C the 6×6 Voigt matrix; `chunk` cells at a time."""
     C = _check_matrix("C", C, (6, 6))
-    g = cell_geometry(mesh, _order(mesh))
-    B = strain_operator(g.grad)  # (n_cells, n_qp, 6, 3 n_loc)
-    wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (n_cells, n_qp, 3 n_loc, 6)
-    Ke = (wBt @ (C @ B)).sum(axis=1)  # (n_cells, 3 n_loc, 3 n_loc)
+
+    def kernel(g: Geometry3D) -> np.ndarray:
+        B = strain_operator(g.grad)  # (k, n_qp, 6, 3 n_loc)
+        wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (k, n_qp, 3 n_loc, 6)
+        return (wBt @ (C @ B)).sum(axis=1)  # (k, 3 n_loc, 3 n_loc)
+
     dofs = vector_dofs(mesh)  # (n_cells, 3 n_loc)
     n = 3 * mesh.n_nodes
-    return _assemble(Ke, dofs, dofs, (n, n))
+    return _assemble_forms(mesh, kernel, _order(mesh), dofs, dofs, (n, n), chunk)
 
 
-def coupling_matrix(mesh: Mesh3D, e: np.ndarray) -> sp.csr_matrix:
-    """(N × 3N) G[θ, u] = ∫ ∇θ · (e ε(u)), e the 3×6 piezoelectric matrix (rows D_x, D_y, D_z)."""
+def coupling_matrix(mesh: Mesh3D, e: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
+    """(N × 3N) G[θ, u] = ∫ ∇θ · (e ε(u)), e the 3×6 piezoelectric matrix (rows D_x, D_y, D_z);
+    `chunk` cells at a time."""
     e = _check_matrix("e", e, (3, 6))
-    g = cell_geometry(mesh, _order(mesh))
-    B = strain_operator(g.grad)  # (n_cells, n_qp, 6, 3 n_loc)
-    wgrad = g.grad * g.w[:, :, None, None]  # (n_cells, n_qp, n_loc, 3)
-    Ge = (wgrad @ (e @ B)).sum(axis=1)  # (n_cells, n_loc, 3 n_loc)
-    return _assemble(Ge, mesh.cells, vector_dofs(mesh), (mesh.n_nodes, 3 * mesh.n_nodes))
+
+    def kernel(g: Geometry3D) -> np.ndarray:
+        B = strain_operator(g.grad)  # (k, n_qp, 6, 3 n_loc)
+        wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, 3)
+        return (wgrad @ (e @ B)).sum(axis=1)  # (k, n_loc, 3 n_loc)
+
+    shape = (mesh.n_nodes, 3 * mesh.n_nodes)
+    return _assemble_forms(mesh, kernel, _order(mesh), mesh.cells, vector_dofs(mesh), shape, chunk)
 
 
-def permittivity_matrix(mesh: Mesh3D, kappa: np.ndarray) -> sp.csr_matrix:
-    """(N × N) ∫ κ∇φ·∇θ, κ a 3×3 symmetric positive definite matrix."""
+def permittivity_matrix(mesh: Mesh3D, kappa: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
+    """(N × N) ∫ κ∇φ·∇θ, κ a 3×3 symmetric positive definite matrix; `chunk` cells at a
+    time."""
     kappa = _check_matrix("kappa", kappa, (3, 3))
-    g = cell_geometry(mesh, _order(mesh))
-    wgrad = g.grad * g.w[:, :, None, None]  # (n_cells, n_qp, n_loc, 3)
-    Pe = (wgrad @ kappa @ g.grad.transpose(0, 1, 3, 2)).sum(axis=1)  # (n_cells, n_loc, n_loc)
-    return _assemble(Pe, mesh.cells, mesh.cells, (mesh.n_nodes, mesh.n_nodes))
+
+    def kernel(g: Geometry3D) -> np.ndarray:
+        wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, 3)
+        return (wgrad @ kappa @ g.grad.transpose(0, 1, 3, 2)).sum(axis=1)  # (k, n_loc, n_loc)
+
+    shape = (mesh.n_nodes, mesh.n_nodes)
+    return _assemble_forms(mesh, kernel, _order(mesh), mesh.cells, mesh.cells, shape, chunk)
 
 
 def piezo_matrix(mesh: Mesh3D, C: np.ndarray, e: np.ndarray, kappa: np.ndarray) -> sp.csr_matrix:
@@ -134,11 +171,15 @@ def piezo_matrix(mesh: Mesh3D, C: np.ndarray, e: np.ndarray, kappa: np.ndarray) 
     return sp.bmat([[K, G.T], [-G, P]], format="csr")
 
 
-def mass_matrix(mesh: Mesh3D) -> sp.csr_matrix:
-    """(N × N) ∫ φ θ (the L² Gram matrix)."""
-    g = cell_geometry(mesh, order=2 if mesh.cell_type == "tetra" else 4)
-    Me = np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (n_cells, n_loc, n_loc)
-    return _assemble(Me, mesh.cells, mesh.cells, (mesh.n_nodes, mesh.n_nodes))
+def mass_matrix(mesh: Mesh3D, chunk: int = CHUNK) -> sp.csr_matrix:
+    """(N × N) ∫ φ θ (the L² Gram matrix); `chunk` cells at a time."""
+
+    def kernel(g: Geometry3D) -> np.ndarray:
+        return np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (k, n_loc, n_loc)
+
+    order = 2 if mesh.cell_type == "tetra" else 4
+    shape = (mesh.n_nodes, mesh.n_nodes)
+    return _assemble_forms(mesh, kernel, order, mesh.cells, mesh.cells, shape, chunk)
 
 
 def _evaluate(func: Func3, x: np.ndarray, ncomp: int) -> np.ndarray:

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from hypothesis import given
+from hypothesis import strategies as st
 
 import fem.assembly3d as asm
 import fem.tensors as tensors
@@ -329,3 +331,76 @@ def test_bad_shapes():
     cells[0, [1, 2]] = cells[0, [2, 1]]
     with pytest.raises(ValueError, match="inverted"):
         elasticity_matrix(Mesh3D(mesh.points, cells), np.eye(6))
+
+
+# chunked assembly: any chunk size gives the one-shot matrix (same pattern, values to rounding)
+_FORMS = {
+    "elasticity": lambda mesh, chunk: elasticity_matrix(mesh, PIEZO.C, chunk=chunk),
+    "coupling": lambda mesh, chunk: coupling_matrix(mesh, PIEZO.e, chunk=chunk),
+    "permittivity": lambda mesh, chunk: permittivity_matrix(mesh, PIEZO.kappa, chunk=chunk),
+    "mass": lambda mesh, chunk: mass_matrix(mesh, chunk=chunk),
+}
+
+
+def _one_shot_elasticity(mesh: Mesh3D, C: np.ndarray) -> sp.csr_matrix:
+    """∫ C ε(u)·ε(v) from the whole mesh's geometry and one global COO array (the reference)."""
+    g = cell_geometry(mesh, 0 if mesh.cell_type == "tetra" else 2)
+    B = strain_operator(g.grad)  # (n_cells, n_qp, 6, 3 n_loc)
+    Ke = np.einsum("cq,cqIa,IJ,cqJb->cab", g.w, B, C, B)  # (n_cells, 3 n_loc, 3 n_loc)
+    dofs = asm.vector_dofs(mesh)  # (n_cells, 3 n_loc)
+    R = np.broadcast_to(dofs[:, :, None], Ke.shape)  # (n_cells, 3 n_loc, 3 n_loc)
+    Cc = np.broadcast_to(dofs[:, None, :], Ke.shape)  # (n_cells, 3 n_loc, 3 n_loc)
+    n = 3 * mesh.n_nodes
+    return sp.csr_matrix((Ke.ravel(), (R.ravel(), Cc.ravel())), shape=(n, n))
+
+
+def _same(M: sp.csr_matrix, R: sp.csr_matrix) -> bool:
+    M, R = sp.csr_matrix(M), sp.csr_matrix(R)
+    M.sort_indices()
+    R.sort_indices()
+    return (
+        np.array_equal(M.indptr, R.indptr)
+        and np.array_equal(M.indices, R.indices)
+        and np.allclose(M.data, R.data, rtol=0, atol=1e-13 * np.abs(R.data).max())
+    )
+
+
+@given(st.integers(0, 2**32 - 1), st.sampled_from(ELEMENTS))
+def test_chunked_assembly_equals_one_shot_for_random_chunk_sizes(seed, element):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 4))
+    mesh = transform(box((0, 1), (0, 1), (0, 1), (n, n, n), element), wavy)
+    chunk = int(rng.integers(1, mesh.n_cells + 3))
+    assert _same(elasticity_matrix(mesh, PIEZO.C, chunk=chunk), _one_shot_elasticity(mesh, PIEZO.C))
+    for form in _FORMS.values():
+        assert _same(form(mesh, chunk), form(mesh, mesh.n_cells))
+
+
+def test_mutation_a_chunk_assembled_from_the_wrong_cells_is_caught(monkeypatch):
+    mesh = distorted("tetra", n=2)
+    good = _one_shot_elasticity(mesh, PIEZO.C)
+    real = asm._geometry
+
+    def shifted(mesh, pts, wts, cells=slice(None)):  # every chunk after the first off by one
+        if cells.start:
+            cells = slice(cells.start - 1, min(cells.stop, mesh.n_cells) - 1)
+        return real(mesh, pts, wts, cells)
+
+    monkeypatch.setattr(asm, "_geometry", shifted)
+    assert not _same(elasticity_matrix(mesh, PIEZO.C, chunk=7), good)
+    assert _same(elasticity_matrix(mesh, PIEZO.C, chunk=mesh.n_cells), good)  # one chunk
+
+
+def test_chunk_size_must_be_positive():
+    with pytest.raises(ValueError, match="chunk"):
+        mass_matrix(distorted("tetra", n=1), chunk=0)
+
+
+def test_an_inverted_cell_in_a_later_chunk_is_refused():
+    """The cells are checked before the first chunk: an inverted cell past it is named."""
+    mesh = distorted("tetra", n=2)
+    cells = mesh.cells.copy()
+    last = mesh.n_cells - 1
+    cells[last, [1, 2]] = cells[last, [2, 1]]
+    with pytest.raises(ValueError, match=f"inverted or degenerate cell {last} "):
+        elasticity_matrix(Mesh3D(mesh.points, cells), PIEZO.C, chunk=3)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from fem import locate, mesh3d, meshing
 from fem.shapes import half_disc
@@ -64,15 +66,14 @@ def test_nested_nodes_get_the_coarse_values_and_edge_midpoints_their_mean(elemen
 
 def _misplaced(element: str, seed: int) -> int:
     """How many of 200 random points of the (graded, in 2D) coarse mesh `locate` puts in a
-    cell that does not hold them, every cell a candidate: reference coordinates outside the
-    reference cell by more than OUTSIDE_TOL (judged here, not by `locate.outside`), or a cell
-    map that does not give the point back. (With the default CANDIDATES the cell holding a
-    point need not be among them on such a mesh: 111 of 300 seeds misplace a point on the
-    graded triangles, 5 of 300 on the tetrahedra; such a point is extrapolated.)"""
+    cell that does not hold them: reference coordinates outside the reference cell by more
+    than OUTSIDE_TOL (judged here, not by `locate.outside`), or a cell map that does not give
+    the point back. (The nearest centroids alone, without `_search_ball`, misplaced a point
+    for 111 of 300 seeds on the graded triangles and 5 of 300 on the tetrahedra.)"""
     mesh = _nested(element, graded=True)[0]
     lo, hi = mesh.points.min(axis=0), mesh.points.max(axis=0)  # (d,) each: a box domain
     pts = np.random.default_rng(seed).uniform(lo, hi, (200, lo.size))  # (200, d)
-    cell, xi, _ = locate.locate(mesh, pts, candidates=mesh.n_cells)
+    cell, xi, _ = locate.locate(mesh, pts)
     if element in ("triangle", "tetra"):
         out = np.maximum(-xi.min(axis=1), xi.sum(axis=1) - 1)  # (200,)
     else:
@@ -82,8 +83,18 @@ def _misplaced(element: str, seed: int) -> int:
 
 
 @pytest.mark.parametrize("element", ELEMENTS)
-def test_random_points_are_found_in_a_cell_that_holds_them(element):
-    assert _misplaced(element, int(np.random.default_rng().integers(2**32))) == 0
+@given(seed=st.integers(0, 2**32 - 1))
+def test_random_points_are_found_in_a_cell_that_holds_them(element, seed):
+    assert _misplaced(element, seed) == 0
+
+
+def test_placement_check_catches_the_nearest_centroids_alone(monkeypatch):
+    """Mutation: without the search among every cell that can hold a point (`_search_ball`),
+    the 8 nearest centroids miss the cell of a point of the graded triangle mesh (seed 0:
+    one point, 0.0025 outside its best candidate), and the check says so."""
+    assert _misplaced("triangle", 0) == 0
+    monkeypatch.setattr(locate, "_search_ball", lambda *args: None)
+    assert _misplaced("triangle", 0) > 0
 
 
 def test_placement_check_catches_every_point_taken_in_the_nearest_cell(monkeypatch):
@@ -124,3 +135,18 @@ def test_evaluate_reproduces_linear_fields_exactly(mesh):
     w = rng.dirichlet(np.ones(mesh.cells.shape[1]), 200)  # (200, n_loc) convex weights
     pts = np.einsum("ma,mai->mi", w, mesh.points[mesh.cells[cells]])  # points inside cells
     np.testing.assert_allclose(locate.evaluate(mesh, lin(mesh.points), pts), lin(pts), atol=1e-12)
+
+
+@given(st.integers(0, 2**32 - 1), st.sampled_from([2, 3]))
+def test_small_solves_agree_with_lapack_and_flag_singular_matrices(seed, d):
+    """`_solve_small` (Cramer's rule in 2D) against numpy's solve on random matrices; a
+    singular matrix (a collapsed candidate cell) gives a row of NaN or inf, which `_invert`
+    turns into a point at infinity (outside), never a finite wrong answer."""
+    rng = np.random.default_rng(seed)
+    J = rng.standard_normal((20, d, d)) + 3.0 * np.eye(d)  # (20, d, d)
+    r = rng.standard_normal((20, d))
+    J[0] = 0.0  # a cell collapsed to a point
+    x = locate._solve_small(J, r)
+    assert not np.isfinite(x[0]).any()
+    expect = np.linalg.solve(J[1:], r[1:, :, None])[:, :, 0]
+    assert np.allclose(x[1:], expect, rtol=1e-10, atol=1e-12)
