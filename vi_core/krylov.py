@@ -467,18 +467,36 @@ def symmetric_part(K: sp.csr_matrix) -> sp.csr_matrix:
     return K
 
 
-def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
+def smoothing_pattern(C: sp.csr_matrix, T) -> tuple[np.ndarray, np.ndarray]:
+    """(indptr (n + 1,), indices (nb,)) the block pattern of the smoothed prolongation: C (n, n)
+    the strength graph times T's block pattern (degree 1), structure only, sorted."""
+    n, n_agg = C.shape[0], T.shape[1] // T.blocksize[1]
+    T = sp.bsr_array(T)
+    ones = np.ones(C.nnz, dtype=np.float32)
+    Cs = sp.csr_array((ones, C.indices, C.indptr), shape=C.shape)  # C's data may be any
+    ones = np.ones(T.indices.size, dtype=np.float32)
+    pat = (Cs @ sp.csr_array((ones, T.indices, T.indptr), shape=(n, n_agg))).tocsr()
+    del Cs, ones
+    pat.sort_indices()
+    return pat.indptr, pat.indices
+
+
+def energy_smoothing(A: sp.csr_matrix, T, pattern: tuple, B: np.ndarray):
     """pyamg's energy_prolongation_smoother(A, T, C, B, None, (False, {}), **SMOOTH[1]) for a
     scalar (csr) A — the same prolongation to rounding (`test_krylov`) — computed on one
     shared sparsity pattern: the CG iterates are data arrays of the pattern, updated in place,
     where pyamg makes a new bsr matrix with its own index arrays for each operation of its
     loop and copies C. Memory: the finest level's smoothing was the peak of the whole solve
     (paper scene level 5, displacement block: 308 MB above its start with pyamg's, 133 MB
-    with this one). T (n, n_agg·k) tentative prolongation (bsr, blocks 1 × k), C (n, n) the
-    strength graph (structure only), B (n_agg·k, k) the coarse near-null vectors."""
+    with this one; then, held → peak, 528 → 659 MB: np.abs(A), a copy of A, for the row sums
+    — now in chunks —, the strength graph C held through it — now freed once
+    `smoothing_pattern` is made — and two temporaries per CG step — now in place —: 488 → 604
+    MB). T (n, n_agg·k) tentative prolongation (bsr, blocks 1 × k),
+    pattern `smoothing_pattern(C, T)`, B (n_agg·k, k) the coarse near-null vectors."""
     from pyamg import amg_core
     from pyamg.aggregation.smooth import satisfy_constraints
     from pyamg.util.utils import compute_BtBinv
+    from scipy.linalg.blas import daxpy
 
     opts = SMOOTH[1]
     assert SMOOTH[0] == "energy" and opts["krylov"] == "cg" and opts["degree"] == 1
@@ -488,16 +506,8 @@ def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
     n_agg = T.shape[1] // k
     T = sp.bsr_array(T)
     T.sort_indices()
-    # the pattern of P: C times T's block pattern (degree 1), structure only
-    ones = np.ones(C.nnz, dtype=np.float32)
-    Cs = sp.csr_array((ones, C.indices, C.indptr), shape=C.shape)  # C's data may be any
-    ones = np.ones(T.indices.size, dtype=np.float32)
-    pat = (Cs @ sp.csr_array((ones, T.indices, T.indptr), shape=(n, n_agg))).tocsr()
-    del Cs, ones
-    pat.sort_indices()
-    indptr, indices = pat.indptr, pat.indices  # (n + 1,), (nb,) the blocks of the pattern
+    indptr, indices = pattern  # (n + 1,), (nb,) the blocks of the pattern
     nb = indices.size
-    del pat
 
     def bsr(data):  # (nb, 1, k) data on the pattern → (n, n_agg·k) bsr sharing its indices
         return sp.bsr_array((data, indices, indptr), shape=(n, n_agg * k))
@@ -508,7 +518,11 @@ def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
     keys_T = np.repeat(np.arange(n, dtype=np.int64), np.diff(T.indptr)) * n_agg + T.indices
     Td[np.searchsorted(rows * n_agg + indices, keys_T)] = T.data
     del keys_T, T
-    D = np.abs(A) @ np.ones(n)  # (n,) the local weighting: row sums of |A|
+    D = np.zeros(n)  # (n,) the local weighting: row sums of |A|, in chunks (no copy of A)
+    for r, sl in _row_chunks(A):
+        if r.size:
+            sums = np.bincount(r - r[0], weights=np.abs(A.data[sl]))  # (rows of the chunk,)
+            D[r[0] : r[0] + sums.size] = sums
     Dinv = np.zeros(n)
     Dinv[D != 0] = 1.0 / D[D != 0]
     Dinv = Dinv[rows][:, None, None]  # (nb, 1, 1)
@@ -528,13 +542,14 @@ def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
     APd = np.empty_like(Rd)
     Pd, oldsum = None, 1.0
     for i in range(opts["maxiter"]):
-        Zd = Rd * Dinv
+        if i == 0:  # Z = D⁻¹ R, the first direction
+            Zd = Pd = Rd * Dinv
+        else:  # later held in APd, free until A P overwrites it
+            Zd = np.multiply(Rd, Dinv, out=APd)
         newsum = float(np.vdot(Rd, Zd))
         if newsum < 1e-8:  # pyamg's tol
             break
-        if i == 0:
-            Pd = Zd
-        else:
+        if i > 0:
             Pd *= newsum / oldsum
             Pd += Zd
         del Zd
@@ -542,8 +557,8 @@ def energy_smoothing(A: sp.csr_matrix, T, C: sp.csr_matrix, B: np.ndarray):
         times_A(Pd, APd)
         satisfy_constraints(bsr(APd), B, BtBinv)
         alpha = newsum / float(np.vdot(Pd, APd))
-        Td += alpha * Pd
-        Rd -= alpha * APd
+        daxpy(Pd.ravel(), Td.ravel(), a=alpha)  # Td += α Pd, Rd −= α A Pd in place
+        daxpy(APd.ravel(), Rd.ravel(), a=-alpha)
     del Rd, APd, Pd, BtBinv
     P = bsr(Td)
     P.eliminate_zeros()
@@ -584,8 +599,11 @@ def smoothed_aggregation(A: sp.csr_matrix, B: np.ndarray | None, part: np.ndarra
             levels[0].B = B
         T, B = fit_candidates(AggOp, B)
         del AggOp
-        if len(levels) == 1:
-            P = energy_smoothing(A, T, C, B)
+        if len(levels) == 1:  # C freed before the smoothing, once its pattern is made
+            pattern = smoothing_pattern(C, T)
+            C = None
+            P = energy_smoothing(A, T, pattern, B)
+            del pattern
         else:  # coarser levels (bsr, blocks of the near-null dimension) are small
             P = energy_prolongation_smoother(A, T, C, B, None, (False, {}), **SMOOTH[1])
         del T

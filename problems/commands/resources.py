@@ -19,14 +19,17 @@ unknowns: with b fixed at 1 (a free fit gives b = 0.89, which would extrapolate 
 while the factor's fill grows faster than N), a = 245.4 bytes per stored entry, within
 ×0.71 … ×1.20 of the measurements. PARDISO: x = the unknowns n + m (within ×0.54 … ×1.73),
 measured before issue 16 item 1 and not refitted (the changes only removed copies, so it
-over- rather than underestimates). AMG (`--linear-solver amg`): x = nnz(A), b = 1, a = 68.9
+over- rather than underestimates). AMG (`--linear-solver amg`): x = nnz(A), b = 1, a = 60.8
 bytes per stored entry, fitted (least squares, base fixed) to the peaks AMG_MEASURED of `mixvi
-bench --scenes paper_two_body --levels 2..5 --linear-solvers amg` measured after the Newton
-matrix became an operator (`krylov.CondensedNewton`), the equilibrated A shared A's indices,
-the hierarchies were built by `krylov.smoothed_aggregation` and the model stopped holding the
-bodies' A and the Gram matrix X (141, 170, 273, 688 MB; estimate / measured 0.84 … 1.01;
-before: a = 128.3, peaks 146, 199, 400, 1191 MB and 4328 MB at level 6; before that a = 151
-and 179); it has its own model so that the guard neither refuses an AMG run by the direct
+bench --scenes paper_two_body --levels 2..5 --linear-solvers amg` at commit 7b9e7e2, after
+GMRES held one vector per iteration, the multigrid set-up stopped forming Â = T0ᵀ A T0 (its
+field blocks gathered from A's index arrays, `krylov.field_blocks`) and the finest
+prolongation smoothing stopped copying A (`krylov.energy_smoothing`): 142, 164, 255, 619 MiB,
+estimate / measured 0.83 … 1.01. Before: a = 68.9 (the Newton matrix an operator,
+`krylov.CondensedNewton`, the equilibrated A on A's indices, the hierarchies built by
+`krylov.smoothed_aggregation`, the bodies' A and the Gram matrix X not held; peaks 141, 170,
+273, 688 MB), a = 128.3 (peaks 146, 199, 400, 1191 MB and 4328 MB at level 6), before that
+a = 151 and 179. It has its own model so that the guard neither refuses an AMG run by the direct
 solver's larger peak nor lets one through by it.
 Peaks: RSS of `mixvi solve SCENE --level L` in a fresh process (`/usr/bin/time -f %M`); `mixvi
 bench` prints its measured peak beside the estimate.
@@ -77,19 +80,19 @@ from .options import MAX_LEVEL
 MEMORY_MODEL = {  # linear solver → (predictor, base [bytes], a, b)
     "splu": ("nnz", 115e6, 245.4, 1.0),
     "pardiso": ("unknowns", 175e6, 5851.0, 1.0481),
-    "amg": ("nnz", 115e6, 68.9, 1.0),
+    "amg": ("nnz", 115e6, 60.8, 1.0),
 }
 # the AMG fit's data: (nnz(A), peak bytes) of paper_two_body levels 2–5 (the module docstring;
 # bench's peak in MiB · 2^20)
 AMG_MEASURED = (
-    (135_546, 141.09 * 2**20),
-    (549_906, 170.21 * 2**20),
-    (2_214_978, 272.54 * 2**20),
-    (8_890_530, 687.85 * 2**20),
+    (135_546, 142.16 * 2**20),
+    (549_906, 163.88 * 2**20),
+    (2_214_978, 254.67 * 2**20),
+    (8_890_530, 619.14 * 2**20),
 )
 # the smallest estimate / measured peak seen per solver: refusals and caps use the estimate
 # divided by it (the most a level can need as far as the measurements go)
-WORST_RATIO = {"splu": 0.71, "pardiso": 0.54, "amg": 0.84}
+WORST_RATIO = {"splu": 0.71, "pardiso": 0.54, "amg": 0.82}
 # 3D (contact3d): a sparse factor of a 3D mesh fills far more (nested dissection: memory
 # ~ n^(4/3) against n log n in 2D), so the 2D fit would underestimate a 3D level about 3.6×
 # (block3d level 3: 0.93 GB estimated, 3.33 GB measured). PARDISO fitted through block3d
