@@ -28,6 +28,8 @@ from fem.elements import reference_element
 from fem.mesh import Mesh
 from fem.meshing import rectangle, refine
 
+from .helpers import same_matrix
+
 ELEMENTS = ["quad", "triangle"]
 
 # BaTiO3 (docs/design.md §4), made dimensionless with c0 = 1e10 Pa, κ0 = 1e-8 F/m and length 1:
@@ -397,17 +399,6 @@ def _one_shot_stiffness(mesh: Mesh) -> sp.csr_matrix:
     return sp.csr_matrix((Ke.ravel(), (R.ravel(), C.ravel())), shape=(n, n))
 
 
-def _same(M: sp.csr_matrix, R: sp.csr_matrix) -> bool:
-    M, R = sp.csr_matrix(M), sp.csr_matrix(R)
-    M.sort_indices()
-    R.sort_indices()
-    return (
-        np.array_equal(M.indptr, R.indptr)
-        and np.array_equal(M.indices, R.indices)
-        and np.allclose(M.data, R.data, rtol=0, atol=1e-13 * np.abs(R.data).max())
-    )
-
-
 @given(st.integers(0, 2**32 - 1), st.sampled_from(ELEMENTS))
 def test_chunked_assembly_equals_one_shot_for_random_chunk_sizes(seed, element):
     rng = np.random.default_rng(seed)
@@ -415,9 +406,9 @@ def test_chunked_assembly_equals_one_shot_for_random_chunk_sizes(seed, element):
     h = min(2.0 / nx, 1.5 / ny)
     mesh = distorted(element, cells=(nx, ny), seed=seed, amount=0.25 * h / 0.5)  # up to h/8
     chunk = int(rng.integers(1, mesh.n_cells + 3))
-    assert _same(stiffness_matrix(mesh, chunk=chunk), _one_shot_stiffness(mesh))
+    assert same_matrix(stiffness_matrix(mesh, chunk=chunk), _one_shot_stiffness(mesh))
     for form in _FORMS.values():
-        assert _same(form(mesh, chunk), form(mesh, mesh.n_cells))
+        assert same_matrix(form(mesh, chunk), form(mesh, mesh.n_cells))
 
 
 def test_mutation_a_chunk_assembled_from_the_wrong_cells_is_caught(monkeypatch):
@@ -433,8 +424,8 @@ def test_mutation_a_chunk_assembled_from_the_wrong_cells_is_caught(monkeypatch):
         return real(mesh, pts, wts, cells)
 
     monkeypatch.setattr(assembly, "_geometry", shifted)
-    assert not _same(stiffness_matrix(mesh, chunk=7), good)
-    assert _same(stiffness_matrix(mesh, chunk=mesh.n_cells), good)  # one chunk: unaffected
+    assert not same_matrix(stiffness_matrix(mesh, chunk=7), good)
+    assert same_matrix(stiffness_matrix(mesh, chunk=mesh.n_cells), good)  # one chunk: unaffected
 
 
 def test_chunk_size_must_be_positive():

@@ -30,6 +30,8 @@ from fem.assembly3d import (
 from fem.mesh3d import SIDES, Mesh3D, box, transform
 from fem.tensors import NAMED, VOIGT_PAIRS, Material3D, orthotropic, poled, rotate
 
+from .helpers import same_matrix
+
 ELEMENTS = ["hexahedron", "tetra"]
 C0, K0 = 1e10, 1e-8  # dimensionless: C/C0, e/sqrt(C0 K0), κ/K0 (all of order 1)
 
@@ -354,26 +356,17 @@ def _one_shot_elasticity(mesh: Mesh3D, C: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix((Ke.ravel(), (R.ravel(), Cc.ravel())), shape=(n, n))
 
 
-def _same(M: sp.csr_matrix, R: sp.csr_matrix) -> bool:
-    M, R = sp.csr_matrix(M), sp.csr_matrix(R)
-    M.sort_indices()
-    R.sort_indices()
-    return (
-        np.array_equal(M.indptr, R.indptr)
-        and np.array_equal(M.indices, R.indices)
-        and np.allclose(M.data, R.data, rtol=0, atol=1e-13 * np.abs(R.data).max())
-    )
-
-
 @given(st.integers(0, 2**32 - 1), st.sampled_from(ELEMENTS))
 def test_chunked_assembly_equals_one_shot_for_random_chunk_sizes(seed, element):
     rng = np.random.default_rng(seed)
     n = int(rng.integers(1, 4))
     mesh = transform(box((0, 1), (0, 1), (0, 1), (n, n, n), element), wavy)
     chunk = int(rng.integers(1, mesh.n_cells + 3))
-    assert _same(elasticity_matrix(mesh, PIEZO.C, chunk=chunk), _one_shot_elasticity(mesh, PIEZO.C))
+    assert same_matrix(
+        elasticity_matrix(mesh, PIEZO.C, chunk=chunk), _one_shot_elasticity(mesh, PIEZO.C)
+    )
     for form in _FORMS.values():
-        assert _same(form(mesh, chunk), form(mesh, mesh.n_cells))
+        assert same_matrix(form(mesh, chunk), form(mesh, mesh.n_cells))
 
 
 def test_mutation_a_chunk_assembled_from_the_wrong_cells_is_caught(monkeypatch):
@@ -387,8 +380,8 @@ def test_mutation_a_chunk_assembled_from_the_wrong_cells_is_caught(monkeypatch):
         return real(mesh, pts, wts, cells)
 
     monkeypatch.setattr(asm, "_geometry", shifted)
-    assert not _same(elasticity_matrix(mesh, PIEZO.C, chunk=7), good)
-    assert _same(elasticity_matrix(mesh, PIEZO.C, chunk=mesh.n_cells), good)  # one chunk
+    assert not same_matrix(elasticity_matrix(mesh, PIEZO.C, chunk=7), good)
+    assert same_matrix(elasticity_matrix(mesh, PIEZO.C, chunk=mesh.n_cells), good)  # one chunk
 
 
 def test_chunk_size_must_be_positive():
