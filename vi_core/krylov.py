@@ -428,7 +428,7 @@ def _find(A: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
 def lone_entries(A: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
     """(rows (k,), cols (k,)) the stored entries of a square csr A (made canonical in place,
     the same values) whose transpose A does not store (`_find`, in chunks): A's pattern is
-    symmetric but for exact zeros dropped on one side (4 entries at the paper scene's level
+    symmetric but for exact zeros dropped on one side (2 entries at the paper scene's level
     5)."""
     A.sum_duplicates()
     out_r, out_c = [], []
