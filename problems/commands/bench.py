@@ -11,8 +11,9 @@ and reports their ratio in wall-clock time and in CPU time (`time.process_time` 
 all its threads: the iterative path runs BLAS on one thread; on a machine shared with other
 jobs the wall-clock ratio moves with the load — paper scene level 6, the same code: 1.15 at a
 load average of 4 against 1.78 on an idle machine — where the CPU-time ratio measures the work
-done, 1.73 in the loaded run), the child's peak resident memory (ru_maxrss, which — unlike
-tracemalloc — includes the sparse factorisations' C allocations), that peak in bytes per
+done, 1.73 in the loaded run), the child's peak resident memory (`resources.peak_rss`: VmHWM,
+which — unlike tracemalloc — includes the sparse factorisations' C allocations, and — unlike
+ru_maxrss — not the parent's memory at the spawn), that peak in bytes per
 unknown, and the memory estimate of `resources` for the same level (made before the child
 starts), so the model can be checked. A second table (JSON key "memory") lists per case the
 peak, the bytes per unknown and the estimate with its ratio estimate / measured.
@@ -30,7 +31,6 @@ import json
 import multiprocessing as mp
 import platform
 import queue
-import resource
 import signal
 import time
 from pathlib import Path
@@ -156,7 +156,7 @@ def _record(
                 ),
             }
         )
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0  # KiB on Linux → bytes
+    peak = resources.peak_rss()  # the child's own peak (not ru_maxrss: `peak_rss`)
     for r in out:
         r["peak_mem_mb"] = peak / 2**20
         r["bytes_per_unknown"] = peak / r["unknowns"]
@@ -382,7 +382,7 @@ def bench_main(argv: list[str] | None = None) -> int:
             "threads": thread_settings(),
         }
         memory = memory_table(records)
-        print("\npeak resident memory (ru_maxrss of each case's child process)")
+        print("\npeak resident memory (VmHWM of each case's child process)")
         print(MEMORY_HEAD)
         for m in memory:
             print(_memory_line(m))
