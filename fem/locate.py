@@ -55,8 +55,9 @@ def locate(
 
     A point is looked for in the cell with the nearest centroid, then, if it lies outside that
     one by more than OUTSIDE_TOL, among the `candidates` (default CANDIDATES of the mesh's
-    dimension) cells with the nearest centroids; a point outside every candidate gets the
-    candidate it is least outside of (extrapolation)."""
+    dimension) cells with the nearest centroids, then among every cell close enough to hold
+    it (`_search_ball`); a point outside all of those gets the one it is least outside of
+    (extrapolation)."""
     d = mesh.points.shape[1]
     tree = cKDTree(mesh.points[mesh.cells].mean(axis=1))  # (n_cells, d) centroids
     cell = tree.query(pts, k=1)[1].astype(np.int64)  # (M,)
