@@ -84,7 +84,7 @@ class MixedVI:
     near_null: dict | None = None
 
     def __post_init__(self):
-        self.A = _canonical(sp.csr_matrix(self.A, dtype=float))
+        self.A = sp.csr_matrix(self.A, dtype=float)
         n = self.A.shape[0]
         if self.A.shape != (n, n):
             raise ValueError(f"A must be square, got shape {self.A.shape}")
@@ -256,10 +256,16 @@ class MixedVI:
 
     def _scaled_A(self, s_u: np.ndarray) -> sp.csr_matrix:
         """Su A Su on A's own index arrays (shared, not copied: a third of a copy of A less;
-        paper scene level 5: 34 MB). A is canonical without explicit zeros (`_canonical`), so
-        no later operation reorders the shared indices, and e.A has the structure of the
-        product Su A Su (which drops zeros: a direct solver's ordering follows the structure)."""
+        paper scene level 5: 34 MB). A not in canonical form (sorted, no duplicates) or with
+        explicit zeros is first replaced by a canonical copy without them (the same matrix; the
+        caller's arrays untouched), so no later operation reorders the shared indices, and e.A
+        has the structure of the product Su A Su (which drops zeros: a direct solver's
+        ordering follows the structure)."""
         A = self.A
+        if not A.has_canonical_format or not A.data.all():
+            A = self.A = A.copy()
+            A.sum_duplicates()
+            A.eliminate_zeros()
         data = np.repeat(s_u, np.diff(A.indptr))  # (nnz,) s_i of each entry's row
         data *= A.data
         data *= s_u[A.indices]
@@ -288,23 +294,6 @@ class MixedVI:
 
     def __repr__(self):
         return f"MixedVI(n={self.n}, m={self.m}, Lambda={self.Lambda!r}, {self.structure})"
-
-
-def _canonical(A: sp.csr_matrix) -> sp.csr_matrix:
-    """A itself if it is in canonical form (sorted indices, no duplicates) without explicit
-    zeros, else a canonical copy without them (the same matrix; the caller's arrays untouched).
-
-    Done once, where the MixedVI is made (a model's build), not where it is first equilibrated
-    (a solve): the assembled operators of the bodies scenes hold exact zeros (cancelled sums),
-    and the copy then lay inside the timed nonlinear solve only — `mixvi bench`'s linear
-    reference shares the VI's A, already made canonical by then (paper scene level 6, 35.6M
-    entries: 0.15 s of CPU, 0.3 s wall-clock)."""
-    if A.has_canonical_format and A.data.all():
-        return A
-    A = A.copy()
-    A.sum_duplicates()
-    A.eliminate_zeros()
-    return A
 
 
 def natural_residual(vi: MixedVI, u: np.ndarray, lam: np.ndarray, c: float = 1.0) -> Residual:
