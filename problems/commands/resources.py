@@ -36,23 +36,26 @@ bench` prints its measured peak beside the estimate.
 Re-measure them here when the memory per unknown changes.
 
 In 3D (the model's `dimension` 3) the fill of a sparse factor grows faster: MEMORY_MODEL_3D,
-fitted on 3D runs (below), b ≈ 1.26 instead of ≈ 1. AMG: b = 1, a = 82.0 bytes per stored
-entry of A, fitted (least squares, base fixed) to the peaks AMG_MEASURED_3D of `mixvi bench
---scenes bracket3d --levels 1..3 --linear-solvers amg` at commit 16dcc5f, after the 3D
-assembly came to work in chunks of cells (levels 2 and 3, 49,023 and 339,585 unknowns, nnz(A)
-1,757,043 and 13,511,079: 438 and 1,142 MiB, estimated 247 and 1,166 MiB, ×0.56 and ×1.02).
-Before it (at 953d3ac, after GMRES came to hold one vector per iteration): 438 and 2,148 MiB,
-a = 158.8; before that a = 161.3. The assembly computed every cell's local matrix at once,
-3,456 B per tetrahedron for the elasticity matrix, and that, not the AMG solve, was the 3D
-peak (a per-phase RSS trace of bench's case at level 2, outside the shipped commands: 406 MiB,
-the AMG set-up 246 MiB; chunked: 260 MiB). bracket3d level 4 (2,509,317 unknowns, nnz(A)
-105,889,887) measured 16,418 MiB at 56b0cc4, before both changes: an upper reference only
-(estimated now 8,390 MiB). Level 2's ratio is not the solve's: levels 1 and 2 measure the same
-438 MiB, the peak of bench's parent process (a spawned child's ru_maxrss starts from it), whose
-`Sizes` meshes level 3 to count it (`mixvi solve` runs `Sizes` in-process too); the model,
-fitted from level 2 up, underestimates level 1 (nnz(A) 236,367: 128 MiB estimated, ×0.29), and
-WORST_RATIO_3D takes level 2's 0.56, so the upper estimates of large levels are about 1.8 times
-their estimates.
+fitted on 3D runs (below), b ≈ 1.26 instead of ≈ 1. AMG: b = 1, a = 69.0 bytes per stored
+entry of A, fitted (least squares, base fixed, as in 2D) to the peaks AMG_MEASURED_3D of
+`mixvi bench --scenes bracket3d --levels 1..3 --linear-solvers amg` and `mixvi bench --scenes
+bracket3d --levels 4..4 --linear-solvers amg --timeout 3000 --force` on the code of f65d5e5
+(commit 21433f5), each case's own peak (VmHWM, `peak_rss`): levels 1–4, 7,818 … 2,509,317
+unknowns, nnz(A) 236,367, 1,757,043, 13,511,079 and 105,889,887: 155, 260, 1,004 and 7,079
+MiB, estimated 125, 225, 999 and 7,078 MiB (×0.81, ×0.87, ×1.00, ×1.00). The base is 2D's
+115 MB and a 3D case starts higher, so the small levels are underestimated: WORST_RATIO_3D is
+level 1's 0.808 rounded down, and the upper estimates of large levels are 1.25 times their
+estimates. (`python -m problems.commands.main bench` reads 33–42 MiB more per case, 197, 293,
+1,037 and 7,112 MiB: each spawned child re-imports that module, and the command line's imports
+with it, as its `__mp_main__`.) Before, bench read ru_maxrss, which a spawned child inherits
+from its parent (levels 1 and 2 read the parent's 438 MiB): a = 82.0 at 16dcc5f (levels 2 and
+3, 438 and 1,142 MiB, WORST_RATIO_3D 0.56), a = 158.8 at 953d3ac, before the 3D assembly came
+to work in chunks of cells (level 3: 2,148 MiB), a = 161.3 before GMRES held one vector per
+iteration. The assembly computed every
+cell's local matrix at once, 3,456 B per tetrahedron for the elasticity matrix, and that, not
+the AMG solve, was the 3D peak (a per-phase RSS trace of bench's case at level 2, outside the
+shipped commands: 406 MiB, the AMG set-up 246 MiB; chunked: 260 MiB). bracket3d level 4 measured
+16,418 MiB at 56b0cc4, before both changes.
 
 Caps. A level whose upper estimate (the estimate divided by the smallest estimate / measured
 ratio seen for that solver, WORST_RATIO) exceeds the machine's memory (physical, cgroup or
@@ -104,21 +107,23 @@ MEMORY_MODEL_3D = {
     "splu": ("nnz", 115e6, 9.506, 1.2585),
     "pardiso": ("unknowns", 175e6, 2388.2, 1.2585),
     # no factor: x = nnz(A), b = 1 as in 2D, a the least-squares fit (base fixed) of
-    # AMG_MEASURED_3D (module docstring): 82.0 B per stored entry. block3d level 3 with cells
+    # AMG_MEASURED_3D (module docstring): 69.0 B per stored entry. block3d level 3 with cells
     # [6, 6, 4] (hexahedra, 314,531 unknowns, nnz(A) 31,621,600): 5.04 GB measured before the
-    # memory changes of the 2D refit of a = 128.3 and before the chunked 3D assembly, 2.7 GB
+    # memory changes of the 2D refit of a = 128.3 and before the chunked 3D assembly, 2.3 GB
     # estimated now (not re-measured)
-    "amg": ("nnz", 115e6, 82.0, 1.0),
+    "amg": ("nnz", 115e6, 69.0, 1.0),
 }
-# the 3D AMG fit's data: (nnz(A), peak bytes) of bracket3d levels 2 and 3 (the module
-# docstring; bench's peak in MiB · 2^20)
+# the 3D AMG fit's data: (nnz(A), peak bytes) of bracket3d levels 1–4 (the module docstring;
+# bench's peak, VmHWM, in MiB · 2^20)
 AMG_MEASURED_3D = (
-    (1_757_043, 437.52 * 2**20),
-    (13_511_079, 1142.03 * 2**20),
+    (236_367, 155.00 * 2**20),
+    (1_757_043, 259.98 * 2**20),
+    (13_511_079, 1003.59 * 2**20),
+    (105_889_887, 7079.47 * 2**20),
 )
-# direct solvers: an assumed margin (two and one measurements); AMG: the smallest ratio seen
-# from level 2 up (0.565, level 2: bench's parent's peak, module docstring), rounded down
-WORST_RATIO_3D = {"splu": 0.5, "pardiso": 0.5, "amg": 0.56}
+# direct solvers: an assumed margin (two and one measurements); AMG: the smallest ratio seen,
+# rounded down (0.808, level 1, module docstring)
+WORST_RATIO_3D = {"splu": 0.5, "pardiso": 0.5, "amg": 0.80}
 
 
 @dataclass(frozen=True)
