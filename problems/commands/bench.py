@@ -2,7 +2,8 @@
 
 For each (scene, level) a child process builds the model and times
 - the nonlinear solve: semismooth Newton with nested iteration (levels 0 … L solved in turn,
-  each warm-started from the coarser one; the coarse levels' time is included), and the
+  each warm-started from the coarser one, the coarse ones to `pipeline.coarse_tol` as in
+  `mixvi solve`; the coarse levels' time is included), and the
   conic and homotopy paths where asked;
 - one linear solve of the same matrix size: the stick limit (every multiplier Free, i.e. the
   tied problem), by the same machinery (ssn on a linear problem = one condensed factorisation
@@ -63,8 +64,9 @@ def _nested_ssn(plugin, scene, level: int, tol: float, linear_solver: str = "aut
         t, c = time.perf_counter(), time.process_time()
         kw = pipeline.nested_start(plugin, *prev, model)[0] if prev and warm else {}
         prev = None  # the coarser level is not alive while this one is solved (memory)
+        t_lev = tol if lev == level else pipeline.coarse_tol(tol)  # as `mixvi solve` does
         sol = pipeline.solve_model(
-            plugin, model, method="ssn", tol=tol, linear_solver=linear_solver, **kw
+            plugin, model, method="ssn", tol=t_lev, linear_solver=linear_solver, **kw
         )
         total += time.perf_counter() - t
         cpu += time.process_time() - c

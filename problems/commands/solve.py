@@ -95,7 +95,7 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
         if coarse:
             summary["levels_written"] = {str(lev): fs for lev, fs in sorted(coarse.items())}
         (tmp / "summary.json").write_text(json.dumps(jsonable(summary), indent=2) + "\n")
-    last = [pipeline.level_record(model.level, model, sol)]
+    last = [pipeline.level_record(model.level, model, sol, run.tol)]
     for line in console_summary(summary, last if path is not None else nested or last):
         print(line)
     if path is not None:
@@ -150,9 +150,9 @@ def _vec(v) -> str:
 
 def console_summary(summary: dict, levels: list[dict]) -> list[str]:
     """What `mixvi solve` prints: a header, one row per level solved (unknowns, Newton steps,
-    time, residual), the outcome, the contact line (stick/slip counts and lengths, total
-    force on the slave body), the electrical contact's fixed point where there is one, the
-    time and the warnings — no raw dicts."""
+    time, the tolerance it was solved to, residual), the outcome, the contact line (stick/slip
+    counts and lengths, total force on the slave body), the electrical contact's fixed point
+    where there is one, the time and the warnings — no raw dicts."""
     dofs = summary["dofs"]
     out = [
         f"{summary['scene']} (plug-in {summary['plugin']}, solver {summary['solver']}, "
@@ -163,14 +163,19 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
     info = summary.get("solver_info") or {}
     fixed_point = summary["solver"] == "fixed_point"  # iterations: fixed-point, not Newton
     steps = "iterations" if fixed_point else "Newton steps"
-    out.append(f"  {'level':>5} {'unknowns':>10} {steps:>12} {'time [s]':>9} {'residual':>9}")
+    out.append(
+        f"  {'level':>5} {'unknowns':>10} {steps:>12} {'time [s]':>9} {'tol':>7} {'residual':>9}"
+    )
     for r in levels:
         out.append(
             f"  {r['level']:>5} {r['unknowns']:>10,} {r['iterations']:>12} "
-            f"{r['time_s']:>9.2f} {r['residual']:>9.1e}"
+            f"{r['time_s']:>9.2f} {r['tol']:>7.0e} {r['residual']:>9.1e}"
         )
     if len(levels) > 1:
-        out.append("  (nested iteration: each level starts from the one below)")
+        out.append(
+            "  (nested iteration: each level starts from the one below; the coarser ones are "
+            f"solved to {pipeline.NESTED_TOL:.0e} at least)"
+        )
     identity = ""
     if summary.get("lemma_4_2") is not None:
         identity = f"; Lemma 4.2 identity defect {summary['lemma_4_2']:.1e}"

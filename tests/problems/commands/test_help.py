@@ -71,8 +71,13 @@ def test_the_console_summary_is_a_table_and_a_contact_line(tmp_path, capsys):
     assert main(["solve", "rigid_foundation", "--level", "1", "--out", str(tmp_path / "o")]) == 0
     out = capsys.readouterr().out
     assert "{" not in out and "}" not in out  # no raw dicts
-    rows = re.findall(r"^\s+(\d)\s+([\d,]+)\s+(\d+)\s+([\d.]+)\s+([\d.e+-]+)$", out, re.M)
+    rows = re.findall(
+        r"^\s+(\d)\s+([\d,]+)\s+(\d+)\s+([\d.]+)\s+([\d.e+-]+)\s+([\d.e+-]+)$", out, re.M
+    )
     assert [r[0] for r in rows] == ["0", "1"]  # nested iteration: one row per level
+    # each level's tolerance: the coarse one to 1e-6 (`pipeline.coarse_tol`), the fine to tol
+    assert [float(r[4]) for r in rows] == [1e-6, 1e-10]
+    assert all(float(r[5]) <= float(r[4]) for r in rows)
     contact = next(ln for ln in out.splitlines() if ln.strip().startswith("contact:"))
     assert re.search(r"stick \d+ \([\d.]+ m\), slip \d+ \([\d.]+ m\)", contact)
     assert re.search(r"force on the slave \(\S+, \S+\) N/m", contact)
