@@ -174,7 +174,7 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
     if len(levels) > 1:
         out.append(
             "  (nested iteration: each level starts from the one below; the coarser ones are "
-            f"solved to {pipeline.NESTED_TOL:.0e} at least)"
+            f"solved to max(tol, {pipeline.NESTED_TOL:.0e}))"
         )
     identity = ""
     if summary.get("lemma_4_2") is not None:
