@@ -32,13 +32,13 @@ block lower triangular over the fields of the problem (`MixedVI.fields`, e.g. di
 then potential): one pyamg smoothed-aggregation hierarchy per field, built on the symmetric
 part of its diagonal block, with the field's near-null space (`MixedVI.near_null`, the
 rigid-body modes for displacement, carried to s by C^{-1}D) or the constant vector, aggregates
-within one body, energy-minimising prolongation; the coupling blocks below the diagonal (the
-piezoelectric coupling) are applied exactly. The hierarchies depend on which rows are tied:
-they are rebuilt when more than REUSE of the rows changed type since they were built; below
-that the whole preconditioner of the old tied rows is kept — the exact inverse (with exact
-hierarchies) of a Newton matrix that differs from K in the changed S rows only, a low-rank
-difference GMRES absorbs in a few iterations (passing the old hierarchy on with the changed
-rows merely left out made GMRES stagnate).
+within one body on every level, energy-minimising prolongation; the coupling blocks below the
+diagonal (the piezoelectric coupling) are applied exactly. The hierarchies depend on which
+rows are tied: they are rebuilt when more than REUSE of the rows changed type since they were
+built; below that the whole preconditioner of the old tied rows is kept — the exact inverse
+(with exact hierarchies) of a Newton matrix that differs from K in the changed S rows only, a
+low-rank difference GMRES absorbs in a few iterations (passing the old hierarchy on with the
+changed rows merely left out made GMRES stagnate).
 After GMRES the S rows are solved exactly once more (K_SS by SuperLU): a slip row's
 multiplier is then on its bound to rounding, as after a direct solve — nested iteration reads
 the stick/slip partition of the coarse answer, and without it the paper scene's level 5 took 8
@@ -287,13 +287,22 @@ def strength_within_parts(A: sp.csr_matrix, part: np.ndarray | None) -> sp.csr_a
     prolongation use the structure), so it is A's structure with every connection between two
     parts (bodies) dropped: no aggregate spans two bodies (without two parts, A's structure).
     Built from A's index arrays (pyamg's strength and a COO filter made four full-size
-    temporaries: paper scene level 5, 241 MB above the set-up's start).
+    temporaries: paper scene level 5, 241 MB above the set-up's start). On the coarser levels
+    `smoothed_aggregation` cuts pyamg's strength of the blocks the same way, with the parts
+    of the aggregates (`coarse_parts`).
 
     Why within parts: where bodies slide along each other (slip rows), an aggregate across the
     interface ties their tangential motions together, and the coarse spaces cannot represent
     the slip; the GMRES iterations then grow with the level (paper scene, CG on the glued
     displacement block to 1e-8: 25, 26, 38 at levels 3–5 aggregating across, 19, 22, 31
-    within the bodies; with energy-minimising prolongation 19, 20, 28 against 13, 17, 20)."""
+    within the bodies; with energy-minimising prolongation 19, 20, 28 against 13, 17, 20).
+    On every level, not the finest alone: with the coarser levels aggregating across the
+    bodies, the fine nested step of the 10M row's scene (README, "Scale") took 18 GMRES
+    iterations at level 5 and 21 at level 6 (27 at level 7, 10.7M unknowns) against 19 and 18
+    for the tied solve, its residual stalling for 3–4 iterations at a time; an exact solve of
+    the disc within 0.3 of the ends of Γ3 removed the stalls — the disc sliding along the
+    cradle, which aggregates spanning the interface cannot represent at their scale. Cut on
+    every level: 14 at level 5."""
     A = sp.csr_array(A)
     A.sort_indices()
     n = A.shape[0]
@@ -565,10 +574,22 @@ def energy_smoothing(A: sp.csr_matrix, T, pattern: tuple, B: np.ndarray):
     return P
 
 
+def coarse_parts(AggOp, part: np.ndarray | None) -> np.ndarray | None:
+    """(n_agg,) the part of each aggregate of AggOp (n, n_agg): that of its members (one part:
+    the strength it was aggregated on is cut between the parts); None without parts."""
+    if part is None:
+        return None
+    agg = sp.coo_array(AggOp)
+    out = np.empty(agg.shape[1], dtype=np.asarray(part).dtype)
+    out[agg.col] = np.asarray(part)[agg.row]
+    return out
+
+
 def smoothed_aggregation(A: sp.csr_matrix, B: np.ndarray | None, part: np.ndarray | None):
     """pyamg.smoothed_aggregation_solver(A, B, max_coarse=500, coarse_solver="splu",
-    smooth=SMOOTH, strength=[("predefined", {"C": strength_within_parts(A, part)})] +
-    ["symmetric"] …) with its other defaults (MAX_LEVELS, standard aggregation, the
+    smooth=SMOOTH, strength=[("predefined", {"C": strength_within_parts(A, part)})] + [the
+    symmetric strength of each coarser level cut between the parts of its aggregates] …) with
+    its other defaults (MAX_LEVELS, standard aggregation, the
     near-null vectors improved by 4 symmetric block Gauss–Seidel sweeps on the finest level,
     R = Pᵀ, Galerkin coarse operators, symmetric block Gauss–Seidel smoothers): the same
     hierarchy to rounding (`test_krylov`), built with less memory — the finest level's
@@ -590,9 +611,12 @@ def smoothed_aggregation(A: sp.csr_matrix, B: np.ndarray | None, part: np.ndarra
     levels[0].A, levels[0].B = A, B
     C = strength_within_parts(A, part)
     while len(levels) < MAX_LEVELS and A.shape[0] // get_blocksize(A) > 500:
-        if C is None:
+        if C is None:  # a coarser level: pyamg's strength of its blocks, cut between the parts
             C = symmetric_strength_of_connection(A, 0.0)
+            if part is not None and np.unique(part).size > 1:
+                C = strength_within_parts(C, part)
         AggOp = standard_aggregation(sp.csr_array(C))[0]
+        part = coarse_parts(AggOp, part)
         if len(levels) == 1:
             relax = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 4})
             B = relaxation_as_linear_operator(relax, A, np.zeros((n, 1))) @ B
