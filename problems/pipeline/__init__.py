@@ -6,6 +6,9 @@ plug-in build → MixedVI → solve (nested iteration) → results.
     solve_built(loaded, model, ...)    the solve of a built model (also each load step's,
                                        problems.pipeline.load_path)
     results(loaded, run)               fields, contact state and info as objects
+    nested_iteration(plugin, scene, model, tol, linear_solver)
+                                       the coarse levels of an ssn solve and the fine
+                                       level's warm start (mixvi solve's and mixvi bench's)
 
 Nothing here writes files: `mixvi solve` (problems.commands.solve) adds the output folder,
 `problems.solve_scene` returns the objects.
@@ -138,9 +141,9 @@ def solve_built(
         if previous is not None:
             if _same_shape(previous, model):
                 warm = {"u0": previous.u, "lam0": previous.lam}
-        elif method == "ssn" and hasattr(loaded.plugin, "warm_start") and model.level > 0:
+        elif method == "ssn" and nests(loaded.plugin, model):
             with load_parameter(t) if t is not None else nullcontext():
-                nested, warm, start = _nested(
+                nested, warm, start = nested_iteration(
                     loaded.plugin, loaded.scene, model, tol, linear_solver, on_level
                 )
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
@@ -195,21 +198,32 @@ def _same_shape(sol: vi_core.Solution, model: Any) -> bool:
     return np.shape(sol.u) == (model.vi.n,) and np.shape(sol.lam) == (model.vi.m,)
 
 
-def _nested(
+def nests(plugin: Any, model: Any) -> bool:
+    """Whether an ssn solve of the built `model` starts with a nested iteration
+    (`nested_iteration`): its plug-in has `warm_start` and there is a coarser level."""
+    return hasattr(plugin, "warm_start") and model.level > 0
+
+
+def nested_iteration(
     plugin: Any,
     scene: Scene,
     model: Any,
     tol: float,
     linear_solver: str,
     on_level: Callable[[Any, vi_core.Solution], None] | None = None,
+    build: Callable[[Scene, int], Any] | None = None,
 ) -> tuple[list[dict], dict, dict]:
-    """Nested iteration: levels 0 … L−1 solved first, each warm-starting the next; returns
-    their records, the warm start of `model` and its description (`nested_start`). The
-    coarse models are gone when it returns (none of them is alive while the fine level is
-    factorised)."""
+    """Nested iteration (where `nests(plugin, model)`): levels 0 … L−1 (L = model.level)
+    built by `build(scene, level)` (default `plugin.build`; mixvi bench passes one that times
+    the builds, to leave them out of its timing) and solved to `coarse_tol(tol)`, each
+    warm-starting the next; returns their records, the warm start of `model` (keyword
+    arguments of `solve_model`) and its description (`nested_start`). The coarse models are
+    gone when it returns (none of them is alive while the fine level is factorised) unless
+    `on_level` or `build` keeps them."""
+    build = build or plugin.build
     nested, prev = [], None
     for lev in range(model.level):
-        coarse = plugin.build(scene, lev)
+        coarse = build(scene, lev)
         kw, start = nested_start(plugin, *prev, coarse) if prev else ({}, {})
         prev = None  # the level before is no longer needed
         csol = solve_model(
