@@ -5,9 +5,11 @@ optional `dimension`, 2 if absent), so with s = 2^level the number of unknowns i
 of degree d in s (cells ~ s^d, boundary and contact nodes ~ s^(d-1), corners ~ 1). It is
 fitted exactly through the levels 0 … d; in 2D a level multiplies the unknowns by about 4,
 in 3D by 8. Level 0 is built (its model tells d); the levels 1 … d are built too, unless the
-plug-in declares `count(scene, level) -> (unknowns, nnz(A), n)`, which counts them from the
-meshes, Dirichlet data and contact rows without assembling (contact3d: level 3 of a 3D scene
-is 512 times level 0).
+plug-in declares `count(scene, level) -> (unknowns, nnz(A), n)`, which counts them on the
+level-0 meshes (contact3d: `fem.refined_counts`, exact formulas of uniform refinement in the
+coarse mesh's vertices, edges, faces and cells and the parts holding them; nothing finer is
+meshed, nothing assembled: a 3D level 3 is 512 times level 0, and meshing it to count took 26 s
+of CPU for a level-0 block of 16 × 8 × 8 hexahedra, docs/benchmarks.md).
 
 Peak memory. peak ≈ base + a · x^b per linear solver (MEMORY_MODEL), where x is whichever
 quantity predicts that solver's measured peaks better. SuperLU: x = nnz(A), the stored entries
