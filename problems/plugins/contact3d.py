@@ -80,6 +80,7 @@ from .contact_model import BodiesModel, reference
 from .contract import Sweep, check_meshed
 
 NAME = "contact3d"
+DIMENSION = 3  # the models' `dimension` (`count` needs no model to tell it)
 DESCRIPTION = (
     "elastic/piezoelectric 3D bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
     "(friction discs)"
@@ -212,7 +213,7 @@ class Contact3D:
 class Model(BodiesModel):
     """A built 3D scene: the mixed VI plus what post-processing needs."""
 
-    dimension: int = 3
+    dimension: int = DIMENSION
     # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
     # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
     slip_origin: np.ndarray | None = None
