@@ -1,6 +1,6 @@
 """The memory guard's estimate against the solve it guards (issue 34 item 5).
 
-    python examples/bench_estimate.py [--level L] [--json FILE] SCENE ...
+    python benchmarks/bench_estimate.py [--level L] [--json FILE] SCENE ...
 
 For each scene (a shipped name or a .toml path), in a fresh process: the CPU time of
 `resources.Sizes` (what `mixvi solve` runs before building, `check_levels`), then of building
