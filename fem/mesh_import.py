@@ -419,12 +419,14 @@ def write_msh(
     path: str | PathLike,
     bodies: dict[str, Mesh],
     file_format: str = "gmsh22",
+    binary: bool = False,
 ) -> None:
     """Write meshes as one gmsh file (meshio's `file_format`: "gmsh22" = v2.2, "gmsh" = v4.1):
     each body a physical surface (2D `Mesh`) or volume (`Mesh3D`) named for it, each boundary
     part a physical curve (2D) or surface (3D) named `part` (`body_part` where two bodies have
     a part of that name; 3D only as v2.2). Nodes of different bodies are not merged. Tests
-    and examples use it to hand built-in meshes to `body_mesh` / `mesh_import3d.body_mesh3d`."""
+    and examples use it to hand built-in meshes to `body_mesh` / `mesh_import3d.body_mesh3d`
+    (ASCII, or `binary`)."""
     import meshio
 
     dims = {m.points.shape[1] for m in bodies.values()}
@@ -467,4 +469,4 @@ def write_msh(
         cell_data={"gmsh:physical": phys, "gmsh:geometrical": geo},
         field_data=field,
     )
-    out.write(str(Path(path)), file_format=file_format, binary=False)
+    out.write(str(Path(path)), file_format=file_format, binary=binary)
