@@ -2,10 +2,10 @@
 failure that is not a `SceneError` (bad input named by its field), whichever thread raised it.
 
 Resources are bad input, not bugs (exit 2; 1 where a solve ran, as for a solve that did not
-converge): memory exhausted (a `MemoryError`, also one raised inside a compiled solver such as
-SuperLU's "SUPERLU_MALLOC fails", or a shared library that cannot be mapped), the disk full,
-the file-size limit (`ulimit -f`), stdout full or closed. Each message names the resource, the
-limit where one is set, and what to do. Anything else is an internal error (exit 3).
+converge): memory exhausted (a `MemoryError`; SuperLU's "SUPERLU_MALLOC fails", a MemoryError
+or a RuntimeError depending on where in SuperLU; a shared library that cannot be mapped), the
+disk full, the file-size limit (`ulimit -f`), stdout full or closed. Each message names the
+resource, the limit where one is set, and what to do. Anything else is an internal error (exit 3).
 
 `report(err, debug)` prints the line and returns the status; `problems.commands.main.main` and
 the entry point's import phase (`problems.commands.entry`) both use it.
@@ -62,6 +62,8 @@ def is_memory(err: BaseException) -> bool:
     if isinstance(err, MemoryError):
         return True
     text = str(err).lower()
+    if isinstance(err, RuntimeError) and "malloc fails" in text:  # SuperLU's SUPERLU_MALLOC
+        return True
     return isinstance(err, ImportError | OSError) and (
         "failed to map segment" in text
         or "cannot allocate memory" in text

@@ -10,7 +10,7 @@ replaced by a hostile one (a huge tag or count, 0, −1, 1e300, nan, inf, anothe
 a line deleted or repeated, the file cut short, or random bytes spliced in.
 
     CI tier (40 examples, in-process):           .venv/bin/pytest tests/problems/commands/test_fuzz_meshes.py
-    fuzz tier (400, each in a child process under RLIMIT_AS and a timeout):
+    fuzz tier (150, each in a child process under RLIMIT_AS and a timeout):
                                                  .venv/bin/pytest -m fuzz tests/problems/commands/test_fuzz_meshes.py
 """  # noqa: E501
 
@@ -155,7 +155,7 @@ def test_fuzzed_mesh_files(case):
 
 @pytest.mark.slow
 @pytest.mark.fuzz
-@settings(max_examples=400, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=150, suppress_health_check=[HealthCheck.too_slow])
 @given(damaged_meshes())
-def test_fuzzed_mesh_files_400_in_children(case):
+def test_fuzzed_mesh_files_150_in_children(case):
     run_in_child(*case)
