@@ -76,7 +76,7 @@ import numpy as np
 
 from problems.errors import SceneError
 from problems.scene.geometry import check_sizes
-from vi_core.linalg import resolve_backend
+from vi_core.linalg import pardiso_available, resolve_backend
 
 from .options import MAX_LEVEL
 
@@ -303,12 +303,21 @@ def check_levels(
     text: str,
     force: bool = False,
     linear_solver: str = "auto",
+    linear_option: str = "--linear-solver",
 ) -> Sizes:
     """Refuse (SceneError naming `option` and its value `text`) a level range A..B outside
     0 ≤ A ≤ B ≤ the scene's cap, or whose largest level does not fit in the memory available
     now; `force` skips the memory checks (the range must still be ordered, ≤ MAX_LEVEL). A
     body whose mesh at B would exceed `geometry.MAX_NODES` nodes is refused too, before any
-    level is solved (a SceneError naming its key), with or without `force`."""
+    level is solved (a SceneError naming its key), with or without `force`. The linear
+    solver 'pardiso' without its optional package is refused naming `linear_option`."""
+    if linear_solver == "pardiso" and not pardiso_available():
+        raise SceneError(
+            linear_option,
+            "pardiso",
+            "an installed linear solver: 'pardiso' needs the optional package pypardiso "
+            "(pip install mixvi[fast]); or auto, splu, amg",
+        )
     a, b = levels
     total, available = memory()
     sizes = Sizes(plugin, scene, linear_solver)

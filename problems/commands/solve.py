@@ -224,7 +224,7 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         line = (
             f"  electrical contact ({el['kind']}): {fp['iterations']} fixed-point steps on k, "
             f"{'converged' if fp['converged'] else 'NOT converged'}, contraction "
-            f"{fp['contraction']:.3g}, law defect {el['law_defect']:.1e}"
+            f"{_num(fp['contraction'], '.3g')}, law defect {_num(el['law_defect'], '.1e')}"
         )
         if el.get("potential_gap_touching") is not None:
             line += f"; potential jump where touching {el['potential_gap_touching']:.6g} V"
@@ -241,6 +241,11 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
     out += [f"  warning: {w}" for w in summary["warnings"]]
     out += [f"  note: {n}" for n in summary.get("notes", [])]
     return out
+
+
+def _num(x: float | None, fmt: str) -> str:
+    """`x` formatted, or 'n/a' where there is none (a contraction after one step)."""
+    return "n/a" if x is None else format(x, fmt)
 
 
 def load(args: argparse.Namespace) -> pipeline.Loaded:
