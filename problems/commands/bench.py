@@ -29,7 +29,6 @@ status 1 if any case failed or did not converge.
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing as mp
 import platform
 import queue
@@ -43,7 +42,7 @@ import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
 from problems.output import signals
-from problems.output.files import output_file
+from problems.output.files import Output, claim
 from vi_core import Free, MixedVI
 from vi_core.krylov import LINEAR_SOLVERS, thread_settings
 from vi_core.linalg import resolve_backend
@@ -255,7 +254,7 @@ def run_case(
 
 
 def _scenes(text: str) -> list[str]:
-    from problems.scene import SCENES_DIR
+    from problems.scene import SCENES_DIR, find_scene
 
     items = [x.strip() for x in text.split(",")]
     if not text.strip() or any(not x for x in items):
@@ -263,6 +262,14 @@ def _scenes(text: str) -> list[str]:
         raise SceneError(
             "--scenes", text, f"a non-empty comma-separated list of scene files or of: {shipped}"
         )
+    seen: dict[Path, str] = {}
+    for x in items:  # one scene named twice (or by a second path) would be run twice
+        real = find_scene(x).resolve()
+        if real in seen:
+            raise SceneError(
+                "--scenes", text, f"distinct scenes ({seen[real]!r} and {x!r} are one scene)"
+            )
+        seen[real] = x
     return items
 
 
@@ -366,15 +373,21 @@ def bench_main(argv: list[str] | None = None) -> int:
         "exponents (default: --out with the suffix .svg)",
     )
     p.add_argument("--force", action="store_true", help="skip the memory estimate's refusal")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing --out or --figure file that mixvi did not write",
+    )
     args = p.parse_args(argv)
     solvers = options.names(args.solvers, "--solvers", ("ssn", "conic", "homotopy"))
     linear = options.names(args.linear_solvers, "--linear-solvers", LINEAR_SOLVERS)
     from problems.plugins import registry
     from problems.scene import load_scene
 
-    jobs = []
+    jobs, inputs = [], []
     for name in _scenes(args.scenes):
         scene = load_scene(name)
+        inputs += scene.files()
         plugin = registry.for_scene(scene)
         if args.levels:
             a, b = options.level_range(args.levels)
@@ -391,7 +404,15 @@ def bench_main(argv: list[str] | None = None) -> int:
         # scenes in the order given; within a scene every solver of a level before the next level
         jobs += sorted(mine, key=lambda j: j[1])
     figure = args.figure or str(Path(args.out).with_suffix(".svg"))
-    with output_file(args.out, "--out") as target, output_file(figure, "--figure") as fig:
+    if args.figure is None and figure == args.out:
+        raise SceneError(
+            "--out",
+            args.out,
+            "a file whose name with the suffix .svg (the default --figure) is another path: "
+            "give --figure, or an --out not ending in .svg",
+        )
+    outputs = [Output(args.out, "--out", "json"), Output(figure, "--figure", "svg")]
+    with claim(outputs, inputs, overwrite=args.overwrite) as run:
         records = _run(jobs, solvers, args)
         machine = {
             "platform": platform.platform(),
@@ -415,8 +436,8 @@ def bench_main(argv: list[str] | None = None) -> int:
                     f"  linear {ex['time_linear']:.2f}  peak memory {ex['peak_mem']:.2f}"
                 )
         data = {"machine": machine, "records": records, "memory": memory, "fits": fitted}
-        target.write(json.dumps(data, indent=2))
-        fig.write(bench_scaling.figure_svg(records))
+        run.file("--out").write(data)
+        run.file("--figure").write(bench_scaling.figure_svg(records))
     print(f"wrote {args.out} and {figure}")
     ok = all(not r.get("error") and r.get("converged") for r in records)
     return 0 if ok else 1

@@ -16,15 +16,14 @@ the two runs). Writes the table as JSON (default bench_load_path.json in the cur
 from __future__ import annotations
 
 import argparse
-import json
 import resource
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
 import problems.pipeline as pipeline
+from problems.output.files import Output, claim
 from problems.pipeline.load_path import solve_path
 
 SCENES = ("shear_strip_path", "block3d_liftoff")
@@ -65,44 +64,46 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeat", type=int, default=2, help="runs of each kind (the fastest kept)")
     p.add_argument("--out", default="bench_load_path.json")
     args = p.parse_args(argv)
-    rows = []
-    head = (
-        f"{'scene':<18} {'lvl':>3} {'steps':>5} {'rebuild s':>10} {'update s':>9} "
-        f"{'ratio':>6} {'build s (r/u)':>15} {'step 2+ build ms (r/u)':>22} "
-        f"{'max rel diff':>12} {'peak MiB':>8}"
-    )
-    print(head)
-    for name in args.scenes:
-        loaded = pipeline.load(name)
-        for level in args.levels:
-            runs: dict[bool, list] = {True: [], False: []}
-            for _ in range(args.repeat):  # alternating, so neither order gets the warm-up
-                for rebuild in (True, False):
-                    runs[rebuild].append(_run(loaded, level, rebuild))
-            full, a = min(runs[True], key=lambda r: r[0]["wall_s"])
-            upd, b = min(runs[False], key=lambda r: r[0]["wall_s"])
-            peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-            row = {
-                "scene": name,
-                "level": level,
-                "steps": full["steps"],
-                "rebuild": full,
-                "update": upd,
-                "ratio_wall": upd["wall_s"] / full["wall_s"],
-                "max_rel_difference": _difference(a, b) if len(a) == len(b) else None,
-                "peak_rss_mib": peak,
-            }
-            rows.append(row)
-            diff = row["max_rel_difference"]
-            print(
-                f"{name:<18} {level:>3} {full['steps']:>5} {full['wall_s']:>10.2f} "
-                f"{upd['wall_s']:>9.2f} {row['ratio_wall']:>6.2f} "
-                f"{full['build_s']:>7.2f}/{upd['build_s']:<7.2f} "
-                f"{1e3 * full['later_build_s']:>11.1f}/{1e3 * upd['later_build_s']:<10.1f} "
-                f"{'-' if diff is None else f'{diff:.1e}':>12} {peak:>8.0f}",
-                flush=True,
-            )
-    Path(args.out).write_text(json.dumps(rows, indent=2) + "\n")
+    inputs = [f for name in args.scenes for f in pipeline.load(name).scene.files()]
+    with claim([Output(args.out, "--out", "json")], inputs) as run:
+        rows = []
+        head = (
+            f"{'scene':<18} {'lvl':>3} {'steps':>5} {'rebuild s':>10} {'update s':>9} "
+            f"{'ratio':>6} {'build s (r/u)':>15} {'step 2+ build ms (r/u)':>22} "
+            f"{'max rel diff':>12} {'peak MiB':>8}"
+        )
+        print(head)
+        for name in args.scenes:
+            loaded = pipeline.load(name)
+            for level in args.levels:
+                runs: dict[bool, list] = {True: [], False: []}
+                for _ in range(args.repeat):  # alternating, so neither order gets the warm-up
+                    for rebuild in (True, False):
+                        runs[rebuild].append(_run(loaded, level, rebuild))
+                full, a = min(runs[True], key=lambda r: r[0]["wall_s"])
+                upd, b = min(runs[False], key=lambda r: r[0]["wall_s"])
+                peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+                row = {
+                    "scene": name,
+                    "level": level,
+                    "steps": full["steps"],
+                    "rebuild": full,
+                    "update": upd,
+                    "ratio_wall": upd["wall_s"] / full["wall_s"],
+                    "max_rel_difference": _difference(a, b) if len(a) == len(b) else None,
+                    "peak_rss_mib": peak,
+                }
+                rows.append(row)
+                diff = row["max_rel_difference"]
+                print(
+                    f"{name:<18} {level:>3} {full['steps']:>5} {full['wall_s']:>10.2f} "
+                    f"{upd['wall_s']:>9.2f} {row['ratio_wall']:>6.2f} "
+                    f"{full['build_s']:>7.2f}/{upd['build_s']:<7.2f} "
+                    f"{1e3 * full['later_build_s']:>11.1f}/{1e3 * upd['later_build_s']:<10.1f} "
+                    f"{'-' if diff is None else f'{diff:.1e}':>12} {peak:>8.0f}",
+                    flush=True,
+                )
+        run.file("--out").write({"rows": rows})
     print(f"wrote {args.out}")
     return 0
 

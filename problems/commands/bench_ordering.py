@@ -13,7 +13,6 @@ bench_ordering.json).
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
@@ -21,7 +20,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import vi_core.ssn as ssn
-from problems.output.files import output_file
+from problems.output.files import Output, claim
 from problems.plugins import registry
 from problems.scene import load_scene
 from vi_core import linalg, solve
@@ -83,8 +82,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['time_factorisation_s']:>12.2f}{r['residual']:>10.1e}"
         )
     head = {"scene": args.scene, "level": args.level, "n": K.shape[0], "nnz": K.nnz}
-    with output_file(args.out, "--out") as target:
-        target.write(json.dumps({**head, "orderings": rows}, indent=2))
+    with claim([Output(args.out, "--out", "json")], scene.files()) as run:
+        run.file("--out").write({**head, "orderings": rows})
     print(f"wrote {args.out}")
     return 0
 

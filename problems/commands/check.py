@@ -27,13 +27,13 @@ A record fails (exit status 1) when
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
 import problems.pipeline as pipeline
 import vi_core
-from problems.output.files import jsonable, output_file
+from problems.errors import SceneError
+from problems.output.files import Output, claim, jsonable
 from vi_core.kkt import Checker
 
 from . import options, resources
@@ -202,6 +202,10 @@ def _homotopy_report(h: dict) -> dict:
 def cmd_check(args: argparse.Namespace) -> int:
     """Compare the raw answers of ssn, homotopy and conic per level; exit status 1 if a method
     fails or a pair differs beyond `allowed` (module docstring)."""
+    if args.levels is not None and args.level is not None:
+        raise SceneError(
+            "--levels", args.levels, f"either --level or --levels, not both (--level {args.level})"
+        )
     loaded = load(args)
     scene, plugin = loaded.scene, loaded.plugin
     if args.levels is not None:
@@ -212,10 +216,9 @@ def cmd_check(args: argparse.Namespace) -> int:
         option = "--level" if args.level is not None else "scene.level"
         text, (a, b) = str(lev), (lev, lev)
     resources.check_levels(plugin, scene, (a, b), option, text, args.force)
-    if args.json is None:
-        return _check(scene, plugin, range(a, b + 1), args.tol, None)
-    with output_file(args.json, "--json") as target:
-        return _check(scene, plugin, range(a, b + 1), args.tol, target)
+    outputs = [] if args.json is None else [Output(args.json, "--json", "json")]
+    with claim(outputs, scene.files(), overwrite=args.overwrite) as run:
+        return _check(scene, plugin, range(a, b + 1), args.tol, run.files.get("--json"))
 
 
 def _check(scene, plugin, levels, tol, target) -> int:
@@ -231,5 +234,5 @@ def _check(scene, plugin, levels, tol, target) -> int:
         else:
             print("DISAGREE: " + "; ".join(rec["failures"]))
     if target is not None:
-        target.write(json.dumps(jsonable({"scene": scene.name, "records": records}), indent=2))
+        target.write(jsonable({"scene": scene.name, "records": records}))
     return 0 if ok else 1

@@ -222,13 +222,14 @@ def extremes_main(argv: list[str]) -> int:
             args.only,
             "text contained in a row name: " + "; ".join(r.name for r in candidates),
         )
+    inputs = []  # the scene files the rows read
     for row in selected:  # every row's level must fit in memory before anything runs
         option = "--huge" if row.huge else "--only"
         plugin = plugins[row.plugin]
-        resources.check_levels(
-            plugin, row.load(), (row.level, row.level), option, row.name, args.force
-        )
-    with output_folder(args.out, "--out", overwrite=args.overwrite) as folder:
+        scene = row.load()
+        inputs += scene.files()
+        resources.check_levels(plugin, scene, (row.level, row.level), option, row.name, args.force)
+    with output_folder(args.out, "--out", overwrite=args.overwrite, inputs=inputs) as folder:
         print("iters = ssn/conic/homotopy; agree = largest relative difference to ssn")
         print(HEADER)
         records = []

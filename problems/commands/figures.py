@@ -65,7 +65,8 @@ def cmd_figures(args: argparse.Namespace) -> int:
     option = "--level" if args.level is not None else "scene.level"  # where the level came from
     resources.check_levels(plugin, probe, (level, level), option, str(level), args.force)
     out = Path(args.out) if args.out else Path("out") / f"{probe.name}_figures"
-    with output_folder(out, "--out", overwrite=args.overwrite) as folder:
+    inputs = probe.files()
+    with output_folder(out, "--out", overwrite=args.overwrite, inputs=inputs) as folder:
         panels = []
         for v in progress_bar(iterable=values, desc=f"solving for each {sweep.path}", unit="solve"):
             scene = load_scene(name, [*(args.set or []), f"{sweep.path}={v!r}"])

@@ -12,10 +12,10 @@ indenter and the reference E* the conducting one (`contact_references.hertz_modu
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 
+from problems.output.files import Output, claim
 from problems.pipeline import load, solve
 from problems.plugins import hertz
 
@@ -64,26 +64,27 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--levels = {args.levels!r}: expected A..B with integers 0 ≤ A ≤ B")
     if not args.radius > 0:
         ap.error(f"--radius = {args.radius!r}: expected a radius > 0 (m)")
-    table = rows(args.scene, levels, args.radius, args.set)
-    print(
-        f"{'level':>5} {'unknowns':>9} {'Newton':>6} {'P [N/m]':>10} {'a/a_ref-1':>10} "
-        f"{'rate':>5} {'p0/p0_ref-1':>11} {'rate':>5}"
-    )
-    for r in table:
-        rt = r.get("rates", {})
-
-        def fmt(v):
-            return f"{v:5.2f}" if v is not None else "    -"
-
+    outputs = [Output(args.json, "--json", "json")] if args.json else []
+    with claim(outputs, load(args.scene).scene.files()) as run:
+        table = rows(args.scene, levels, args.radius, args.set)
         print(
-            f"{r['level']:5d} {r['unknowns']:9d} {r['newton']:6d} {r['P']:10.4g} "
-            f"{r['errors']['a']:+10.2e} {fmt(rt.get('a'))} {r['errors']['p0']:+11.2e} "
-            f"{fmt(rt.get('p0'))}"
+            f"{'level':>5} {'unknowns':>9} {'Newton':>6} {'P [N/m]':>10} {'a/a_ref-1':>10} "
+            f"{'rate':>5} {'p0/p0_ref-1':>11} {'rate':>5}"
         )
-    print(f"E* = {table[0]['E_star']:.6g} Pa (Stroh), R = {args.radius:g} m")
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(table, fh, indent=1)
+        for r in table:
+            rt = r.get("rates", {})
+
+            def fmt(v):
+                return f"{v:5.2f}" if v is not None else "    -"
+
+            print(
+                f"{r['level']:5d} {r['unknowns']:9d} {r['newton']:6d} {r['P']:10.4g} "
+                f"{r['errors']['a']:+10.2e} {fmt(rt.get('a'))} {r['errors']['p0']:+11.2e} "
+                f"{fmt(rt.get('p0'))}"
+            )
+        print(f"E* = {table[0]['E_star']:.6g} Pa (Stroh), R = {args.radius:g} m")
+        if args.json:
+            run.file("--json").write({"rows": table})
     return 0 if all(r["converged"] for r in table) else 1
 
 

@@ -44,14 +44,15 @@ def add_force(p: argparse.ArgumentParser) -> None:
     )
 
 
+OVERWRITE_HELP = (
+    "write where files mixvi did not write are: into a folder that holds them (only mixvi's "
+    "files are replaced, nothing is deleted), or over such a single file (replaced)"
+)
+
+
 def add_output_options(p: argparse.ArgumentParser) -> None:
-    """--overwrite and --force, shared by every command that writes an output folder."""
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="write into a folder that holds other files (only mixvi's files are replaced; "
-        "nothing is deleted)",
-    )
+    """--overwrite and --force, shared by every command that writes outputs."""
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     add_force(p)
 
 
@@ -174,9 +175,7 @@ def parser() -> argparse.ArgumentParser:
             c.add_argument(
                 "--out", default=None, help="output directory (default out/SCENE_figures)"
             )
-            add_output_options(c)
-        if name == "check":
-            add_force(c)
+        add_output_options(c)
         c.set_defaults(func=fn)
     for name, helptext in OWN_PARSERS.items():  # listed here, parsed by their own parsers
         sub.add_parser(name, help=helptext, add_help=False)

@@ -42,7 +42,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
         plugin, scene, (level, level), option, str(level), args.force, args.linear_solver
     )
     out = Path(args.out) if args.out else Path("out") / scene.name
-    with output_folder(out, "--out", overwrite=args.overwrite) as folder:
+    inputs = loaded.scene.files()
+    with output_folder(out, "--out", overwrite=args.overwrite, inputs=inputs) as folder:
         return _solve(args, t0, loaded, level, folder)
 
 

@@ -422,7 +422,8 @@ def study_main(argv: list[str] | None = None) -> int:
     needs(plugin, "mixvi study", *STUDY_NEEDS)
     resources.check_levels(plugin, scene, (a, b), "--levels", args.levels, args.force)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_study"
-    with output_folder(out, "--out", overwrite=args.overwrite) as folder:
+    inputs = scene.files()
+    with output_folder(out, "--out", overwrite=args.overwrite, inputs=inputs) as folder:
         levels = list(range(a, b + 1))
         solutions: dict | None = {} if args.vtu else None
         with _client(args) as client:

@@ -49,6 +49,7 @@ from .contract import (
     complementarity_defect,
     dirichlet,
     expect,
+    prescribed_once,
 )
 from .transfer import scalar_exact_errors, scalar_mesh_size, scalar_reference_errors
 
@@ -141,6 +142,7 @@ class AntiplaneScene(SceneModel):
             for i, d in enumerate(getattr(self, key)):
                 check_boundaries([key, i, "boundary"], d.boundary, names)
         check_boundaries(["friction", "boundary"], [self.friction.boundary], names)
+        prescribed_once("dirichlet", [(d.boundary, "") for d in self.dirichlet])
         return self
 
 

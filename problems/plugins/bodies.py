@@ -26,7 +26,7 @@ from problems.scene.geometry import Geometry
 from problems.scene.materials import Material, MaterialSpec
 from problems.scene.model import one_or_many, refuse
 
-from .contract import check_boundaries, check_meshed
+from .contract import check_boundaries, check_meshed, prescribed_once
 
 # the displacement components a [[displacement]] part may prescribe → their indices
 COMPONENTS = {c: tuple("xyz".index(a) for a in c) for c in ("x", "y", "z", "xy", "xz", "yz", "xyz")}
@@ -151,6 +151,8 @@ class BodySection(Section):
         for key in ("displacement", "traction", "potential", "charge"):
             for i, part in enumerate(getattr(self, key)):
                 check_boundaries([key, i, "boundary"], [part.boundary], names)
+        prescribed_once("displacement", [([p.boundary], p.components) for p in self.displacement])
+        prescribed_once("potential", [([p.boundary], "") for p in self.potential])
         if not self.displacement:
             raise refuse(
                 ["displacement"],

@@ -355,6 +355,27 @@ def check_boundaries(field: list, names: list[str], available) -> None:
             raise refuse(field, n, f"a boundary of this geometry: {', '.join(available)}")
 
 
+def prescribed_once(key: str, parts: Sequence[tuple[Sequence[str], str]]) -> None:
+    """Refuse (a pydantic error at `key`[i].boundary) two entries of one list of Dirichlet
+    data that prescribe the same component on the same boundary part: which value would hold
+    is not the scene's to leave open (the later entry used to win silently), even where they
+    agree. `parts`: per entry, its boundary names and its components (e.g. "xy"; "" for a
+    scalar). Parts that only meet at a corner node are not refused."""
+    seen: dict[tuple[str, str], int] = {}
+    for i, (names, components) in enumerate(parts):
+        for name in names:
+            for c in components or "-":
+                if (name, c) in seen:
+                    what = f" component {c} of" if components else ""
+                    raise refuse(
+                        [key, i, "boundary"],
+                        name,
+                        f"a boundary part prescribed once: {key}[{seen[name, c]}] already "
+                        f"prescribes{what} {name!r} (merge the two entries, or name another part)",
+                    )
+                seen[name, c] = i
+
+
 def check_meshed(mesh: Mesh, refs: Sequence[tuple[str, str]]) -> None:
     """After meshing a geometry whose BOUNDARIES are None (a mesh file): SceneError naming the
     field for the first (field path, boundary name) of `refs` the mesh does not have, listing

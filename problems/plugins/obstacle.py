@@ -40,6 +40,7 @@ from .contract import (
     complementarity_defect,
     dirichlet,
     expect,
+    prescribed_once,
     triangles,
 )
 from .transfer import scalar_exact_errors, scalar_mesh_size, scalar_reference_errors
@@ -112,6 +113,7 @@ class ObstacleScene(SceneModel):
         names = self.domain.geometry.BOUNDARIES
         for i, d in enumerate(self.dirichlet):
             check_boundaries(["dirichlet", i, "boundary"], d.boundary, names)
+        prescribed_once("dirichlet", [(d.boundary, "") for d in self.dirichlet])
         return self
 
 

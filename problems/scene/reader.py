@@ -66,6 +66,27 @@ class Scene:
         self._cache = (cls, copy.deepcopy(self.data), model)
         return model
 
+    def files(self) -> list[tuple[str, Path]]:
+        """(what, path) of every file the scene reads: the scene file itself (none for a scene
+        made in Python) and each mesh or geometry file a table names (`mesh = FILE`,
+        `geo = FILE`, relative to the scene file), as the inputs a run's outputs may not be."""
+        from .imported import resolve
+
+        made = self.path.startswith("<")
+        out = [] if made else [("the scene file", Path(self.path))]
+        folder = None if made else Path(self.path).parent
+        todo: list[tuple[str, Any]] = [("", self.data)]
+        while todo:
+            where, node = todo.pop()
+            if isinstance(node, dict):
+                for key in ("mesh", "geo"):
+                    if isinstance(node.get(key), str):
+                        out.append((f"the file of {where}{key}", resolve(folder, node[key])))
+                todo += [(f"{where}{k}.", v) for k, v in node.items()]
+            elif isinstance(node, list):
+                todo += [(f"{where[:-1]}[{i}].", v) for i, v in enumerate(node)]
+        return out
+
     @classmethod
     def from_model(cls, model: SceneModel, name: str = "scene") -> Scene:
         """A scene made from a validated model (the Python API): its data is the model's."""

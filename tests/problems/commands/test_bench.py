@@ -18,7 +18,7 @@ def test_bench_writes_the_contract(tmp_path, capsys):
         main(["bench", "--scenes", "rigid_foundation", "--levels", "0..1", "--out", str(out)]) == 0
     )
     data = json.loads(out.read_text())
-    assert set(data) == {"machine", "records", "memory", "fits"}
+    assert set(data) == {"written_by", "machine", "records", "memory", "fits"}
     (fit,) = data["fits"]  # one series: rigid_foundation with the default linear solver
     assert fit["unknowns"] == [r["unknowns"] for r in data["records"]]
     assert set(fit["exponent"]) == {"time_nonlinear", "time_linear", "peak_mem"}

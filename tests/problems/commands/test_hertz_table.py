@@ -10,7 +10,7 @@ from problems.commands import hertz_table
 def test_table_and_json(tmp_path, capsys):
     out = tmp_path / "h.json"
     assert hertz_table.main(["--levels", "0..1", "--json", str(out)]) == 0
-    rows = json.loads(out.read_text())
+    rows = json.loads(out.read_text())["rows"]
     assert [r["level"] for r in rows] == [0, 1]
     assert rows[1]["rates"]["a"] is not None
     assert abs(rows[1]["errors"]["p0"]) < abs(rows[0]["errors"]["p0"])

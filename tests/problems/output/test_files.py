@@ -13,12 +13,13 @@ import os
 import shutil
 import signal
 import stat
+from pathlib import Path
 
 import pytest
 
 from problems.errors import SceneError
 from problems.output import files, signals
-from problems.output.files import MARKER, output_file, output_folder
+from problems.output.files import MARKER, Output, claim, output_folder
 
 
 def tree(root) -> dict:
@@ -193,22 +194,122 @@ def test_read_only_parent_is_refused(tmp_path):
         ro.chmod(0o755)
 
 
-def test_single_file_is_replaced_atomically_and_checked_first(tmp_path):
+def write_one(path, data, option="--json", overwrite=False, kind="json") -> None:
+    with claim([Output(path, option, kind)], overwrite=overwrite) as run:
+        run.file(option).write(data)
+
+
+def test_single_file_is_signed_replaced_atomically_and_checked_first(tmp_path):
     f = tmp_path / "t.json"
-    f.write_text("old")
-    with output_file(f, "--json") as target:
-        assert f.read_text() == "old"
-        target.write("new")
-    assert f.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]
-    with pytest.raises(SceneError, match="folder"), output_file(tmp_path, "--json"):
-        pass
-    with pytest.raises(SceneError, match="regular file"), output_file("/dev/null", "--json"):
-        pass
+    write_one(f, {"a": 1})
+    data = json.loads(f.read_text())
+    assert list(data) == ["written_by", "a"] and data["written_by"].startswith("mixvi ")
+    assert files.written_by_mixvi(f)
+    with claim([Output(f, "--json", "json")]) as run:  # mixvi's: replaced without --overwrite
+        run.file("--json").write({"a": 2})
+        assert json.loads(f.read_text())["a"] == 1  # staged until the commit
+    assert json.loads(f.read_text())["a"] == 2 and sorted(os.listdir(tmp_path)) == ["t.json"]
+    with pytest.raises(SceneError, match="folder"):
+        write_one(tmp_path, {})
+    with pytest.raises(SceneError, match="regular file"):
+        write_one("/dev/null", {})
     link = tmp_path / "link.json"
     link.symlink_to(f)
-    with output_file(link, "--json") as target:
-        target.write("via link")
-    assert link.is_symlink() and f.read_text() == "via link"
+    write_one(link, {"via": "link"})
+    assert link.is_symlink() and json.loads(f.read_text())["via"] == "link"
+
+
+def test_svg_is_signed_after_its_xml_declaration(tmp_path):
+    f = tmp_path / "f.svg"
+    write_one(f, '<?xml version="1.0"?>\n<svg/>\n', "--figure", kind="svg")
+    text = f.read_text()
+    assert text.startswith('<?xml version="1.0"?>\n<!-- written_by: mixvi ')
+    assert text.endswith("<svg/>\n") and files.written_by_mixvi(f)
+
+
+@pytest.mark.parametrize("content", [b"mine", b'{"written_by": "someone else"}', b"", b"<svg/>"])
+def test_a_file_mixvi_did_not_write_is_refused_unless_overwrite(tmp_path, content):
+    f = tmp_path / "r.json"
+    f.write_bytes(content)
+    before = tree(tmp_path)
+    with pytest.raises(SceneError) as err:
+        write_one(f, {"a": 1})
+    assert "--json" in str(err.value) and "--overwrite" in str(err.value)
+    assert tree(tmp_path) == before
+    write_one(f, {"a": 1}, overwrite=True)
+    assert json.loads(f.read_text())["a"] == 1
+
+
+def _scene(t):
+    (t / "mesh.msh").write_text("mesh")
+    (t / "s.toml").write_text("scene")
+    return [("the scene file", t / "s.toml"), ("the file of geometry.mesh", t / "mesh.msh")]
+
+
+@pytest.mark.parametrize(
+    "which", ["s.toml", "mesh.msh", "link.toml", "hard.toml", "./sub/../s.toml"]
+)
+@pytest.mark.parametrize("kind", ["json", "folder"])
+def test_an_input_is_never_an_output_even_with_overwrite(tmp_path, which, kind):
+    inputs = _scene(tmp_path)
+    (tmp_path / "link.toml").symlink_to(tmp_path / "s.toml")
+    os.link(tmp_path / "s.toml", tmp_path / "hard.toml")
+    (tmp_path / "sub").mkdir()
+    before = tree(tmp_path)
+    with pytest.raises(SceneError) as err:
+        with claim([Output(tmp_path / which, "--out", kind)], inputs, overwrite=True) as run:
+            if kind == "json":
+                run.file("--out").write({})
+    assert "not an input of this run" in str(err.value) and "--out" in str(err.value)
+    assert tree(tmp_path) == before
+
+
+def test_an_input_inside_an_output_folder_is_never_replaced(tmp_path):
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "summary.json").write_text("the user's scene, oddly named")
+    inputs = [("the scene file", out / "summary.json")]
+    before = tree(tmp_path)
+    with pytest.raises(SceneError, match="does not replace an input"):
+        with output_folder(out, overwrite=True, inputs=inputs) as folder:
+            with folder.staging() as tmp:
+                (tmp / "summary.json").write_text("{}")
+    assert tree(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    "a, b, says",
+    [
+        ("r.json", "r.json", "the same path as"),
+        ("r.json", "./x/../r.json", "the same path as"),
+        ("d", "d/r.svg", "inside"),
+        ("d/r.svg", "d", "a folder holding"),
+    ],
+)
+def test_two_outputs_of_one_run_never_share_a_path(tmp_path, a, b, says):
+    (tmp_path / "x").mkdir()
+    outputs = [Output(tmp_path / a, "--out", "json"), Output(tmp_path / b, "--figure", "svg")]
+    before = tree(tmp_path)
+    with pytest.raises(SceneError) as err, claim(outputs):
+        raise AssertionError("the body must not run")
+    assert says in str(err.value) and "--figure" in str(err.value)
+    assert tree(tmp_path) == before
+
+
+def test_the_single_files_of_a_run_are_committed_together_or_not_at_all(tmp_path):
+    a, b = tmp_path / "a.json", tmp_path / "b.svg"
+    write_one(a, {"v": 1})
+    before = tree(tmp_path)
+    outputs = [Output(a, "--out", "json"), Output(b, "--figure", "svg")]
+    with pytest.raises(RuntimeError), claim(outputs) as run:
+        run.file("--out").write({"v": 2})
+        raise RuntimeError("the figure failed")
+    assert tree(tmp_path) == before
+    with claim(outputs) as run:
+        run.file("--out").write({"v": 2})
+        run.file("--figure").write("<svg/>")
+    assert json.loads(a.read_text())["v"] == 2 and b.read_text().endswith("<svg/>")
+    assert sorted(os.listdir(tmp_path)) == ["a.json", "b.svg"]
 
 
 def test_signal_during_the_commit_is_deferred_until_it_is_complete(tmp_path, monkeypatch):
@@ -353,3 +454,90 @@ def test_mutation_without_pruning_empty_subfolders_stay(tmp_path, monkeypatch):
     run(out, {"summary.json": "{}", "levels/0/a.vtu": ""})
     run(out, {"summary.json": "{}"})
     assert (out / "levels" / "0").is_dir()
+
+
+# ------------------------------------------------------------------ a killed run's leftovers
+KILLED = """
+import os, signal, sys
+from problems.output.files import Output, claim
+with claim([Output(sys.argv[1], "--out", sys.argv[2])], overwrite=True) as run:
+    if sys.argv[2] == "folder":
+        with run.folder("--out").staging() as tmp:
+            (tmp / "summary.json").write_text("half")
+            os.kill(os.getpid(), signal.SIGKILL)
+    run.file("--out").write({"half": True})
+    os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+def killed_run(target, kind: str) -> None:
+    """A process that claims `target`, stages a file and is killed by SIGKILL (no clean-up)."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-c", KILLED, str(target), kind], capture_output=True)
+    assert r.returncode == -signal.SIGKILL, r.stderr
+
+
+def test_a_rerun_after_a_sigkill_clears_the_stale_lock_and_staging_and_says_so(tmp_path, capsys):
+    out = tmp_path / "o"
+    run(out, {"summary.json": "1", "a.png": "a"})
+    (out / "notes.txt").write_text("the user's")
+    killed_run(out, "folder")
+    left = sorted(os.listdir(out))
+    assert files.LOCK in left and any(p.startswith(files.STAGING) for p in left)  # the state
+    capsys.readouterr()
+    run(out, {"summary.json": "2"}, overwrite=True)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no longer running" in err[0] and "lock" in err[0], err
+    assert "staged files" in err[0] and str(out) in err[0]
+    assert sorted(os.listdir(out)) == [MARKER, "notes.txt", "summary.json"]
+    assert (out / "notes.txt").read_text() == "the user's"
+    run(out, {"summary.json": "3"}, overwrite=True)  # nothing stale any more: no note
+    assert capsys.readouterr().err == ""
+
+
+def test_a_rerun_after_a_sigkill_clears_a_single_files_temporary(tmp_path, capsys):
+    f = tmp_path / "b.json"
+    write_one(f, {"v": 1}, option="--out")
+    (tmp_path / "mine.json").write_text("the user's")
+    before = tree(tmp_path)
+    killed_run(f, "json")
+    assert len(os.listdir(tmp_path)) == 3 and tree(tmp_path) != before  # its temporary file
+    capsys.readouterr()
+    with claim([Output(f, "--out", "json")]):  # claimed, nothing written: as before
+        pass
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no longer running" in err[0], err
+    assert tree(tmp_path) == before
+
+
+def test_a_live_runs_staging_is_never_cleared(tmp_path):
+    """A staging entry of a process that runs (here: this one) stays; only dead ones go."""
+    (tmp_path / f"{files.STAGING}{os.getpid()}-0123abcd").mkdir()
+    (tmp_path / f"{files.STAGING}999999999-0123abcd").mkdir()  # no such process
+    (tmp_path / ".mixvi-tmp-notes").write_text("not a name mixvi gives")
+    assert files._clear_stale(tmp_path) == [999999999]
+    assert set(os.listdir(tmp_path)) == {
+        ".mixvi-tmp-notes",
+        f"{files.STAGING}{os.getpid()}-0123abcd",
+    }
+
+
+def test_mutation_no_stale_recognition_is_caught(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(files, "_clear_stale", lambda folder, name=None: [])
+    with pytest.raises(CAUGHT):
+        test_a_rerun_after_a_sigkill_clears_the_stale_lock_and_staging_and_says_so(tmp_path, capsys)
+
+
+def test_mutation_no_input_check_is_caught(tmp_path, monkeypatch):
+    monkeypatch.setattr(files, "_identity", lambda path: None)
+    monkeypatch.setattr(files, "_real", lambda path: Path(os.path.abspath(path)) / "x")
+    with pytest.raises(CAUGHT):
+        test_an_input_is_never_an_output_even_with_overwrite(tmp_path, "s.toml", "json")
+
+
+def test_mutation_stale_lock_not_reported_is_caught(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(files, "_stale_note", lambda *a: None)
+    with pytest.raises(CAUGHT):
+        test_a_rerun_after_a_sigkill_clears_the_stale_lock_and_staging_and_says_so(tmp_path, capsys)
