@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from .marks import mark
 from .problem import MixedVI, natural_residual
 from .sets import Ball, Box, Free, NonNegative
 from .solution import Solution
@@ -186,6 +187,7 @@ def solve_conic(
     try:
         with warnings_module.catch_warnings():  # statuses are mapped below, not warned about
             warnings_module.simplefilter("ignore", UserWarning)
+            mark("clarabel", vi.n)  # a test hook (vi_core.marks); nothing when unset
             prob.solve(solver=cp.CLARABEL, **settings)
         status = prob.status
     except cp.error.SolverError as err:

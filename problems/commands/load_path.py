@@ -10,6 +10,7 @@ import argparse
 from pathlib import Path
 
 import problems.pipeline as pipeline
+from problems.output import signals
 from problems.output.collection import vtu_datasets
 from problems.pipeline.load_path import PathRun, Step, solve_path
 
@@ -48,8 +49,10 @@ def solve_steps(
         bar.update(1)
         bar.refresh()  # every step is shown, however fast (tqdm skips updates within 0.1 s)
 
-    with bar:
-        path = solve_path(loaded, level, **solver_options(args), on_step=write_step)
+    with bar:  # the work in a worker thread, each step's writes in this one (signals module)
+        path = signals.interruptible(
+            solve_path, loaded, level, **solver_options(args), on_step=signals.in_main(write_step)
+        )
     return path, datasets
 
 

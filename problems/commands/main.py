@@ -239,6 +239,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except signals.Interrupted as sig:
         print(f"mixvi: interrupted by {sig}", file=sys.stderr)
+        signals.exit_if_abandoned(sig.exit_status)  # work still inside compiled code: end now
         return sig.exit_status
     except KeyboardInterrupt:  # raised before the handler was installed
         print("mixvi: interrupted by SIGINT", file=sys.stderr)

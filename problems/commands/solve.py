@@ -10,6 +10,7 @@ from pathlib import Path
 
 import problems.pipeline as pipeline
 from problems.errors import SceneError
+from problems.output import signals
 from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import jsonable, output_folder
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
@@ -139,10 +140,14 @@ def _solve_levels(
             written = plugin.postprocess(model, sol, tmp / sub).get("files", [])
             coarse[model.level] = [(sub / f).as_posix() for f in written]
 
-    with bar:
-        on_step = newton_status(bar)  # the Newton steps of the level being solved
-        run = pipeline.solve(
-            loaded, level, **solver_options(args), on_level=on_level, on_step=on_step
+    with bar:  # the work in a worker thread, on_level's writes in this one (signals module)
+        run = signals.interruptible(
+            pipeline.solve,
+            loaded,
+            level,
+            **solver_options(args),
+            on_level=signals.in_main(on_level),
+            on_step=newton_status(bar),  # the Newton steps of the level being solved
         )
         bar.update(bar.total - bar.n)
         bar.refresh()  # the full bar is shown before it is cleared, however fast the last level

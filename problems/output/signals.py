@@ -1,22 +1,53 @@
-"""SIGINT and SIGTERM as one exception, and sections that a signal may not cut in half.
+"""SIGINT and SIGTERM as one exception, sections that a signal may not cut in half, and
+numerical work that a signal can interrupt even while it runs inside compiled code.
 
 `install()` (called once by the `mixvi` entry point) makes both signals raise `Interrupted`
 in the main thread; the command line maps it to exit status 128 + signal number (130, 143).
 Inside `deferred()` a signal is only recorded and raised when the section ends, so that a
 commit of output files (a handful of renames) and the clean-up after an error always complete.
 
-A signal that arrives while C code runs (a sparse factorisation) is acted on when control
-returns to the interpreter: Python runs signal handlers between bytecodes.
+Python runs a signal handler only in the main thread, between bytecodes: while the main
+thread is inside one long C call (a SuperLU factorisation of a large matrix can take minutes)
+a Ctrl-C does nothing until the call returns. So the commands run their numerical work through
+`interruptible(fn, ...)`: `fn` runs in a worker thread while the main thread waits in a loop
+of short queue reads, which return to the interpreter at least every POLL seconds (a signal
+also wakes the read at once). On a signal the main thread raises `Interrupted` where it waits,
+runs today's clean-up (the `finally` blocks of the output folder: staging folder removed, lock
+released), prints its one line, and the process ends with `os._exit` (`exit_status`): a thread
+stuck in C cannot be cancelled, and an interpreter shut-down around it is not worth the risk.
+The worker never touches files itself: the callbacks that write (a coarse level's results, a
+load step's files) are wrapped with `in_main` and run in the main thread, in order, while the
+worker waits for them, so the clean-up never races a write, and a commit (renames under
+`deferred`, in the main thread) is never cut by the exit. Exceptions raised in the worker
+(SceneError, MemoryError, any other) are raised again, unchanged, in the main thread.
+
+Measured (docs/benchmarks.md, "Interrupting a solve"): SuperLU (scipy's splu), Clarabel and
+the compiled kernels of pyamg's set-up release the GIL, so the main thread acts on a signal
+within ~0.1 s while they run (the longest wait of the main thread on the paper scene at levels
+3–4: 0.1–0.45 s, for any solver); PARDISO (pypardiso) calls it through ctypes, which releases
+the GIL too. The alternative, the work in a subprocess, would have to pickle the built model
+and its solution back to the parent; this needs no copy at all. Solve times are unchanged (the
+same BLAS thread pools: OpenBLAS's thread count is process-wide, and the linear solvers set
+their own `threadpool_limits` inside the work). The Python API (`problems.solve_scene`) never
+calls `install()` and so runs in the caller's thread, as before: `interruptible` is a plain call
+unless the handlers are installed and it is called in the main thread.
 """
 
 from __future__ import annotations
 
+import os
+import queue
 import signal
+import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import Any, TypeVar
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
+POLL = 0.1  # longest time [s] the waiting main thread stays away from the interpreter
+
+T = TypeVar("T")
 
 
 class Interrupted(KeyboardInterrupt):
@@ -35,6 +66,9 @@ class Interrupted(KeyboardInterrupt):
 
 _depth = 0  # nesting of deferred() sections
 _pending: list[int] = []
+_installed = False
+_calls: queue.SimpleQueue | None = None  # the running worker's requests to the main thread
+_abandoned: list[threading.Thread] = []  # workers still inside their work after a signal
 
 
 def _handler(signum: int, frame) -> None:
@@ -46,10 +80,12 @@ def _handler(signum: int, frame) -> None:
 
 def install() -> None:
     """Make SIGINT and SIGTERM raise `Interrupted` (main thread only; a no-op elsewhere)."""
+    global _installed
     if threading.current_thread() is not threading.main_thread():
         return
     for s in SIGNALS:
         signal.signal(s, _handler)
+    _installed = True
 
 
 def ignore_in_child() -> None:
@@ -72,3 +108,100 @@ def deferred() -> Iterator[None]:
             signum = _pending[0]
             _pending.clear()
             raise Interrupted(signum)
+
+
+class _Call:
+    """A call the worker asks the main thread to make; the worker waits for its outcome."""
+
+    def __init__(self, fn: Callable[..., Any], args: tuple, kwargs: dict):
+        self.fn, self.args, self.kwargs = fn, args, kwargs
+        self.done = threading.Event()
+        self.value: Any = None
+        self.error: BaseException | None = None
+
+    def run(self) -> None:
+        """In the main thread. An exception goes back to the worker; a signal (Interrupted)
+        propagates here and leaves the worker waiting (it is abandoned)."""
+        try:
+            self.value = self.fn(*self.args, **self.kwargs)
+        except Exception as err:
+            self.error = err
+        self.done.set()
+
+
+def in_main(fn: Callable[..., T]) -> Callable[..., T]:
+    """`fn` made to run in the main thread when called from inside `interruptible` (the worker
+    waits for it and gets its result or exception); called anywhere else, a plain call. For
+    the callbacks of a solve that write files."""
+
+    def call(*args: Any, **kwargs: Any) -> T:
+        calls = _calls
+        if calls is None or threading.current_thread() is threading.main_thread():
+            return fn(*args, **kwargs)
+        c = _Call(fn, args, kwargs)
+        calls.put(c)
+        c.done.wait()
+        if c.error is not None:
+            raise c.error
+        return c.value
+
+    return call
+
+
+def interruptible(fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> T:
+    """fn(*args, **kwargs), run so that SIGINT/SIGTERM are acted on at once even while it is
+    inside compiled code: in a worker thread while the main thread waits (see the module
+    docstring). A plain call unless `install()` was called and this is the main thread (the
+    Python API), or inside another `interruptible`."""
+    global _calls
+    if not _installed or _calls is not None:
+        return fn(*args, **kwargs)
+    if threading.current_thread() is not threading.main_thread():
+        return fn(*args, **kwargs)
+    calls: queue.SimpleQueue = queue.SimpleQueue()
+    outcome: dict[str, Any] = {}
+
+    def work() -> None:
+        try:
+            outcome["value"] = fn(*args, **kwargs)
+        except BaseException as err:  # raised again in the main thread
+            outcome["error"] = err
+        finally:
+            calls.put(None)
+
+    worker = threading.Thread(target=work, name="mixvi-work", daemon=True)
+    _calls = calls
+    try:
+        worker.start()
+        while True:
+            try:
+                item = calls.get(timeout=POLL)  # returns to the interpreter: handlers run
+            except queue.Empty:
+                continue
+            if item is None:
+                break
+            item.run()
+    except BaseException:
+        if worker.is_alive():
+            _abandoned.append(worker)
+        raise
+    finally:
+        _calls = None
+    worker.join()
+    if "error" in outcome:
+        err = outcome.pop("error")
+        raise err
+    return outcome["value"]
+
+
+def exit_if_abandoned(status: int) -> None:
+    """After an interruption: if a worker is still inside its work (compiled code, which
+    cannot be cancelled), flush the standard streams and end the process now with `status`
+    (`os._exit`: no interpreter shut-down around a thread that still runs); else return."""
+    if any(t.is_alive() for t in _abandoned):
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(status)
