@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-STATES = ("stick", "slip", "open", "no_multiplier")
+STATES = ("stick", "slip", "open", "no_multiplier", "ambiguous")
 CSV_TITLE = "mixvi contact results, one row per node of the slave contact boundary"
 AXES = "xyz"
 UNITS = {"lambda_n": "Pa", "lambda_t": "Pa", "jump_t": "m", "gap": "m", "state": "-"}
@@ -32,7 +32,8 @@ MEANING = {
     "foundation)",
     "gap": "remaining normal gap to the obstacle, gap0 - u.n (0 in contact)",
     "state": "stick (|lambda_t| < g), slip (|lambda_t| = g), open (not touching; unilateral "
-    "only), no_multiplier (crosspoint or uncovered node)",
+    "only), no_multiplier (crosspoint or uncovered node), ambiguous (not settled at the "
+    "achieved residual: vi_core.states)",
 }
 # with explicit tangent columns the tangential quantities are along them, not along τ
 MEANING_WITH_TANGENTS = {

@@ -43,6 +43,7 @@ from problems.scene.fields import NonNegativeExpr, Text
 from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
 from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
+from vi_core import states as node_states
 
 from . import (
     contact_law,
@@ -814,8 +815,19 @@ def contact_state(model: Model, sol: Solution) -> dict:
     touch_t = touch_t[c.rows_t] if c.law == "unilateral" else np.ones(c.rows_t.size, dtype=bool)
     rho = c.bound(sol.lam) * touch_t  # (N_t,); a rounding-level λ_n does not touch
     rmax = float(rho.max(initial=0.0))
-    slip = touch_t & (np.abs(lam_t) >= rho - 1e-9 * max(rmax, 1e-300))
     Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    disp = model.unknown_fields()["displacement"]
+    th = node_states.thresholds(
+        sol.residual,
+        max(float(np.abs(sol.lam).max(initial=0.0)), rmax, force),
+        float(np.abs(sol.u[disp]).max(initial=0.0)),
+    )
+    normal = np.full(c.tr.size, "touch", dtype=object)
+    if c.law == "unilateral":
+        normal[c.rows_n] = node_states.normal_states(lam_n, (c.gap0 - c.normal(Bu)) / c.W_n, th)
+    tang = node_states.tangential_states(lam_t, rho, c.tangential(Bi) / c.W_t, th)
+    labels = node_states.node_states(normal[c.rows_t], tang)  # (N_t,)
+    slip = labels == "slip"
     b_uh_lam = float(sol.lam @ (Bi - gap_rows))
     weights = rho * c.W_t  # (N_t,) ∫ρφ̃_k (bilateral: g_weights)
     g_abs = float(np.sum(weights * np.abs(c.tangential(Bi) / c.W_t)))
@@ -835,6 +847,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "jump_t": jump_t,
         "ut_slave": ut_s,
         "slip": slip,
+        "state": labels,
         "touch": touch,
         "touch_t": touch_t,
         "b_uh_lam": b_uh_lam,
@@ -893,13 +906,20 @@ def contact_warnings(state: dict) -> list[str]:
         return ["no node of Γ3 touches: the bodies are apart (λ = 0)"]
     if not g.any():
         return ["zero friction on Γ3: frictionless sliding"]
+    out = []
+    n_amb = int(np.sum(state["state"] == "ambiguous"))
+    if n_amb:
+        out.append(
+            f"{n_amb} contact node(s) ambiguous: at the achieved residual neither the stress "
+            "margin nor the gap/slip settles their state; solve with a smaller --tol to decide"
+        )
     if not state["slip"].any():
         used = float(np.max(np.abs(lam_t) / np.where(g > 0, g, np.inf)))
-        return [
+        out.append(
             f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
             "bound, so the problem is tied (g above every tangential stress)"
-        ]
-    return []
+        )
+    return out
 
 
 def _unilateral_summary(contact: Contact, state: dict) -> dict:
@@ -924,10 +944,9 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
     lam_t[c.rows_t] = st["lam_t"]
     jump_t[c.rows_t] = st["jump_t"]
     state = np.full(k, "no_multiplier", dtype=object)
-    state[c.rows_t] = np.where(st["slip"], "slip", "stick")
+    state[c.rows_t] = st["state"]
     gap = None
     if c.law == "unilateral":
-        state[c.rows_n[~st["touch"]]] = "open"
         gap = np.full(k, np.nan)
         gap[c.rows_n] = np.maximum(st["gap"] - st["u_n"], 0.0)
     return ContactTable(
@@ -966,12 +985,12 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         files += plots.contact_plots(state, outdir, title=model.scene.name)
         table = contact_table(model, sol)
         files += results.write_contact(outdir, table)[0]
-        n_slip = int(state["slip"].sum())
-        n_touch = int(state["touch_t"].sum())
+        labels = state["state"]
         summary["contact"] = {
-            "nodes": int(state["slip"].size),
-            "stick": n_touch - n_slip,
-            "slip": n_slip,
+            "nodes": int(labels.size),
+            "stick": int(np.sum(labels == "stick")),
+            "slip": int(np.sum(labels == "slip")),
+            "ambiguous": int(np.sum(labels == "ambiguous")),
             **(
                 _unilateral_summary(model.contact, state)
                 if model.contact.law != "bilateral"

@@ -205,3 +205,28 @@ def test_mixvi_says_not_converged_beyond_the_range(tmp_path, capsys):
     assert "NOT converged" in capsys.readouterr().out
     assert main(["check", "coulomb_strip", "--level", "1", "--set", "contact.F=30.0"]) == 1
     assert "fixed_point failed its own test" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("friction", [0.2, 0.9])
+def test_fixed_point_states_exact_at_default_tol(tmp_path, friction):
+    """Issue 29: the whole base slides (F·λ_n < μδ/H) and the fixed point, at the default
+    tolerance, labels every node slip (main's margin-only 1e-9 rule labelled 7 of 15 stick at
+    F = 0.2). Mutation: that old rule applied to the same answer mislabels a node."""
+    import json
+
+    import numpy as np
+
+    from problems.commands.main import main
+
+    out = tmp_path / "s"
+    rc = main(["solve", "coulomb_strip", "--level", "1", "--solver", "fixed_point",
+               "--set", f"contact.F={friction}", "--out", str(out)])  # fmt: skip
+    assert rc == 0
+    c = json.loads((out / "summary.json").read_text())["contact"]
+    assert (c["stick"], c["slip"], c["ambiguous"]) == (0, 15, 0)
+    rows = [r for r in c["table"] if r["state"] != "no_multiplier"]
+    lam_n = np.array([r["lambda_n"] for r in rows])
+    lam_t = np.array([r["lambda_t"] for r in rows])
+    rho = friction * lam_n
+    old_slip = np.abs(lam_t) >= rho - 1e-9 * rho.max()
+    assert not old_slip.all()

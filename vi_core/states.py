@@ -1,0 +1,117 @@
+"""Contact states that follow from the answer: one rule for every plug-in and solver.
+
+A node's state (open, stick, slip) is decided from two kinds of evidence at once, each measured
+against a threshold scaled by the achieved residual and the problem's own scales:
+
+- normal: the multiplier λ_n (touch evidence) and the remaining gap (open evidence);
+- tangential: the margin ρ − |λ_t| (stick evidence) and the slip |[u]_t| (slip evidence).
+
+A node with evidence for exactly one side gets that side; with evidence for both or for neither
+(a node at the flip, or a solve not accurate enough to tell) it is "ambiguous". Nothing here is
+a fixed 1e-9: the thresholds are `factor · max(residual, eps) · scale`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: how far beyond the achieved residual a piece of evidence must stand to count
+FACTOR = 100.0
+_EPS = float(np.finfo(float).eps)
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Evidence thresholds: `lam` for multipliers (stresses), `u` for jumps (lengths)."""
+
+    lam: float
+    u: float
+
+
+def thresholds(residual: float, lam_scale: float, u_scale: float) -> Thresholds:
+    """Thresholds `FACTOR · max(residual, 16 eps) · scale` for stresses and lengths.
+
+    residual : the solve's achieved relative residual; lam_scale : the stress scale (largest
+    multiplier, friction radius or elastic stress); u_scale : the length scale (largest
+    displacement or jump)."""
+    r = FACTOR * max(float(residual), 16 * _EPS)
+    return Thresholds(r * max(float(lam_scale), 1e-300), r * max(float(u_scale), 1e-300))
+
+
+def normal_states(lam_n: np.ndarray, gap: np.ndarray | None, th: Thresholds) -> np.ndarray:
+    """Per normal node (k,): "touch", "open" or "ambiguous".
+
+    lam_n (k,) : normal multipliers (compressive positive); gap (k,) : the remaining gap
+    (gap₀ − [u]_n), or None for bilateral contact (every node touches)."""
+    lam_n = np.asarray(lam_n, dtype=float)
+    if gap is None:
+        return np.full(lam_n.size, "touch", dtype=object)
+    press = lam_n > th.lam  # (k,) touch evidence
+    apart = np.asarray(gap, dtype=float) > th.u  # (k,) open evidence
+    out = np.full(lam_n.size, "ambiguous", dtype=object)
+    out[press & ~apart] = "touch"
+    out[apart & ~press] = "open"
+    return out
+
+
+def tangential_states(
+    lam_t: np.ndarray, rho: np.ndarray, slip: np.ndarray, th: Thresholds
+) -> np.ndarray:
+    """Per touching node (k,): "stick", "slip" or "ambiguous".
+
+    lam_t (k,) : |λ_t| (the tangential multiplier's magnitude); rho (k,) : the friction radius
+    (g, or F·λ_n); slip (k,) : |[u]_t| since the slip origin."""
+    margin = np.asarray(rho, dtype=float) - np.abs(np.asarray(lam_t, dtype=float))  # (k,)
+    held = margin > th.lam  # (k,) stick evidence: strictly inside the friction disc
+    moved = np.abs(np.asarray(slip, dtype=float)) > th.u  # (k,) slip evidence
+    out = np.full(margin.size, "ambiguous", dtype=object)
+    out[held & ~moved] = "stick"
+    out[moved & ~held] = "slip"
+    return out
+
+
+def node_states(
+    normal: np.ndarray, tangential: np.ndarray | None, has_t: np.ndarray | None = None
+) -> np.ndarray:
+    """Combine per-node normal and tangential states (k,) into one label per node.
+
+    open nodes are "open" whatever their tangential evidence; ambiguous normal evidence is
+    "ambiguous"; touching nodes take their tangential state, or "normal_only" where the node
+    carries no tangential rows (`has_t` False)."""
+    out = np.asarray(normal, dtype=object).copy()
+    touch = out == "touch"
+    if tangential is None:
+        out[touch] = "normal_only"
+        return out
+    tang = np.asarray(tangential, dtype=object)
+    ht = np.ones(out.size, dtype=bool) if has_t is None else np.asarray(has_t, dtype=bool)
+    out[touch & ht] = tang[touch & ht]
+    out[touch & ~ht] = "normal_only"
+    return out
+
+
+def counts(states: np.ndarray) -> dict[str, int]:
+    """Number of nodes per state label."""
+    labels, n = np.unique(np.asarray(states, dtype=str), return_counts=True)
+    return {str(k): int(v) for k, v in zip(labels, n, strict=True)}
+
+
+def compare(a: np.ndarray, b: np.ndarray) -> dict:
+    """Partition agreement per node between two state arrays (k,) of the same nodes.
+
+    A node ambiguous on either side is not a disagreement but is counted ("ambiguous"); any
+    other differing label is ("disagree", with the node indices in "nodes")."""
+    a, b = np.asarray(a, dtype=object), np.asarray(b, dtype=object)
+    if a.shape != b.shape:
+        raise ValueError(f"state arrays differ in shape: {a.shape} and {b.shape}")
+    amb = (a == "ambiguous") | (b == "ambiguous")  # (k,)
+    bad = ~amb & (a != b)  # (k,)
+    return {
+        "nodes": int(a.size),
+        "agree": int(np.sum(~amb & ~bad)),
+        "ambiguous": int(np.sum(amb)),
+        "disagree": int(np.sum(bad)),
+        "disagree_nodes": [int(i) for i in np.flatnonzero(bad)],
+    }
