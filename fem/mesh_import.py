@@ -35,6 +35,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import mesh_bounds
 from .mapped import _order_edges
 from .mesh import Mesh
 
@@ -47,6 +48,8 @@ AREA_TOL = 1e-12
 Z_TOL = 1e-12
 # Two nodes of a body closer than NODE_TOL × the body's extent are the same point (refused).
 NODE_TOL = 1e-10
+# |coordinate| of a node at most this: cubes (volumes, Jacobians in 3D) stay finite
+MAX_COORD = 1e100
 
 
 class MeshImportError(ValueError):
@@ -99,9 +102,26 @@ def read_mesh(path: str | PathLike, planar: bool = True) -> MeshFile:
     import meshio
 
     path = str(path)
+
+    def error(what: str, allowed: str) -> MeshImportError:
+        return MeshImportError(path, what, allowed)
+
+    size = mesh_bounds.check_file(path, error)  # a regular file, not too large
+    mesh_bounds.scan_gmsh_ascii(path, size, error)  # counts and tags, before any allocation
     try:  # meshio prints its own complaint and may even call sys.exit: keep it quiet
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        with (
+            contextlib.redirect_stdout(io.StringIO()),
+            contextlib.redirect_stderr(io.StringIO()),
+            mesh_bounds.address_space_cap(size) as budget,
+        ):
             m = meshio.read(path)
+    except MemoryError:
+        raise MeshImportError(
+            path,
+            f"reading it needs more than {budget / 2**20:,.0f} MiB",
+            "a mesh file whose counts and tags fit its size (one far larger than the file "
+            "makes meshio allocate for it)",
+        ) from None
     except (Exception, SystemExit) as err:  # ReadError, KeyError, ValueError, exit(1), ...
         first = str(err).splitlines()[0][:200] if str(err) else type(err).__name__
         raise MeshImportError(
@@ -121,12 +141,33 @@ def read_mesh(path: str | PathLike, planar: bool = True) -> MeshFile:
                 path, f"node {i} at {pts[i].tolist()}", "a planar mesh in the plane z = 0"
             )
     if not np.isfinite(pts).all():
-        raise MeshImportError(path, "node coordinates", "finite numbers")
+        i = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+        raise MeshImportError(path, f"node {i} at {pts[i].tolist()}", "finite coordinates")
+    big = np.abs(pts).max()
+    if big > MAX_COORD:
+        i = int(np.argmax(np.abs(pts).max(axis=1)))
+        raise MeshImportError(
+            path,
+            f"node {i} at {pts[i].tolist()}",
+            f"coordinates of magnitude at most {MAX_COORD:g} (areas and volumes stay finite)",
+        )
     tags = m.cell_data.get("gmsh:physical")
     blocks = []
     for i, block in enumerate(m.cells):
         phys = np.asarray(tags[i], dtype=int) if tags is not None else np.full(len(block.data), -1)
-        blocks.append((block.type, np.asarray(block.data, dtype=np.int64), phys))
+        data = np.asarray(block.data, dtype=np.int64)  # (n_cells, k) node ids
+        outside = data[(data < 0) | (data >= len(pts))]  # (n_out,) node ids no node has
+        if outside.size:
+            raise MeshImportError(
+                path,
+                f"a {block.type!r} cell names node {int(outside[0])} (0-based)",
+                f"node ids from 0 to {len(pts) - 1} (the file's nodes)",
+            )
+        if len(phys) != len(data):
+            raise MeshImportError(
+                path, f"{len(phys)} physical tags for {len(data)} {block.type!r} cells", "one each"
+            )
+        blocks.append((block.type, data, phys))
     groups = {str(k): (int(v[1]), int(v[0])) for k, v in (m.field_data or {}).items()}
     return MeshFile(path, (pts[:, :2] if planar else pts).copy(), blocks, groups)
 
@@ -136,6 +177,7 @@ def mesh_geo(path: str | PathLike, level: int = 0) -> MeshFile:
     times with gmsh: new boundary nodes are put on the geometry's curves (not on the level-0
     polyline), interior ones at edge midpoints. The mesh options are the .geo file's own."""
     path = str(path)
+    mesh_bounds.check_file(path, lambda what, allowed: MeshImportError(path, what, allowed))
     try:
         import gmsh
     except ImportError:
@@ -377,12 +419,14 @@ def write_msh(
     path: str | PathLike,
     bodies: dict[str, Mesh],
     file_format: str = "gmsh22",
+    binary: bool = False,
 ) -> None:
     """Write meshes as one gmsh file (meshio's `file_format`: "gmsh22" = v2.2, "gmsh" = v4.1):
     each body a physical surface (2D `Mesh`) or volume (`Mesh3D`) named for it, each boundary
     part a physical curve (2D) or surface (3D) named `part` (`body_part` where two bodies have
     a part of that name; 3D only as v2.2). Nodes of different bodies are not merged. Tests
-    and examples use it to hand built-in meshes to `body_mesh` / `mesh_import3d.body_mesh3d`."""
+    and examples use it to hand built-in meshes to `body_mesh` / `mesh_import3d.body_mesh3d`
+    (ASCII, or `binary`)."""
     import meshio
 
     dims = {m.points.shape[1] for m in bodies.values()}
@@ -425,4 +469,4 @@ def write_msh(
         cell_data={"gmsh:physical": phys, "gmsh:geometrical": geo},
         field_data=field,
     )
-    out.write(str(Path(path)), file_format=file_format, binary=False)
+    out.write(str(Path(path)), file_format=file_format, binary=binary)

@@ -1,8 +1,15 @@
-"""Shared test configuration: the hypothesis CI profile (deadline=None, derandomize=True)."""
+"""Shared test configuration: the hypothesis CI profile (deadline=None, derandomize=True), and
+one BLAS/OpenMP thread per test process when pytest-xdist runs one worker per core (threads of
+two workers fighting over the same cores slowed single tests tenfold; the solvers' own thread
+settings are tested through their reports, not through the runner's)."""
 
 import os
 
-from hypothesis import HealthCheck, settings
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_var, "1")
+
+from hypothesis import HealthCheck, settings  # noqa: E402
 
 settings.register_profile(
     "ci",

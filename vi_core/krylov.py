@@ -74,6 +74,7 @@ from __future__ import annotations
 import os
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -803,6 +804,8 @@ class KrylovSolver:
         self.setups: list[float] = []  # seconds of each hierarchy set-up
         self.steps: list[dict] = []  # per Newton step: iterations, tolerance, residual, …
         self.time = 0.0
+        self.on_iteration: Callable[[int], None] | None = None  # after each GMRES iteration,
+        # with the iterations of the current solve so far (`ssn.solve_ssn`'s on_step)
 
     def _U_S(self, tied: np.ndarray) -> sp.csr_matrix:
         """(m, n_R + n_F) y = (u_R, s_F) ↦ u_S = D^{-1}(C E_F s_F − E_T (B_R u_R)_T)."""
@@ -960,6 +963,8 @@ class KrylovSolver:
 
         def count(_):
             its[0] += 1
+            if self.on_iteration is not None:
+                self.on_iteration(its[0])
 
         record = {"eta": eta, "target": target / nb if nb else 0.0, "fallback": None}
         res, cycles = r0, 0

@@ -29,6 +29,7 @@ algebraic multigrid (`vi_core.krylov`: forcing terms, hierarchy reuse, direct fa
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -314,6 +315,7 @@ def solve_ssn(
     condense: bool = True,
     damping: bool = True,
     estimate_condition: bool = False,
+    on_step: Callable[[dict], None] | None = None,
 ) -> Solution:
     """Semismooth Newton / primal-dual active set for `vi` (see module docstring).
 
@@ -326,6 +328,12 @@ def solve_ssn(
     estimate_condition : also estimate the 1-norm condition of the last (equilibrated,
         condensed) Newton matrix into ``info["condition_estimate"]`` (a few extra solves;
         with PARDISO one extra factorisation).
+    on_step : progress, called with a dict after each Newton step ("done": True) and, on the
+        iterative path, after each GMRES iteration of a step ("done": False): "step" k,
+        "residual" (after step k; while it runs, before it), "active" and "slip" (the rows of
+        step k's active set: y = λ + Bu − gap inside Λ, so P(y) = y; and clipped to a nonzero
+        boundary point, a friction bound), "krylov_iterations" (GMRES iterations of this solve
+        so far; None on the direct path). It must not raise; it may be slow only at its peril.
     """
     if linear_solver not in LINEAR_SOLVERS:
         raise ValueError(
@@ -338,11 +346,11 @@ def solve_ssn(
         linear_solver = auto_linear_solver(e.A.nnz, e.n, condensable)
     args = (vi, tol, max_iter, u0, lam0)
     try:
-        sol = _solve_ssn(*args, linear_solver, condense, damping, estimate_condition)
+        sol = _solve_ssn(*args, linear_solver, condense, damping, estimate_condition, on_step)
     except FactorizationTooLarge as err:
         if linear_solver == "amg" or not condense or Condensation.detect(e.B) is None:
             raise
-        sol = _solve_ssn(*args, "amg", condense, damping, estimate_condition)
+        sol = _solve_ssn(*args, "amg", condense, damping, estimate_condition, on_step)
         note = f"direct factorisation over budget ({err}); solved with amg"
         sol.info["factorisation_fallback"] = note
         sol.warnings.insert(0, note)
@@ -360,6 +368,7 @@ def _solve_ssn(
     condense: bool,
     damping: bool,
     estimate_condition: bool,
+    on_step: Callable[[dict], None] | None,
 ) -> Solution:
     """`solve_ssn` with a concrete linear solver (splu|pardiso|amg, or auto: a direct one)."""
     t0 = time.perf_counter()
@@ -378,10 +387,23 @@ def _solve_ssn(
     eta = None  # forcing term of the last inexact step (iterative path)
     linear = all(isinstance(b, Free) for b in Lam.blocks())
     eta_max = ETA_MAX if u0 is None and lam0 is None else ETA_MAX_WARM
+    progress: dict = {}  # what on_step is told (its docstring)
+    if on_step is not None and stepper.krylov is not None:
+        done_before = [0]  # GMRES iterations of the steps before
+
+        def on_iteration(its: int) -> None:
+            progress["krylov_iterations"] = done_before[0] + its
+            on_step(dict(progress, done=False))
+
+        stepper.krylov.on_iteration = on_iteration
     while not converged and k < max_iter:
         k += 1
         y = lam + e.B @ u - e.gap
         p = Lam.project(y)
+        if on_step is not None:
+            slip = int(((p != y) & (p != 0.0)).sum())
+            progress.update(step=k, residual=res, active=int((p == y).sum()), slip=slip)
+            progress.setdefault("krylov_iterations", None)
         J = Lam.jacobian(y)
         W = sp.identity(e.m, format="csr") - J
         rhs_c = p - J @ y - J @ e.gap
@@ -405,6 +427,11 @@ def _solve_ssn(
         u, lam = u + t * du, lam + t * dl
         history.append(res)
         converged = res <= tol
+        if on_step is not None:
+            if stepper.krylov is not None:
+                done_before[0] = sum(s["iterations"] for s in stepper.krylov.steps)
+                progress["krylov_iterations"] = done_before[0]
+            on_step(dict(progress, residual=res, done=True))
 
     # return a feasible multiplier: λ ∈ Λ exactly (moves λ by rounding only once converged)
     lam_feasible = Lam.project(lam)

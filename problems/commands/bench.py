@@ -384,7 +384,9 @@ def bench_main(argv: list[str] | None = None) -> int:
             text = f"{a}..{b}"
         mine = []
         for ls in linear:  # each linear solver's own memory model (resources.MEMORY_MODEL)
-            sizes = resources.check_levels(plugin, scene, (a, b), "--levels", text, args.force, ls)
+            sizes = resources.check_levels(
+                plugin, scene, (a, b), "--levels", text, args.force, ls, "--linear-solvers"
+            )
             mine += [(name, lev, sizes.estimate(lev), ls) for lev in range(a, b + 1)]
         # scenes in the order given; within a scene every solver of a level before the next level
         jobs += sorted(mine, key=lambda j: j[1])

@@ -1,6 +1,8 @@
 """The `mixvi` console script: SIGINT/SIGTERM are handled before the command line's heavy
 imports (NumPy, SciPy, cvxpy, matplotlib take a second or more), so a Ctrl-C at any moment
-ends with one line and exit status 130, never a traceback."""
+ends with one line and exit status 130, never a traceback. An address-space limit too small
+for those imports is refused before them, and an import that fails for lack of memory is
+reported as such (`failures`), both with exit status 2."""
 
 from __future__ import annotations
 
@@ -11,6 +13,12 @@ from problems.output import signals
 
 def run() -> int:
     """Install the signal handlers, then import and run `main`."""
+    from . import failures
+
+    refusal = failures.start_refusal()
+    if refusal is not None:
+        print(refusal, file=sys.stderr)
+        return 2
     signals.install()
     try:
         from .main import main
@@ -21,6 +29,8 @@ def run() -> int:
         name = str(sig) if isinstance(sig, signals.Interrupted) else "SIGINT"
         print(f"mixvi: interrupted by {name}", file=sys.stderr)
         return sig.exit_status if isinstance(sig, signals.Interrupted) else 130
+    except Exception as err:  # an import that failed for lack of memory, or a bug
+        return failures.report(err, "--debug" in sys.argv)
     return main()
 
 

@@ -18,13 +18,12 @@ import argparse
 import os
 import signal
 import sys
-import traceback
 
 from problems.errors import SceneError
 from problems.output import signals
 from vi_core.krylov import LINEAR_SOLVERS
 
-from . import options
+from . import failures, options
 from .check import cmd_check
 from .figures import cmd_figures
 from .options import DEFAULT_SCENE
@@ -227,14 +226,15 @@ def _dispatch(argv: list[str]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `mixvi` command: the one place that maps failures to exit statuses
-    (SceneError → 2, SIGINT/SIGTERM → 130/143, stdout's reader gone → 141, anything else → 3
-    with a hint at --debug)."""
+    (SceneError → 2, SIGINT/SIGTERM → 130/143, stdout's reader gone → 141, exhausted
+    resources → 2 or 1 and anything else → 3 with a hint at --debug: `failures.report`)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
     signals.install()
     try:
-        return _dispatch(argv)
+        with failures.guarded_stdout():  # a full or closed stdout: StdoutError, mapped below
+            return _dispatch(argv)
     except SceneError as err:
         print(f"mixvi: error: {err}", file=sys.stderr)
         return 2
@@ -247,13 +247,8 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # the reader of stdout left (`mixvi scenes | head -1`): no error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # exit's flush is quiet
         return 128 + signal.SIGPIPE  # 141, as for a tool the shell saw ended by SIGPIPE
-    except Exception as err:
-        if debug:
-            traceback.print_exc()
-        what = f"{type(err).__name__}: {err}".splitlines()[0][:300]
-        hint = "" if debug else "; run again with --debug for the traceback"
-        print(f"mixvi: internal error: {what}{hint}", file=sys.stderr)
-        return 3
+    except Exception as err:  # exhausted resources (exit 2 or 1) and internal errors (3)
+        return failures.report(err, debug)
 
 
 if __name__ == "__main__":

@@ -4,10 +4,12 @@ Unknowns. A level refines every cell into 2^d (d = the geometry's dimension: the
 optional `dimension`, 2 if absent), so with s = 2^level the number of unknowns is a polynomial
 of degree d in s (cells ~ s^d, boundary and contact nodes ~ s^(d-1), corners ~ 1). It is
 fitted exactly through the levels 0 … d; in 2D a level multiplies the unknowns by about 4,
-in 3D by 8. Level 0 is built (its model tells d); the levels 1 … d are built too, unless the
-plug-in declares `count(scene, level) -> (unknowns, nnz(A), n)`, which counts them from the
-meshes, Dirichlet data and contact rows without assembling (contact3d: level 3 of a 3D scene
-is 512 times level 0).
+in 3D by 8. Level 0 is built (its model tells d), and the levels 1 … d too, unless the
+plug-in declares `count(scene, level) -> (unknowns, nnz(A), n)` (and, for level 0, DIMENSION),
+which counts them on the level-0 meshes (contact3d: `fem.refined_counts`, exact formulas of
+uniform refinement in the coarse mesh's vertices, edges, faces and cells and the parts holding
+them; nothing is assembled and nothing finer than level 0 meshed: meshing level 3 to count it
+took 26 s of CPU for a level-0 block of 16 × 8 × 8 hexahedra, docs/benchmarks.md).
 
 Peak memory. peak ≈ base + a · x^b per linear solver (MEMORY_MODEL), where x is whichever
 quantity predicts that solver's measured peaks better. SuperLU: x = nnz(A), the stored entries
@@ -75,7 +77,7 @@ import numpy as np
 from problems.errors import SceneError
 from problems.scene.geometry import check_sizes
 from vi_core.krylov import auto_linear_solver
-from vi_core.linalg import resolve_backend
+from vi_core.linalg import pardiso_available, resolve_backend
 
 from .options import MAX_LEVEL
 
@@ -230,13 +232,18 @@ class Sizes:
     def __init__(self, plugin, scene, linear_solver: str = "auto"):
         self.scene = scene
         self.linear_solver = linear_solver  # as asked: auto|splu|pardiso|amg
-        model = plugin.build(scene, 0)
-        dim = int(getattr(model, "dimension", 2))  # the level-0 model tells d
-        counts = [(model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n)]
-        del model
+        count = getattr(plugin, "count", None)
+        dim = getattr(plugin, "DIMENSION", None) if count is not None else None
+        if dim is None:  # the level-0 model tells d
+            model = plugin.build(scene, 0)
+            dim = int(getattr(model, "dimension", 2))
+            counts = [(model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n)]
+            del model
+        else:  # nothing built (contact3d: counted on the level-0 mesh)
+            counts = [tuple(int(v) for v in count(scene, 0))]
         for lev in range(1, dim + 1):  # levels 1 … d: counted without assembly where the
-            if hasattr(plugin, "count"):  # plug-in can (a 3D level 3 is 512 × level 0)
-                counts.append(tuple(int(v) for v in plugin.count(scene, lev)))
+            if count is not None:  # plug-in can (a 3D level 3 is 512 × level 0)
+                counts.append(tuple(int(v) for v in count(scene, lev)))
                 continue
             model = plugin.build(scene, lev)
             counts.append((model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n))
@@ -299,12 +306,21 @@ def check_levels(
     text: str,
     force: bool = False,
     linear_solver: str = "auto",
+    linear_option: str = "--linear-solver",
 ) -> Sizes:
     """Refuse (SceneError naming `option` and its value `text`) a level range A..B outside
     0 ≤ A ≤ B ≤ the scene's cap, or whose largest level does not fit in the memory available
     now; `force` skips the memory checks (the range must still be ordered, ≤ MAX_LEVEL). A
     body whose mesh at B would exceed `geometry.MAX_NODES` nodes is refused too, before any
-    level is solved (a SceneError naming its key), with or without `force`."""
+    level is solved (a SceneError naming its key), with or without `force`. The linear
+    solver 'pardiso' without its optional package is refused naming `linear_option`."""
+    if linear_solver == "pardiso" and not pardiso_available():
+        raise SceneError(
+            linear_option,
+            "pardiso",
+            "an installed linear solver: 'pardiso' needs the optional package pypardiso "
+            "(pip install mixvi[fast]); or auto, splu, amg",
+        )
     a, b = levels
     total, available = memory()
     sizes = Sizes(plugin, scene, linear_solver)

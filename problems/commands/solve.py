@@ -17,6 +17,7 @@ from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 from . import load_path, resources
 from .options import DEFAULT_SCENE, solver_options
 from .progress import bar as progress_bar
+from .progress import newton_status
 
 # --accuracy presets: (level, tol); measured time and error on the paper scene in the README
 ACCURACY = {"fast": (1, 1e-6), "balanced": (2, 1e-8), "fine": (3, 1e-10)}
@@ -138,7 +139,10 @@ def _solve_levels(
             coarse[model.level] = [(sub / f).as_posix() for f in written]
 
     with bar:
-        run = pipeline.solve(loaded, level, **solver_options(args), on_level=on_level)
+        on_step = newton_status(bar)  # the Newton steps of the level being solved
+        run = pipeline.solve(
+            loaded, level, **solver_options(args), on_level=on_level, on_step=on_step
+        )
         bar.update(bar.total - bar.n)
         bar.refresh()  # the full bar is shown before it is cleared, however fast the last level
     return run, coarse
@@ -220,7 +224,7 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         line = (
             f"  electrical contact ({el['kind']}): {fp['iterations']} fixed-point steps on k, "
             f"{'converged' if fp['converged'] else 'NOT converged'}, contraction "
-            f"{fp['contraction']:.3g}, law defect {el['law_defect']:.1e}"
+            f"{_num(fp['contraction'], '.3g')}, law defect {_num(el['law_defect'], '.1e')}"
         )
         if el.get("potential_gap_touching") is not None:
             line += f"; potential jump where touching {el['potential_gap_touching']:.6g} V"
@@ -237,6 +241,11 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
     out += [f"  warning: {w}" for w in summary["warnings"]]
     out += [f"  note: {n}" for n in summary.get("notes", [])]
     return out
+
+
+def _num(x: float | None, fmt: str) -> str:
+    """`x` formatted, or 'n/a' where there is none (a contraction after one step)."""
+    return "n/a" if x is None else format(x, fmt)
 
 
 def load(args: argparse.Namespace) -> pipeline.Loaded:

@@ -98,7 +98,9 @@ def _reason(err: OSError) -> str:
         errno.EROFS: "read-only file system",
         errno.EACCES: "permission denied",
         errno.EPERM: "operation not permitted",
-        errno.ENOSPC: "no space left on device",
+        errno.ENOSPC: "no space left on device: free space, or choose another file system",
+        errno.EDQUOT: "disk quota exceeded: free space, or choose another file system",
+        errno.EFBIG: "the file-size limit (ulimit -f) was reached: raise it",
         errno.ENOTDIR: "a parent is not a folder",
         errno.ENAMETOOLONG: "a name too long for the file system",
         errno.ELOOP: "too many symbolic links",
@@ -281,7 +283,14 @@ class OutputFolder:
                         self.option, self.path, f"a folder mixvi can write ({_reason(err)})"
                     ) from None
                 made = True
-            yield tmp
+            try:
+                yield tmp
+            except OSError as err:  # the disk or the file-size limit ran out while writing
+                if err.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+                    raise
+                raise _refuse(
+                    self.option, self.path, f"a folder with room for the results ({_reason(err)})"
+                ) from None
             with deferred():
                 self._commit(tmp)
         finally:

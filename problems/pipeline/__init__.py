@@ -20,6 +20,7 @@ import time
 from collections.abc import Callable
 from contextlib import nullcontext
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -37,6 +38,8 @@ from problems.scene.fields import load_parameter
 from problems.scene.model import METHODS
 from vi_core.coulomb import ContactSet
 
+# progress of an ssn solve: (level, info), info as `vi_core.ssn.solve_ssn`'s on_step gives it
+OnStep = Callable[[int, dict], None]
 # what `solve_built` accepts as method, `mixvi solve --solver` and a scene's [solver] method
 # alike: vi_core's for fixed convex sets, and the Coulomb fixed point
 # (`vi_core.tresca_fixed_point`) for contact sets
@@ -101,17 +104,20 @@ def solve(
     cold: bool = False,
     linear_solver: str = "auto",
     on_level: Callable[[Any, vi_core.Solution], None] | None = None,
+    on_step: OnStep | None = None,
 ) -> Run:
     """Build `loaded` at `level` (None: the scene's) and solve it with `method` and `tol`
     (None: the scene's [solver], else ssn and 1e-10). With ssn and a plug-in that has
     `warm_start`, levels 0 … L−1 are solved first, each warm-starting the next (unless
     `cold`). `linear_solver` (auto|splu|pardiso|amg) solves the Newton steps, coarse levels
     included. `on_level(model, solution)` is called for each coarse level of the nested
-    iteration while it is alive (mixvi solve --write-levels writes its results)."""
+    iteration while it is alive (mixvi solve --write-levels writes its results);
+    `on_step(level, info)` with each ssn solve's progress (`vi_core.ssn.solve_ssn`'s on_step:
+    Newton step, residual, active and slip rows, GMRES iterations), coarse levels included."""
     t0 = time.perf_counter()
     model = loaded.plugin.build(loaded.scene, level)
     t_build = time.perf_counter() - t0
-    run = solve_built(loaded, model, method, tol, cold, linear_solver, on_level)
+    run = solve_built(loaded, model, method, tol, cold, linear_solver, on_level, on_step=on_step)
     run.time_build = t_build
     return run
 
@@ -126,12 +132,14 @@ def solve_built(
     on_level: Callable[[Any, vi_core.Solution], None] | None = None,
     previous: vi_core.Solution | None = None,
     t: float | None = None,
+    on_step: OnStep | None = None,
 ) -> Run:
     """Solve the built `model` of `loaded` as `solve` does (time_build left 0). A load step
     (`t`, the step's load parameter: the nested iteration's levels are built at t) after the
     first passes the `previous` step's solution: ssn (and the Coulomb fixed point) starts from
     it where it fits the model, without a nested iteration, and `solution.info["warm_start"]`
-    says whether it did. The method must suit the model's multiplier set (`method_of`)."""
+    says whether it did. The method must suit the model's multiplier set (`method_of`);
+    `on_step` as in `solve`."""
     method = method_of(loaded, model, method)
     tol = tol if tol is not None else model.options.get("tol", 1e-10)
     nested: list[dict] = []
@@ -144,10 +152,18 @@ def solve_built(
         elif method == "ssn" and nests(loaded.plugin, model):
             with load_parameter(t) if t is not None else nullcontext():
                 nested, warm, start = nested_iteration(
-                    loaded.plugin, loaded.scene, model, tol, linear_solver, on_level
+                    loaded.plugin,
+                    loaded.scene,
+                    model,
+                    tol,
+                    linear_solver,
+                    on_level,
+                    on_step=on_step,
                 )
     if method == "ssn" and model.vi.n <= CONDITION_LIMIT:
         warm["estimate_condition"] = True
+    if method == "ssn" and on_step is not None:
+        warm["on_step"] = partial(on_step, model.level)
     sol = solve_model(
         loaded.plugin, model, method=method, tol=tol, linear_solver=linear_solver, **warm
     )
@@ -212,12 +228,14 @@ def nested_iteration(
     linear_solver: str,
     on_level: Callable[[Any, vi_core.Solution], None] | None = None,
     build: Callable[[Scene, int], Any] | None = None,
+    on_step: OnStep | None = None,
 ) -> tuple[list[dict], dict, dict]:
     """Nested iteration (where `nests(plugin, model)`): levels 0 … L−1 (L = model.level)
     built by `build(scene, level)` (default `plugin.build`; mixvi bench passes one that times
     the builds, to leave them out of its timing) and solved to `coarse_tol(tol)`, each
     warm-starting the next; returns their records, the warm start of `model` (keyword
-    arguments of `solve_model`) and its description (`nested_start`). The coarse models are
+    arguments of `solve_model`) and its description (`nested_start`); `on_step(level, info)`
+    as in `solve`. The coarse models are
     gone when it returns (none of them is alive while the fine level is factorised) unless
     `on_level` or `build` keeps them."""
     build = build or plugin.build
@@ -226,6 +244,8 @@ def nested_iteration(
         coarse = build(scene, lev)
         kw, start = nested_start(plugin, *prev, coarse) if prev else ({}, {})
         prev = None  # the level before is no longer needed
+        if on_step is not None:
+            kw["on_step"] = partial(on_step, lev)
         csol = solve_model(
             plugin, coarse, method="ssn", tol=coarse_tol(tol), linear_solver=linear_solver, **kw
         )

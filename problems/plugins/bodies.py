@@ -18,6 +18,7 @@ from pydantic import BeforeValidator, model_validator
 
 from fem import assembly, assembly3d
 from fem.mesh import CellMesh
+from fem.refined_counts import Skeleton
 from fem.tensors import Material3D
 from problems.scene import Section
 from problems.scene.fields import Expression, Text, Vector, evaluate
@@ -175,6 +176,24 @@ class BodySection(Section):
                         "the body has no electric potential",
                     )
         return self
+
+
+def free_per_entity(
+    t: BodySection, body: Body, skeleton: Skeleton
+) -> tuple[np.ndarray, np.ndarray]:
+    """(displacement, potential) (n_entities,) each: the free unknowns of a node inside each
+    entity of `skeleton` (the body's mesh's `fem.refined_counts.Skeleton`) at any refinement
+    level, the displacement components and the potential (0 or 1) that `dirichlet`'s parts
+    leave free. A part holds at every level the nodes inside the entities of its closure."""
+    fixed = np.zeros((skeleton.n_entities, body.dim), dtype=bool)
+    for tt in t.displacement:
+        on = skeleton.closure(body.mesh.boundaries[tt.boundary])  # (n_entities,)
+        fixed[np.ix_(on, COMPONENTS[tt.components])] = True
+    grounded = np.full(skeleton.n_entities, not body.has_potential)
+    if body.has_potential:
+        for tt in t.potential:
+            grounded |= skeleton.closure(body.mesh.boundaries[tt.boundary])
+    return body.dim - fixed.sum(axis=1), (~grounded).astype(int)
 
 
 def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:

@@ -56,6 +56,7 @@ from pydantic import Field, model_validator
 from scipy.spatial import cKDTree
 
 from fem.mortar3d import covered_nodes, dual_mass, mortar_coupling3d, multiplier_basis
+from fem.refined_counts import Skeleton
 from fem.surface3d import Surface, face_integrals, frames, surface
 from problems.errors import SceneError
 from problems.scene import Scene, SceneModel
@@ -73,12 +74,13 @@ from . import (
     contact_model,
     transfer,
 )
-from .bodies import Body, build_body, dirichlet
-from .contact3d_bodies import SURFACE_ORDER, BodySection3, count3, field_data3
+from .bodies import Body, build_body, free_per_entity
+from .contact3d_bodies import SURFACE_ORDER, BodySection3, field_data3
 from .contact_model import BodiesModel, reference
 from .contract import Sweep, check_meshed
 
 NAME = "contact3d"
+DIMENSION = 3  # the models' `dimension` (`count` needs no model to tell it)
 DESCRIPTION = (
     "elastic/piezoelectric 3D bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
     "(friction discs)"
@@ -211,7 +213,7 @@ class Contact3D:
 class Model(BodiesModel):
     """A built 3D scene: the mixed VI plus what post-processing needs."""
 
-    dimension: int = 3
+    dimension: int = DIMENSION
     # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
     # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
     slip_origin: np.ndarray | None = None
@@ -315,25 +317,28 @@ def _rows(contact: Contact3D):
 
 
 def count(scene: Scene, level: int) -> tuple[int, int, int]:
-    """(unknowns n + m, stored entries of A, n) of `level` without assembling it (meshes,
-    Dirichlet data and the contact rows only): `problems.commands.resources.Sizes` fits its
-    polynomial in 2^level through these, so a 3D level above the one solved is never built."""
+    """(unknowns n + m, stored entries of A, n) of `level`, counted on the level-0 meshes
+    (`fem.refined_counts`: exact for hexahedra; tetrahedra's entries within its stated bound)
+    from the free unknowns of each coarse entity (`bodies.free_per_entity`) and, for m, the
+    free displacement components of the slave surface's nodes: the crosspoint rules
+    (`carrying`) give a surface node 3 − p rows, p its prescribed components. Nothing finer
+    than level 0 is meshed, nothing is assembled."""
     spec = scene.validated(SCENE_MODEL)
     n = nnz = m = 0
-    bodies = {}
+    slave = spec.contact.slave.split(".", 1) if spec.contact is not None else None
     for name, tb in spec.bodies.items():
-        body = Body(name, tb.geometry.mesh(level), tb.material.material(), 0)
-        bodies[name] = (tb, body)
-        dn, dnnz = count3(tb, body)
+        mesh = tb.geometry.mesh(0)
+        if tb.geometry.BOUNDARIES is None:
+            check_meshed(mesh, tb.boundary_refs())
+        body = Body(name, mesh, tb.material.material(), 0)
+        skeleton = Skeleton(mesh)
+        disp, pot = free_per_entity(tb, body, skeleton)  # (n_entities,) each
+        dn, dnnz = skeleton.sums(disp + pot, level)
         n, nnz = n + dn, nnz + dnnz
-    if spec.contact is not None:
-        sname, part = spec.contact.slave.split(".", 1)
-        tb, body = bodies[sname]
-        surf = surface(body.mesh, part, SURFACE_ORDER[body.mesh.cell_type])
-        t1, t2 = frames(surf.normals)
-        fixed = dirichlet(tb, body)[0][: 3 * body.n_nodes].reshape(-1, 3)[surf.nodes]
-        carry_n, n_tan, *_ = carrying(fixed, surf.normals, t1, t2)
-        m = int(carry_n.sum() + n_tan.sum())
+        if slave is not None and slave[0] == name:
+            check_meshed(mesh, [("contact.slave", slave[1])])
+            on = skeleton.closure(mesh.boundaries[slave[1]])  # (n_entities,)
+            m = skeleton.sums(np.where(on, disp, 0), level)[0]
     return n + m, nnz, n
 
 

@@ -1,7 +1,6 @@
 """Bodies of a 3D contact scene: the [bodies.NAME] section with its 3D value types (the model,
-its checks and the assembly into a `Body`: `problems.plugins.bodies`), the counts of the
-unknowns without assembling, and the fields of the unknowns with their near-null spaces for the
-iterative linear path.
+its checks and the assembly into a `Body`: `problems.plugins.bodies`), and the fields of the
+unknowns with their near-null spaces for the iterative linear path.
 
 A body owns 3 displacement unknowns per node and, only if its material is piezoelectric, one
 potential unknown per node. Full numbering: body after body, displacement (3·N, node-major:
@@ -13,7 +12,6 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
-import scipy.sparse as sp
 
 from problems.scene.fields3d import Expression3, Vector3
 from problems.scene.geometry3d import Geometry3
@@ -27,7 +25,6 @@ from .bodies import (
     Parts,
     ScalarPart,
     TractionPart,
-    dirichlet,
 )
 
 # Quadrature order of the contact surface integrals (W, normals, g_k, the dual basis of the
@@ -72,25 +69,6 @@ class BodySection3(BodySection):
     traction: Annotated[list[TractionPart3], Parts] = []
     potential: Annotated[list[ScalarPart3], Parts] = []
     charge: Annotated[list[ScalarPart3], Parts] = []
-
-
-def count3(t: BodySection3, body: Body) -> tuple[int, int]:
-    """(free unknowns, stored entries of the body's reduced operator) without assembling it:
-    every pair of nodes sharing a cell couples all their free unknowns (the assembly stores
-    full blocks on the cell pattern, explicit zeros included)."""
-    fixed, _ = dirichlet(t, body)
-    N = body.n_nodes
-    d = (~fixed[: 3 * N]).reshape(N, 3).sum(axis=1)  # (N,) free unknowns per node
-    if body.has_potential:
-        d = d + ~fixed[3 * N :]
-    cells = body.mesh.cells  # (n_cells, n_loc)
-    k = cells.shape[1]
-    rows = np.repeat(cells, k, axis=1).ravel()
-    cols = np.tile(cells, (1, k)).ravel()
-    P = sp.csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(N, N))
-    P.sum_duplicates()
-    P.data[:] = 1
-    return int(d.sum()), int(d @ (P @ d.astype(np.int64)))
 
 
 def field_data3(bodies: list[Body], free: np.ndarray, n_full: int) -> dict:

@@ -39,6 +39,8 @@ declaration it needs with exit status 2, naming the declaration):
                                                solver_info["nested_start"] (`nested_start`)
     count(scene, level) -> (unknowns, nnz, n)  level caps and memory estimates: the sizes of
                                                a level without building it (else it is built)
+    DIMENSION: int                             with count: the models' `dimension`, so that
+                                               the estimate builds no level at all
     solve(model, **options) -> Solution       `mixvi solve`, the Python API, the regression
                                                baselines: an outer iteration around model.vi
                                                (e.g. piezo_contact's electrical contact fixed

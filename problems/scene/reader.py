@@ -21,6 +21,27 @@ from problems.errors import SceneError
 from .model import SceneModel, migrate, validate
 
 SCENES_DIR = Path(__file__).parent.parent / "scenes"
+# Tables and arrays nest at most this deep in a scene or a --set value (the deepest shipped
+# scene nests 4; TOML's reader and the validation recurse once per level)
+MAX_DEPTH = 16
+
+
+def _too_deep(value: Any, depth: int = 0, path: str = "") -> str | None:
+    """The dotted path of the first value nested deeper than MAX_DEPTH, or None (iterative:
+    the check itself must not recurse without bound)."""
+    stack = [(value, depth, path)]
+    while stack:
+        v, d, p = stack.pop()
+        if d > MAX_DEPTH:
+            return p or "(top)"
+        if isinstance(v, dict):
+            stack += [(x, d + 1, f"{p}.{k}" if p else str(k)) for k, x in v.items()]
+        elif isinstance(v, list):
+            stack += [(x, d + 1, f"{p}[{i}]") for i, x in enumerate(v)]
+    return None
+
+
+NESTING = f"tables and arrays nested at most {MAX_DEPTH} deep"
 
 
 @dataclass
@@ -85,7 +106,15 @@ def parse_override(text: str) -> tuple[list[str], Any]:
         value = tomllib.loads(f"v = {raw.strip()}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw.strip()
+    except RecursionError:
+        raise SceneError(f"--set {key.strip()}", _short(raw), NESTING) from None
+    if len(parts) > MAX_DEPTH or _too_deep(value, len(parts)) is not None:
+        raise SceneError(f"--set {key.strip()}", _short(raw), NESTING)
     return parts, value
+
+
+def _short(text: str) -> str:
+    return text if len(text) <= 60 else text[:28] + "..." + text[-28:]
 
 
 def load_scene(name_or_path: str, overrides: Iterable[str] = ()) -> Scene:
@@ -95,8 +124,13 @@ def load_scene(name_or_path: str, overrides: Iterable[str] = ()) -> Scene:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:
         raise SceneError("(file)", path.name, f"valid TOML ({err})", str(path)) from None
+    except RecursionError:
+        raise SceneError("(file)", path.name, NESTING, str(path)) from None
     except (OSError, UnicodeDecodeError) as err:
         raise SceneError("(file)", path.name, f"a readable text file ({err})", str(path)) from None
+    deep = _too_deep(data)
+    if deep is not None:
+        raise SceneError(deep, "(nested value)", NESTING, str(path))
     data, notices = migrate(data, str(path)) if isinstance(data, dict) else (data, [])
     scene = Scene(data=data, path=str(path), name=path.stem, notices=notices)
     apply_overrides(scene, overrides)

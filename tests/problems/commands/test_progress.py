@@ -120,3 +120,64 @@ def test_the_helper_draws_only_on_a_terminal_without_tqdm_disable(
         bar.update(2)
         bar.refresh()
     assert ("2/2" in stderr.getvalue()) == drawn
+
+
+def test_a_terminal_shows_the_newton_steps_of_the_level_being_solved(tmp_path):
+    """Beside the bar over the levels: the level's Newton step, residual, active and slip rows
+    and, on the iterative path, GMRES iterations so far; none of it in a pipe."""
+    argv = ["solve", "rigid_foundation", "--level", "1", "--linear-solver", "amg", "--out", "o"]
+    (tmp_path / "tty").mkdir()
+    (tmp_path / "pipe").mkdir()
+    text = _on_a_terminal(argv, tmp_path / "tty", TQDM_MININTERVAL="0")
+    assert "L0 Newton 1" in text and "L1 Newton 1" in text
+    assert "active" in text and "slip" in text and "GMRES" in text
+    run = subprocess.run([MIXVI, *argv], cwd=tmp_path / "pipe", capture_output=True, text=True)
+    assert run.returncode == 0 and "L1 Newton" not in run.stderr
+
+
+def _steps_seen() -> tuple[list, object]:
+    """(the on_step calls of a nested amg solve of rigid_foundation at level 2, its Run)."""
+    from problems import pipeline
+
+    seen: list[tuple[int, dict]] = []
+    run = pipeline.solve(
+        pipeline.load("rigid_foundation"),
+        2,
+        linear_solver="amg",
+        on_step=lambda level, info: seen.append((level, info)),
+    )
+    return seen, run
+
+
+def _check_steps(seen: list, run) -> None:
+    """Every level reports each Newton step once when it is done, in order, the last with
+    the level's residual; GMRES iterations grow within a level and match its Krylov total."""
+    for rec in run.nested:
+        done = [i for lev, i in seen if lev == rec["level"] and i["done"]]
+        assert [i["step"] for i in done] == list(range(1, rec["iterations"] + 1))
+        assert done[-1]["residual"] == pytest.approx(rec["residual"])
+        its = [i["krylov_iterations"] for lev, i in seen if lev == rec["level"]]
+        assert its == sorted(its) and its[-1] > 0
+        assert all(i["active"] + i["slip"] <= run.model.vi.m for i in done)
+    fine = [i["krylov_iterations"] for lev, i in seen if lev == 2 and i["done"]]
+    assert fine[-1] == sum(run.solution.info["krylov_iterations"])
+    assert any(not i["done"] for _, i in seen)  # GMRES iterations within a step
+
+
+def test_the_pipeline_reports_every_newton_step_through_on_step():
+    _check_steps(*_steps_seen())
+
+
+def test_mutation_a_solver_that_never_calls_on_step_is_caught(monkeypatch):
+    """ssn dropping its on_step (the callback never called) fails the check above."""
+    from vi_core import ssn
+
+    original = ssn.solve_ssn
+
+    def deaf(vi, *args, on_step=None, **kw):
+        return original(vi, *args, **kw)
+
+    monkeypatch.setattr(ssn, "solve_ssn", deaf)
+    seen, run = _steps_seen()
+    with pytest.raises((AssertionError, IndexError)):
+        _check_steps(seen, run)

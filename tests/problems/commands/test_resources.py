@@ -283,3 +283,24 @@ def test_a_spawned_childs_peak_is_its_own_not_its_parents():
     p.join(timeout=60)
     assert own < 250 * 2**20, (own, maxrss)
     del held
+
+
+class CountedCubes(Cubes):
+    """Cubes whose sizes `count` gives and whose DIMENSION is declared: nothing is built."""
+
+    DIMENSION = 3
+
+    def build(self, scene, level):
+        raise AssertionError(f"built level {level}")
+
+    def count(self, scene, level):
+        vi = Cubes.build(self, scene, level).vi
+        return vi.n + vi.m, vi.A.nnz, vi.n
+
+
+def test_a_plugin_declaring_count_and_dimension_is_not_built():
+    """Sizes counts every level through `count` (mutation: building level 0 for its
+    dimension, as before DIMENSION, raises in `build`)."""
+    sizes = Sizes(CountedCubes(3), SimpleNamespace(name="cubes", data={}))
+    assert sizes.dimension == 3
+    assert sizes.unknowns(5) == (4 * 2**5 + 1) ** 3

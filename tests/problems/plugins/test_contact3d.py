@@ -16,6 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import vi_core
+from fem.refined_counts import Skeleton
 from problems.commands import main as cli
 from problems.commands.resources import Sizes
 from problems.errors import SceneError
@@ -278,18 +279,52 @@ def test_a_partial_prescription_at_an_angle_is_refused_naming_the_field():
 
 
 # ------------------------------------------------------------------ sizes and the pipeline
+def _pair_bound(scene, level: int) -> int:
+    """`fem.refined_counts.Skeleton.pair_bound` summed over the scene's bodies."""
+    spec = scene.validated(contact3d.SCENE_MODEL)
+    total = 0
+    for name, tb in spec.bodies.items():
+        body = bodies.Body(name, tb.geometry.mesh(0), tb.material.material(), 0)
+        sk = Skeleton(body.mesh)
+        total += sk.pair_bound(sum(bodies.free_per_entity(tb, body, sk)), level)
+    return total
+
+
 @pytest.mark.parametrize(
-    "name,overrides", [("block3d", []), (EXTRUDED, ["bodies.block.geometry.element=tetra"])]
+    "name,overrides,levels",
+    [
+        ("block3d", [], (0, 1, 2)),
+        ("two_blocks3d", [], (0, 1)),
+        ("spherical_cap", [], (0, 1)),
+        (EXTRUDED, ["bodies.block.geometry.element=tetra"], (0, 1)),
+        ("bracket3d", [], (0, 1)),  # a gmsh mesh of tetrahedra
+    ],
 )
-def test_count_is_the_built_size_and_a_level_multiplies_by_about_8(name, overrides):
+def test_count_is_the_built_size_and_a_level_multiplies_by_about_8(name, overrides, levels):
+    """`count` meshes level 0 only; its unknowns are the built model's, its nnz(A) too
+    (hexahedra) or within the tetrahedra's stated bound (`fem.refined_counts`)."""
     scene = load_scene(name, overrides)
-    for level in (0, 1):
+    for level in levels:
         vi = contact3d.build(scene, level).vi
-        assert contact3d.count(scene, level) == (vi.n + vi.m, vi.A.nnz, vi.n)
+        unknowns, nnz, n = contact3d.count(scene, level)
+        assert (unknowns, n) == (vi.n + vi.m, vi.n)
+        assert abs(nnz - vi.A.nnz) <= _pair_bound(scene, level)
     sizes = Sizes(contact3d, scene)
     assert sizes.dimension == 3
     assert 7.0 < sizes.unknowns(5) / sizes.unknowns(4) < 8.1
     assert 7.0 < sizes.nonzeros(5) / sizes.nonzeros(4) < 8.1
+
+
+def test_count_meshes_nothing_finer_than_level_0(monkeypatch):
+    """Every geometry `count` meshes is level 0, whatever level it counts (mutation: meshing
+    `level`, as before, fails)."""
+    from problems.scene.geometry3d import Box
+
+    seen = []
+    mesh = Box.mesh
+    monkeypatch.setattr(Box, "mesh", lambda self, level: seen.append(level) or mesh(self, level))
+    contact3d.count(load_scene("block3d"), 3)
+    assert seen == [0]
 
 
 def test_warm_start_is_in_the_multiplier_set():
