@@ -88,6 +88,12 @@ from .linalg import BACKENDS
 from .marks import mark
 
 LINEAR_SOLVERS = (*BACKENDS, "amg")  # the direct backends and the iterative path
+# linear_solver="auto": the iterative path once A has more stored entries than this, for the
+# mesh's kind told by A's mean row length (entries per row of A at least ROW_3D: a 3D mesh,
+# whose factors fill far faster). Measured in docs/benchmarks.md, "Direct solver defaults"
+AUTO_AMG_NNZ = {2: 2_000_000, 3: 300_000}
+ROW_3D = 40.0  # 2D: ≤ 27 entries per row (Q1 piezo), 3D: 45 (P1 tetrahedra, elastic) … 108 (Q1
+# hexahedra, piezo)
 # the loosest relative linear tolerance of a Newton step, from a cold start and from a warm
 # start (u0/λ0 given: nested iteration, where the active set is nearly right and Newton needs
 # one exact step, so an inexact step only adds steps: 0 = every warm step is solved to the
@@ -113,6 +119,15 @@ SPRING_CAP = 10.0  # the largest spring of a slip row (equilibrated units; modul
 MAX_LEVELS = 10  # levels of a hierarchy at most (pyamg's default)
 CHUNK = 1 << 18  # entries per chunk of the one-pass gathers (`gather_rows`): its temporaries
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+
+
+def auto_linear_solver(nnz: int, n: int, condensable: bool = True) -> str:
+    """What linear_solver="auto" means for a problem whose stiffness A (n × n) stores nnz
+    entries: "amg" when the Newton steps condense and A is larger than AUTO_AMG_NNZ of its
+    kind (2D or 3D by the mean row length, ROW_3D), else "auto" (the direct backend
+    `linalg.resolve_backend` picks)."""
+    kind = 3 if nnz / max(n, 1) >= ROW_3D else 2
+    return "amg" if condensable and nnz > AUTO_AMG_NNZ[kind] else "auto"
 
 
 def thread_settings() -> dict:

@@ -42,11 +42,12 @@ from .krylov import (
     LINEAR_SOLVERS,
     CondensedNewton,
     KrylovSolver,
+    auto_linear_solver,
     bodies,
     forcing_term,
     thread_settings,
 )
-from .linalg import Refactorizer, condition_estimate, resolve_backend
+from .linalg import FactorizationTooLarge, Refactorizer, condition_estimate, resolve_backend
 from .problem import MixedVI, natural_residual
 from .sets import Free
 from .solution import Solution
@@ -319,6 +320,11 @@ def solve_ssn(
     """Semismooth Newton / primal-dual active set for `vi` (see module docstring).
 
     Stops when the relative natural-map residual (`MixedVI.residual`) is ≤ tol.
+    linear_solver : auto|splu|pardiso|amg; "auto" is the iterative path for a large condensable
+        problem (`krylov.auto_linear_solver`), a direct backend otherwise. A direct
+        factorisation over its budget (`linalg.FactorizationTooLarge`) restarts the solve on
+        the iterative path where the steps condense: ``info["factorisation_fallback"]`` and a
+        warning say so.
     estimate_condition : also estimate the 1-norm condition of the last (equilibrated,
         condensed) Newton matrix into ``info["condition_estimate"]`` (a few extra solves;
         with PARDISO one extra factorisation).
@@ -329,15 +335,47 @@ def solve_ssn(
         boundary point, a friction bound), "krylov_iterations" (GMRES iterations of this solve
         so far; None on the direct path). It must not raise; it may be slow only at its peril.
     """
+    if linear_solver not in LINEAR_SOLVERS:
+        raise ValueError(
+            f"linear solver {linear_solver!r} unknown; allowed: {', '.join(LINEAR_SOLVERS)}"
+        )
+    e = vi.equilibrated
+    asked = linear_solver
+    if linear_solver == "auto":
+        condensable = condense and Condensation.detect(e.B) is not None
+        linear_solver = auto_linear_solver(e.A.nnz, e.n, condensable)
+    args = (vi, tol, max_iter, u0, lam0)
+    try:
+        sol = _solve_ssn(*args, linear_solver, condense, damping, estimate_condition, on_step)
+    except FactorizationTooLarge as err:
+        if linear_solver == "amg" or not condense or Condensation.detect(e.B) is None:
+            raise
+        sol = _solve_ssn(*args, "amg", condense, damping, estimate_condition, on_step)
+        note = f"direct factorisation over budget ({err}); solved with amg"
+        sol.info["factorisation_fallback"] = note
+        sol.warnings.insert(0, note)
+    sol.info["linear_solver_asked"] = asked
+    return sol
+
+
+def _solve_ssn(
+    vi: MixedVI,
+    tol: float,
+    max_iter: int,
+    u0: np.ndarray | None,
+    lam0: np.ndarray | None,
+    linear_solver: str,
+    condense: bool,
+    damping: bool,
+    estimate_condition: bool,
+    on_step: Callable[[dict], None] | None,
+) -> Solution:
+    """`solve_ssn` with a concrete linear solver (splu|pardiso|amg, or auto: a direct one)."""
     t0 = time.perf_counter()
     e = vi.equilibrated
     sc = vi.scaling
     u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
-    if linear_solver not in LINEAR_SOLVERS:
-        raise ValueError(
-            f"linear solver {linear_solver!r} unknown; allowed: {', '.join(LINEAR_SOLVERS)}"
-        )
     stepper = _Stepper(e, condense=condense, linear_solver=linear_solver, tol=tol)
     Lam = e.Lambda
 
@@ -424,12 +462,16 @@ def solve_ssn(
             "threads": thread_settings(),
             "newton_nnz": sorted(set(stepper.nnz)),  # one value: the pattern is fixed
             "symbolic_analyses": stepper.factorize.analyses,
+            "factor_fill": [round(f, 2) for f in stepper.factorize.fills],
         },
     )
     if stepper.krylov is not None:
         sol.info.update(stepper.krylov.info())
     elif linear_solver == "amg":
         sol.info["fallback"] = [{"step": None, "reason": "not condensable: direct solves"}]
+    if stepper.factorize.fallbacks:
+        sol.info["factorisation_fallback"] = "; ".join(stepper.factorize.fallbacks)
+        sol.warnings.append(f"SuperLU: {stepper.factorize.fallbacks[0]}")
     if estimate_condition and stepper.last is not None:
         sol.info["condition_estimate"] = condition_estimate(stepper.last)
     if not converged:

@@ -76,6 +76,7 @@ import numpy as np
 
 from problems.errors import SceneError
 from problems.scene.geometry import check_sizes
+from vi_core.krylov import auto_linear_solver
 from vi_core.linalg import pardiso_available, resolve_backend
 
 from .options import MAX_LEVEL
@@ -272,6 +273,8 @@ class Sizes:
         direct backend `auto`/splu/pardiso resolves to)."""
         N, nnz, n = self._at(level)
         ls = self.linear_solver
+        if ls == "auto":  # the iterative path above a size (vi_core.krylov.auto_linear_solver)
+            ls = auto_linear_solver(nnz, n)
         solver = "amg" if ls == "amg" else resolve_backend(ls, n)
         dim = self.dimension
         return Estimate(self.scene.name, level, N, solver, peak_bytes(N, nnz, solver, dim), dim)

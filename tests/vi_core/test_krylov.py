@@ -657,3 +657,68 @@ def test_smoothed_aggregation_is_pyamgs_hierarchy(field, monkeypatch):
     monkeypatch.setattr(kr, "SMOOTH", ("energy", {**kr.SMOOTH[1], "maxiter": 1}))
     ml = kr.smoothed_aggregation(A, nn, part)
     assert np.linalg.norm(cycle(ml) - x_ref) > 1e-6 * np.linalg.norm(x_ref)
+
+
+def test_auto_chooses_direct_below_and_amg_above_the_size_of_its_kind(monkeypatch):
+    assert kr.auto_linear_solver(10_000, 1_000) == "auto"  # 10 per row: 2D, small
+    assert kr.auto_linear_solver(kr.AUTO_AMG_NNZ[2] + 1, 100_000) == "amg"
+    assert kr.auto_linear_solver(kr.AUTO_AMG_NNZ[2] + 1, 100_000, condensable=False) == "auto"
+    # 3D (≥ ROW_3D entries per row) switches at its own, smaller size
+    n3 = kr.AUTO_AMG_NNZ[3] // 60 + 1
+    assert kr.auto_linear_solver(60 * n3, n3) == "amg"
+    assert kr.auto_linear_solver(20 * n3, n3) == "auto"  # the same entries, 2D
+    vi = coupled_grid_vi(np.random.default_rng(2), 12, 1.0)
+    small = solve(vi, "ssn", tol=1e-8)  # auto, small: direct
+    assert small.info["linear_solver"] == "splu" and small.info["linear_solver_asked"] == "auto"
+    monkeypatch.setattr(kr, "AUTO_AMG_NNZ", {2: 10, 3: 10})
+    import vi_core.ssn as ssn
+
+    monkeypatch.setattr(ssn, "auto_linear_solver", kr.auto_linear_solver)
+    big = solve(vi, "ssn", tol=1e-8)
+    assert big.info["linear_solver"] == "amg" and big.converged
+
+
+def test_a_factorisation_over_budget_restarts_the_solve_with_amg(monkeypatch):
+    """Injected: every SuperLU factorisation of the fine matrix is over budget. The solve ends
+    on the iterative path and says so (info and a warning); the answer is the direct one."""
+    from vi_core import linalg
+
+    vi = coupled_grid_vi(np.random.default_rng(4), 14, 1.0)
+    d = solve(vi, "ssn", tol=1e-10, linear_solver="splu", estimate_condition=True)
+    n = vi.n
+
+    real = linalg.superlu
+
+    def over(At, ordering, budget):
+        if At.shape[0] == n:
+            raise MemoryError("injected over-fill")
+        return real(At, ordering, budget)
+
+    monkeypatch.setattr(linalg, "superlu", over)
+    a = solve(vi, "ssn", tol=1e-10, linear_solver="splu")
+    assert "solved with amg" in a.info["factorisation_fallback"]
+    assert a.info["linear_solver"] == "amg" and a.converged
+    assert any("over budget" in w for w in a.warnings)
+    s = vi.scaling.s_u
+    diff = np.linalg.norm((a.u - d.u) / s) / np.linalg.norm(d.u / s)
+    assert diff <= 2 * d.info["condition_estimate"] * 1e-10
+
+
+def test_a_solve_that_does_not_condense_cannot_fall_back_and_raises(monkeypatch):
+    from vi_core import linalg
+
+    vi = coupled_grid_vi(np.random.default_rng(4), 14, 1.0)
+    monkeypatch.setattr(linalg, "superlu", lambda At, o, b: (_ for _ in ()).throw(MemoryError()))
+    with pytest.raises(linalg.FactorizationTooLarge):
+        solve(vi, "ssn", linear_solver="splu", condense=False)
+
+
+def test_mutation_ssn_not_catching_the_overrun_fails_the_fallback_test(monkeypatch):
+    import vi_core.ssn as ssn
+
+    class Other(Exception):
+        pass
+
+    monkeypatch.setattr(ssn, "FactorizationTooLarge", Other)  # the handler no longer matches
+    with pytest.raises(MemoryError):
+        test_a_factorisation_over_budget_restarts_the_solve_with_amg(monkeypatch)

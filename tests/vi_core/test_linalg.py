@@ -156,6 +156,10 @@ class _CountedLU:
     def solve(self, b, trans="N"):
         return self.lu.solve(b, trans=trans)
 
+    @property
+    def nnz(self):
+        return self.lu.nnz
+
     def __del__(self):
         _CountedLU.alive -= 1
 
@@ -209,3 +213,128 @@ def test_mutation_keeping_the_old_factor_is_caught(monkeypatch):
     R = Refactorizer("splu")
     kept = [R(A) for A in _same_pattern_sequence(5, k=3)]  # noqa: F841  (as ssn's self.last)
     assert _CountedLU.most > 1
+
+
+def _two_bodies(k: int, seed: int) -> sp.csr_matrix:
+    """Two k × k mesh blocks (9-point grid structure, values of either sign, weak diagonals:
+    partial pivoting leaves the diagonal) coupled along one edge, as two bodies in contact."""
+    rng = np.random.default_rng(seed)
+    T = sp.diags([1.0, 1.0, 1.0], [-1, 0, 1], shape=(k, k))
+    S = sp.csr_matrix(sp.kron(T, T))  # (k², k²) the 9-point structure
+    blocks = []
+    for _ in range(2):
+        B = S.copy()
+        B.data = rng.standard_normal(B.nnz)
+        blocks.append(B + sp.diags(0.1 * rng.standard_normal(k * k)))
+    A = sp.lil_matrix(sp.block_diag(blocks))
+    edge = np.arange(k)  # the first row of grid nodes of each body touch
+    A[edge, k * k + edge] = rng.standard_normal(k)
+    A[k * k + edge, edge] = rng.standard_normal(k)
+    return sp.csr_matrix(A)
+
+
+def _old_options_fill(A: sp.spmatrix) -> float:
+    """Fill (stored factor entries / nnz(A), as `Factorization.fill`) of SuperLU with the
+    options shipped before issue 34 (minimum degree on Aᵀ + A, no SymmetricMode,
+    diag_pivot_thresh 1.0)."""
+    lu = spla.splu(sp.csc_matrix(A).T.tocsc(), permc_spec="MMD_AT_PLUS_A")
+    return lu.nnz / A.nnz
+
+
+def test_superlu_options_fill_far_less_than_the_old_ones_on_a_two_body_matrix():
+    A = _two_bodies(36, seed=1)
+    F = Factorization(A, "splu")
+    assert F.ordering == linalg.ORDERING and F.fallback == ""
+    assert F.fill < 0.5 * _old_options_fill(A)
+    b = np.ones(A.shape[0])
+    assert np.linalg.norm(A @ F(b) - b) <= 1e-10 * np.linalg.norm(b) * abs(A).max()
+
+
+def test_mutation_the_old_pivot_threshold_fails_the_two_body_fill_test(monkeypatch):
+    monkeypatch.setattr(linalg, "PIVOT_THRESHOLD", 1.0)
+    A = _two_bodies(36, seed=1)
+    assert not Factorization(A, "splu").fill < 0.5 * _old_options_fill(A)
+
+
+def _splu_options(monkeypatch) -> list[dict]:
+    """Spy: the keyword arguments of every spla.splu call."""
+    seen = []
+    real = spla.splu
+
+    def spy(A, **kw):
+        seen.append(kw)
+        return real(A, **kw)
+
+    monkeypatch.setattr(linalg.spla, "splu", spy)
+    return seen
+
+
+def _check_superlu_options(monkeypatch) -> None:
+    seen = _splu_options(monkeypatch)
+    Factorization(_grid(10), "splu")
+    assert seen == [
+        {
+            "permc_spec": "MMD_AT_PLUS_A",
+            "diag_pivot_thresh": 0.1,
+            "options": {"SymmetricMode": True},
+        }
+    ]
+
+
+def test_superlu_runs_with_symmetric_mode_and_the_relaxed_threshold(monkeypatch):
+    # SymmetricMode changes SuperLU's time, not its fill, on the Newton matrices measured
+    # (docs/benchmarks.md): the options themselves are checked
+    _check_superlu_options(monkeypatch)
+
+
+@pytest.mark.parametrize(
+    "fault", [("SUPERLU_OPTIONS", {}), ("PIVOT_THRESHOLD", 1.0), ("ORDERING", "COLAMD")]
+)
+def test_mutation_other_superlu_options_fail_the_options_test(monkeypatch, fault):
+    monkeypatch.setattr(linalg, *fault)
+    with pytest.raises(AssertionError):
+        _check_superlu_options(monkeypatch)
+
+
+def test_a_factorisation_over_budget_falls_back_to_the_other_ordering(monkeypatch):
+    A = _grid(60)
+    fill = Factorization(A, "splu").fill
+    calls = []
+    real = linalg.superlu
+
+    def over_budget_first(At, ordering, budget):  # injected: the first ordering overfills
+        calls.append(ordering)
+        if ordering == linalg.ORDERING:
+            raise MemoryError("injected over-fill")
+        return real(At, ordering, budget)
+
+    monkeypatch.setattr(linalg, "superlu", over_budget_first)
+    R = Refactorizer("splu")
+    F = R(A)
+    assert calls == [linalg.ORDERING, linalg.FALLBACK_ORDERING]
+    assert F.ordering == linalg.FALLBACK_ORDERING and "over its budget" in F.fallback
+    assert len(R.fallbacks) == 1 and linalg.FALLBACK_ORDERING in R.fallbacks[0]
+    assert F.fill != fill  # the other ordering's factors
+    b = np.ones(A.shape[0])
+    assert np.linalg.norm(A @ F(b) - b) <= 1e-10 * np.linalg.norm(b) * abs(A).max()
+
+
+def test_a_real_budget_overrun_raises_factorization_too_large():
+    # a budget far below the factors' size: SuperLU's own allocation fails under RLIMIT_AS
+    if linalg._vm_size() is None:
+        pytest.skip("no /proc/self/status: the budget is not enforced here")
+    # the budget bounds the growth of the address space: factors far larger than any heap a
+    # long-lived test worker has left free (~150 MB unbounded), so the first expansion fails
+    A = _grid(300)
+    R = Refactorizer("splu", budget=1e5)
+    with pytest.raises(linalg.FactorizationTooLarge, match="over its budget"):
+        R(A)
+    assert len(R.fallbacks) == 1
+    F = Refactorizer("splu")(A)  # the limit is lifted again afterwards
+    assert F.fallback == "" and F.fill > 1.0
+
+
+def test_mutation_unbounded_budget_does_not_raise():
+    A = _grid(150)
+    F = Refactorizer("splu", budget=None)(A)
+    assert F.fallback == ""

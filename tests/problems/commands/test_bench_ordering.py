@@ -5,13 +5,18 @@ import json
 from problems.commands.bench_ordering import main
 
 
-def test_bench_ordering_writes_the_three_orderings(tmp_path, capsys):
+def test_bench_ordering_writes_each_variant_and_solve(tmp_path, capsys):
     out = tmp_path / "o.json"
-    assert main(["paper_two_body", "--level", "1", "--out", str(out)]) == 0
+    variants = "MMD_AT_PLUS_A sym 0.1,COLAMD"
+    assert main(["rigid_foundation@1", "--variants", variants, "--out", str(out)]) == 0
     data = json.loads(out.read_text())
-    assert data["level"] == 1 and data["n"] > 0 and data["nnz"] > data["n"]
-    names = [r["ordering"] for r in data["orderings"]]
-    assert names == ["COLAMD", "MMD_AT_PLUS_A", "nested dissection"]
-    for r in data["orderings"]:
+    (case,) = data["cases"]
+    assert case["level"] == 1 and case["n"] > 0 and case["nnz"] > case["n"]
+    assert [r["variant"] for r in case["factorisations"]] == variants.split(",")
+    for r in case["factorisations"]:
         assert r["fill"] >= 1.0 and r["residual"] < 1e-10
+    solves = {r["linear_solver"]: r for r in case["solves"]}
+    assert set(solves) == {"auto", "splu", "amg"}
+    assert solves["auto"]["chosen"] == "splu" and solves["auto"]["converged"]
+    assert solves["splu"]["factor_fill"] and solves["amg"]["chosen"] == "amg"
     assert "fill" in capsys.readouterr().out

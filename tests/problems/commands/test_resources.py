@@ -74,22 +74,35 @@ def test_caps_and_refusals_name_the_option_and_print_the_estimate(monkeypatch):
     scene = load_scene("paper_two_body")
     plugin = registry.for_scene(scene)
     monkeypatch.setattr(resources, "memory", lambda: (24e9, 24e9))
-    cap = Sizes(plugin, scene).cap(24e9)
+    cap = Sizes(plugin, scene, "splu").cap(24e9)  # the direct model: a cap below 8
     assert 3 <= cap < 12
     with pytest.raises(SceneError) as err:
-        check_levels(plugin, scene, (0, cap + 1), "--levels", f"0..{cap + 1}")
+        check_levels(plugin, scene, (0, cap + 1), "--levels", f"0..{cap + 1}", linear_solver="splu")
     msg = str(err.value)
     assert "--levels" in msg and f"≤ {cap}" in msg and "GB" in msg and "--force" in msg
     with pytest.raises(SceneError, match="--levels"):
         check_levels(plugin, scene, (-1, 2), "--levels", "-1..2")
     with pytest.raises(SceneError, match="--levels"):
         check_levels(plugin, scene, (2, 1), "--levels", "2..1")
-    check_levels(plugin, scene, (0, cap + 1), "--levels", "x", force=True)  # --force: tries
+    check_levels(
+        plugin, scene, (0, cap + 1), "--levels", "x", force=True, linear_solver="splu"
+    )  # --force: tries
     monkeypatch.setattr(resources, "memory", lambda: (24e9, 0.5e9))  # little available now
     with pytest.raises(SceneError) as err:
-        check_levels(plugin, scene, (4, 4), "--level", "4")
+        check_levels(plugin, scene, (4, 4), "--level", "4", linear_solver="splu")
     assert "--level" in str(err.value) and "available" in str(err.value)
     check_levels(plugin, scene, (4, 4), "--level", "4", force=True)
+
+
+def test_auto_is_estimated_as_the_solver_it_will_choose():
+    """--linear-solver auto: the direct model below AUTO_AMG_NNZ, the amg model above."""
+    from vi_core.krylov import AUTO_AMG_NNZ
+
+    scene = load_scene("paper_two_body")
+    sizes = Sizes(registry.for_scene(scene), scene)  # auto
+    small = max(lev for lev in range(8) if sizes.nonzeros(lev) <= AUTO_AMG_NNZ[2])
+    assert sizes.estimate(small).solver == "splu"
+    assert sizes.estimate(small + 1).solver == "amg"
 
 
 def test_memory_reads_the_process_limit(monkeypatch):
@@ -104,7 +117,7 @@ def test_memory_reads_the_process_limit(monkeypatch):
 def test_a_3d_level_is_estimated_by_the_3d_memory_model():
     """In 3D a level multiplies the unknowns by about 8 and the modelled peak by more (the fill
     of a 3D factor); the 2D model would give a 3D level far less memory than it needs."""
-    sizes = Sizes(Cubes(3), SimpleNamespace(name="cubes", data={}))
+    sizes = Sizes(Cubes(3), SimpleNamespace(name="cubes", data={}), "splu")
     e4, e5 = sizes.estimate(4), sizes.estimate(5)
     assert e4.dimension == e5.dimension == 3
     assert 7.8 < e5.unknowns / e4.unknowns < 8.1  # (129/65)^3 = 7.82
