@@ -57,8 +57,8 @@ class _Stop(Exception):
 
 def _record(scene: str, level: int | None, path: str, q) -> None:
     """Child: save the fine level's first Newton matrix (csr arrays) to `path`."""
+    import problems.pipeline as pipeline
     import vi_core.ssn as ssn
-    from problems import pipeline
 
     loaded = pipeline.load(scene)
     model = loaded.plugin.build(loaded.scene, level)
@@ -125,7 +125,7 @@ def _factor(path: str, variant: str, q) -> None:
 
 def _solve(scene: str, level: int | None, linear_solver: str, q) -> None:
     """Child: the nested solve with `linear_solver`; put steps, times, peak and fill."""
-    from problems import pipeline
+    import problems.pipeline as pipeline
     from problems.commands.resources import fix_mmap_threshold, peak_rss
 
     fix_mmap_threshold()

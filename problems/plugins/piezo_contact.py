@@ -816,7 +816,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     rho = c.bound(sol.lam) * touch_t  # (N_t,); a rounding-level λ_n does not touch
     rmax = float(rho.max(initial=0.0))
     Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
-    disp = model.unknown_fields()["displacement"]
+    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
     th = node_states.thresholds(
         sol.residual,
         max(float(np.abs(sol.lam).max(initial=0.0)), rmax, force),

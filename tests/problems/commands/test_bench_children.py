@@ -154,10 +154,10 @@ def test_sigint_to_bench_ends_the_child_and_keeps_the_old_table(site, tmp_path):
     pidfile = tmp_path / "child.pid"
     (tmp_path / "hang.toml").write_text(scene_text("hang", pidfile))
     out = tmp_path / "bench.json"
-    out.write_text('{"old": true}')
+    out.write_text('{"old": true}')  # not mixvi's: replacing it needs --overwrite
     p = subprocess.Popen(
         [MIXVI, "bench", "--scenes", str(tmp_path / "hang.toml"), "--levels", "0",
-         "--out", str(out)],
+         "--out", str(out), "--overwrite"],
         env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     deadline = time.monotonic() + 120

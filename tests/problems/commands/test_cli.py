@@ -31,6 +31,8 @@ def test_solve_writes_summary_fields_and_plots(tmp_path, capsys):
         "nodes",
         "stick",
         "slip",
+        "ambiguous",
+        "ambiguous_length",
         "master",
         "mortar_patch_defect",
         "ends",

@@ -23,7 +23,9 @@ import resource
 import shutil
 import subprocess
 import sys
+import threading
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -221,6 +223,9 @@ def full_disk(tmp_path_factory):
         subprocess.run(["umount", str(mnt)], capture_output=True)
 
 
+FULL_DISK = threading.Lock()  # the cases that write to the full disk run one at a time
+
+
 def _env(case: Case) -> dict:
     env = {**os.environ, "MPLBACKEND": "Agg"}
     if case.threads is not None:
@@ -235,6 +240,13 @@ def _run(case: Case, d: Path, full: Path | None) -> tuple[int, str, dict, dict]:
     if case.setup is not None:
         case.setup(d)
     before = tree(d)
+    if not case.needs_full:  # the full disk is another case's: it is not compared here
+        full = None
+    with FULL_DISK if full is not None else nullcontext():  # one case on it at a time
+        return _run_child(case, d, full, before)
+
+
+def _run_child(case: Case, d: Path, full: Path | None, before: dict):
     full_before = tree(full) if full is not None else None
 
     def child() -> None:
