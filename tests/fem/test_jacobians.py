@@ -6,7 +6,7 @@ import pytest
 from fem.elements3d import reference_element3d
 from fem.jacobians import check_cells, cofactors, jacobian_determinants
 from fem.mesh import Mesh
-from fem.meshing import box, transform
+from fem.meshing import box, rectangle, transform
 
 from .mesh_checks import BOUNDS, wavy
 
@@ -56,3 +56,38 @@ def test_cofactors_and_determinants_against_numpy():
     G = reference_element3d("hexahedron").gradients(pts)  # (6, 8, 3)
     Jm = np.einsum("cai,qaj->cqij", mesh.points[mesh.cells], G)
     assert np.allclose(jacobian_determinants(mesh, pts), np.linalg.det(Jm), rtol=1e-13)
+
+
+def test_2d_cofactors_and_determinants_against_numpy():
+    J = np.random.default_rng(2).normal(size=(4, 5, 2, 2))
+    cof = cofactors(J)
+    det = np.linalg.det(J)
+    assert np.allclose(cof, det[..., None, None] * np.linalg.inv(J).transpose(0, 1, 3, 2))
+    mesh = rectangle((0, 2), (0, 1), (2, 2), "quad")
+    mesh = Mesh(mesh.points + 0.05 * np.sin(4 * mesh.points[:, ::-1]), mesh.cells)
+    pts = np.random.default_rng(3).uniform(-1, 1, (6, 2))
+    from fem.elements import reference_element
+
+    G = reference_element("quad").gradients(pts)  # (6, 4, 2)
+    Jm = np.einsum("cai,qaj->cqij", mesh.points[mesh.cells], G)
+    assert np.allclose(jacobian_determinants(mesh, pts), np.linalg.det(Jm), rtol=1e-13)
+
+
+@pytest.mark.parametrize("element", ["quad", "triangle"])
+def test_2d_clockwise_degenerate_and_nonconvex_cells_are_refused(element):
+    mesh = rectangle((0, 2), (0, 1), (2, 2), element)
+    check_cells(mesh)
+    cells = mesh.cells.copy()
+    cells[3] = cells[3, ::-1]  # clockwise
+    with pytest.raises(ValueError, match="inverted or degenerate cell 3 "):
+        check_cells(Mesh(mesh.points, cells))
+    flat = mesh.points.copy()
+    flat[:, 1] = 0.0  # every cell flattened onto the x axis
+    with pytest.raises(ValueError, match="cell 0 "):
+        check_cells(Mesh(flat, mesh.cells))
+    if element == "quad":  # the centre node pushed past a diagonal: reflex corners
+        centre = int(np.argmin(np.linalg.norm(mesh.points - [1.0, 0.5], axis=1)))
+        bent = mesh.points.copy()
+        bent[centre] = [1.9, 0.95]
+        with pytest.raises(ValueError, match="inverted or degenerate"):
+            check_cells(Mesh(bent, mesh.cells))
