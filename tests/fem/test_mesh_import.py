@@ -56,6 +56,23 @@ def test_a_written_mesh_reads_back_identical(tmp_path, fmt, mesh):
         np.testing.assert_array_equal(perm[got.boundaries[name]], edges)
 
 
+@pytest.mark.parametrize("element", ["quad", "triangle"])
+def test_a_closed_part_does_not_depend_on_the_order_of_the_cells(tmp_path, element):
+    """A closed loop has no first edge of its own: it starts at the lowest-numbered edge, so
+    the same nodes with the cells listed in another order give the same part, edge by edge
+    (a mutation ordering the loop as the cells come is caught here)."""
+    mesh = rectangle((0, 2), (0, 1), (3, 2), element)
+    loop = np.concatenate([mesh.boundaries[s] for s in ("bottom", "right", "top", "left")])
+    parts = []
+    for seed in (0, 1):
+        order = np.random.default_rng(seed).permutation(mesh.n_cells)
+        path = tmp_path / f"m{seed}.msh"
+        write_msh(path, {"part": Mesh(mesh.points, mesh.cells[order], {"outer": loop})})
+        parts.append(body_mesh(read_mesh(path), "part").boundaries["outer"])
+    np.testing.assert_array_equal(parts[0], parts[1])
+    assert sorted(map(tuple, parts[0].tolist())) == sorted(map(tuple, loop.tolist()))
+
+
 def test_two_bodies_in_one_file_are_cut_apart(tmp_path):
     a = rectangle((0, 1), (0, 1), (2, 2))
     b = rectangle((0, 1), (1, 2), (3, 3), "triangle")
