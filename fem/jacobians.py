@@ -38,22 +38,28 @@ def jacobian_determinants(mesh: Mesh, pts: np.ndarray) -> np.ndarray:
     ref = reference(mesh.cell_type)
     X = mesh.points[mesh.cells]  # (n_cells, n_loc, d)
     J = np.einsum("cai,qaj->cqij", X, ref.gradients(pts), optimize=True)  # (n_c, n_pts, d, d)
-    return np.einsum("...j,...j->...", J[..., 0, :], cofactors(J)[..., 0, :])  # along row 0
+    if mesh.dim == 2:
+        return J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+    cof0 = np.cross(J[..., 1, :], J[..., 2, :])  # (n_c, n_pts, 3) row 0 of `cofactors`
+    return np.einsum("...j,...j->...", J[..., 0, :], cof0)  # along row 0
 
 
 def check_cells(mesh: Mesh) -> None:
     """Refuse inverted or degenerate cells: ValueError naming the first cell with det J ≤ 0.
 
-    det J is constant on a simplex; on a quadrilateral or hexahedron it is checked at the
-    corners (positivity there is necessary: they are d! × the volumes of the corner simplices)
-    and at the points of the 3-point-per-direction Gauss rule, where the integrals use it.
+    det J is constant on a simplex and affine on a bilinear quadrilateral (checked at the
+    corners, where it is extreme); on a hexahedron it is checked at the 8 corners (positivity
+    there is necessary: they are 6 × the volumes of the corner tetrahedra) and at the 27 points
+    of the 3×3×3 Gauss rule, where the integrals use it.
     """
     ctype = mesh.cell_type  # ValueError for points and cells of no cell type
     ref = reference(ctype)
     if ctype in ("triangle", "tetra"):
         pts = ref.centroid[None, :]  # (1, d)
+    elif ctype == "quad":
+        pts = ref.vertices  # (4, 2)
     else:
-        pts = np.concatenate([ref.vertices, ref.quadrature(4)[0]])  # (2^d + 3^d, d)
+        pts = np.concatenate([ref.vertices, ref.quadrature(4)[0]])  # (35, 3)
     det = jacobian_determinants(mesh, pts)  # (n_cells, n_pts)
     scale = np.ptp(mesh.points, axis=0).max() ** mesh.dim if mesh.n_nodes else 1.0
     bad = np.flatnonzero((det <= 1e-14 * scale).any(axis=1))  # (n_bad,)

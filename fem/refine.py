@@ -79,9 +79,15 @@ CHILDREN: dict[str, np.ndarray] = {
 
 
 def _sorted_keys(items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unique rows of the sorted node tuples `items` (n, k): (unique (m, k), inverse (n,))."""
-    u, inv = np.unique(np.sort(items, axis=1), axis=0, return_inverse=True)
-    return u, inv.ravel()
+    """Unique rows of the sorted node tuples `items` (n, k): (unique (m, k), inverse (n,)),
+    in lexicographic order (pairs through one integer code each: a 1D sort, much faster)."""
+    s = np.sort(items, axis=1)  # (n, k)
+    if s.shape[1] != 2:
+        u, inv = np.unique(s, axis=0, return_inverse=True)
+        return u, inv.ravel()
+    base = np.int64(s.max(initial=0)) + 1
+    _, first, inv = np.unique(s[:, 0] * base + s[:, 1], return_index=True, return_inverse=True)
+    return s[first], inv.ravel()
 
 
 def _find(keys: np.ndarray, items: np.ndarray, name: str) -> np.ndarray:
