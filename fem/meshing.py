@@ -161,7 +161,8 @@ def box(
 
 
 def transform(mesh: Mesh, func: Callable[[np.ndarray], np.ndarray]) -> Mesh:
-    """The mesh with nodes moved to func(points) ((n, 3) -> (n, 3)); same cells and parts.
+    """The mesh (2D or 3D) with nodes moved to func(points) ((n, d) -> (n, d)); same cells and
+    parts.
 
     Raises ValueError (via `check_cells`) if the map inverts a cell.
     """

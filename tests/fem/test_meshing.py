@@ -192,3 +192,17 @@ def test_extrude_refuses_bad_input():
         extrude(cradle(), (0.0, 1.0), 0)
     with pytest.raises(ValueError, match="z0 < z1"):
         extrude(cradle(), (1.0, 1.0))
+
+
+@pytest.mark.parametrize("element", ELEMENTS)
+def test_transform_a_rectangle(element):
+    """2D as 3D: the nodes moved, cells and parts kept; a reflection is refused."""
+    mesh = rectangle((0, 2), (0, 1), (4, 2), element)
+    x, y = mesh.points.T
+    bump = np.stack([x * (2 - x) * np.sin(3 * y), y * (1 - y) * np.sin(2 * x)], axis=1)
+    moved = transform(mesh, lambda p: p + 0.1 * bump)  # each side slides along its own line
+    assert moved.cells is mesh.cells and moved.boundaries is mesh.boundaries
+    assert not np.allclose(moved.points, mesh.points)
+    assert np.isclose(signed_areas(moved).sum(), 2.0, rtol=1e-12)
+    with pytest.raises(ValueError, match="inverted"):
+        transform(mesh, lambda p: p * np.array([-1.0, 1.0]))
