@@ -29,8 +29,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field, model_validator
 
-from .fields import Expression, Text, Vector, evaluate
-from .fields3d import Expression3, Vector3
+from .fields import Expression, Expression3, Text, Vector, Vector3, evaluate
 from .model import Section, refuse, validate
 from .reader import Scene
 

@@ -17,10 +17,9 @@ import pytest
 from fem.tensors import Material3D
 from problems.plugins import contact3d, contact3d_errors
 from problems.scene import load_scene
-from problems.scene.fields import evaluate
-from problems.scene.fields3d import Expression3
+from problems.scene.fields import Expression3, evaluate
 from problems.scene.manufactured3d import CENTRE, S0, SIDES
-from problems.scene.materials3d import NamedMaterial3
+from problems.scene.materials import NamedMaterial3
 from vi_core import solve
 
 NAME = "manufactured3d"
