@@ -50,7 +50,7 @@ from fem.meshing import rectangle
 from problems.errors import SceneError
 
 from .fields import Cells, Cells3, Expression3, Integer, Interval, Number, Pair, Point, Text
-from .imported import file_mesh, geo_base, geo_mesh, imported_mesh, imported_mesh3d, resolve
+from .imported import file_mesh, geo_base, geo_mesh, imported_mesh, resolve
 from .model import UNION_TAGS, Section, refuse
 
 
@@ -254,16 +254,18 @@ class MeshFile(_File):
 
     FILE_KEY: ClassVar[str] = "mesh"
     FILE_ATTR: ClassVar[str] = "mesh_file"  # `mesh` is the method
+    PLANAR: ClassVar[bool] = True  # a 2D file (MeshFile3: a 3D one)
     mesh_file: Text = Field(alias="mesh", description="the file, relative to the scene file")
 
     def nodes(self, level: int) -> int:
         """The file's mesh's nodes after `level` uniform refinements."""
-        return file_mesh(self.resolved(), self.body, self.key("mesh")).refined_nodes(level)
+        key = self.key("mesh")
+        return file_mesh(self.resolved(), self.body, key, self.PLANAR).refined_nodes(level)
 
-    def mesh(self, level: int) -> Mesh:
+    def mesh(self, level: int) -> Mesh | Mesh3D:
         """The body's mesh at refinement `level`."""
         self.check_size(level)
-        return imported_mesh(self.resolved(), self.body, level, self.key("mesh"))
+        return imported_mesh(self.resolved(), self.body, level, self.key("mesh"), self.PLANAR)
 
 
 class GeoFile(_File):
@@ -367,19 +369,10 @@ class MeshFile3(MeshFile):
     linear tetrahedra or hexahedra, the volume group's cells refined `level` times (each into 8,
     new nodes on the file's faces); its physical surface groups are the boundary parts."""
 
+    PLANAR: ClassVar[bool] = False
     body: Text | None = Field(
         None, description="a physical volume group (omitted: every volume cell of the file)"
     )
-
-    def nodes(self, level: int) -> int:
-        """The file's mesh's nodes after `level` uniform refinements (each cell into 8)."""
-        key = self.key("mesh")
-        return file_mesh(self.resolved(), self.body, key, False).refined_nodes(level)
-
-    def mesh(self, level: int) -> Mesh3D:  # type: ignore[override]
-        """The body's mesh at refinement `level`."""
-        self.check_size(level)
-        return imported_mesh3d(self.resolved(), self.body, level, self.key("mesh"))
 
 
 def _tag(v: Any) -> str | None:
