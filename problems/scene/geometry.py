@@ -11,14 +11,14 @@ or degenerate cells), is a SceneError naming the key. Every geometry counts its 
 before meshing (`GeometryTable.nodes`, exact), so a command refuses a level range before it
 solves the coarser levels (`problems.commands.resources.check_levels`).
 
-3D kinds (`Geometry3`, meshes `fem.mesh3d.Mesh3D`): "box", [x0, x1] × [y0, y1] × [z0, z1] in
+3D kinds (`Geometry3`, 3D `fem.mesh.Mesh`es): "box", [x0, x1] × [y0, y1] × [z0, z1] in
 nx × ny × nz hexahedra (Q1) or 6 tetrahedra each (P1), each level halving the cells' size; parts
 "left"/"right" (x), "front"/"back" (y), "bottom"/"top" (z). An optional `bottom_lift` = h(x, y)
 curves the bottom into the surface z = z0 + h(x, y): every node moves up by
 h(x, y)·(z1 − z)/(z1 − z0) (nodes on the true surface at every level; the top stays flat);
 `top_lift` likewise curves the top (nodes move by h(x, y)·(z − z0)/(z1 − z0)). "extruded": a
 built-in 2D geometry table (`section`: rectangle, half_disc or cradle, in the x–y plane)
-extruded over z in `layers` layers of hexahedra (`fem.mesh3d.extrude`; a level refines the
+extruded over z in `layers` layers of hexahedra (`fem.meshing.extrude`; a level refines the
 section and doubles the layers); its parts are the section's (surfaces over its curves) and
 "z0"/"z1" (the ends). A mesh file, `{ mesh = "part.msh", body = "bracket" }`: a physical volume
 group of linear tetrahedra or hexahedra, its physical surface groups the parts.
@@ -45,8 +45,7 @@ from pydantic_core import PydanticCustomError
 
 from fem.boundary import trace
 from fem.mesh import Mesh
-from fem.mesh3d import END_PARTS, Mesh3D, box, extrude, transform
-from fem.meshing import rectangle
+from fem.meshing import END_PARTS, box, extrude, rectangle, transform
 from problems.errors import SceneError
 
 from .fields import Cells, Cells3, Expression3, Integer, Interval, Number, Pair, Point, Text
@@ -262,7 +261,7 @@ class MeshFile(_File):
         key = self.key("mesh")
         return file_mesh(self.resolved(), self.body, key, self.PLANAR).refined_nodes(level)
 
-    def mesh(self, level: int) -> Mesh | Mesh3D:
+    def mesh(self, level: int) -> Mesh:
         """The body's mesh at refinement `level`."""
         self.check_size(level)
         return imported_mesh(self.resolved(), self.body, level, self.key("mesh"), self.PLANAR)
@@ -278,7 +277,7 @@ class GeoFile(_File):
 
     def nodes(self, level: int) -> int:
         """gmsh's level-0 mesh's nodes after `level` uniform refinements (gmsh refines by
-        splitting every cell as `fem.meshing.refine` does)."""
+        splitting every cell as `fem.refine.refine` does)."""
         return geo_base(self.resolved(), self.body, self.key("geo")).refined_nodes(level)
 
     def mesh(self, level: int) -> Mesh:
@@ -306,7 +305,7 @@ class Box(GeometryTable):
         """The grid's nodes (tetrahedra split the hexahedra without new nodes)."""
         return int(np.prod([c * 2**level + 1 for c in self.cells]))
 
-    def mesh(self, level: int) -> Mesh3D:
+    def mesh(self, level: int) -> Mesh:
         """The mesh at refinement `level`."""
         self.check_size(level)
         z0, z1 = self.z
@@ -352,7 +351,7 @@ class Extruded(GeometryTable):
         """The section's nodes times the node layers, layers·2^level + 1."""
         return self.section.nodes(level) * (self.layers * 2**level + 1)
 
-    def mesh(self, level: int) -> Mesh3D:
+    def mesh(self, level: int) -> Mesh:
         """The section's mesh at `level` extruded in layers·2^level layers."""
         self.check_size(level)
         m2 = self.section.mesh(level)

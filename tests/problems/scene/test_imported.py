@@ -10,9 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fem import shapes
-from fem.mesh3d import box
 from fem.mesh_import import write_msh
-from fem.meshing import rectangle
+from fem.meshing import box, rectangle
 from problems.commands.main import main
 from problems.errors import SceneError
 from problems.plugins import contact3d
