@@ -10,7 +10,7 @@ polyline's geometric error (docs/design.md, "Meshes from files"). From a `.geo` 
 and refines, putting new boundary nodes on the geometry's curves.
 
 A 3D scene's geometry `{ mesh = "part.msh", body = "bracket" }` names a physical volume group;
-its physical surface groups become the boundary parts (`imported_mesh3d`, `fem.mesh_import`),
+its physical surface groups become the boundary parts (`imported_mesh`, `fem.mesh_import`),
 and a level refines every cell into 8 (`fem.refine`, new nodes on the file's faces).
 
 Everything here is independent of how the scene is read: `imported_mesh` takes the resolved
@@ -81,17 +81,12 @@ def geo_base(path: Path, body: str | None, key: str) -> Mesh:
         raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
 
 
-def imported_mesh(path: Path, body: str | None, level: int, key: str) -> Mesh:
-    """The body `body` of the mesh file `path`, refined `level` times (new boundary nodes on
-    the file's polyline); SceneErrors naming `key` (the scene's mesh key) as for `file_mesh`.
-    """
-    return refine(file_mesh(path, body, key), level)
-
-
-def imported_mesh3d(path: Path, body: str | None, level: int, key: str) -> Mesh:
-    """The body `body` (a physical volume group) of the 3D mesh file `path`, refined `level`
-    times (each cell into 8, new nodes on the file's faces); refusals as for `imported_mesh`."""
-    return refine(file_mesh(path, body, key, False), level)
+def imported_mesh(path: Path, body: str | None, level: int, key: str, planar: bool = True) -> Mesh:
+    """The body `body` of the mesh file `path` (a physical surface group, or with `planar`
+    False a volume group of a 3D file), refined `level` times (new boundary nodes on the file's
+    polyline; in 3D each cell into 8, new nodes on the file's faces); SceneErrors naming `key`
+    (the scene's mesh key) as for `file_mesh`."""
+    return refine(file_mesh(path, body, key, planar), level)
 
 
 def geo_mesh(path: Path, body: str | None, level: int, key: str) -> Mesh:

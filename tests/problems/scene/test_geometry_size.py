@@ -14,8 +14,7 @@ from problems.commands import resources
 from problems.errors import SceneError
 from problems.plugins import registry
 from problems.scene import geometry, load_scene
-from problems.scene.geometry import Cradle, HalfDisc, MeshFile, Rectangle
-from problems.scene.geometry3d import Box, Extruded, MeshFile3
+from problems.scene.geometry import Box, Cradle, Extruded, HalfDisc, MeshFile, MeshFile3, Rectangle
 
 MESHES = Path(__file__).parents[3] / "problems" / "scenes" / "meshes"
 
