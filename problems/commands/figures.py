@@ -15,7 +15,7 @@ from pathlib import Path
 
 import problems.pipeline as pipeline
 from problems.errors import SceneError
-from problems.output import plots
+from problems.output import plots, signals
 from problems.output.files import output_folder
 from problems.plugins import registry
 from problems.plugins.contract import Sweep, draw_multiplier, needs
@@ -52,6 +52,13 @@ def panel_heading(label: str, value: float) -> str:
     return f"{name} = {value:.3g}" + (f" {unit}" if unit and unit != "1" else "")
 
 
+def _solve(plugin, scene: Scene, level: int) -> tuple:
+    """(model, ssn's solution) of `scene` at `level` (the scene's problem:
+    `pipeline.solve_model`)."""
+    model = plugin.build(scene, level)
+    return model, pipeline.solve_model(plugin, model, method="ssn")
+
+
 def cmd_figures(args: argparse.Namespace) -> int:
     """Solve the scene for each value of the plug-in's SWEEP and plot them side by side."""
     name = args.scene or DEFAULT_SCENE
@@ -70,8 +77,8 @@ def cmd_figures(args: argparse.Namespace) -> int:
         panels = []
         for v in progress_bar(iterable=values, desc=f"solving for each {sweep.path}", unit="solve"):
             scene = load_scene(name, [*(args.set or []), f"{sweep.path}={v!r}"])
-            model = plugin.build(scene, level)
-            sol = pipeline.solve_model(plugin, model, method="ssn")  # the scene's problem
+            # the scene's problem, in a worker thread: a signal acts inside compiled code
+            model, sol = signals.interruptible(_solve, plugin, scene, level)
             if not sol.converged:
                 print(
                     f"mixvi: {sweep.path} = {v:g} did not converge (residual {sol.residual:.2e})",

@@ -53,6 +53,7 @@ from threadpoolctl import threadpool_limits
 import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
+from problems.output import signals
 from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import output_folder
 from problems.plugins import registry
@@ -153,7 +154,8 @@ def run_study(
         if client is None:
             for level, solver in cases:
                 bar.set_description(f"level {level} {solver}")
-                done[level, solver] = run_case(scene, level, solver, tols)
+                # in a worker thread: a signal acts even inside compiled code
+                done[level, solver] = signals.interruptible(run_case, scene, level, solver, tols)
                 bar.update(len(tols))
         else:
             from dask.distributed import as_completed
@@ -177,7 +179,9 @@ def run_study(
     solved = [r for r in records if "error" not in r]
     exact = bool(solved) and all(r["err"] is not None for r in solved)
     if not exact:
-        _reference_errors(plugin, scene, records, runs, max(levels), tols[-1])
+        signals.interruptible(
+            _reference_errors, plugin, scene, records, runs, max(levels), tols[-1]
+        )
     ok = [r for r in records if r.get("err") is not None]
     norms = getattr(plugin, "EXACT_NORMS", plugin.NORMS) if exact else plugin.NORMS
     return {
@@ -321,7 +325,8 @@ def write_series(plugin: Any, scene: Scene, solutions: dict, tmp: Path) -> list[
         sub = Path(solver) / f"level_{level}"
         (tmp / sub).mkdir(parents=True)
         with threadpool_limits(1):
-            model = plugin.build(scene, level)
+            # the build in a worker thread (signals); the writes in this one, never in a worker
+            model = signals.interruptible(plugin.build, scene, level)
             files = plugin.postprocess(model, sol, tmp / sub).get("files", [])
         series.setdefault(solver, []).extend(
             vtu_datasets(level, [(sub / f).as_posix() for f in files])
