@@ -906,7 +906,15 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 # ------------------------------------------------------------------ contract v2 declarations
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
-SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
+SWEEP = Sweep(
+    "contact.g",
+    "friction bound g [Pa]",
+    factors=(1.5, 1.0, 0.6),
+    file="g_sweep3d.png",
+    otherwise=Sweep(
+        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep3d.png"
+    ),
+)
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
 # against the scene's [exact] table: exact_errors (contact3d_errors)
 EXACT_NORMS = contact3d_errors.NORMS
