@@ -417,6 +417,18 @@ def worker_count(asked: int, per_worker: float, cases: int) -> tuple[int, str | 
     return n, f"mixvi study: --workers {asked} lowered to {n} ({why})"
 
 
+def _end_workers() -> None:
+    """After a signal: kill the local cluster's worker processes (this process's children) and
+    silence Dask's log. A worker inside compiled code does not stop when asked: the cluster's
+    close waited 4 s for it and logged two warnings after the signal."""
+    import logging
+    import multiprocessing
+
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    for child in multiprocessing.active_children():
+        child.kill()
+
+
 @contextmanager
 def _client(args: argparse.Namespace) -> Iterator[Any]:
     """A Dask client for --workers / --scheduler (None without either: a serial study)."""
@@ -437,7 +449,11 @@ def _client(args: argparse.Namespace) -> Iterator[Any]:
             ) as cluster,
             Client(cluster) as client,
         ):
-            yield client
+            try:
+                yield client
+            except KeyboardInterrupt:  # a signal: end the workers now (`_end_workers`)
+                _end_workers()
+                raise
         return
     try:
         client = Client(args.scheduler, timeout=30)

@@ -454,6 +454,26 @@ COMMANDS = {
         "clarabel",
         0,
     ),  # fmt: skip
+    # on a local Dask cluster (the optional extra): the workers are killed at once
+    "study-dask": (
+        [
+            "study",
+            "paper_two_body",
+            "--levels",
+            "2..3",
+            "--solvers",
+            "ssn",
+            "--tols",
+            "1e-6",
+            "--workers",
+            "2",
+            "--no-progress",
+            "--out",
+            "o",
+        ],
+        "splu",
+        20_000,
+    ),  # fmt: skip
     "extremes": (["extremes", "--only", "(thin layer)", "--out", "o"], "splu", 0),
     # the cases run in child processes (the parent waits in a loop of short reads)
     "bench": (
@@ -477,6 +497,7 @@ SIGNALS_OF = {
     "figures": signal.SIGTERM,
     "study": signal.SIGINT,
     "study-conic": signal.SIGTERM,
+    "study-dask": signal.SIGINT,
     "extremes": signal.SIGINT,
     "bench": signal.SIGTERM,
 }
@@ -489,18 +510,20 @@ def interrupt_command(tmp_path, name: str, command: list[str] | None = None) -> 
     process)."""
     argv, what, n_min = COMMANDS[name]
     sig = SIGNALS_OF[name]
+    if "--workers" in argv:
+        pytest.importorskip("dask.distributed")
     case = tmp_path / "case"
     case.mkdir()
     (case / "notes.json").write_text('{"the user\'s": true}\n')
     before = tree(case)
     dt, thread = interrupt_at_mark(argv, what, n_min, sig, case, command, limit=60.0)
     assert tree(case) == before
-    if name != "bench":
+    if name not in ("bench", "study-dask"):  # those two: in the main thread of a child process
         assert thread != "main", f"{what} ran in the main thread"
     assert dt < 2.0, f"{dt:.2f} s from {NAMES[sig]} to the exit"
 
 
-SLOW_COMMANDS = ("study-conic", "bench")  # ~12 s each; bench's parent never solves itself
+SLOW_COMMANDS = ("study-conic", "bench", "study-dask")  # 12–40 s each
 
 
 @pytest.mark.parametrize(
