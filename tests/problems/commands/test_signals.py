@@ -3,13 +3,18 @@ one line, exit status 130 / 143, no traceback, no temporary file or lock left, a
 previous run's files in the output folder byte-identical with their marker.
 
 Inside compiled code (the work runs in a worker thread, problems.output.signals): a SIGINT
-sent as SuperLU starts to factorise a 96,576-unknown matrix ends the run within 2 s (the test
-hook vi_core.marks, MIXVI_MARK, tells when it starts); in the slow tier the same with
-SIGTERM, inside a pyamg set-up, inside a Clarabel solve, and inside the factorisation of the
-The factorisation of the paper scene's level-4 matrix takes only ~1 s, so the mechanism and its
-mutation are also shown on one SuperLU factorisation that takes a minute (a 3D Laplacian of
-54,872 unknowns): through `interruptible` the SIGINT ends it within 2 s; called directly (the
-fault: the work in the main thread), the process is still running 5 s after the signal.
+sent as SuperLU starts to factorise a 96,576-unknown matrix ends `mixvi solve` within 2 s
+(the test hook vi_core.marks, MIXVI_MARK, tells when the call starts and in which thread);
+`check`, `figures`, `study` and `extremes` likewise inside their SuperLU or Clarabel calls, each
+signal ending the run in one line with the case folder byte-identical; `bench` (its cases in
+child processes) and `study --workers` (Dask worker processes, killed at once) in the slow
+tier, with SIGTERM, a pyamg set-up and a Clarabel solve. Those calls take 0.5–5 s here, so a
+run whose work sat in the main thread could still exit within 2 s of the signal: the tests also
+assert that the call ran outside the main thread, and the mutation (MUTANT: `interruptible` a
+plain call, as the real `mixvi` command) is caught by that. On a call that takes minutes the
+time alone decides (slow tier): a 3D box of 51,984 unknowns whose SuperLU factorisation runs
+for minutes is interrupted within 2 s, and under MUTANT still runs 5 s after the signal; so
+does one SuperLU factorisation of a 3D Laplacian (54,872 unknowns) called directly.
 
 The slow tier also measures the reaction time on the paper scene at level 5 during the long
 factorisations (printed; no timed assert):
