@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
             "runs": runs,
         }
         rows.append(row)
-        print(f"{name:<12}{row['signal']:>8}{row['call']:>9}{row['thread']:>12}"
+        print(f"{name:<12}{row['signal']:>8}{row['call']:>9}{row['thread'][:11]:>12}"
               f"{row['exit_median_s']:>13.2f}{row['exit_max_s']:>10.2f}"
               f"{row['message_max_s']:>13.2f}{str(row['clean']):>7}", flush=True)  # fmt: skip
     Path(args.json).write_text(json.dumps(rows, indent=2) + "\n")
