@@ -505,6 +505,26 @@ def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
     return float(d.max() / size)
 
 
+def _not_facing(surf: Surface, master: Coupling) -> str:
+    """What is wrong with a master surface that lies behind no slave node's support (what a
+    master must be, and which of the three ways it is not: it faces the same way as the slave,
+    it lies behind the slave, or the two do not overlap seen along the slave's normal)."""
+    mesh = master.body.mesh
+    msurf = surface(mesh, master.part, SURFACE_ORDER[mesh.cell_type])
+    n_s, n_m = surf.normals.mean(axis=0), msurf.normals.mean(axis=0)  # (3,) mean outward normals
+    ahead = float((msurf.points.mean(axis=0) - surf.points.mean(axis=0)) @ n_s)
+    if float(n_s @ n_m) > 0:
+        why = "the two surfaces face the same way (their outward normals agree)"
+    elif ahead < 0:
+        why = "the two surfaces face away from each other (the master lies behind the slave)"
+    else:
+        why = "the two surfaces do not overlap seen along the slave's normal"
+    return (
+        "a master surface facing the slave one and overlapping it: no slave node has this master "
+        f"behind its faces, so no contact multiplier can be placed; {why}"
+    )
+
+
 def _rigid_gap(gap, points: np.ndarray) -> np.ndarray:
     """(n,) the scene's initial gap to a rigid foundation at the points (n, 3); 0 without a
     `gap` field; SceneError where it is negative."""
@@ -549,6 +569,10 @@ def slave_contact(
     # the two classes' bases from the crosspoint rules (a line node keeps its tangential class:
     # it cannot give away one tangent's function), then the rows the master covers
     covered = np.ones(surf.size, dtype=bool) if master is None else master.covered
+    if master is not None and not covered.any():  # no multiplier at all: say why
+        raise SceneError(
+            "contact.master", f"{master.body.name}.{master.part}", _not_facing(surf, master)
+        )
     M_loc = None if master is None else master.M_loc
     S_n, M_n, W_n, _ = class_blocks(surf, carry_n, covered, law.ends, M_loc)
     S_t, M_t, W_t, Q_t = class_blocks(surf, n_tan > 0, covered, law.ends, M_loc)
@@ -882,7 +906,15 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 # ------------------------------------------------------------------ contract v2 declarations
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
-SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
+SWEEP = Sweep(
+    "contact.g",
+    "friction bound g [Pa]",
+    factors=(1.5, 1.0, 0.6),
+    file="g_sweep3d.png",
+    otherwise=Sweep(
+        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep3d.png"
+    ),
+)
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
 # against the scene's [exact] table: exact_errors (contact3d_errors)
 EXACT_NORMS = contact3d_errors.NORMS

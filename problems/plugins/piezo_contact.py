@@ -1024,7 +1024,15 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 CONTRACT = 2
-SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="fig_5_4.png")
+SWEEP = Sweep(
+    "contact.g",
+    "friction bound g [Pa]",
+    factors=(1.5, 1.0, 0.6),
+    file="fig_5_4.png",
+    otherwise=Sweep(
+        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep.png"
+    ),
+)
 NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
 extremes = piezo_extremes.rows
 

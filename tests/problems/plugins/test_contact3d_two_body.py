@@ -110,3 +110,23 @@ def test_master_must_be_another_body():
         problems.load_scene(EXTRUDED, contact__master="disc.top")
     with pytest.raises(SceneError, match="contact.master"):
         problems.load_scene(EXTRUDED, contact__master="cradle.nowhere")
+
+
+@pytest.mark.parametrize(
+    ("change", "why"),
+    [
+        ("contact.master=base.bottom", "face the same way"),
+        ("bodies.top.geometry.z=[-1.0,-0.5]", "face away from each other"),
+        ("bodies.top.geometry.x=[3.0,4.0]", "do not overlap seen along the slave's normal"),
+    ],
+    ids=["same-way", "facing-away", "beside"],
+)
+def test_surfaces_that_do_not_face_each_other_are_named_as_such(tmp_path, capsys, change, why):
+    """Two 3D bodies whose contact surfaces do not face each other (issue 29): exit 2 with one
+    line naming contact.master and what is wrong — not "displacement not fully prescribed"."""
+    out = tmp_path / "o"
+    assert cli.main(["solve", "two_blocks3d", "--set", change, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "contact.master" in err[0], err
+    assert why in err[0] and "no slave node has this master behind its faces" in err[0], err
+    assert "prescribed" not in err[0] and not out.exists()
