@@ -29,7 +29,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from fem.boundary import trace
+from fem.facets import trace
 from fem.mesh import Mesh
 from fem.meshing import rectangle
 from problems.errors import SceneError

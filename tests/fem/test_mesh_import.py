@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from fem import mesh_import, shapes
-from fem.boundary import trace
+from fem.facets import trace
 from fem.mesh import Mesh
 from fem.mesh_import import MeshImportError, body_mesh, read_mesh, require_curve, write_msh
 from fem.meshing import rectangle, refine
