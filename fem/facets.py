@@ -53,7 +53,7 @@ from .mesh import Mesh
 from .mesh3d import Mesh3D
 
 ENDS = ("merge", "keep")  # multiplier end treatments, see the module docstring
-FRAME_LIMIT = np.cos(np.radians(10.0))  # refuse a surface whose normals come this close to a
+FRAME_LIMIT = np.cos(np.radians(10.0))  # refuse normals within 10° of every coordinate axis
 SEGMENT_DUAL = np.array([[2.0, -1.0], [-1.0, 2.0]])  # A_e of every segment
 
 
@@ -202,16 +202,10 @@ def _segments(mesh: Mesh, edges: np.ndarray, name: str) -> Trace:
     if (lengths <= 0).any():
         raise ValueError(f"boundary part {name!r} has a segment of zero length")
     seg_n = np.stack([d[:, 1], -d[:, 0]], axis=1) / lengths[:, None]  # outward (domain on left)
-    weights = np.zeros(k)
-    np.add.at(weights, segments[:, 0], 0.5 * lengths)
-    np.add.at(weights, segments[:, 1], 0.5 * lengths)
-    nsum = np.zeros((k, 2))
-    np.add.at(nsum, segments[:, 0], seg_n * lengths[:, None])
-    np.add.at(nsum, segments[:, 1], seg_n * lengths[:, None])
-    normals = nsum / np.linalg.norm(nsum, axis=1)[:, None]
-    fw = np.repeat(0.5 * lengths[:, None], 2, axis=1)  # (n_seg, 2)
+    fw = np.repeat(0.5 * lengths[:, None], 2, axis=1)  # (n_seg, 2) ∫_e φ_a
+    nloc = np.repeat(0.5 * (seg_n * lengths[:, None])[:, None], 2, axis=1)  # (n_seg, 2, 2)
     dual = np.broadcast_to(SEGMENT_DUAL, (len(segments), 2, 2))
-    return Trace(nodes, segments, "segment", P, normals, weights, fw, lengths, dual)
+    return _gather(nodes, segments, "segment", P, fw, nloc, lengths, dual)
 
 
 def _faces(mesh: Mesh3D, glob: np.ndarray, name: str, order: int) -> Trace:
@@ -229,13 +223,19 @@ def _faces(mesh: Mesh3D, glob: np.ndarray, name: str, order: int) -> Trace:
         raise ValueError(f"boundary part {name!r} has a face of zero area")
     mass = np.einsum("fq,qa,qb->fab", dA, phi, phi)  # (n_f, m, m) M_e
     fw = mass.sum(axis=2)  # (n_f, m) ∫_e φ_a dA
-    k = nodes.size
-    weights = np.bincount(faces.ravel(), fw.ravel(), minlength=k)  # (k,)
     nloc = np.einsum("q,qa,fqi->fai", w, phi, N)  # (n_f, m, 3) ∫_e φ_a n dA
-    nsum = np.stack([np.bincount(faces.ravel(), nloc[..., i].ravel(), k) for i in range(3)], 1)
-    normals = nsum / np.linalg.norm(nsum, axis=1)[:, None]  # (k, 3)
     dual = fw[:, :, None] * np.linalg.inv(mass)  # (n_f, m, m) A_e = D_e M_e⁻¹
-    return Trace(nodes, faces, ftype, mesh.points[nodes], normals, weights, fw, areas, dual)
+    return _gather(nodes, faces, ftype, mesh.points[nodes], fw, nloc, areas, dual)
+
+
+def _gather(nodes, facets, ftype, points, fw, nloc, measures, dual) -> Trace:
+    """The `Trace` from per-facet ∫_e φ_a (n_f, m) and ∫_e φ_a n (n_f, m, d): nodal weights
+    and unit normals summed over the facets around each node."""
+    k, d = nodes.size, points.shape[1]
+    weights = np.bincount(facets.ravel(), fw.ravel(), minlength=k)  # (k,)
+    nsum = np.stack([np.bincount(facets.ravel(), nloc[..., i].ravel(), k) for i in range(d)], 1)
+    normals = nsum / np.linalg.norm(nsum, axis=1)[:, None]  # (k, d)
+    return Trace(nodes, facets, ftype, points, normals, weights, fw, measures, dual)
 
 
 def trace(mesh: Mesh | Mesh3D, names: str | Sequence[str], order: int = 4) -> Trace:

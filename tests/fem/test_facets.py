@@ -8,9 +8,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import fem.facets as ff
+from fem import assembly
 from fem.elements import reference_element
 from fem.facets import facet_integrals, frames, reference_direction, trace, triangle_rule
+from fem.mesh import Mesh
 from fem.mesh3d import box, transform
+from fem.shapes import half_disc
 
 SEEDS = st.integers(0, 2**31 - 1)
 
@@ -121,3 +125,76 @@ def test_triangle_rule_degree():
                 exact = np.prod(np.arange(1, i + 1)) * np.prod(np.arange(1, j + 1))
                 exact /= np.prod(np.arange(1, i + j + 3))
                 assert abs(w @ (pts[:, 0] ** i * pts[:, 1] ** j) - exact) <= 1e-15
+
+
+# ---------------------------------------------------------------- 2D chains of segments
+def _generic_segment_data(mesh, tr, order=4):
+    """Mass matrices, ∫φ_a, ∫φ_a n and A_e = D_e M_e⁻¹ of the trace's segments by the generic
+    quadrature of `fem.facets` (the path of 3D faces), to check the closed forms of 2D."""
+    x = mesh.points[tr.nodes[tr.facets]]  # (n_seg, 2, 2)
+    pts, w = ff.facet_rule("segment", order)  # (q, 1), (q,)
+    phi = ff.facet_values("segment", pts)  # (q, 2)
+    d = x[:, 1] - x[:, 0]  # (n_seg, 2)
+    L = np.linalg.norm(d, axis=1)
+    mass = np.einsum("e,q,qa,qb->eab", L, w, phi, phi)  # (n_seg, 2, 2)
+    fw = mass.sum(axis=2)
+    n = np.stack([d[:, 1], -d[:, 0]], axis=1)  # (n_seg, 2) outward, × L
+    nloc = np.einsum("q,qa,ei->eai", w, phi, n)  # (n_seg, 2, 2) ∫_e φ_a n
+    nsum = np.zeros((tr.size, 2))
+    np.add.at(nsum, tr.facets.ravel(), nloc.reshape(-1, 2))
+    return fw, nsum / np.linalg.norm(nsum, axis=1)[:, None], fw[:, :, None] * np.linalg.inv(mass)
+
+
+def _check_closed_forms(seed: int) -> None:
+    """On a perturbed half disc (a curved chain with uneven segments) the closed forms of a 2D
+    trace — ∫φ_a = |e|/2, the length-weighted normals, A_e = [[2, −1], [−1, 2]] — are the
+    face formulas of 3D (D_e M_e⁻¹, n_k ∝ ∫φ_k n) applied to segments."""
+    rng = np.random.default_rng(seed)
+    mesh = half_disc(level=1)
+    pts = mesh.points + rng.uniform(-0.02, 0.02, mesh.points.shape)
+    mesh = Mesh(pts, mesh.cells, mesh.boundaries)
+    tr = trace(mesh, "contact")
+    fw, normals, dual = _generic_segment_data(mesh, tr)
+    np.testing.assert_allclose(tr.facet_weights, fw, rtol=1e-14)
+    np.testing.assert_allclose(tr.normals, normals, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(tr.dual, dual, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(np.bincount(tr.facets.ravel(), fw.ravel()), tr.weights, rtol=1e-14)
+
+
+@settings(max_examples=6)
+@given(seed=SEEDS)
+def test_segment_closed_forms_agree_with_the_face_formulas(seed):
+    """`_check_closed_forms` on random perturbations."""
+    _check_closed_forms(seed)
+
+
+def test_mutation_a_wrong_segment_dual_is_caught(monkeypatch):
+    """A_e = I (the primal basis) on segments: the comparison above fails."""
+    monkeypatch.setattr(ff, "SEGMENT_DUAL", np.eye(2))
+    with pytest.raises(AssertionError):
+        _check_closed_forms(0)
+
+
+def test_segment_tangents_arc_length_sizes_and_integrals():
+    """2D: τ = (−n_y, n_x) (`frames`, `Trace.tangents`), s the arc length, node sizes the longer
+    adjacent segment, facet integrals summed per node = `fem.assembly.boundary_load`; arc
+    length is refused on a 3D surface."""
+    mesh = half_disc(level=1)
+    tr = trace(mesh, "contact")
+    (tau,) = frames(tr.normals)
+    assert np.array_equal(tau, tr.tangents)
+    np.testing.assert_allclose(np.einsum("ki,ki->k", tau, tr.normals), 0.0, atol=1e-15)
+    n = tr.normals
+    assert (n[:, 0] * tau[:, 1] - n[:, 1] * tau[:, 0] > 0).all()  # (n, τ) right-handed
+    np.testing.assert_allclose(np.diff(tr.s), tr.measures[: tr.size - 1], rtol=1e-14)
+    h = np.maximum(np.r_[tr.measures, 0.0], np.r_[0.0, tr.measures])[: tr.size]
+    np.testing.assert_array_equal(tr.node_sizes(), h)  # an open chain: k − 1 segments
+
+    def f(x, y):
+        return 1.0 + x * y - y**2
+
+    per_node = np.bincount(tr.facets.ravel(), facet_integrals(mesh, tr, f).ravel(), tr.size)
+    ref = assembly.boundary_load(mesh, "contact", f, 1)[tr.nodes]
+    np.testing.assert_allclose(per_node, ref, rtol=1e-13)
+    with pytest.raises(ValueError, match="2D trace"):
+        _ = trace(box((0, 1), (0, 1), (0, 1), (1, 1, 1)), "bottom").s
