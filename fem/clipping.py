@@ -391,7 +391,7 @@ def cells(s: Trace, m: Trace, reach: float = 1.0):
     The slave face is projected orthogonally onto its auxiliary plane; each master node y is
     carried to the slave point x_s(ξ) whose interpolated normal line passes through it, and
     that point is projected onto the plane (so the cells follow the projection along the
-    normal field, as the pieces of `fem.mortar` do in 2D).
+    normal field, as the 2D pieces of `segment_pieces` do).
 
     Returns (e, f, poly, count, x0, n0, E): slave face (n_c,), master face (n_c,), polygons
     (n_c, K, 2) in plane coordinates of the slave face's auxiliary plane (counterclockwise about
@@ -460,7 +460,7 @@ def _overlapping(key: np.ndarray, poly: np.ndarray, count: np.ndarray, area: np.
 def nearest_hits(s: Trace, m: Trace, e, f, poly, count, x0, E, tol: float = 1e-12):
     """Overlap cells for a master that folds back under a slave face: where the cells of two
     master faces overlap on one slave face (the normal line meets both), the nearer face wins
-    (as `fem.mortar` in 2D): the overlap polygon (the convex intersection of the two cells) is
+    (as `segment_pieces` in 2D): the overlap polygon (the convex intersection of the two cells) is
     appended as a cell of the FARTHER face with weight −1, so that its integral is taken back.
     Nearer and farther are decided at the overlap's vertex mean (two sheets of one surface do
     not cross). Exact for two sheets; three cells over one point (a second fold) would be taken
