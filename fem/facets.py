@@ -50,7 +50,6 @@ import scipy.sparse as sp
 from .elements import reference_element
 from .elements3d import FACE_TYPE
 from .mesh import Mesh
-from .mesh3d import Mesh3D
 
 ENDS = ("merge", "keep")  # multiplier end treatments, see the module docstring
 FRAME_LIMIT = np.cos(np.radians(10.0))  # refuse normals within 10° of every coordinate axis
@@ -208,7 +207,7 @@ def _segments(mesh: Mesh, edges: np.ndarray, name: str) -> Trace:
     return _gather(nodes, segments, "segment", P, fw, nloc, lengths, dual)
 
 
-def _faces(mesh: Mesh3D, glob: np.ndarray, name: str, order: int) -> Trace:
+def _faces(mesh: Mesh, glob: np.ndarray, name: str, order: int) -> Trace:
     """The trace on boundary faces (n_f, m) of a 3D mesh: quadrature of the face mass
     matrices, normals and weights at `order`."""
     if glob.size == 0:
@@ -238,7 +237,7 @@ def _gather(nodes, facets, ftype, points, fw, nloc, measures, dual) -> Trace:
     return Trace(nodes, facets, ftype, points, normals, weights, fw, measures, dual)
 
 
-def trace(mesh: Mesh | Mesh3D, names: str | Sequence[str], order: int = 4) -> Trace:
+def trace(mesh: Mesh, names: str | Sequence[str], order: int = 4) -> Trace:
     """The trace of `mesh` on the boundary part(s) `names` (KeyError for an unknown part,
     ValueError for a 2D part that is not one chain of segments or a facet of zero measure).
 
@@ -284,7 +283,7 @@ def frames(normals: np.ndarray, a: np.ndarray | None = None) -> tuple[np.ndarray
 
 
 def facet_integrals(
-    mesh: Mesh | Mesh3D,
+    mesh: Mesh,
     tr: Trace,
     func: Callable[..., np.ndarray],
     order: int = 4,

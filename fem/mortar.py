@@ -37,7 +37,6 @@ import scipy.sparse as sp
 from . import clipping
 from .facets import Trace, facet_values, trace
 from .mesh import Mesh
-from .mesh3d import Mesh3D
 
 # Quadrature order of the 3D face integrals (mass, normals): exact on affine faces; on
 # non-planar quadrilaterals (|N| not polynomial) biorthogonality holds to 5e-14 relative at 7 %
@@ -81,9 +80,9 @@ class Mortar:
 
 
 def mortar_coupling(
-    slave: Mesh | Mesh3D,
+    slave: Mesh,
     slave_part: str | Sequence[str],
-    master: Mesh | Mesh3D,
+    master: Mesh,
     master_part: str | Sequence[str],
     quad_order: int | None = None,
     reach: float = 1.0,

@@ -261,7 +261,7 @@ class GeoFile(_File):
 
     def nodes(self, level: int) -> int:
         """gmsh's level-0 mesh's nodes after `level` uniform refinements (gmsh refines by
-        splitting every cell as `fem.meshing.refine` does)."""
+        splitting every cell as `fem.refine.refine` does)."""
         return geo_base(self.resolved(), self.body, self.key("geo")).refined_nodes(level)
 
     def mesh(self, level: int) -> Mesh:

@@ -1,4 +1,4 @@
-"""Geometry tables of 3D scenes → `fem.mesh3d.Mesh3D` at a refinement level.
+"""Geometry tables of 3D scenes → 3D `fem.mesh.Mesh`es at a refinement level.
 
 Kind "box": [x0, x1] × [y0, y1] × [z0, z1] in nx × ny × nz hexahedra (Q1) or 6 tetrahedra each
 (P1), each level halving the cells' size (8 times the cells). Boundary parts "left"/"right"
@@ -7,7 +7,7 @@ bottom into the surface z = z0 + h(x, y): every node moves up by h(x, y)·(z1 �
 (nodes on the true surface at every level; the top stays flat); `top_lift` likewise curves the
 top (nodes move by h(x, y)·(z − z0)/(z1 − z0)). Kind "extruded": a built-in 2D geometry table
 (`section`: rectangle, half_disc or cradle, in the x–y plane) extruded over z in `layers`
-layers of hexahedra (`fem.mesh3d.extrude`; a level refines the section and doubles the
+layers of hexahedra (`fem.meshing.extrude`; a level refines the section and doubles the
 layers); its parts are the section's (surfaces over its curves) and "z0"/"z1" (the ends). A mesh
 file, `{ mesh = "part.msh", body = "bracket" }` (no kind): a physical volume group of linear
 tetrahedra or hexahedra, its physical surface groups the parts (`problems.scene.imported`). A mesh
@@ -22,7 +22,8 @@ from typing import Annotated, Any, ClassVar, Literal
 import numpy as np
 from pydantic import Discriminator, Field, Tag
 
-from fem.mesh3d import END_PARTS, Mesh3D, box, extrude, transform
+from fem.mesh import Mesh as Mesh3D
+from fem.meshing import END_PARTS, box, extrude, transform
 from problems.errors import SceneError
 
 from .fields import Integer, Text

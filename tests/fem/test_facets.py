@@ -13,7 +13,7 @@ from fem import assembly
 from fem.elements import reference_element
 from fem.facets import facet_integrals, frames, reference_direction, trace, triangle_rule
 from fem.mesh import Mesh
-from fem.mesh3d import box, transform
+from fem.meshing import box, transform
 from fem.shapes import half_disc
 
 SEEDS = st.integers(0, 2**31 - 1)

@@ -29,7 +29,7 @@ from fem.elements import reference_element
 from fem.facets import Trace, dual_mass, multiplier_basis, rim_nodes, trace
 from fem.mapped import coons_block, reparametrise, segment
 from fem.mesh import Mesh
-from fem.mesh3d import Mesh3D, box, extrude, transform
+from fem.meshing import box, extrude, transform
 from fem.mortar import couple, mortar_coupling, patch_defect
 from fem.shapes import cradle, half_disc
 
@@ -534,7 +534,7 @@ HEX, TET = "hexahedron", "tetra"
 PAIRS = [(HEX, TET), (TET, HEX), (HEX, HEX), (TET, TET)]
 
 
-def surface(mesh: Mesh3D, part: str) -> Trace:
+def surface(mesh: Mesh, part: str) -> Trace:
     """The trace of `mesh` on `part` at the mortar's default face order."""
     return trace(mesh, part, fm.FACE_ORDER)
 
@@ -785,7 +785,7 @@ def warped(f: Trace, seed: int) -> Trace:
     pts = np.zeros((f.nodes.max() + 1, 3))
     pts[f.nodes] = f.points + 0.01 * np.random.default_rng(seed).normal(size=f.points.shape)
     cells = np.zeros((0, 8 if f.facet_type == "quad" else 4), dtype=int)
-    return surface(Mesh3D(pts, cells, {"p": f.nodes[f.facets]}), "p")
+    return surface(Mesh(pts, cells, {"p": f.nodes[f.facets]}), "p")
 
 
 @pytest.mark.parametrize("kind", ["sphere", "warped"])
@@ -1048,13 +1048,13 @@ def test_mutation_primal_basis_fails_the_linear_transfer(monkeypatch):
     assert transfer_error(mo, lambda x: x[:, 0]) > 1e-3
 
 
-def _sheets(element: str, R=None, n: int = 2) -> Mesh3D:
+def _sheets(element: str, R=None, n: int = 2) -> Mesh:
     """n master boxes one above the other under the slave, their tops in one part "top": a
     master surface that the slave's normal lines meet n times (z = 1, 0.8, 0.6)."""
     boxes = [((0.0, 1.0), (5, 3, 1)), ((0.3, 0.8), (4, 6, 1)), ((0.1, 0.6), (3, 3, 1))][:n]
     meshes = [flat(z, cells, element, "top", R) for z, cells in boxes]
     off = np.cumsum([0] + [b.points.shape[0] for b in meshes])
-    return Mesh3D(
+    return Mesh(
         np.vstack([b.points for b in meshes]),
         np.vstack([b.cells + o for b, o in zip(meshes, off, strict=False)]),
         {"top": np.vstack([b.boundaries["top"] + o for b, o in zip(meshes, off, strict=False)])},

@@ -4,9 +4,8 @@ bracket."""
 
 import pytest
 
-from fem.mesh3d import box
 from fem.mesh_import import write_msh
-from fem.meshing import rectangle
+from fem.meshing import box, rectangle
 from problems.commands.main import main
 from problems.errors import SceneError
 from problems.plugins import contact3d
