@@ -507,12 +507,12 @@ def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
     return float(d.max() / size)
 
 
-def _not_facing(surf: Surface, master: Coupling) -> str:
+def _not_facing(surf: Trace, master: Coupling) -> str:
     """What is wrong with a master surface that lies behind no slave node's support (what a
     master must be, and which of the three ways it is not: it faces the same way as the slave,
     it lies behind the slave, or the two do not overlap seen along the slave's normal)."""
     mesh = master.body.mesh
-    msurf = surface(mesh, master.part, SURFACE_ORDER[mesh.cell_type])
+    msurf = trace(mesh, master.part, SURFACE_ORDER[mesh.cell_type])
     n_s, n_m = surf.normals.mean(axis=0), msurf.normals.mean(axis=0)  # (3,) mean outward normals
     ahead = float((msurf.points.mean(axis=0) - surf.points.mean(axis=0)) @ n_s)
     if float(n_s @ n_m) > 0:
