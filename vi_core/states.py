@@ -14,8 +14,12 @@ a fixed 1e-9: the thresholds are `factor · max(residual, eps) · scale`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .problem import MixedVI
 
 #: how far beyond the achieved residual a piece of evidence must stand to count
 FACTOR = 100.0
@@ -96,6 +100,61 @@ def counts(states: np.ndarray) -> dict[str, int]:
     """Number of nodes per state label."""
     labels, n = np.unique(np.asarray(states, dtype=str), return_counts=True)
     return {str(k): int(v) for k, v in zip(labels, n, strict=True)}
+
+
+def vi_states(vi: MixedVI, u: np.ndarray, lam: np.ndarray, residual: float) -> np.ndarray:
+    """The states (k_total,) of (u, λ) at the nodes of `vi`'s contact blocks
+    (`vi_core.coulomb.ContactSet`, block after block), by the same rule on the VI's own
+    quantities — for a solver that must confirm its partition (the fixed point), where the
+    plug-in's weights are unknown.
+
+    Per node: λ_n and the gap gap_n − (B u)_n (touch/open), |λ_t| against the radius
+    `tresca_bound(λ_n)` and the slip |(B u − gap)_t| (stick/slip). A mortar row of B is W_k
+    times the nodal jump, so each row is divided by its weight ‖B_row‖₁ (W_k up to a factor
+    between 1 and 2√dim: the normal's components, a master's row). Thresholds: the achieved
+    `residual`, the stress scale max(|λ|, radius, |A u| on the displacement per smallest
+    weight) and the displacement scale max |u| (the "displacement" field of `vi.fields` if
+    named, else all of u)."""
+    from .coulomb import ContactSet
+
+    u, lam = np.asarray(u, dtype=float), np.asarray(lam, dtype=float)
+    B = vi.B.tocsr()
+    weight = np.asarray(abs(B).sum(axis=1)).ravel()  # (m,) ‖B_row‖₁
+    z = (B @ u - vi.gap) / np.where(weight > 0, weight, 1.0)  # (m,) the rows' nodal jumps
+    disp = (vi.fields or {}).get("displacement", slice(None))
+    parts = []
+    for block, sl in zip(vi.Lambda.blocks(), vi.Lambda.slices(), strict=True):
+        if isinstance(block, ContactSet):
+            lam_n, lam_t = block.split(lam[sl])
+            z_n, z_t = block.split(z[sl])
+            parts.append((block, lam_n, np.linalg.norm(lam_t, axis=1), -z_n, z_t, weight[sl]))
+    if not parts:
+        return np.array([], dtype=object)
+    radius = [b.tresca_bound(ln) for b, ln, *_ in parts]
+    w_min = min(float(w[w > 0].min(initial=np.inf)) for *_, w in parts)
+    force = float(np.abs((vi.A @ u)[disp]).max(initial=0.0)) / (w_min if w_min < np.inf else 1)
+    lam_scale = max(
+        float(np.abs(lam).max(initial=0.0)), max(float(r.max(initial=0.0)) for r in radius), force
+    )
+    th = thresholds(residual, lam_scale, float(np.abs(u[disp]).max(initial=0.0)))
+    out = []
+    for (_, lam_n, lam_t, gap, z_t, _), r in zip(parts, radius, strict=True):
+        normal = normal_states(lam_n, gap, th)
+        rho = r * (normal != "open")  # (k,) no friction where open
+        tang = tangential_states(lam_t, rho, np.linalg.norm(z_t, axis=1), th)
+        out.append(node_states(normal, tang))
+    return np.concatenate(out)
+
+
+def warnings(states: np.ndarray) -> list[str]:
+    """The user's warning about ambiguous nodes among `states` (k,), or none."""
+    n = int(np.sum(np.asarray(states, dtype=object) == "ambiguous"))
+    if not n:
+        return []
+    return [
+        f"{n} contact node(s) ambiguous: at the achieved residual neither the stress margin "
+        "nor the gap/slip settles their state; solve with a smaller --tol to decide"
+    ]
 
 
 def compare(a: np.ndarray, b: np.ndarray) -> dict:
