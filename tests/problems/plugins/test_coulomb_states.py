@@ -19,6 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import problems.pipeline as pipeline
+from problems.plugins import contact3d
 from problems.plugins import piezo_contact as pc
 from vi_core import states as node_states
 
@@ -189,3 +190,51 @@ def test_the_fixed_point_confirms_its_states(monkeypatch, side, confirm):
     else:
         assert rounds[-1]["ambiguous"] > 0 and any("ambiguous" in w for w in sol.warnings)
         assert list(got) != [ex["state"]] * 15
+
+
+# ------------------------------------------------------------------ 3D: coulomb_strip3d's class
+MU3, P3 = 1.0e9, 3.5e9  # coulomb_strip3d: μ and λ + 2μ [Pa] (E = 2.6e9, ν = 0.3), H = 1 m
+E_HAT = np.array([0.8, 0.6, 0.0])  # the shear's direction
+
+
+def _overrides3(d: float, delta: float, F: float) -> tuple[list[str], dict]:
+    """coulomb_strip3d at load (d, δ) and friction F, its four sides on the exact profile
+    u = (s + γ z) ê − d z e_z; and the closed form (stick where F λ_n > μ δ/H)."""
+    lam_n = P3 * d
+    stick = F * lam_n > MU3 * delta
+    gamma = delta if stick else F * lam_n / MU3
+    s = delta - gamma
+    prof = [f"{float(s * e)!r} + {float(gamma * e)!r}*z" for e in E_HAT[:2]] + [f"{-d!r}*z"]
+    value = "[" + ", ".join(f"'{p}'" for p in prof) + "]"
+    sides = ", ".join(
+        f"{{boundary='{b}', value={value}}}" for b in ("left", "right", "front", "back")
+    )
+    top = f"[{float(delta * E_HAT[0])!r}, {float(delta * E_HAT[1])!r}, {-d!r}]"
+    sets = [
+        f"bodies.block.displacement=[{{boundary='top', value={top}}}, {sides}]",
+        f"contact.F={F!r}",
+    ]
+    return sets, {"state": "stick" if stick else "slip", "lam_n": lam_n, "s": s}
+
+
+@settings(max_examples=4)
+@given(
+    d=st.floats(5e-5, 3e-4),
+    ratio=st.floats(0.5, 8.0),
+    r=st.floats(1.02, 4.0),
+    side=st.sampled_from(["stick", "slip"]),
+)
+def test_every_solver_reports_the_exact_states_3d(d, ratio, r, side):
+    """The friction coefficient F = (r or 1/r) μ δ/(H λ_n) on either side of the flip."""
+    delta = ratio * d
+    F = (r if side == "stick" else 1.0 / r) * MU3 * delta / (P3 * d)
+    sets, ex = _overrides3(d, delta, F)
+    assert ex["state"] == side
+    for method in SOLVERS:
+        run = pipeline.solve(pipeline.load("coulomb_strip3d", sets), method=method, tol=TOL)
+        assert run.solution.converged, (method, run.solution.warnings)
+        st_ = contact3d.contact_state(run.model, run.solution)
+        has = st_["has_t"]
+        np.testing.assert_allclose(st_["lam_n"][has], ex["lam_n"], rtol=1e-6)
+        got = st_["state"][has]
+        assert list(got) == [ex["state"]] * got.size, (method, node_states.counts(got), ex)
