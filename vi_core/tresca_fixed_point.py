@@ -26,9 +26,11 @@ is reached, or when the step does not shrink (ratio ≥ `NO_CONTRACTION`) `patie
 previous iterate, short of F λ_n by the last step: at a loose tolerance its margin can read as
 stick. So a converged answer's partition is checked by the rule every plug-in reports with
 (`vi_core.states.vi_states`: multiplier margin and gap/slip, thresholds scaled by the achieved
-residual); while some node is ambiguous the iteration goes on at a tolerance 10 times tighter,
-at most `TIGHTEN` times and not below `TIGHTEST`. Still ambiguous: a warning (the states are
-reported ambiguous, never guessed); a tightened round that fails keeps the confirmed answer.
+residual, the stress threshold at least FACTOR times the last step's change of the bound —
+the shortfall a slipping node's |λ_t| may have); while some node is ambiguous the iteration
+goes on at a tolerance 10 times tighter, at most `TIGHTEN` times and not below `TIGHTEST`.
+Still ambiguous: a warning (the states are reported ambiguous, never guessed); a tightened
+round that fails keeps the confirmed answer.
 `info["states"]` records each round (tolerance, residual, ambiguous nodes) and the counts.
 """
 
@@ -146,6 +148,7 @@ def solve_tresca_fixed_point(
     warnings: list[str] = []
     converged, grew, j = res <= tol, 0, 0
     target = tol  # the tolerance of the current round (tightened while states are ambiguous)
+    shortfall = 0.0
     rounds: list[dict] = []  # per round: its tolerance, residual and ambiguous nodes
     while True:
         while not converged and j < max_iter:
@@ -164,6 +167,12 @@ def solve_tresca_fixed_point(
             if len(steps) > 1 and steps[-2] > 0:
                 rates.append(steps[-1] / steps[-2])
                 grew = grew + 1 if rates[-1] >= NO_CONTRACTION else 0
+            # the last step's change of the bound: how far |λ_t| of a slipping node may lie
+            # short of the bound at the new λ_n (the states' stress accuracy)
+            shortfall = max(
+                float(np.abs(a - b).max(initial=0.0))
+                for a, b in zip(seq.bounds(lam_new), seq.bounds(lam), strict=True)
+            )
             u, lam = sol.u, lam_new
             res = vi.residual(u, lam).relative
             history.append(res)
@@ -184,15 +193,15 @@ def solve_tresca_fixed_point(
         # confirm the partition (vi_core.states): a node whose evidence is ambiguous at this
         # residual (e.g. |λ_t| short of F λ_n by the last step while it slips) is settled by
         # more iterations at a tighter tolerance, at most TIGHTEN times
-        labels = node_states.vi_states(vi, u, lam, res)
+        labels = node_states.vi_states(vi, u, lam, res, lam_accuracy=shortfall)
         ambiguous = int(np.sum(labels == "ambiguous"))
         rounds.append({"tol": target, "residual": float(res), "ambiguous": ambiguous})
         if not ambiguous or len(rounds) > TIGHTEN or target / 10 < TIGHTEST:
             break
         target, inner_tol, converged, grew = target / 10, inner_tol / 10, False, 0
-        kept = (u, lam, res, len(warnings))
+        kept = (u, lam, res, len(warnings), shortfall)
     if not converged and rounds:  # a tightening round failed: keep the confirmed answer
-        u, lam, res = kept[:3]
+        u, lam, res, shortfall = (*kept[:3], kept[4])
         del warnings[kept[3] :]
         warnings.append(
             f"fixed_point: {rounds[-1]['ambiguous']} contact node(s) ambiguous at residual "
@@ -225,7 +234,11 @@ def solve_tresca_fixed_point(
             "steps": steps,
             "rates": rates,
             "contraction": float(np.median(tail)) if tail else None,
-            "states": {"rounds": rounds, "counts": node_states.counts(labels) if rounds else {}},
+            "states": {
+                "rounds": rounds,
+                "counts": node_states.counts(labels) if rounds else {},
+                "lam_accuracy": shortfall,
+            },
         },
         warnings=warnings,
     )

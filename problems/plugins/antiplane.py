@@ -210,7 +210,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     w3 = model.full(sol.u)[model.tr.nodes[model.rows]]  # (m,)
     g = model.g_weights / model.tr.weights[model.rows]  # (m,) g_i
     lam_scale = max(float(np.abs(sol.lam).max(initial=0.0)), float(g.max(initial=0.0)))
-    th = node_states.thresholds(sol.residual, lam_scale, float(np.abs(sol.u).max(initial=0.0)))
+    th = node_states.solution_thresholds(sol, lam_scale, float(np.abs(sol.u).max(initial=0.0)))
     state = node_states.tangential_states(sol.lam, g, w3, th)  # (m,)
     return {
         "state": state,

@@ -835,8 +835,8 @@ def contact_state(model: Model, sol: Solution) -> dict:
     # states from the answer (vi_core.states): multiplier margin and gap/slip, thresholds
     # scaled by the achieved residual, the stress scale (the whole λ: with ρ ≪ λ_n a rounding
     # shortfall of |λ_t| relative to λ is no stick evidence) and the displacement scale
-    th = node_states.thresholds(
-        sol.residual,
+    th = node_states.solution_thresholds(
+        sol,
         max(float(np.abs(lam).max(initial=0.0)), float(radius.max(initial=0.0)), pressure),
         float(np.abs(sol.u[disp]).max(initial=0.0)),
     )

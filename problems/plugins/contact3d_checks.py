@@ -247,7 +247,7 @@ def separation(model, sol) -> dict[str, float]:
     bound = _nodal_means(body.mesh, c.slave_part, c.bound_field, carry)[nodes]  # (N_n,)
     # Tresca acts where the node is not open by the contact states (vi_core.states: λ_n and
     # the gap d against thresholds scaled by the achieved residual)
-    th = node_states.thresholds(sol.residual, p, length)
+    th = node_states.solution_thresholds(sol, p, length)
     touch = node_states.normal_states(lam_n, d, th) != "open"
     rho = bound * np.maximum(lam_n, 0.0) if c.friction == "coulomb" else bound * touch
     slips = ut > 1e-6 * length

@@ -242,7 +242,7 @@ def _states(model: Model, sol: Solution) -> np.ndarray:
     force = float(np.abs(model.vi.A @ sol.u).max(initial=0.0))
     gap = model.vi.gap - model.vi.B @ sol.u  # (n_free,) u − ψ
     length = max(float(np.abs(sol.u).max(initial=0.0)), float(np.abs(model.vi.gap).max()))
-    th = node_states.thresholds(sol.residual, max(float(sol.lam.max(initial=0.0)), force), length)
+    th = node_states.solution_thresholds(sol, max(float(sol.lam.max(initial=0.0)), force), length)
     return node_states.normal_states(sol.lam, gap, th)
 
 

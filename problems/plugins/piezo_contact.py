@@ -814,8 +814,8 @@ def contact_state(model: Model, sol: Solution) -> dict:
         force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / c.W_n.min()
     radius = c.bound(sol.lam)  # (N_t,) the friction radius at λ
     Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
-    th = node_states.thresholds(
-        sol.residual,
+    th = node_states.solution_thresholds(
+        sol,
         max(float(np.abs(sol.lam).max(initial=0.0)), float(radius.max(initial=0.0)), force),
         float(np.abs(sol.u[disp]).max(initial=0.0)),
     )
