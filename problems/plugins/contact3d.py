@@ -64,6 +64,7 @@ from problems.scene.exact import ExactSection3
 from problems.scene.fields import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
+from vi_core import states as node_states
 
 from . import (
     contact3d_checks,
@@ -762,10 +763,10 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     r2 = np.einsum("ij,ij->i", r, fc.t2)
     rd = np.stack([r1[fc.disc], r2[fc.disc]], axis=1)  # (N_b, 2)
     norm = np.linalg.norm(rd, axis=1)
-    slip_b = norm >= 1.0 - 1e-9  # (N_b,)
+    slip_b = norm >= 1.0 - transfer.ON_BOUND  # (N_b,)
     rd = np.where(slip_b[:, None], rd / np.maximum(norm, 1e-300)[:, None], rd)
     rl = np.clip(np.einsum("ij,ij->i", r[fc.line], fc.line_dir), -1.0, 1.0)
-    slip_l = np.abs(rl) >= 1.0 - 1e-9  # (N_l,)
+    slip_l = np.abs(rl) >= 1.0 - transfer.ON_BOUND  # (N_l,)
     rl = np.where(slip_l, np.sign(rl), rl)
     idx_n, idx_b, idx_l = fc.rows()
     lam0 = np.zeros(fc.B_full.shape[0])
@@ -799,10 +800,12 @@ def contact_state(model: Model, sol: Solution) -> dict:
     """Per surface node (k): lam_n, lam_t1, lam_t2 (NaN where not carried), lam_t_vec (k, 3),
     jump_n, jump_t1, jump_t2 ((Bu)/W in the frame: the slave displacement for a rigid
     foundation, the mortar jump with a master), g (the friction radius of the solution: g;
-    unilateral Tresca g where the node touches, 0 elsewhere; Coulomb F·λ_n), touch (every
-    node with rows for bilateral contact; λ_n beyond 1e-9 of the pressure scale `pressure`
-    for unilateral), gap (the remaining normal gap (gap₀ − [u]_n), unilateral; NaN elsewhere),
-    slip (k,) bool and state (stick, slip, normal_only, open, no_multiplier); the Lemma 4.2
+    unilateral Tresca g where the node is not open, 0 elsewhere; Coulomb F·λ_n), gap (the
+    remaining normal gap (gap₀ − [u]_n), unilateral; NaN elsewhere), and the states, which
+    follow from the answer by one rule (`vi_core.states`: multiplier margin and gap/slip,
+    thresholds scaled by the achieved residual): state (stick, slip, normal_only, open,
+    ambiguous, no_multiplier), touch (k,) bool (touch evidence: every node with rows for
+    bilateral contact), slip (k,) bool; `pressure` the pressure scale; the Lemma 4.2
     identity λᵀ(B u − gap₀) = Σ_k ρ_k W_t,k |[u]_t,k| ([u]_t since the previous load step on a
     load path: `incremental`) and its relative defect (unilateral: relative
     to the larger of Σρ W|[u]_t| and the pressure scale times Σ|B u − gap₀|)."""
@@ -838,39 +841,46 @@ def contact_state(model: Model, sol: Solution) -> dict:
     has_t = np.zeros(k, dtype=bool)
     has_t[c.disc] = has_t[c.line] = True
     gap_rows = np.zeros(Bu.size)  # the initial gap in B_full's rows (unilateral)
-    touch = np.isin(np.arange(k), c.rows_n) | has_t  # bilateral: every node carrying rows
+    has_n = np.isin(np.arange(k), c.rows_n)  # (k,) nodes carrying a normal row
     pressure = 0.0
+    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
+    gap = np.full(k, np.nan)
     if c.law == "unilateral":
         gap_rows[idx_n] = c.gap0
-        # touching: λ_n beyond rounding of the pressure scale, the largest λ_n or the elastic
-        # nodal forces per area (all of λ is rounding when the bodies are apart)
-        disp = model.unknown_fields()["displacement"]
+        # the pressure scale: the largest λ_n or the elastic nodal forces per area (all of λ is
+        # rounding when the bodies are apart)
         force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / W.min()
         pressure = max(float(lam[idx_n].max(initial=0.0)), force)
-        touch = np.zeros(k, dtype=bool)
-        touch[c.rows_n] = lam[idx_n] > 1e-9 * max(pressure, 1e-300)
-    rho = c.bound(lam) * touch  # (k,) the friction radius; a rounding-level λ_n does not touch
-    mag = np.linalg.norm(vec, axis=1)
-    # slip where |λ_t| reaches ρ up to the solver's accuracy, which is relative to the whole λ
-    # (with ρ ≪ λ_n a rounding-level shortfall of |λ_t| must not read as stick)
-    scale = max(float(rho.max(initial=0.0)), float(np.abs(lam).max(initial=0.0)), 1e-300)
-    slip = has_t & touch & (mag >= rho - 1e-9 * scale)
-    state = np.full(k, "no_multiplier", dtype=object)
-    state[has_t] = np.where(slip[has_t], "slip", "stick")
-    state[~has_t & np.isin(np.arange(k), c.rows_n)] = "normal_only"
-    state[np.isin(np.arange(k), c.rows_n) & ~touch] = "open"
+        gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / c.W_n[c.rows_n]  # the remaining normal gap
+    radius = c.bound(lam)  # (k,) the friction radius at λ
     Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
-    b_uh_lam = float(lam @ (Bi - gap_rows))
     ji = np.zeros((k, 2))  # the tangential jump (since the origin) in the node's frame
     ji[c.disc] = Bi[idx_b] / Wt[c.disc, None]
     ji[c.line, 0] = Bi[idx_l] / Wt[c.line]
-    jt = np.linalg.norm(ji, axis=1)
+    jt = np.linalg.norm(ji, axis=1)  # (k,)
+    # states from the answer (vi_core.states): multiplier margin and gap/slip, thresholds
+    # scaled by the achieved residual, the stress scale (the whole λ: with ρ ≪ λ_n a rounding
+    # shortfall of |λ_t| relative to λ is no stick evidence) and the displacement scale
+    th = node_states.solution_thresholds(
+        sol,
+        max(float(np.abs(lam).max(initial=0.0)), float(radius.max(initial=0.0)), pressure),
+        float(np.abs(sol.u[disp]).max(initial=0.0)),
+    )
+    normal = np.full(k, "touch", dtype=object)  # bilateral: every node with rows touches
+    if c.law == "unilateral":
+        normal[c.rows_n] = node_states.normal_states(lam[idx_n], gap[c.rows_n], th)
+    rows = has_n | has_t  # (k,) nodes carrying rows
+    touch = (normal == "touch") & rows  # (k,)
+    rho = radius * ((normal != "open") & rows)  # (k,) the friction radius; none where open
+    mag = np.linalg.norm(vec, axis=1)  # (k,) |λ_t|
+    tang = node_states.tangential_states(mag, rho, jt, th)
+    state = np.full(k, "no_multiplier", dtype=object)
+    state[rows] = node_states.node_states(normal, tang, has_t)[rows]
+    slip = state == "slip"
+    b_uh_lam = float(lam @ (Bi - gap_rows))
     g_abs = float(np.sum((rho * Wt * jt)[has_t]))
     tiny = np.finfo(float).eps * float(np.sum(rho * Wt)) * max(np.abs(x_full).max(), 1e-300)
     ref = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))  # unilateral: P × slack
-    gap = np.full(k, np.nan)
-    if c.law == "unilateral":
-        gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / c.W_n[c.rows_n]  # the remaining normal gap
     return {
         **out,
         "lam_t_vec": vec,

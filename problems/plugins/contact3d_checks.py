@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from fem import assembly3d
+from vi_core import states as node_states
 
 from .bodies import operator
 from .contact3d_bodies import SURFACE_ORDER
@@ -186,7 +187,7 @@ def separation(model, sol) -> dict[str, float]:
     `penetration` max(−d_k, 0), `tension` max(−λ_n,k, 0), `open_pressure` max λ_n,k over the
     nodes open by more than 1e-6 of the length scale, `complementarity` max |λ_n,k d_k|, and
     `friction`: the excess of |λ_t,k| over the friction radius ρ_k (Coulomb F_k λ_n,k; Tresca
-    g_k where λ_n,k > 1e-9 of the pressure scale, 0 elsewhere; F_k, g_k the nodal means of the
+    g_k where the node is not open by `vi_core.states`, 0 elsewhere; F_k, g_k the nodal means of the
     scene's field by the same quadrature) and, where the node slips (by more than 1e-6 of the
     length scale), the shortfall. Each is rounding at a solution; a wrong sign of the gap, a
     dropped complementarity row or a wrong scaling of F makes one O(1)
@@ -244,7 +245,10 @@ def separation(model, sol) -> dict[str, float]:
             tan |= ~c.master.covered
         carry = np.isin(np.arange(body.mesh.n_nodes), surf.nodes[tan])
     bound = _nodal_means(body.mesh, c.slave_part, c.bound_field, carry)[nodes]  # (N_n,)
-    touch = lam_n > 1e-9 * p  # Tresca acts where the node presses on the foundation
+    # Tresca acts where the node is not open by the contact states (vi_core.states: λ_n and
+    # the gap d against thresholds scaled by the achieved residual)
+    th = node_states.solution_thresholds(sol, p, length)
+    touch = node_states.normal_states(lam_n, d, th) != "open"
     rho = bound * np.maximum(lam_n, 0.0) if c.friction == "coulomb" else bound * touch
     slips = ut > 1e-6 * length
     excess = np.maximum(lam_t - rho, 0.0)

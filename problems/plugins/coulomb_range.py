@@ -59,7 +59,8 @@ def _zones(st: dict) -> tuple[int, int, int, float]:
     if "has_t" in st:  # contact3d
         state = st["state"]
         return int((state == "open").sum()), int((state == "stick").sum()), slip, mean_p
-    return int((~touch).sum()), int(st["touch_t"].sum()) - slip, slip, mean_p
+    state = st["state"]
+    return int(np.sum(st["normal_state"] == "open")), int(np.sum(state == "stick")), slip, mean_p
 
 
 def measure(name: str, F: float, level: int, inner: str, overrides=(), tol=1e-10) -> dict:
