@@ -27,7 +27,8 @@ import scipy.sparse as sp
 from .assembly import CHUNK, _assemble_chunks, _check_matrix, _scatter
 from .elements import reference_element
 from .elements3d import FACE_TYPE, reference_element3d
-from .mesh3d import Mesh3D, check_cells, cofactors
+from .jacobians import check_cells, cofactors
+from .mesh import Mesh as Mesh3D
 from .tensors import VOIGT_PAIRS
 
 Func3 = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | float | Sequence[float]
@@ -72,7 +73,7 @@ def _geometry(
 def cell_geometry(mesh: Mesh3D, order: int = 2) -> Geometry3D:
     """Quadrature points, weights, shape values and physical gradients for a rule of `order`.
 
-    Raises ValueError naming the first inverted or degenerate cell (`fem.mesh3d.check_cells`).
+    Raises ValueError naming the first inverted or degenerate cell (`fem.jacobians.check_cells`).
     """
     check_cells(mesh)
     pts, wts = reference_element3d(mesh.cell_type).quadrature(order)

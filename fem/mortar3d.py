@@ -76,7 +76,7 @@ from scipy.spatial import cKDTree
 
 from .boundary import ENDS
 from .elements import reference_element
-from .mesh3d import Mesh3D
+from .mesh import Mesh as Mesh3D
 from .surface3d import Surface, surface, triangle_rule
 
 # Quadrature order of the face integrals (mass, normals): exact on affine faces; on non-planar

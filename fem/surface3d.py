@@ -29,7 +29,7 @@ import numpy as np
 
 from .elements import reference_element
 from .elements3d import FACE_TYPE
-from .mesh3d import Mesh3D
+from .mesh import Mesh as Mesh3D
 
 FRAME_LIMIT = np.cos(np.radians(10.0))  # refuse a surface whose normals come this close to a
 

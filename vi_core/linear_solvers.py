@@ -16,7 +16,7 @@ LINEAR_SOLVERS = (*BACKENDS, "amg")  # the direct backends and the iterative pat
 # linear_solver="auto": the iterative path once A has more stored entries than this, for the
 # mesh's kind told by A's mean row length (entries per row of A at least ROW_3D: a 3D mesh,
 # whose factors fill far faster). Measured in docs/benchmarks.md, "Direct solver defaults"
-AUTO_AMG_NNZ = {2: 2_000_000, 3: 300_000}
+AUTO_AMG_NNZ = {2: 1_000_000, 3: 300_000}
 ROW_3D = 40.0  # 2D: ≤ 27 entries per row (Q1 piezo), 3D: 45 (P1 tetrahedra, elastic) … 108 (Q1
 # hexahedra, piezo)
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")

@@ -61,7 +61,7 @@ from fem.surface3d import Surface, face_integrals, frames, surface
 from problems.errors import SceneError
 from problems.scene import Scene, SceneModel
 from problems.scene.exact import ExactSection3
-from problems.scene.fields3d import NonNegativeExpr3
+from problems.scene.fields import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
 

@@ -26,7 +26,8 @@ from fem.assembly import (
 from fem.dirichlet import expand, reduce_dirichlet
 from fem.elements import reference_element
 from fem.mesh import Mesh
-from fem.meshing import rectangle, refine
+from fem.meshing import rectangle
+from fem.refine import refine
 
 from .helpers import same_matrix, shifted_geometry
 

@@ -27,7 +27,8 @@ from fem.assembly3d import (
     strain_operator,
     volume_load,
 )
-from fem.mesh3d import SIDES, Mesh3D, box, transform
+from fem.mesh import Mesh as Mesh3D
+from fem.meshing import SIDES, box, transform
 from fem.tensors import NAMED, VOIGT_PAIRS, Material3D, orthotropic, poled, rotate
 
 from .helpers import same_matrix, shifted_geometry

@@ -17,7 +17,8 @@ from hypothesis import strategies as st
 import fem.mortar3d as fm3
 from fem.assembly3d import permittivity_matrix
 from fem.elements import reference_element
-from fem.mesh3d import Mesh3D, box, extrude, transform
+from fem.mesh import Mesh as Mesh3D
+from fem.meshing import box, extrude, transform
 from fem.mortar import mortar_coupling, patch_defect
 from fem.mortar3d import couple, dual_mass, mortar_coupling3d, multiplier_basis, rim_nodes
 from fem.shapes import cradle, half_disc

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fem.elements import reference_element
-from fem.mesh3d import box, transform
+from fem.meshing import box, transform
 from fem.surface3d import face_integrals, frames, reference_direction, surface, triangle_rule
 
 SEEDS = st.integers(0, 2**31 - 1)

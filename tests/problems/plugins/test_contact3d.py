@@ -318,7 +318,7 @@ def test_count_is_the_built_size_and_a_level_multiplies_by_about_8(name, overrid
 def test_count_meshes_nothing_finer_than_level_0(monkeypatch):
     """Every geometry `count` meshes is level 0, whatever level it counts (mutation: meshing
     `level`, as before, fails)."""
-    from problems.scene.geometry3d import Box
+    from problems.scene.geometry import Box
 
     seen = []
     mesh = Box.mesh

@@ -123,7 +123,7 @@ def test_each_merge_fault_breaks_the_2d_reproduction(monkeypatch, fault):
 
 def _clamped_manufactured(ends: str):
     """manufactured3d with its left and front sides clamped to the exact u (as
-    test_manufactured3d's clamped test)."""
+    test_manufactured's clamped 3D test)."""
     scene = load_scene("manufactured3d", [f"contact.ends={ends}"])
     blk = scene.data["bodies"]["block"]
     u = blk["displacement"][0]["value"]
