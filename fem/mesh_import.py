@@ -462,7 +462,7 @@ def _rows_in(rows: np.ndarray, table: np.ndarray) -> np.ndarray:
 def require_curve(mesh: Mesh, part: str) -> None:
     """ValueError unless boundary part `part` is one simple curve (an open chain of edges,
     or one closed loop): contact boundaries must be."""
-    from .boundary import trace
+    from .facets import trace
 
     trace(mesh, part)
 

@@ -33,6 +33,7 @@ import numpy as np
 import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
+from problems.output import signals
 from problems.output.files import Output, claim, jsonable
 from vi_core.kkt import Checker
 
@@ -224,7 +225,8 @@ def cmd_check(args: argparse.Namespace) -> int:
 def _check(scene, plugin, levels, tol, target) -> int:
     records, ok = [], True
     for level in levels:
-        good, rec = _check_level(scene, plugin, level, tol)
+        # in a worker thread: a signal ends the run even inside SuperLU or Clarabel
+        good, rec = signals.interruptible(_check_level, scene, plugin, level, tol)
         ok = ok and good
         records.append(rec)
         if good:

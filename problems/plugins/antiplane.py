@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from pydantic import BeforeValidator, Field, model_validator
 
 from fem import assembly
-from fem.boundary import Trace, trace
+from fem.facets import Trace, trace
 from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots, results
@@ -258,7 +258,7 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
         points=model.mesh.points[tr.nodes],
         normals=tr.normals,
         weights=tr.weights,
-        segments=tr.segments,
+        segments=tr.facets,
         lambda_n=None,
         lambda_t=lam,
         jump_t=model.full(sol.u)[tr.nodes],

@@ -5,12 +5,12 @@ Per contact node k of the slave surface Γ3 (a boundary part of a 3D body): a no
 λ_n,k (free: bilateral contact) and a tangential one λ_t,k in the tangent plane with the
 friction disc |λ_t,k| ≤ g_k (`vi_core.Ball(g, 2)`); λ_h = Σ_k (λ_n,k n_k + λ_t1,k t1_k +
 λ_t2,k t2_k) ψ̃_k with the dual basis ψ̃_k of the contact faces (Q1 quadrilaterals or P1
-triangles, `fem.surface3d`), so that ∫ψ̃_k φ_j = δ_kj W_k with W_k = ∫_Γ3 φ_k and the slave
+triangles, `fem.facets`), so that ∫ψ̃_k φ_j = δ_kj W_k with W_k = ∫_Γ3 φ_k and the slave
 block D = diag(W) is diagonal. g_k = ∫g φ_k / W_k. Frames (t1, t2, n) are right-handed and
-continuous on curved surfaces (`fem.surface3d.frames`). With a rigid foundation (the slave
+continuous on curved surfaces (`fem.facets.frames`). With a rigid foundation (the slave
 surface itself, flat or curved: bilateral contact has no initial gap) the rows are
 W_k n_kᵀu_k and W_k t_kᵀu_k; a master body adds −Σ_j M_kj (·)ᵀu_m,j (a `Coupling`: the 3D dual
-mortar of `fem.mortar3d`, `mortar_coupling`; docs/fem3d.md "Two bodies in contact3d").
+mortar of `fem.mortar`, `mortar_coupling`; docs/fem3d.md "Two bodies in contact3d").
 
 Multiplier order: the normal rows, then the disc nodes (t1, t2 per node), then the nodes that
 keep one tangent only. Crosspoint rules (per node, from its prescribed displacement
@@ -23,7 +23,7 @@ else is refused (SceneError naming the nodes).
 Crosspoint basis (`[contact] ends`, `class_blocks`), per class (normal; tangential): "keep"
 drops the dual functions of the nodes the rules give no row of the class; "merge" (default;
 Wohlmuth's modification, the 2D default too) gives them to the class's carrying neighbours in each
-face (`fem.mortar3d.multiplier_basis`), so that Σ_k ψ̃_k = 1 on every face with a carrier. A
+face (`fem.facets.multiplier_basis`), so that Σ_k ψ̃_k = 1 on every face with a carrier. A
 line node keeps its tangential class (it cannot give away one tangent's function: the
 neighbours' rows would re-impose the tangent it keeps); its other tangent's function is dropped.
 The rows of node k in class c are then Σ_j S_c,kj d_kᵀu_s,j − Σ_j M_c,kj d_kᵀu_m,j with
@@ -55,9 +55,9 @@ import scipy.sparse as sp
 from pydantic import Field, model_validator
 from scipy.spatial import cKDTree
 
-from fem.mortar3d import covered_nodes, dual_mass, mortar_coupling3d, multiplier_basis
+from fem import mortar as dual_mortar
+from fem.facets import Trace, dual_mass, facet_integrals, frames, multiplier_basis, trace
 from fem.refined_counts import Skeleton
-from fem.surface3d import Surface, face_integrals, frames, surface
 from problems.errors import SceneError
 from problems.scene import Scene, SceneModel
 from problems.scene.exact import ExactSection3
@@ -98,7 +98,7 @@ class Coupling:
     """The master side of a two-body interface (`None` in `Contact3D` = rigid foundation).
 
     M_loc (m·n_f, n_master_nodes): the face-local mortar matrix ∫_e ψ_{e,a} φ_j^m dA of
-    `fem.mortar3d` (a class's rows are Q_c M_loc, `class_blocks`); dofs (n_master_nodes, 3) the
+    `fem.mortar` (a class's rows are Q_c M_loc, `class_blocks`); dofs (n_master_nodes, 3) the
     master's full displacement dofs; `patch_defect` max over the rows of
     |W_c,k − Σ_j M_c,kj| / W_c,k.
     """
@@ -116,14 +116,14 @@ class Coupling:
 class Contact3D:
     """The contact interface Γ3 of a 3D scene: slave surface, frames, multiplier rows, bounds.
 
-    Surface arrays are per slave surface node (k); rows_n (N_n,), disc (N_b,) and line (N_l,)
+    Trace arrays are per slave surface node (k); rows_n (N_n,), disc (N_b,) and line (N_l,)
     index the nodes carrying a normal multiplier, two tangential ones, one tangential one.
     A `line` node keeps the tangent t1 (line_slot 0) or t2 (line_slot 1): `line_dir`.
     """
 
     slave: Body
     slave_part: str
-    surf: Surface
+    surf: Trace
     normals: np.ndarray  # (k, 3)
     t1: np.ndarray  # (k, 3)
     t2: np.ndarray  # (k, 3)
@@ -356,7 +356,7 @@ def row_nodes_weights(c: Contact3D) -> np.ndarray:
     return c.surf.node_sizes()[row_nodes(c)] * c.row_weights()
 
 
-def _where(body: Body, surf: Surface, i: int) -> str:
+def _where(body: Body, surf: Trace, i: int) -> str:
     node = int(surf.nodes[i])
     return f"node {node} at {body.mesh.points[node].tolist()}"
 
@@ -413,14 +413,14 @@ def carrying(
 
 
 def class_blocks(
-    surf: Surface,
+    surf: Trace,
     carry: np.ndarray,
     covered: np.ndarray,
     ends: str,
     M_loc: sp.csr_matrix | None = None,
 ) -> tuple[sp.csr_matrix, sp.csr_matrix | None, np.ndarray, sp.csr_matrix]:
     """The rows of one multiplier class (normal, or tangential) in the basis ψ̃ = Q ψ of
-    `fem.mortar3d.multiplier_basis(surf, carry, ends)`: carry (k,) the nodes the crosspoint
+    `fem.facets.multiplier_basis(surf, carry, ends)`: carry (k,) the nodes the crosspoint
     rules give a row of the class ("merge": the others give their dual functions to their
     neighbours in each face; "keep": they are dropped). Rows of nodes whose support the master
     does not cover (covered (k,) False) are then dropped as they are (never merged).
@@ -440,8 +440,8 @@ def class_blocks(
     Qk = (P @ Q).tocsr()  # (k, m n_f)
     S = (Qk @ dual_mass(surf)).tocsr()  # (k, k)
     C = Qk.tocoo()
-    given = surf.faces.ravel()[C.col] != C.row  # (nnz,) entries of another node's function
-    fw = surf.face_weights.ravel()  # (m n_f,) ∫_e φ_a = ∫_e ψ_{e,a}
+    given = surf.facets.ravel()[C.col] != C.row  # (nnz,) entries of another node's function
+    fw = surf.facet_weights.ravel()  # (m n_f,) ∫_e φ_a = ∫_e ψ_{e,a}
     received = np.bincount(C.row[given], C.data[given] * fw[C.col[given]], surf.size)  # (k,)
     Wc = surf.weights + received  # (k,) = W exactly where nothing was merged in
     Mc = None if M_loc is None else (Qk @ M_loc).tocsr()
@@ -476,19 +476,21 @@ def contact_rows(
 
 
 def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Coupling:
-    """The master side of a two-body interface: the 3D dual mortar (`fem.mortar3d`), face-local
+    """The master side of a two-body interface: the 3D dual mortar (`fem.mortar`), face-local
     (a class's rows are Q_c M_loc); nodes without the master behind their whole support carry
     no multiplier (`covered`); patch_defect is set by `slave_contact`."""
     try:
         order = SURFACE_ORDER[slave.mesh.cell_type]  # that of the slave block in slave_contact
         reach = 1.0 + _distance(slave, part, master, mpart)
-        mo = mortar_coupling3d(slave.mesh, part, master.mesh, mpart, face_order=order, reach=reach)
+        mo = dual_mortar.mortar_coupling(
+            slave.mesh, part, master.mesh, mpart, face_order=order, reach=reach
+        )
     except ValueError as err:
         raise SceneError(
             "contact.master", f"{master.name}.{mpart}", f"a master surface facing the slave ({err})"
         ) from None
     dofs = master.u_dofs(mo.master.nodes)  # (k_m, 3)
-    return Coupling(master, mpart, mo.M, dofs, np.nan, covered_nodes(mo), mo.n_cells)
+    return Coupling(master, mpart, mo.M, dofs, np.nan, dual_mortar.covered_nodes(mo), mo.n_cells)
 
 
 def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
@@ -503,6 +505,26 @@ def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
     d, _ = cKDTree(xm).query(xs)
     size = np.linalg.norm(P[faces[:, 0]] - P[faces[:, 2]], axis=1).min()  # a diagonal
     return float(d.max() / size)
+
+
+def _not_facing(surf: Trace, master: Coupling) -> str:
+    """What is wrong with a master surface that lies behind no slave node's support (what a
+    master must be, and which of the three ways it is not: it faces the same way as the slave,
+    it lies behind the slave, or the two do not overlap seen along the slave's normal)."""
+    mesh = master.body.mesh
+    msurf = trace(mesh, master.part, SURFACE_ORDER[mesh.cell_type])
+    n_s, n_m = surf.normals.mean(axis=0), msurf.normals.mean(axis=0)  # (3,) mean outward normals
+    ahead = float((msurf.points.mean(axis=0) - surf.points.mean(axis=0)) @ n_s)
+    if float(n_s @ n_m) > 0:
+        why = "the two surfaces face the same way (their outward normals agree)"
+    elif ahead < 0:
+        why = "the two surfaces face away from each other (the master lies behind the slave)"
+    else:
+        why = "the two surfaces do not overlap seen along the slave's normal"
+    return (
+        "a master surface facing the slave one and overlapping it: no slave node has this master "
+        f"behind its faces, so no contact multiplier can be placed; {why}"
+    )
 
 
 def _rigid_gap(gap, points: np.ndarray) -> np.ndarray:
@@ -538,7 +560,7 @@ def slave_contact(
     gfun = law.g if law.friction == "tresca" else law.F
     key = "contact.slave"
     try:
-        surf = surface(slave.mesh, part, SURFACE_ORDER[slave.mesh.cell_type])
+        surf = trace(slave.mesh, part, SURFACE_ORDER[slave.mesh.cell_type])
         t1, t2 = frames(surf.normals)
     except ValueError as err:
         raise SceneError(
@@ -549,6 +571,10 @@ def slave_contact(
     # the two classes' bases from the crosspoint rules (a line node keeps its tangential class:
     # it cannot give away one tangent's function), then the rows the master covers
     covered = np.ones(surf.size, dtype=bool) if master is None else master.covered
+    if master is not None and not covered.any():  # no multiplier at all: say why
+        raise SceneError(
+            "contact.master", f"{master.body.name}.{master.part}", _not_facing(surf, master)
+        )
     M_loc = None if master is None else master.M_loc
     S_n, M_n, W_n, _ = class_blocks(surf, carry_n, covered, law.ends, M_loc)
     S_t, M_t, W_t, Q_t = class_blocks(surf, n_tan > 0, covered, law.ends, M_loc)
@@ -595,11 +621,11 @@ def slave_contact(
         return gv
 
     order = SURFACE_ORDER[slave.mesh.cell_type]
-    gloc = face_integrals(slave.mesh, surf, g_checked, order)  # (n_f, m) ∫_e g φ_{e,a}
+    gloc = facet_integrals(slave.mesh, surf, g_checked, order)  # (n_f, m) ∫_e g φ_{e,a}
     g = np.where(  # ∫gφ̃_k / W_t,k; the plain nodal mean ∫gφ_k / W_k at the other nodes
         n_tan > 0,
         (Q_t @ gloc.ravel()) / W_t,
-        np.bincount(surf.faces.ravel(), gloc.ravel(), surf.size) / surf.weights,
+        np.bincount(surf.facets.ravel(), gloc.ravel(), surf.size) / surf.weights,
     )
     rows_n = np.flatnonzero(carry_n)
     disc = np.flatnonzero(n_tan == 2)
@@ -882,7 +908,15 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 # ------------------------------------------------------------------ contract v2 declarations
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
-SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
+SWEEP = Sweep(
+    "contact.g",
+    "friction bound g [Pa]",
+    factors=(1.5, 1.0, 0.6),
+    file="g_sweep3d.png",
+    otherwise=Sweep(
+        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep3d.png"
+    ),
+)
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
 # against the scene's [exact] table: exact_errors (contact3d_errors)
 EXACT_NORMS = contact3d_errors.NORMS

@@ -6,7 +6,7 @@
   R_k (rows of the node × its displacement dofs), must be W_k times an orthonormal right-handed
   frame whose normal row is the surface normal: W_k and n_k are recomputed from
   `fem.assembly3d` (its own face quadrature: W_k = ∫φ_k dA, n_k ∝ ∫φ_k n dA), not from
-  `fem.surface3d`. Reported: the relative defects of the weights, of the normal rows, of
+  `fem.facets`. Reported: the relative defects of the weights, of the normal rows, of
   orthonormality (R_k R_kᵀ = W_k² I on the rows a node carries) and the handedness
   (det R_k = W_k³ where all three rows are present).
 
@@ -122,7 +122,7 @@ def _shares(faces: np.ndarray, carry: np.ndarray | None) -> np.ndarray:
     """(n_f, m, m) the part of each face's local function a (last axis) that node t (middle)
     takes: the identity, or with carry (N,) bool ("merge") a node without carry gives its share
     to the face's carrying nodes next to it along an edge (to all carrying ones if none is),
-    equally. Written apart from `fem.mortar3d.multiplier_basis`."""
+    equally. Written apart from `fem.facets.multiplier_basis`."""
     n_f, m = faces.shape
     if carry is None:
         return np.broadcast_to(np.eye(m), (n_f, m, m))

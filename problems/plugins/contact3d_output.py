@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from fem import assembly3d
-from fem.surface3d import frames
+from fem.facets import frames
 from problems.output.results import write_csv
 
 STATES = ("stick", "slip", "normal_only", "open", "no_multiplier")
@@ -118,7 +118,7 @@ def write_surface_vtu(path: Path, model, st: dict) -> None:
         **{f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)},
     }
     meshio.Mesh(
-        c.slave.mesh.points[c.surf.nodes], [(c.surf.face_type, c.surf.faces)], point_data=point
+        c.slave.mesh.points[c.surf.nodes], [(c.surf.facet_type, c.surf.facets)], point_data=point
     ).write(str(path), file_format="vtu")
 
 
@@ -143,7 +143,7 @@ def contact_map(path: Path, model, st: dict, title: str = "") -> None:
 
     c = model.contact
     uv, a, b = chart(model)
-    faces = c.surf.faces
+    faces = c.surf.facets
     tris = (
         faces if faces.shape[1] == 3 else np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
     )

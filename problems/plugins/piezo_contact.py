@@ -12,7 +12,7 @@ Contact rules (README "Contact interfaces"):
   node where one component is prescribed and that direction is the contact tangent (normal),
   only the tangential (normal) multiplier is dropped; any other partially prescribed node is
   refused, per node. `[contact] ends` = "merge" (default, Wohlmuth's end-node modification of
-  the dual basis) or "keep" (`fem.boundary.multiplier_basis`).
+  the dual basis) or "keep" (`fem.facets.multiplier_basis`).
 - coverage: a slave node carries a multiplier only if the master lies behind its whole support;
   the others are left free and listed (warning, summary `contact.uncovered_nodes`); if no node
   is covered the scene is refused.
@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from pydantic import Field, model_validator
 
 import vi_core
-from fem.boundary import ENDS, Trace, dual_mass, multiplier_basis, segment_loads, trace
+from fem.facets import ENDS, Trace, dual_mass, facet_integrals, multiplier_basis, trace
 from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots, results
@@ -102,7 +102,7 @@ class Contact:
     tr: Trace  # slave trace
     master: Body | None
     master_part: str | None
-    ends: str  # "merge" or "keep" (fem.boundary.multiplier_basis)
+    ends: str  # "merge" or "keep" (fem.facets.multiplier_basis)
     rows_n: np.ndarray  # (N_n,) trace indices carrying a normal multiplier
     rows_t: np.ndarray  # (N_t,) trace indices carrying a tangential multiplier
     Q_n: sp.csr_matrix  # (N_n, 2·n_seg) normal multiplier basis
@@ -346,7 +346,7 @@ def _electrical(
         phi=np.where(found, pos, -1),
         normal=contact.idx_n,
         weights=tr.weights[nodes],
-        law=e.law_of(kappa_max, float(tr.lengths.max())),
+        law=e.law_of(kappa_max, float(tr.measures.max())),
         phi_F=phi_F,
         max_iter=int(e.max_iter),
         tol=float(e.tol),
@@ -406,8 +406,8 @@ def _contact_rows(contact: Contact):
         pairs = contact_law.pair_set(contact.friction, bound, dim=2)
         Lam = product(pairs, NonNegative(n_n - p)) if n_n > p else product(pairs)
     h_i = np.zeros(tr.size)
-    np.maximum.at(h_i, tr.segments[:, 0], tr.lengths)
-    np.maximum.at(h_i, tr.segments[:, 1], tr.lengths)
+    np.maximum.at(h_i, tr.facets[:, 0], tr.measures)
+    np.maximum.at(h_i, tr.facets[:, 1], tr.measures)
     rows = np.empty(n_n + n_t, dtype=int)  # trace index of each row of B_full
     rows[contact.idx_n], rows[contact.idx_t] = contact.rows_n, contact.rows_t
     Y = sp.diags(h_i[rows] * tr.weights[rows])  # mesh-dependent H^{-1/2} stand-in
@@ -491,7 +491,7 @@ def _contact(
             "node of this one is clamped by a [[displacement]] part, so no contact remains; "
             "remove the Dirichlet condition on it or the [contact] table",
         )
-    n_seg = tr.segments.shape[0]
+    n_seg = tr.facets.shape[0]
     uncovered_local = np.zeros(2 * n_seg, dtype=bool)
     gap_nodes = np.zeros(tr.size)  # (N,) initial normal gap at the slave nodes
     if master is not None:
@@ -499,7 +499,7 @@ def _contact(
             gap_nodes = _initial_gap(slave, part, tr, tr.normals, master, mpart, level)
         else:
             _check_separation(slave, part, tr, tr.normals, master, mpart, level)
-        reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.lengths.min())
+        reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.measures.min())
         mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, reach=reach)
         assert np.array_equal(tr.nodes, mort.slave_nodes)
         uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,)
@@ -628,7 +628,7 @@ def _friction_local(mesh: Mesh, tr: Trace, gfun, key: str) -> np.ndarray:
             raise SceneError(key, float(gv.min()), f"{what} ≥ 0 everywhere on Γ3")
         return gv
 
-    return segment_loads(mesh, tr, g_checked)
+    return facet_integrals(mesh, tr, g_checked)
 
 
 def _normal_distances(
@@ -666,11 +666,11 @@ def _separation(slave: Body, part: str, tr: Trace, normals, master: Body, mpart:
     mtr = trace(master.mesh, mpart)
     P = master.mesh.points[mtr.nodes]
     t, k = _normal_distances(
-        slave.mesh.points[tr.nodes], normals, P[mtr.segments[:, 0]], P[mtr.segments[:, 1]]
+        slave.mesh.points[tr.nodes], normals, P[mtr.facets[:, 0]], P[mtr.facets[:, 1]]
     )
-    h = mtr.lengths[k]
-    np.maximum.at(h, tr.segments[:, 0], tr.lengths)
-    np.maximum.at(h, tr.segments[:, 1], tr.lengths)
+    h = mtr.measures[k]
+    np.maximum.at(h, tr.facets[:, 0], tr.measures)
+    np.maximum.at(h, tr.facets[:, 1], tr.measures)
     return t, h * 2.0**level  # the size at level 0, where the interface geometry was given
 
 
@@ -953,7 +953,7 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
         points=c.slave.mesh.points[tr.nodes],
         normals=tr.normals,
         weights=tr.weights,
-        segments=tr.segments,
+        segments=tr.facets,
         lambda_n=lam_n,
         lambda_t=lam_t,
         jump_t=jump_t,
@@ -1024,7 +1024,15 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 CONTRACT = 2
-SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="fig_5_4.png")
+SWEEP = Sweep(
+    "contact.g",
+    "friction bound g [Pa]",
+    factors=(1.5, 1.0, 0.6),
+    file="fig_5_4.png",
+    otherwise=Sweep(
+        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep.png"
+    ),
+)
 NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
 extremes = piezo_extremes.rows
 

@@ -43,7 +43,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from fem.boundary import trace
+from fem.facets import trace
 from fem.mesh import Mesh
 from fem.meshing import END_PARTS, box, extrude, rectangle, transform
 from problems.errors import SceneError

@@ -13,13 +13,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fem import mesh_import, shapes
-from fem.boundary import trace
+from fem.facets import trace
 from fem.jacobians import jacobian_determinants
 from fem.mesh import Mesh
 from fem.mesh_import import MeshImportError, body_mesh, read_mesh, require_curve, write_msh
 from fem.meshing import box, rectangle, transform
 from fem.refine import refine
-from fem.surface3d import surface
 from problems.scene import SCENES_DIR
 
 FORMATS = ("gmsh22", "gmsh")  # meshio's names of gmsh v2.2 and v4.1
@@ -380,7 +379,7 @@ def test_the_shipped_bracket_reads_with_meshio_alone():
     vol = float(np.sum(jacobian_determinants(mesh, np.full((1, 3), 0.25)))) / 6
     exact = 0.6 * 0.4 * 0.08 + 0.08 * 0.4 * 0.42 - np.pi * 0.08**2 * 0.08
     assert abs(vol - exact) < 0.01 * exact  # the hole is a polygon of chords
-    base = surface(mesh, "base", 4)
+    base = trace(mesh, "base", 4)
     assert np.allclose(base.normals, [0.0, 0.0, -1.0])  # outward on the flat foot
     assert abs(base.weights.sum() - (0.6 * 0.4 - np.pi * 0.08**2)) < 0.01 * 0.24
 
@@ -420,7 +419,7 @@ def test_a_gmsh_box_imports_with_its_volume_and_faces(tmp_path, element):
     det = jacobian_determinants(mesh, pt)
     vol = det.sum() / (6 if element == "tetra" else 1 / 8)
     assert abs(vol - 0.125) < 1e-12
-    s = surface(mesh, "bottom", 4)
+    s = trace(mesh, "bottom", 4)
     assert abs(s.weights.sum() - 0.5) < 1e-12 and np.allclose(s.normals, [0, 0, -1])
 
 

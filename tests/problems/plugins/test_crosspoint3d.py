@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import fem.mortar3d as fm3
+import fem.facets as ff
 import vi_core
 from problems.commands import check
 from problems.commands.main import main
@@ -75,7 +75,7 @@ def _one_class(monkeypatch, cls: str):
 
 def _wrong_share(monkeypatch):
     """A dropped node's function given twice over (shares sum to 2, not 1)."""
-    real = fm3.multiplier_basis
+    real = ff.multiplier_basis
 
     def faulty(s, carry, ends="merge"):
         Q, K = real(s, carry, ends), real(s, carry, "keep")
