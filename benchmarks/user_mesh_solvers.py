@@ -10,7 +10,7 @@ which it has 50k–200k unknowns) for a user-like scene, the scene's own otherwi
 `mixvi solve SCENE --level L --linear-solver X` runs, without writing results) in a child
 process of its own, killed after --timeout seconds (`bench_ordering`'s children). Solvers:
 
-* `auto`: the default (`krylov.auto_linear_solver`), the chosen one printed;
+* `auto`: the default (`linear_solvers.auto_linear_solver`), the chosen one printed;
 * `splu`: SuperLU with the shipped ordering (`linalg.ORDERING` with SUPERLU_OPTIONS and
   PIVOT_THRESHOLD);
 * `splu-colamd`: SuperLU with COLAMD (no SymmetricMode, the same pivot threshold), i.e. the
@@ -36,7 +36,6 @@ import sys
 import time
 from pathlib import Path
 
-from problems.commands.bench_ordering import _child
 from problems.errors import SceneError
 from problems.output.files import Output, claim
 
@@ -53,6 +52,17 @@ def _user_meshes():
     finally:
         sys.path.pop(0)
     return user_meshes
+
+
+def _child(target, args: tuple, timeout: float) -> dict | None:
+    """benchmarks/bench_ordering.py's `_child`: target(*args, q) in a spawned process killed
+    after `timeout` s; its record, or None."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    try:
+        from bench_ordering import _child as run
+    finally:
+        sys.path.pop(0)
+    return run(target, args, timeout)
 
 
 def _scene(text: str) -> tuple[str, int | None]:

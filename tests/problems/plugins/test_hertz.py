@@ -1,7 +1,7 @@
 """The Hertz scene (signorini: elastic block, rigid cylinder, frictionless unilateral contact)
 converges to the closed form: contact half-width and peak pressure at the measured load.
 
-Measured (python -m problems.commands.hertz_table --levels 0..5; docs/electrical_contact.md):
+Measured (python benchmarks/hertz_table.py --levels 0..5; docs/electrical_contact.md):
 relative errors of a: −1.67e-2, −5.0e-3, −2.8e-4, −1.14e-3 at levels 2–5; of p0: 9.3e-3,
 2.6e-3, 1.0e-3, 1.2e-3. They level off near 1e-3: the block is a finite stand-in for the
 half-plane (a/depth = 0.058), and that model error is what is left. The bounds below sit
