@@ -96,11 +96,13 @@ def reference_tables(cell_type: str, level: int) -> tuple[np.ndarray, np.ndarray
     parent = lookup(_supports(P, P, cell_type))  # (n_fine,)
     N = np.bincount(parent, minlength=len(index))  # (n_e,)
     c = fine.cells  # (n_fine_cells, k)
-    pairs = np.stack([np.repeat(c, k, axis=1).ravel(), np.tile(c, (1, k)).ravel()], axis=1)
-    pairs = np.unique(pairs, axis=0)  # (n_pairs, 2) ordered, i = j included
-    carrier = lookup(_supports(P[pairs[:, 0]], P[pairs[:, 1]], cell_type))  # (n_pairs,)
-    keys = np.stack([parent[pairs[:, 0]], parent[pairs[:, 1]], carrier], axis=1)
-    classes, count = np.unique(keys, axis=0, return_counts=True)  # (n_classes, 3)
+    n_fine, n_e = len(P), len(index)
+    # ordered pairs (i, j), i = j included, as one integer i·n_fine + j each (lexicographic)
+    code = np.unique(np.repeat(c, k, axis=1).ravel() * n_fine + np.tile(c, (1, k)).ravel())
+    i, j = np.divmod(code, n_fine)  # (n_pairs,) each
+    carrier = lookup(_supports(P[i], P[j], cell_type))  # (n_pairs,)
+    key, count = np.unique((parent[i] * n_e + parent[j]) * n_e + carrier, return_counts=True)
+    classes = np.stack([key // (n_e * n_e), key // n_e % n_e, key % n_e], axis=1)  # (n_cl, 3)
     return N, np.concatenate([classes, count[:, None]], axis=1)
 
 

@@ -5,7 +5,7 @@ optional `dimension`, 2 if absent), so with s = 2^level the number of unknowns i
 of degree d in s (cells ~ s^d, boundary and contact nodes ~ s^(d-1), corners ~ 1). It is
 fitted exactly through the levels 0 … d; in 2D a level multiplies the unknowns by about 4,
 in 3D by 8. Level 0 is built (its model tells d), and the levels 1 … d too, unless the
-plug-in declares `count(scene, level) -> (unknowns, nnz(A), n)` (and, for level 0, DIMENSION),
+plug-in declares `count(scene, levels) -> [(unknowns, nnz(A), n), …]` (and DIMENSION),
 which counts them on the level-0 meshes (contact3d: `fem.refined_counts`, exact formulas of
 uniform refinement in the coarse mesh's vertices, edges, faces and cells and the parts holding
 them; nothing is assembled and nothing finer than level 0 meshed: meshing level 3 to count it
@@ -239,13 +239,10 @@ class Sizes:
             dim = int(getattr(model, "dimension", 2))
             counts = [(model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n)]
             del model
-        else:  # nothing built (contact3d: counted on the level-0 mesh)
-            counts = [tuple(int(v) for v in count(scene, 0))]
-        for lev in range(1, dim + 1):  # levels 1 … d: counted without assembly where the
-            if count is not None:  # plug-in can (a 3D level 3 is 512 × level 0)
-                counts.append(tuple(int(v) for v in count(scene, lev)))
-                continue
-            model = plugin.build(scene, lev)
+        else:  # nothing built (contact3d: levels 0 … d counted on the level-0 mesh)
+            counts = [tuple(int(v) for v in c) for c in count(scene, range(dim + 1))]
+        for lev in range(len(counts), dim + 1):  # levels 1 … d built where the plug-in
+            model = plugin.build(scene, lev)  # cannot count them
             counts.append((model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n))
             del model
         self.dimension = dim

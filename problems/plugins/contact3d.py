@@ -44,7 +44,7 @@ start apart (an overlap beyond OVERLAP_TOL × the level-0 node size is refused).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -317,16 +317,17 @@ def _rows(contact: Contact3D):
     return contact.B_full, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
 
 
-def count(scene: Scene, level: int) -> tuple[int, int, int]:
-    """(unknowns n + m, stored entries of A, n) of `level`, counted on the level-0 meshes
+def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
+    """(unknowns n + m, stored entries of A, n) of each of `levels`, counted on the level-0 meshes
+    (meshed once for all the levels)
     (`fem.refined_counts`: exact for hexahedra; tetrahedra's entries within its stated bound)
     from the free unknowns of each coarse entity (`bodies.free_per_entity`) and, for m, the
     free displacement components of the slave surface's nodes: the crosspoint rules
     (`carrying`) give a surface node 3 − p rows, p its prescribed components. Nothing finer
     than level 0 is meshed, nothing is assembled."""
     spec = scene.validated(SCENE_MODEL)
-    n = nnz = m = 0
     slave = spec.contact.slave.split(".", 1) if spec.contact is not None else None
+    parts = []  # per body: (skeleton, free unknowns per entity, slave displacements or None)
     for name, tb in spec.bodies.items():
         mesh = tb.geometry.mesh(0)
         if tb.geometry.BOUNDARIES is None:
@@ -334,13 +335,22 @@ def count(scene: Scene, level: int) -> tuple[int, int, int]:
         body = Body(name, mesh, tb.material.material(), 0)
         skeleton = Skeleton(mesh)
         disp, pot = free_per_entity(tb, body, skeleton)  # (n_entities,) each
-        dn, dnnz = skeleton.sums(disp + pot, level)
-        n, nnz = n + dn, nnz + dnnz
+        on_slave = None
         if slave is not None and slave[0] == name:
             check_meshed(mesh, [("contact.slave", slave[1])])
             on = skeleton.closure(mesh.boundaries[slave[1]])  # (n_entities,)
-            m = skeleton.sums(np.where(on, disp, 0), level)[0]
-    return n + m, nnz, n
+            on_slave = np.where(on, disp, 0)  # (n_entities,)
+        parts.append((skeleton, disp + pot, on_slave))
+    counts = []
+    for level in levels:
+        n = nnz = m = 0
+        for skeleton, free, on_slave in parts:
+            dn, dnnz = skeleton.sums(free, level)
+            n, nnz = n + dn, nnz + dnnz
+            if on_slave is not None:
+                m = skeleton.sums(on_slave, level)[0]
+        counts.append((n + m, nnz, n))
+    return counts
 
 
 def row_nodes(c: Contact3D) -> np.ndarray:

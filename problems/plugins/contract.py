@@ -37,8 +37,8 @@ declaration it needs with exit status 2, naming the declaration):
                                                (lam0, u0), and optionally "start", a dict
                                                saying how they were obtained, which goes to
                                                solver_info["nested_start"] (`nested_start`)
-    count(scene, level) -> (unknowns, nnz, n)  level caps and memory estimates: the sizes of
-                                               a level without building it (else it is built)
+    count(scene, levels) -> [(unknowns, nnz, n)]  level caps and memory estimates: the sizes
+                                               of levels without building them (else built)
     DIMENSION: int                             with count: the models' `dimension`, so that
                                                the estimate builds no level at all
     solve(model, **options) -> Solution       `mixvi solve`, the Python API, the regression

@@ -293,9 +293,9 @@ class CountedCubes(Cubes):
     def build(self, scene, level):
         raise AssertionError(f"built level {level}")
 
-    def count(self, scene, level):
-        vi = Cubes.build(self, scene, level).vi
-        return vi.n + vi.m, vi.A.nnz, vi.n
+    def count(self, scene, levels):
+        vis = [Cubes.build(self, scene, level).vi for level in levels]
+        return [(vi.n + vi.m, vi.A.nnz, vi.n) for vi in vis]
 
 
 def test_a_plugin_declaring_count_and_dimension_is_not_built():

@@ -306,7 +306,7 @@ def test_count_is_the_built_size_and_a_level_multiplies_by_about_8(name, overrid
     scene = load_scene(name, overrides)
     for level in levels:
         vi = contact3d.build(scene, level).vi
-        unknowns, nnz, n = contact3d.count(scene, level)
+        unknowns, nnz, n = contact3d.count(scene, [level])[0]
         assert (unknowns, n) == (vi.n + vi.m, vi.n)
         assert abs(nnz - vi.A.nnz) <= _pair_bound(scene, level)
     sizes = Sizes(contact3d, scene)
@@ -323,7 +323,7 @@ def test_count_meshes_nothing_finer_than_level_0(monkeypatch):
     seen = []
     mesh = Box.mesh
     monkeypatch.setattr(Box, "mesh", lambda self, level: seen.append(level) or mesh(self, level))
-    contact3d.count(load_scene("block3d"), 3)
+    contact3d.count(load_scene("block3d"), [0, 1, 2, 3])
     assert seen == [0]
 
 
