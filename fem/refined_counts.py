@@ -34,7 +34,7 @@ from functools import cache
 
 import numpy as np
 
-from .elements3d import FACES, reference_element3d
+from .elements import FACETS, reference_element
 from .mesh import CellMesh, Mesh
 from .mesh3d import EDGES, Mesh3D
 from .mesh3d import refine as refine3d
@@ -44,8 +44,8 @@ from .meshing import refine as refine2d
 _REFERENCE = {
     "triangle": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
     "quad": np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
-    "tetra": reference_element3d("tetra").vertices.astype(float),
-    "hexahedron": (reference_element3d("hexahedron").vertices.astype(float) + 1.0) / 2.0,
+    "tetra": reference_element("tetra").vertices.astype(float),
+    "hexahedron": (reference_element("hexahedron").vertices.astype(float) + 1.0) / 2.0,
 }
 _SIMPLEX = {"triangle", "tetra"}
 _CHUNK = 4096  # coarse cells per block of `Skeleton.sums` (4096 hexahedra: 24 MB)
@@ -60,7 +60,7 @@ def _local_entities(cell_type: str) -> list[tuple[int, ...]]:
         faces: list[tuple[int, ...]] = []
     else:
         edges = [tuple(sorted(e)) for e in EDGES[cell_type].tolist()]
-        faces = [tuple(sorted(f)) for f in FACES[cell_type].tolist()]
+        faces = [tuple(sorted(f)) for f in FACETS[cell_type].tolist()]
     return [(i,) for i in range(k)] + edges + faces + [tuple(range(k))]
 
 

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .elements import FACET_TYPE as FACE_TYPE
 from .elements import reference_element
-from .elements3d import FACE_TYPE
 from .mesh3d import Mesh3D
 
 FRAME_LIMIT = np.cos(np.radians(10.0))  # refuse a surface whose normals come this close to a

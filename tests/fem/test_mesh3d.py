@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fem.elements3d import FACES
+from fem.elements import FACETS as FACES
 from fem.mesh3d import (
     EDGES,
     END_PARTS,
@@ -37,7 +37,7 @@ def wavy(p: np.ndarray, amount: float = 0.06) -> np.ndarray:
 
 
 def cell_volumes(mesh: Mesh3D) -> np.ndarray:
-    from fem.assembly3d import cell_geometry
+    from fem.assembly import cell_geometry
 
     return cell_geometry(mesh, order=2).w.sum(axis=1)
 
@@ -85,7 +85,7 @@ def test_boundary_sides(element):
     assert tuple(mesh.boundaries) == SIDES
     all_faces = np.concatenate(list(mesh.boundaries.values()))
     assert all_faces.shape[0] == exterior_faces(mesh.cells, element).shape[0]
-    from fem.assembly3d import face_geometry
+    from fem.assembly import facet_geometry as face_geometry
 
     lengths = np.ptp(np.array(BOUNDS), axis=1)  # (3,)
     for s, name in enumerate(SIDES):
@@ -162,7 +162,7 @@ def test_cofactors_and_determinants_against_numpy():
     assert np.allclose(cof, det[..., None, None] * np.linalg.inv(J).transpose(0, 1, 3, 2))
     mesh = transform(box(*BOUNDS, (1, 1, 1)), wavy)
     pts = np.random.default_rng(1).uniform(-1, 1, (6, 3))
-    from fem.elements3d import reference_element3d
+    from fem.elements import reference_element as reference_element3d
 
     G = reference_element3d("hexahedron").gradients(pts)  # (6, 8, 3)
     Jm = np.einsum("cai,qaj->cqij", mesh.points[mesh.cells], G)
@@ -204,7 +204,7 @@ def test_refine_is_nested_and_keeps_the_geometry(element):
     fine = refine(coarse)
     assert np.array_equal(fine.points[: coarse.n_nodes], coarse.points)
     assert np.isclose(cell_volumes(fine).sum(), cell_volumes(coarse).sum(), rtol=1e-12)
-    from fem.assembly3d import face_geometry
+    from fem.assembly import facet_geometry as face_geometry
 
     for name in ("left", "top"):
         _, w_c, _, _ = face_geometry(coarse, name)

@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import fem.mortar3d as fm3
-from fem.assembly3d import permittivity_matrix
+from fem.assembly import permittivity_matrix
 from fem.elements import reference_element
 from fem.mesh3d import Mesh3D, box, extrude, transform
 from fem.mortar import mortar_coupling, patch_defect
