@@ -76,7 +76,10 @@ def check_cells(mesh: CellMesh, chunk: int = CHUNK) -> None:
     bad = []
     for lo in range(0, mesh.n_cells, chunk):
         J = ref.jacobians(mesh.points[mesh.cells[lo : lo + chunk]], pts)  # (k, n_pts, d, d)
-        det = _det(J, cofactors(J))  # (k, n_pts)
+        if d == 2:  # (k, n_pts) directly: the cofactors are not needed here
+            det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+        else:
+            det = _det(J, cofactors(J))  # (k, n_pts)
         bad.append(np.flatnonzero((det <= 1e-14 * scale).any(axis=1)) + lo)  # (n_bad,)
     bad = np.concatenate(bad) if bad else np.zeros(0, int)
     if bad.size:
