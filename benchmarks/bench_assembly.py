@@ -24,8 +24,7 @@ def _case(cell_type: str, level: int, repeat: int, q) -> None:
     import numpy as np
 
     from fem import assembly
-    from fem.mesh3d import box
-    from fem.meshing import rectangle, refine
+    from fem.meshing import box, rectangle, refine
     from fem.tensors import NAMED, plane_strain
     from problems.commands.resources import peak_rss
 

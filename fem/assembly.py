@@ -29,15 +29,15 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .elements import cofactors, reference_element
-from .mesh import CellMesh
+from .elements import reference_element
+from .jacobians import CHUNK, check_cells, cofactors, determinants
+from .mesh import Mesh
 from .tensors import VOIGT_PAIRS
 
 Func = Callable[..., np.ndarray] | float | Sequence[float]
 
 # Voigt index I -> tensor index pair (i, j), by dimension
 VOIGT: dict[int, np.ndarray] = {2: np.array([[0, 0], [1, 1], [0, 1]]), 3: VOIGT_PAIRS}
-CHUNK = 16384  # cells per assembly chunk
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,42 +56,7 @@ class Geometry:
     grad: np.ndarray
 
 
-def _det(J: np.ndarray, cof: np.ndarray) -> np.ndarray:
-    """det J (...) of a stack (..., d, d) from its cofactors, along row 0."""
-    det = J[..., 0, 0] * cof[..., 0, 0]
-    for j in range(1, J.shape[-1]):
-        det += J[..., 0, j] * cof[..., 0, j]
-    return det
-
-
-def check_cells(mesh: CellMesh, chunk: int = CHUNK) -> None:
-    """Refuse inverted or degenerate cells: ValueError naming the first cell with det J ≤ 0
-    (relative to the mesh's extent^d), at the reference element's `check_points`."""
-    ref = reference_element(mesh.cell_type)
-    d = ref.dim
-    if mesh.points.shape[1:] != (d,):
-        raise ValueError(f"need points (n, {d}) for {ref.name} cells, got {mesh.points.shape}")
-    pts = ref.check_points  # (n_pts, d)
-    scale = np.ptp(mesh.points, axis=0).max() ** d if mesh.n_nodes else 1.0
-    bad = []
-    for lo in range(0, mesh.n_cells, chunk):
-        J = ref.jacobians(mesh.points[mesh.cells[lo : lo + chunk]], pts)  # (k, n_pts, d, d)
-        if d == 2:  # (k, n_pts) directly: the cofactors are not needed here
-            det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
-        else:
-            det = _det(J, cofactors(J))  # (k, n_pts)
-        bad.append(np.flatnonzero((det <= 1e-14 * scale).any(axis=1)) + lo)  # (n_bad,)
-    bad = np.concatenate(bad) if bad else np.zeros(0, int)
-    if bad.size:
-        raise ValueError(
-            f"inverted or degenerate cell {bad[0]} (nodes {mesh.cells[bad[0]].tolist()}): "
-            f"det J <= 0; {bad.size} bad cell(s) in total"
-        )
-
-
-def _geometry(
-    mesh: CellMesh, pts: np.ndarray, wts: np.ndarray, cells: slice = slice(None)
-) -> Geometry:
+def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray, cells: slice = slice(None)) -> Geometry:
     """Quadrature data of the cells mesh.cells[cells] (a slice), not checked for inversion."""
     ref = reference_element(mesh.cell_type)
     X = mesh.points[mesh.cells[cells]]  # (n_cells, n_loc, d)
@@ -100,7 +65,7 @@ def _geometry(
     # J is constant on a simplex: computed once per cell
     J = ref.jacobians(X, pts[:1] if ref.simplex else pts)  # (n_cells, n_J, d, d) ∂x_i/∂ξ_j
     cof = cofactors(J)  # (n_cells, n_J, d, d)
-    detJ = _det(J, cof)  # (n_cells, n_J)
+    detJ = determinants(J, cof)  # (n_cells, n_J)
     invJ = np.divide(cof.transpose(0, 1, 3, 2), detJ[..., None, None], order="C")  # (…, d, d)
     grad = dphi @ invJ  # (n_cells, n_qp, n_loc, d) ∇φ = J⁻ᵀ ∇_ξ φ (as rows: ∇_ξφᵀ J⁻¹)
     x = phi @ X  # (n_cells, n_qp, d)
@@ -108,7 +73,7 @@ def _geometry(
     return Geometry(x=x, w=w, phi=phi, grad=grad)
 
 
-def cell_geometry(mesh: CellMesh, order: int = 2) -> Geometry:
+def cell_geometry(mesh: Mesh, order: int = 2) -> Geometry:
     """Quadrature points, weights, shape values and physical gradients for a rule of `order`.
 
     Raises ValueError naming the first inverted or degenerate cell (`check_cells`).
@@ -118,7 +83,7 @@ def cell_geometry(mesh: CellMesh, order: int = 2) -> Geometry:
     return _geometry(mesh, pts, wts)
 
 
-def vector_dofs(mesh: CellMesh) -> np.ndarray:
+def vector_dofs(mesh: Mesh) -> np.ndarray:
     """(n_cells, d n_loc) global dofs d i + k, local order d a + k."""
     d = mesh.points.shape[1]
     return (d * mesh.cells[:, :, None] + np.arange(d)).reshape(mesh.n_cells, -1)
@@ -167,7 +132,7 @@ def _assemble_chunks(
 
 
 def _assemble_forms(
-    mesh: CellMesh,
+    mesh: Mesh,
     kernel: Callable[[Geometry], np.ndarray],
     order: int,
     rows: np.ndarray,
@@ -207,13 +172,13 @@ def _check_matrix(name: str, M: np.ndarray, shape: tuple[int, int]) -> np.ndarra
     return M
 
 
-def _sizes(mesh: CellMesh) -> tuple[int, int]:
+def _sizes(mesh: Mesh) -> tuple[int, int]:
     """(d, v): the dimension and the Voigt size d(d + 1)/2."""
     d = mesh.points.shape[1]
     return d, d * (d + 1) // 2
 
 
-def elasticity_matrix(mesh: CellMesh, C: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
+def elasticity_matrix(mesh: Mesh, C: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
     """(dN × dN) ∫ C ε(u)·ε(v), C the v×v Voigt matrix; `chunk` cells at a time."""
     d, v = _sizes(mesh)
     C = _check_matrix("C", C, (v, v))
@@ -229,7 +194,7 @@ def elasticity_matrix(mesh: CellMesh, C: np.ndarray, chunk: int = CHUNK) -> sp.c
     return _assemble_forms(mesh, kernel, ref.form_order, dofs, dofs, (n, n), chunk)
 
 
-def coupling_matrix(mesh: CellMesh, e: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
+def coupling_matrix(mesh: Mesh, e: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
     """(N × dN) G[θ, u] = ∫ ∇θ · (e ε(u)), e the d×v piezoelectric matrix (rows D_x, D_y(, D_z));
     `chunk` cells at a time."""
     d, v = _sizes(mesh)
@@ -247,7 +212,7 @@ def coupling_matrix(mesh: CellMesh, e: np.ndarray, chunk: int = CHUNK) -> sp.csr
     )
 
 
-def permittivity_matrix(mesh: CellMesh, kappa: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
+def permittivity_matrix(mesh: Mesh, kappa: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
     """(N × N) ∫ κ∇φ·∇θ, κ a d×d symmetric positive definite matrix; `chunk` cells at a time."""
     d, _ = _sizes(mesh)
     kappa = _check_matrix("kappa", kappa, (d, d))
@@ -261,12 +226,12 @@ def permittivity_matrix(mesh: CellMesh, kappa: np.ndarray, chunk: int = CHUNK) -
     return _assemble_forms(mesh, kernel, ref.form_order, mesh.cells, mesh.cells, shape, chunk)
 
 
-def stiffness_matrix(mesh: CellMesh, chunk: int = CHUNK) -> sp.csr_matrix:
+def stiffness_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
     """(N × N) ∫ ∇φ·∇θ (the H¹ seminorm Gram matrix)."""
     return permittivity_matrix(mesh, np.eye(mesh.points.shape[1]), chunk)
 
 
-def piezo_matrix(mesh: CellMesh, C: np.ndarray, e: np.ndarray, kappa: np.ndarray) -> sp.csr_matrix:
+def piezo_matrix(mesh: Mesh, C: np.ndarray, e: np.ndarray, kappa: np.ndarray) -> sp.csr_matrix:
     """The coupled operator [[K, Gᵀ], [−G, P]] on (u interleaved, then φ): ((d+1)N × (d+1)N)."""
     K = elasticity_matrix(mesh, C)
     G = coupling_matrix(mesh, e)
@@ -274,7 +239,7 @@ def piezo_matrix(mesh: CellMesh, C: np.ndarray, e: np.ndarray, kappa: np.ndarray
     return sp.bmat([[K, G.T], [-G, P]], format="csr")
 
 
-def mass_matrix(mesh: CellMesh, chunk: int = CHUNK) -> sp.csr_matrix:
+def mass_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
     """(N × N) ∫ φ θ (the L² Gram matrix); `chunk` cells at a time."""
 
     def kernel(g: Geometry) -> np.ndarray:
@@ -312,7 +277,7 @@ def _scatter(local: np.ndarray, nodes: np.ndarray, n_nodes: int) -> np.ndarray:
     return np.bincount(dofs.ravel(), weights=local.ravel(), minlength=ncomp * n_nodes)
 
 
-def volume_load(mesh: CellMesh, func: Func, ncomp: int, order: int = 4) -> np.ndarray:
+def volume_load(mesh: Mesh, func: Func, ncomp: int, order: int = 4) -> np.ndarray:
     """∫_Ω f·v dx as a vector of length ncomp·N (interleaved: dof ncomp·i + k)."""
     g = cell_geometry(mesh, order)
     f = _evaluate(func, g.x, ncomp)  # (n_cells, n_qp, ncomp)
@@ -321,7 +286,7 @@ def volume_load(mesh: CellMesh, func: Func, ncomp: int, order: int = 4) -> np.nd
 
 
 def facet_geometry(
-    mesh: CellMesh, name: str, order: int = 4
+    mesh: Mesh, name: str, order: int = 4
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Quadrature on the facets of boundary part `name`: straight edges (2D), flat triangles or
     bilinear quadrilaterals (3D).
@@ -346,7 +311,7 @@ def facet_geometry(
     return phi @ F, wts[None, :] * dA, phi, N / dA[..., None]
 
 
-def boundary_load(mesh: CellMesh, name: str, func: Func, ncomp: int, order: int = 4) -> np.ndarray:
+def boundary_load(mesh: Mesh, name: str, func: Func, ncomp: int, order: int = 4) -> np.ndarray:
     """∫_Γ f·v ds over boundary part `name` (a traction when ncomp = d, a surface charge when 1).
 
     Same layout and `func` conventions as `volume_load`; KeyError for an unknown part.
@@ -357,13 +322,13 @@ def boundary_load(mesh: CellMesh, name: str, func: Func, ncomp: int, order: int 
     return _scatter(Fe, mesh.boundaries[name], mesh.n_nodes)
 
 
-def interpolate(mesh: CellMesh, func: Func, ncomp: int) -> np.ndarray:
+def interpolate(mesh: Mesh, func: Func, ncomp: int) -> np.ndarray:
     """Nodal interpolant: vector of length ncomp·N (interleaved)."""
     return np.array(_evaluate(func, mesh.points, ncomp)).ravel()
 
 
 def cell_gradients(
-    mesh: CellMesh, u: np.ndarray, phi: np.ndarray | None
+    mesh: Mesh, u: np.ndarray, phi: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Strain ε(u) in Voigt order (n_cells, v) and ∇φ (n_cells, d) (None if `phi` is None) at
     the cell centroids."""
@@ -378,7 +343,7 @@ def cell_gradients(
 
 
 def cell_fields(
-    mesh: CellMesh,
+    mesh: Mesh,
     u: np.ndarray,
     phi: np.ndarray | None,
     C: np.ndarray,
@@ -401,7 +366,7 @@ def cell_fields(
     return sigma + E @ e, eps @ e.T - E @ kappa.T
 
 
-def l2_error(mesh: CellMesh, uh: np.ndarray, exact: Func, ncomp: int, order: int = 4) -> float:
+def l2_error(mesh: Mesh, uh: np.ndarray, exact: Func, ncomp: int, order: int = 4) -> float:
     """‖u − u_h‖_{L²(Ω)} by quadrature of `order` (uh interleaved, length ncomp·N)."""
     g = cell_geometry(mesh, order)
     U = np.asarray(uh, dtype=float).reshape(mesh.n_nodes, ncomp)[mesh.cells]  # (n_c, n_loc, nc)
@@ -411,7 +376,7 @@ def l2_error(mesh: CellMesh, uh: np.ndarray, exact: Func, ncomp: int, order: int
 
 
 def h1_seminorm_error(
-    mesh: CellMesh, uh: np.ndarray, grad_exact: Callable, ncomp: int, order: int = 4
+    mesh: Mesh, uh: np.ndarray, grad_exact: Callable, ncomp: int, order: int = 4
 ) -> float:
     """|u − u_h|_{H¹(Ω)}; grad_exact(x, y(, z)) returns x.shape + (ncomp, d) (or x.shape + (d,)
     when ncomp = 1)."""

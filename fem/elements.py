@@ -251,8 +251,39 @@ ELEMENTS: dict[str, ReferenceElement] = {
     )
 }
 CELL_TYPES: dict[int, tuple[str, ...]] = {2: ("quad", "triangle"), 3: ("hexahedron", "tetra")}
-FACETS: dict[str, np.ndarray] = {name: e.facets for name, e in ELEMENTS.items()}
-FACET_TYPE: dict[str, str] = {name: e.facet_type for name, e in ELEMENTS.items() if e.facet_type}
+# Local facets (the cell's boundary entities of dimension d − 1) oriented outward, and their type
+FACETS: dict[str, np.ndarray] = {n: e.facets for n, e in ELEMENTS.items() if e.facet_type}
+FACET_TYPE: dict[str, str] = {n: e.facet_type for n, e in ELEMENTS.items() if e.facet_type}
+
+
+def _cycle(k: int) -> np.ndarray:
+    """(k, 2) the sides (i, i+1 mod k) of a polygon with k corners."""
+    return np.stack([np.arange(k), np.roll(np.arange(k), -1)], axis=1)
+
+
+# Local edges (pairs of local nodes) of each cell type; a polygon's follow its corners.
+EDGES: dict[str, np.ndarray] = {
+    "line": np.array([[0, 1]]),
+    "triangle": _cycle(3),
+    "quad": _cycle(4),
+    "tetra": np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]]),
+    "hexahedron": np.array(
+        [
+            [0, 1],
+            [1, 2],
+            [3, 2],
+            [0, 3],
+            [4, 5],
+            [5, 6],
+            [7, 6],
+            [4, 7],
+            [0, 4],
+            [1, 5],
+            [2, 6],
+            [3, 7],
+        ]
+    ),
+}
 
 
 def reference_element(cell_type: str) -> ReferenceElement:
@@ -260,16 +291,3 @@ def reference_element(cell_type: str) -> ReferenceElement:
     if cell_type not in ELEMENTS:
         raise ValueError(f"unknown cell type {cell_type!r}; expected one of {tuple(ELEMENTS)}")
     return ELEMENTS[cell_type]
-
-
-def cofactors(J: np.ndarray) -> np.ndarray:
-    """Cofactor matrices of a stack of 2×2 or 3×3 matrices (..., d, d): cof = det(J) J⁻ᵀ."""
-    if J.shape[-1] == 2:
-        return np.stack([J[..., 1, 1], -J[..., 1, 0], -J[..., 0, 1], J[..., 0, 0]], -1).reshape(
-            J.shape
-        )
-    a, b = np.roll(J, -1, axis=-1), np.roll(J, -2, axis=-1)  # columns j+1, j+2 (cyclic)
-    # cof_ij = J_{i+1, j+1} J_{i+2, j+2} − J_{i+1, j+2} J_{i+2, j+1} (indices cyclic)
-    return np.roll(a, -1, axis=-2) * np.roll(b, -2, axis=-2) - np.roll(b, -1, axis=-2) * np.roll(
-        a, -2, axis=-2
-    )

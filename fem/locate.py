@@ -18,7 +18,6 @@ from scipy.spatial import cKDTree
 
 from fem.elements import reference_element
 from fem.mesh import Mesh
-from fem.mesh3d import Mesh3D
 
 CHUNK = 32_768  # point-cell pairs inverted at once (memory: arrays of (CHUNK, n_loc, d) floats)
 OUTSIDE_TOL = 1e-9  # reference coordinates: a point farther out of a cell is outside it
@@ -38,7 +37,7 @@ def outside(cell_type: str, xi: np.ndarray) -> np.ndarray:
 
 
 def locate(
-    mesh: Mesh | Mesh3D, pts: np.ndarray, candidates: int | None = None
+    mesh: Mesh, pts: np.ndarray, candidates: int | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The cell (M,) and reference coordinates (M, d) of each point of `pts` (M, d) in
     `mesh`, and how far each lies outside that cell in reference coordinates (M,) (≤ 0
@@ -70,7 +69,7 @@ def locate(
 
 
 def _search_ball(
-    mesh: Mesh | Mesh3D,
+    mesh: Mesh,
     tree: cKDTree,
     pts: np.ndarray,
     retry: np.ndarray,
@@ -104,7 +103,7 @@ def _search_ball(
     cell[idx], xi[idx], out[idx] = cand[first[better]], xr[first[better]], outr[first[better]]
 
 
-def _invert(mesh: Mesh | Mesh3D, pts: np.ndarray, cand: np.ndarray) -> np.ndarray:
+def _invert(mesh: Mesh, pts: np.ndarray, cand: np.ndarray) -> np.ndarray:
     """Reference coordinates (M, k, d) of the points `pts` (M, d) in each of their candidate
     cells `cand` (M, k): Newton on the cell map, CHUNK point-cell pairs at a time, each pair
     until its step is below NEWTON_TOL (an affine cell: one step; the pairs still iterating
@@ -162,9 +161,7 @@ def _solve_small(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     return out
 
 
-def interpolate(
-    mesh: Mesh | Mesh3D, nodal: np.ndarray, cell: np.ndarray, xi: np.ndarray
-) -> np.ndarray:
+def interpolate(mesh: Mesh, nodal: np.ndarray, cell: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """(M, c): the P1/Q1 function with nodal values `nodal` (N, c) or (N,) at the reference
     points xi (M, d) of the cells `cell` (M,)."""
     phi = reference_element(mesh.cell_type).values(xi)  # (M, n_loc)
@@ -173,7 +170,7 @@ def interpolate(
 
 
 def evaluate(
-    mesh: Mesh | Mesh3D, nodal: np.ndarray, pts: np.ndarray, candidates: int | None = None
+    mesh: Mesh, nodal: np.ndarray, pts: np.ndarray, candidates: int | None = None
 ) -> np.ndarray:
     """The P1/Q1 function with nodal values `nodal` (N, c) or (N,) at the points `pts`
     (M, d): (M, c); a point outside the mesh is extrapolated from the cell `locate` gives it."""

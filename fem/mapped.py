@@ -19,6 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from . import jacobians
 from .mesh import Mesh
 
 Curve = Callable[[np.ndarray], np.ndarray]
@@ -85,22 +86,13 @@ def _order_edges(edges: np.ndarray) -> np.ndarray:
 
 
 def check_cells(points: np.ndarray, cells: np.ndarray, what: str = "mesh") -> None:
-    """Raise ValueError unless every Q1 cell has a positive Jacobian at all four corners.
-
-    For a bilinear quadrilateral this is equivalent to det J > 0 everywhere in the cell
-    (counterclockwise, not inverted, not degenerate, convex).
-    """
-    P = points[cells]  # (n_cells, 4, 2)
-    e_next = np.roll(P, -1, axis=1) - P  # (n_cells, 4, 2) edge leaving corner k
-    e_prev = np.roll(P, 1, axis=1) - P  # (n_cells, 4, 2) edge arriving at corner k, reversed
-    cross = e_next[..., 0] * e_prev[..., 1] - e_next[..., 1] * e_prev[..., 0]  # (n_cells, 4)
-    scale = np.linalg.norm(e_next, axis=-1) * np.linalg.norm(e_prev, axis=-1)  # (n_cells, 4)
-    bad = np.flatnonzero((cross <= 1e-12 * scale).any(axis=1))
-    if bad.size:
-        raise ValueError(
-            f"{what}: {bad.size} inverted or degenerate cell(s), e.g. cell {bad[0]} with corners "
-            f"{P[bad[0]].tolist()}"
-        )
+    """Raise ValueError naming `what` unless every cell is positively oriented and not
+    degenerate (`fem.jacobians.check_cells`; for a bilinear quadrilateral: counterclockwise,
+    convex)."""
+    try:
+        jacobians.check_cells(Mesh(points, cells))
+    except ValueError as err:
+        raise ValueError(f"{what}: {err}") from None
 
 
 def coons_block(

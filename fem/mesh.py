@@ -1,4 +1,10 @@
-"""Unstructured 2D meshes of triangles (P1) or quadrilaterals (Q1) with named boundary parts."""
+"""Unstructured meshes of any dimension with named boundary parts, and their local topology.
+
+One `Mesh` serves 2D (triangles P1, quadrilaterals Q1) and 3D (tetrahedra P1, hexahedra Q1);
+the dimension d is the number of point coordinates and the cell type follows from (d, nodes
+per cell). Local node orders, edges (`EDGES`), outward facets (`FACETS`) and facet types
+(`FACET_TYPE`) of every cell type are the reference elements' data in `fem.elements`.
+"""
 
 from __future__ import annotations
 
@@ -6,14 +12,50 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .elements import EDGES, FACETS
 
-class CellMesh:
-    """What every mesh offers (2D `Mesh`, 3D `fem.mesh3d.Mesh3D`): `points` (n_nodes, d),
-    `cells` (n_cells, k) and `boundaries` name -> (n_facets, k_facet) node lists."""
+# (dimension, nodes per cell) -> meshio's name of the cell type
+CELL_TYPE = {
+    (1, 2): "line",
+    (2, 3): "triangle",
+    (2, 4): "quad",
+    (3, 4): "tetra",
+    (3, 8): "hexahedron",
+}
+DIM = {name: d for (d, _), name in CELL_TYPE.items()}  # cell type -> its dimension
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A mesh of dimension d = 2 or 3.
+
+    points : (n_nodes, d) float coordinates.
+    cells : (n_cells, k) node lists: triangles (k = 3) or quadrilaterals (4), counterclockwise,
+        in 2D; tetrahedra (4) or hexahedra (8), positively oriented (det J > 0), in 3D.
+    boundaries : name -> (n_facets, k_facet) node lists of the part's facets, oriented outward
+        (`FACETS`): in 2D edges (a, b) with the domain on their left, the edges of one part
+        ordered along it; in 3D triangles or quadrilaterals counterclockwise seen from outside.
+    """
 
     points: np.ndarray
     cells: np.ndarray
-    boundaries: dict[str, np.ndarray]
+    boundaries: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def dim(self) -> int:
+        """The dimension d: the number of coordinates of a point."""
+        return self.points.shape[1]
+
+    @property
+    def cell_type(self) -> str:
+        """'triangle' or 'quad' (2D), 'tetra' or 'hexahedron' (3D): meshio's names."""
+        key = (self.dim, self.cells.shape[1])
+        if key not in CELL_TYPE or key[0] == 1:
+            raise ValueError(
+                f"no cell type with {key[1]} nodes in {key[0]}D: need points (n, 2) with cells "
+                f"(n, 3) or (n, 4), or points (n, 3) with cells (n, 4) or (n, 8)"
+            )
+        return CELL_TYPE[key]
 
     @property
     def n_nodes(self) -> int:
@@ -38,35 +80,45 @@ class CellMesh:
         d = np.linalg.norm(P[:, :, None, :] - P[:, None, :, :], axis=-1)  # (n_cells, k, k)
         return float(d.max())
 
-
-@dataclass(frozen=True, eq=False)
-class Mesh(CellMesh):
-    """A 2D mesh.
-
-    points : (n_nodes, 2) float coordinates.
-    cells : (n_cells, 3) triangles or (n_cells, 4) quadrilaterals, counterclockwise.
-    boundaries : name -> (n_edges, 2) node pairs; each edge (a, b) has the domain on its left
-        (boundary traversed counterclockwise); edges of one part are ordered along the part.
-    """
-
-    points: np.ndarray
-    cells: np.ndarray
-    boundaries: dict[str, np.ndarray] = field(default_factory=dict)
-
-    @property
-    def cell_type(self) -> str:
-        """'triangle' or 'quad'."""
-        return "triangle" if self.cells.shape[1] == 3 else "quad"
-
     def refined_nodes(self, times: int) -> int:
-        """Nodes after `times` uniform refinements (`fem.meshing.refine`: every cell into 4 at
-        its edge midpoints, quads also at their centre), counted without refining: with V
-        nodes, E edges and C cells, one refinement gives V + E (+ C for quads) nodes,
-        2E + 3C (triangles) or 2E + 4C (quads) edges and 4C cells."""
-        k = self.cells.shape[1]
-        pairs = np.stack([self.cells, np.roll(self.cells, -1, axis=1)], axis=2)  # (C, k, 2)
-        V, C = self.n_nodes, self.n_cells
-        E = len(np.unique(np.sort(pairs.reshape(-1, 2), axis=1), axis=0))
+        """Nodes after `times` uniform refinements (`fem.refine.refine`), counted without
+        refining: the counts (V, E[, F], C) of vertices, edges, (3D: faces) and cells change
+        by one step of `REFINED_COUNTS`."""
+        ctype = self.cell_type
+        counts = [self.n_nodes, distinct(self.cells, EDGES[ctype])]
+        if self.dim == 3:
+            counts.append(distinct(self.cells, FACETS[ctype]))
+        counts = np.array(counts + [self.n_cells], dtype=object)  # exact integers
+        step = REFINED_COUNTS[ctype].astype(object)
         for _ in range(times):
-            V, E, C = V + E + (C if k == 4 else 0), 2 * E + k * C, 4 * C
-        return V
+            counts = step @ counts
+        return int(counts[0])
+
+
+# One uniform refinement (`fem.refine`) maps the entity counts (V, E, C) in 2D and
+# (V, E, F, C) in 3D by these matrices: new nodes at edge midpoints (and at the centres of
+# quadrilaterals and hexahedra); each edge into 2, each cell and face into 2^d and 4 with
+# the new edges and faces inside them.
+REFINED_COUNTS: dict[str, np.ndarray] = {
+    "triangle": np.array([[1, 1, 0], [0, 2, 3], [0, 0, 4]]),
+    "quad": np.array([[1, 1, 1], [0, 2, 4], [0, 0, 4]]),
+    "tetra": np.array([[1, 1, 0, 0], [0, 2, 3, 1], [0, 0, 4, 8], [0, 0, 0, 8]]),
+    "hexahedron": np.array([[1, 1, 1, 1], [0, 2, 4, 6], [0, 0, 4, 12], [0, 0, 0, 8]]),
+}
+
+
+def distinct(cells: np.ndarray, local: np.ndarray) -> int:
+    """The number of distinct entities (edges, faces) with local node lists `local`
+    (n_local, m) over the cells (n_cells, k)."""
+    items = cells[:, local].reshape(-1, local.shape[1])  # (n_cells n_local, m)
+    return len(np.unique(np.sort(items, axis=1), axis=0))
+
+
+def exterior_facets(cells: np.ndarray, cell_type: str) -> np.ndarray:
+    """The facets (n_facets, k_facet) that belong to one cell only, oriented outward (from
+    positively oriented cells), in the order of the cells and of `FACETS`."""
+    local = FACETS[cell_type]  # (n_f, m)
+    facets = cells[:, local].reshape(-1, local.shape[1])  # (n_cells n_f, m)
+    key = np.sort(facets, axis=1)  # (n_cells n_f, m)
+    _, inv, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return facets[count[inv.ravel()] == 1]

@@ -1,24 +1,31 @@
-"""Meshes made elsewhere: gmsh .msh (v2 and v4) and the other formats meshio reads.
+"""Meshes made elsewhere: gmsh .msh (v2 and v4) and the other formats meshio reads, 2D and 3D.
 
 A mesh file may hold several bodies. Named **physical groups** (gmsh) select them: a group of
-dimension 2 (surfaces) is a body, a group of dimension 1 (curves) a boundary part. `read_mesh`
-reads the file once; `body_mesh` cuts one body out as a `fem.mesh.Mesh` in this package's
-conventions (docs/design.md, "Meshes"):
+the mesh's dimension d (surfaces in 2D, volumes in 3D) is a body, a group of dimension d − 1
+(curves, surfaces) a boundary part. `read_mesh` reads the file once (``planar``: a 2D mesh in
+the plane z = 0, or False: 3D); `body_mesh` cuts one body out as a `fem.mesh.Mesh` in this
+package's conventions (docs/design.md, "Meshes"; docs/fem3d.md, "3D meshes from files"):
 
-- the body's nodes renumbered 0 … n−1 in the file's order, the z coordinate dropped (it must be 0);
-- cells counterclockwise (a body whose cells are all clockwise, as gmsh writes a surface whose
-  normal points along −z, is flipped as a whole); one cell type per body (all triangles or all
-  quadrilaterals: gmsh's ``Mesh.RecombineAll`` makes the second);
-- each boundary part: the line cells of the curve group that lie on the body's boundary,
-  oriented with the body on their left and ordered along the part (several pieces allowed;
-  whether a part is one simple curve is checked where that matters: `require_curve`).
+- the body's nodes renumbered 0 … n−1 in the file's order (2D: the z coordinate dropped, it
+  must be 0);
+- one cell type per body: all triangles or all quadrilaterals (gmsh's ``Mesh.RecombineAll``
+  makes the second) in 2D, all linear tetrahedra or all trilinear hexahedra in 3D (gmsh's node
+  order is meshio's and ours);
+- 2D cells counterclockwise (a body whose cells are all clockwise, as gmsh writes a surface
+  whose normal points along −z, is flipped as a whole); a 3D cell with det J < 0 (the mirror
+  image of our local order) renumbered to det J > 0;
+- each boundary part: the facets of the group (line cells; triangles on a tetrahedral body,
+  quadrilaterals on a hexahedral one) that lie on the body's boundary, oriented outward; in 2D
+  ordered along the part (several pieces allowed; whether a part is one simple curve is
+  checked where that matters: `require_curve`). Facets whose nodes are not all in the body
+  belong to another body and are left out.
 
 Refused with `MeshImportError` (a ValueError naming the file, the group or cell and what is
-allowed): unreadable files, unknown physical groups (the available ones are listed), cells
-other than triangles/quadrilaterals in a body, mixed cell types, two nodes of a body at the same
-point (a mesh not made coherent), cells with mixed orientation (a fold), degenerate (zero-area)
-cells and non-convex quadrilaterals, a curve group edge inside a body, a z coordinate other
-than 0.
+allowed): unreadable files, unknown physical groups (the available ones are listed), other
+cell types in a body, mixed cell types, two nodes of a body at the same point (a mesh not made
+coherent), cells with mixed orientation (2D: a fold), inverted or degenerate cells, non-convex
+quadrilaterals, a group with facets inside the body or of the wrong type, a z coordinate other
+than 0 in 2D.
 """
 
 from __future__ import annotations
@@ -36,12 +43,36 @@ from typing import NamedTuple
 import numpy as np
 
 from . import mesh_bounds
+from .elements import FACET_TYPE, FACETS, reference_element
+from .jacobians import check_cells, jacobian_determinants
 from .mapped import _order_edges
-from .mesh import Mesh
+from .mesh import Mesh, exterior_facets
 
-SURFACE_CELLS = {"triangle": 3, "quad": 4}  # meshio cell types accepted in a body
-LINE_CELLS = ("line",)  # meshio cell types accepted in a boundary part
-IGNORED_CELLS = ("vertex",)  # point groups: no role in 2D
+SURFACE_CELLS = {"triangle": 3, "quad": 4}  # meshio cell types accepted in a 2D body
+VOLUME_CELLS = {"tetra": 4, "hexahedron": 8}  # meshio cell types accepted in a 3D body
+# body dimension -> (accepted cell types, what is allowed, how to get one cell type)
+BODY_CELLS = {
+    2: (
+        SURFACE_CELLS,
+        "linear triangles ('triangle') or quadrilaterals ('quad'); mesh with element order 1 "
+        "(gmsh -order 1) and without 3D cells",
+        "all triangles or all quadrilaterals (gmsh: Mesh.RecombineAll = 1 for quadrilaterals "
+        "everywhere)",
+    ),
+    3: (
+        VOLUME_CELLS,
+        "linear tetrahedra ('tetra') or hexahedra ('hexahedron'); mesh with element order 1 "
+        "(gmsh -order 1), without prisms or pyramids",
+        "all tetrahedra or all hexahedra (gmsh: Mesh.RecombineAll = 1 and "
+        "Mesh.Recombine3DAll = 1, or transfinite volumes)",
+    ),
+}
+FACET_NAMES = {2: "edge", 3: "face"}  # what a boundary facet of a body is, for messages
+MIRROR = {  # a renumbering that turns a 3D cell of det J < 0 into one of det J > 0
+    "tetra": np.array([0, 2, 1, 3]),
+    "hexahedron": np.array([4, 5, 6, 7, 0, 1, 2, 3]),
+}
+IGNORED_CELLS = ("vertex",)  # point groups: no role in a body
 # A cell whose signed area is at most AREA_TOL × (longest edge)² counts as degenerate.
 AREA_TOL = 1e-12
 # |z| of a node must be at most Z_TOL × the mesh's extent (the file holds a planar mesh).
@@ -98,7 +129,7 @@ def read_mesh(path: str | PathLike, planar: bool = True) -> MeshFile:
     """Read a mesh file with meshio (format from the file name; gmsh .msh v2 or v4, ...).
 
     planar: a 2D mesh in the plane z = 0 (points (n, 2), refused otherwise); False keeps the
-    three coordinates (points (n, 3): `fem.mesh_import3d`)."""
+    three coordinates (points (n, 3): a 3D mesh)."""
     import meshio
 
     path = str(path)
@@ -291,21 +322,13 @@ def body_cells(
 
 
 def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
-    """The body `body` (a physical surface group; None: every surface cell of the file) as a
-    Mesh, with every physical curve group that lies on its boundary as a boundary part."""
-    where, ctype, cells, points, new_id = body_cells(
-        mf,
-        body,
-        2,
-        SURFACE_CELLS,
-        "linear triangles ('triangle') or quadrilaterals ('quad'); mesh with element order 1 "
-        "(gmsh -order 1) and without 3D cells",
-        "all triangles or all quadrilaterals (gmsh: Mesh.RecombineAll = 1 for quadrilaterals "
-        "everywhere)",
-    )
-    cells = _oriented(mf.path, where, points, cells)
-    boundaries = _boundaries(mf, where, new_id, cells)
-    return Mesh(points, cells, boundaries)
+    """The body `body` as a Mesh of the file's dimension (`read_mesh`'s `planar`): a physical
+    surface group (2D) or volume group (3D); None: every cell of that dimension. Every
+    physical group of one dimension less that lies on its boundary is a boundary part."""
+    d = mf.points.shape[1]
+    where, ctype, cells, points, new_id = body_cells(mf, body, d, *BODY_CELLS[d])
+    cells = (_counterclockwise if d == 2 else _positive)(mf.path, where, points, cells)
+    return Mesh(points, cells, _boundaries(mf, where, new_id, points, cells))
 
 
 def distinct_nodes(path: str, where: str, points: np.ndarray, file_ids: np.ndarray) -> None:
@@ -326,7 +349,7 @@ def distinct_nodes(path: str, where: str, points: np.ndarray, file_ids: np.ndarr
         )
 
 
-def _oriented(path: str, where: str, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+def _counterclockwise(path: str, where: str, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """Cells made counterclockwise (all flipped if all are clockwise); refusal of folds,
     degenerate cells and non-convex quadrilaterals."""
     P = points[cells]  # (n_cells, k, 2)
@@ -363,54 +386,84 @@ def _oriented(path: str, where: str, points: np.ndarray, cells: np.ndarray) -> n
     return cells
 
 
+def _positive(path: str, where: str, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """3D cells renumbered to det J > 0 at the centroid (a cell with det J < 0 is the mirror
+    image of our local order); refusal of the cells still inverted or degenerate."""
+    mesh = Mesh(points, cells)
+    centroid = reference_element(mesh.cell_type).centroid[None, :]  # (1, 3)
+    det = jacobian_determinants(mesh, centroid)  # (n_cells, 1)
+    cells = np.where(det < 0, cells[:, MIRROR[mesh.cell_type]], cells)  # (n_cells, k)
+    try:
+        check_cells(Mesh(points, cells))
+    except ValueError as err:
+        raise MeshImportError(
+            path, f"{where}: {err}", "cells of positive volume (not flat, not folded)"
+        ) from None
+    return cells
+
+
 def _boundaries(
-    mf: MeshFile, where: str, new_id: np.ndarray, cells: np.ndarray
+    mf: MeshFile, where: str, new_id: np.ndarray, points: np.ndarray, cells: np.ndarray
 ) -> dict[str, np.ndarray]:
-    """Curve groups on the body's boundary → directed, ordered edge lists (body on the left)."""
-    n = int(cells.max()) + 1
-    directed = np.stack([cells, np.roll(cells, -1, axis=1)], axis=2).reshape(-1, 2)  # (k n_c, 2)
-    s = np.sort(directed, axis=1)
-    code = s[:, 0] * n + s[:, 1]  # (k n_cells,) orientation-free edge codes
-    ucode, inv, count = np.unique(code, return_inverse=True, return_counts=True)
-    once = count[inv] == 1  # (k n_cells,) the edge belongs to one cell: a boundary edge
-    b_code, b_dir = code[once], directed[once]  # (n_b,), (n_b, 2) with the body on the left
-    sort = np.argsort(b_code)
-    b_code, b_dir = b_code[sort], b_dir[sort]
+    """The physical groups of dimension d − 1 on the body's boundary → its outward facets
+    (n_facets, k_facet); in 2D the edges ordered along each part (body on their left)."""
+    ctype = Mesh(points, cells).cell_type
+    d, ftype = points.shape[1], FACET_TYPE[ctype]
+    ext = exterior_facets(cells, ctype)  # (n_ext, k) outward
+    k = ext.shape[1]
+    all_facets = np.sort(cells[:, FACETS[ctype]].reshape(-1, k), axis=1)  # (n_c n_f, k)
+    ext_keys = np.sort(ext, axis=1)
+    group = {1: "curve group", 2: "surface group"}[d - 1]
     out: dict[str, np.ndarray] = {}
-    for name in mf.names(1):
+    for name in mf.names(d - 1):
         tag = mf.groups[name][1]
-        edges = [d[p == tag] for t, d, p in mf.blocks if _dim(t) == 1]
-        edges = np.concatenate(edges) if edges else np.zeros((0, 2), dtype=np.int64)
-        if edges.shape[1] != 2:
-            raise MeshImportError(
-                mf.path, f"curve group {name!r}", "linear line cells (element order 1)"
-            )
-        local = new_id[edges]  # (n_e, 2); −1 where a node is not in this body
-        local = local[(local >= 0).all(axis=1)]
-        if local.size == 0:
+        local = [(t, new_id[x[p == tag]]) for t, x, p in mf.blocks if _dim(t) == d - 1]
+        local = [(t, x[(x >= 0).all(axis=1)]) for t, x in local]  # facets within this body
+        local = [(t, x) for t, x in local if len(x)]
+        if not local:
             continue
-        s = np.sort(local, axis=1)
-        c = s[:, 0] * n + s[:, 1]
-        inside = ~np.isin(c, b_code) & np.isin(c, ucode)
+        wrong = [t for t, _ in local if t != ftype]
+        if wrong:
+            raise MeshImportError(
+                mf.path,
+                f"{group} {name!r} on {where} has {FACET_NAMES[d]}s of type {wrong[0]!r}",
+                f"{ftype!r} {FACET_NAMES[d]}s on a body of {ctype!r} cells (linear, element "
+                "order 1)",
+            )
+        keys = np.sort(np.concatenate([x for _, x in local]), axis=1)  # (n_g, k)
+        on = _rows_in(keys, ext_keys)  # (n_g,) index into ext or −1
+        inside = (on < 0) & (_rows_in(keys, all_facets) >= 0)
         if inside.any():
             i = int(np.flatnonzero(inside)[0])
             raise MeshImportError(
                 mf.path,
-                f"curve group {name!r} has {int(inside.sum())} edge(s) inside {where}, e.g. "
-                f"from {mf.points[edges[i, 0]].tolist()} to {mf.points[edges[i, 1]].tolist()}",
+                f"{group} {name!r} has {int(inside.sum())} {FACET_NAMES[d]}(s) inside "
+                f"{where}, e.g. the one with corners {points[keys[i]].tolist()}",
                 "boundary parts on the body's boundary (an interface between two bodies: mesh "
-                "them as two physical surfaces with their own curves)",
+                f"them as two physical {SHAPES[d]}s with their own {FACET_NAMES[d]}s)",
             )
-        on = np.unique(c[np.isin(c, b_code)])  # (n_part,) edges of the part in this body
-        if on.size:
-            out[name] = _order_edges(b_dir[np.searchsorted(b_code, on)])
+        part = ext[np.unique(on[on >= 0])]  # (n_part, k) in the order of `ext`
+        if d == 2 and len(part):  # edges along the part, from the lowest-numbered chain
+            part = _order_edges(part[np.lexsort(np.sort(part, axis=1).T[::-1])])
+        if len(part):
+            out[name] = part
     return out
+
+
+def _rows_in(rows: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """For each row of `rows` (n, k) its index in `table` (m, k) (rows sorted alike), or −1."""
+    both = np.concatenate([table, rows])
+    _, inv = np.unique(both, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    first = np.full(inv.max() + 1, -1)
+    first[inv[: len(table)][::-1]] = np.arange(len(table))[::-1]
+    return first[inv[len(table) :]]
 
 
 def require_curve(mesh: Mesh, part: str) -> None:
     """ValueError unless boundary part `part` is one simple curve (an open chain of edges,
     or one closed loop): contact boundaries must be."""
-    from .boundary import trace
+    from .facets import trace
 
     trace(mesh, part)
 
@@ -422,11 +475,10 @@ def write_msh(
     binary: bool = False,
 ) -> None:
     """Write meshes as one gmsh file (meshio's `file_format`: "gmsh22" = v2.2, "gmsh" = v4.1):
-    each body a physical surface (2D `Mesh`) or volume (`Mesh3D`) named for it, each boundary
+    each body a physical surface (2D `Mesh`) or volume (3D) named for it, each boundary
     part a physical curve (2D) or surface (3D) named `part` (`body_part` where two bodies have
     a part of that name; 3D only as v2.2). Nodes of different bodies are not merged. Tests
-    and examples use it to hand built-in meshes to `body_mesh` / `mesh_import3d.body_mesh3d`
-    (ASCII, or `binary`)."""
+    and examples use it to hand built-in meshes to `body_mesh` (ASCII, or `binary`)."""
     import meshio
 
     dims = {m.points.shape[1] for m in bodies.values()}
@@ -442,7 +494,7 @@ def write_msh(
     points, cells, phys, geo, field, dim_tags = [], [], [], [], {}, []
     offset, tag = 0, 1
     for bname, m in bodies.items():
-        faces = "line" if dim == 2 else {4: "triangle", 8: "quad"}[m.cells.shape[1]]
+        faces = FACET_TYPE[m.cell_type]
         field[bname] = np.array([tag, dim])
         dt = np.tile([dim, tag], (m.n_nodes, 1))  # (n, 2) the entity each node is classified on
         cells.append((m.cell_type, m.cells + offset))

@@ -1,18 +1,29 @@
-"""Structured rectangle meshes and uniform refinement.
+"""Structured meshes: rectangles (2D), boxes (3D), extrusions of 2D quadrilateral meshes, and
+moved nodes (`transform`).
 
 Node numbering of `rectangle`: node (i, j) (i along x, j along y) has index i + j (nx + 1).
 Triangle meshes split every square along the diagonal from its lower-left to its upper-right
-corner (all diagonals point the same way). `refine` keeps the parent nodes first (same indices),
-then appends edge midpoints and, for quads, cell centres; so meshes of a refinement hierarchy are
-nested and a parent nodal vector is the restriction of the child's to its first n_nodes entries.
+corner (all diagonals point the same way).
+
+`box` numbers node (i, j, k) (i along x, j along y, k along z) as i + (nx+1)(j + (ny+1) k).
+Tetrahedral boxes split every hexahedron into 6 tetrahedra around its diagonal from the corner
+of smallest to the corner of largest coordinates (Kuhn's subdivision): neighbouring cells then
+split their common face along the same diagonal (conforming), and every tetrahedron is
+positively oriented. A level multiplies the cells per direction by 2 (8 times the cells).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from itertools import permutations
+
 import numpy as np
 
-from .mesh import Mesh
+from .elements import CELL_TYPES
+from .jacobians import check_cells
+from .mesh import Mesh, exterior_facets
 
+SIDES = ("left", "right", "front", "back", "bottom", "top")  # box sides x0, x1, y0, y1, z0, z1
 _ELEMENTS = ("quad", "triangle")
 
 
@@ -86,61 +97,118 @@ def rectangle(
     return Mesh(points, conn, boundaries)
 
 
-def _edge_keys(edges: np.ndarray, n_nodes: int) -> np.ndarray:
-    """Orientation-independent integer key of each edge (a, b): min · n_nodes + max."""
-    e = np.sort(edges, axis=1).astype(np.int64)  # (n_edges, 2)
-    return e[:, 0] * n_nodes + e[:, 1]
+def _kuhn_tets() -> np.ndarray:
+    """(6, 4) hexahedron-local node indices of the 6 positively oriented Kuhn tetrahedra."""
+    corner = {(0, 0, 0): 0, (1, 0, 0): 1, (1, 1, 0): 2, (0, 1, 0): 3}
+    corner |= {(0, 0, 1): 4, (1, 0, 1): 5, (1, 1, 1): 6, (0, 1, 1): 7}
+    tets = []
+    for p in permutations(range(3)):
+        path = [np.zeros(3, dtype=int)]
+        for axis in p:
+            path.append(path[-1] + np.eye(3, dtype=int)[axis])
+        t = [corner[tuple(v)] for v in path]  # (4,)
+        if np.linalg.det(np.array(path[1:]) - path[0]) < 0:
+            t[1], t[2] = t[2], t[1]
+        tets.append(t)
+    return np.array(tets)
 
 
-def _refine_once(mesh: Mesh) -> Mesh:
-    n, k = mesh.n_nodes, mesh.cells.shape[1]
-    cells = mesh.cells  # (n_cells, k)
-    local = np.stack([cells, np.roll(cells, -1, axis=1)], axis=2)  # (n_cells, k, 2) cell edges
-    keys = _edge_keys(local.reshape(-1, 2), n)  # (n_cells k,)
-    ukeys, first, inv = np.unique(keys, return_index=True, return_inverse=True)
-    uedges = local.reshape(-1, 2)[first]  # (n_edges, 2)
-    mid = n + inv.reshape(cells.shape)  # (n_cells, k) midpoint of edge (v_i, v_{i+1})
-    new_points = [mesh.points, mesh.points[uedges].mean(axis=1)]  # (n, 2), (n_edges, 2)
-    v = cells
-    if k == 3:
-        m01, m12, m20 = mid.T
-        children = [
-            [v[:, 0], m01, m20],
-            [m01, v[:, 1], m12],
-            [m20, m12, v[:, 2]],
-            [m01, m12, m20],
-        ]
-    else:
-        m01, m12, m23, m30 = mid.T
-        c = n + ukeys.size + np.arange(mesh.n_cells)  # (n_cells,) cell centres
-        new_points.append(mesh.points[cells].mean(axis=1))  # (n_cells, 2)
-        children = [
-            [v[:, 0], m01, c, m30],
-            [m01, v[:, 1], m12, c],
-            [c, m12, v[:, 2], m23],
-            [m30, c, m23, v[:, 3]],
-        ]
-    new_cells = np.stack([np.stack(ch, axis=1) for ch in children], axis=1)  # (n_cells, 4, k)
-    boundaries = {}
-    for name, edges in mesh.boundaries.items():
-        bkeys = _edge_keys(edges, n)  # (n_b,)
-        pos = np.minimum(np.searchsorted(ukeys, bkeys), ukeys.size - 1)  # (n_b,)
-        if (ukeys[pos] != bkeys).any():
-            raise ValueError(f"boundary part {name!r} has an edge that is not a cell edge")
-        m = n + pos  # (n_b,)
-        split = np.stack([np.stack([edges[:, 0], m], 1), np.stack([m, edges[:, 1]], 1)], 1)
-        boundaries[name] = split.reshape(-1, 2)  # (2 n_b, 2)
-    return Mesh(np.concatenate(new_points), new_cells.reshape(-1, k), boundaries)
+def box(
+    x: tuple[float, float],
+    y: tuple[float, float],
+    z: tuple[float, float],
+    cells: tuple[int, int, int],
+    element: str = "hexahedron",
+    level: int = 0,
+) -> Mesh:
+    """Structured mesh of [x0, x1] × [y0, y1] × [z0, z1] with (nx, ny, nz)·2^level cells.
 
-
-def refine(mesh: Mesh, times: int = 1) -> Mesh:
-    """Uniform refinement, `times` times: each cell into 4, each boundary edge into 2.
-
-    Triangles are split at their edge midpoints, quads at edge midpoints and the cell centre;
-    boundary part names and edge order are kept, shared midpoints are created once.
+    element "hexahedron" (Q1) or "tetra" (P1, 6 Kuhn tetrahedra per hexahedron). Boundary parts
+    "left"/"right" (x = x0/x1), "front"/"back" (y = y0/y1), "bottom"/"top" (z = z0/z1), faces
+    oriented outward.
     """
-    if int(times) != times or times < 0:
-        raise ValueError(f"times must be a non-negative integer, got {times!r}")
-    for _ in range(int(times)):
-        mesh = _refine_once(mesh)
+    if element not in CELL_TYPES[3]:
+        raise ValueError(f"unknown element {element!r}; expected one of {CELL_TYPES[3]}")
+    if int(level) != level or level < 0:
+        raise ValueError(f"level must be a non-negative integer, got {level!r}")
+    if len(cells) != 3 or any(int(n) != n or n < 1 for n in cells):
+        raise ValueError(f"cell counts must be three positive integers, got {cells!r}")
+    bounds = (x, y, z)
+    if not all(a < b for a, b in bounds):
+        raise ValueError(f"need x0 < x1, y0 < y1, z0 < z1, got x={x!r}, y={y!r}, z={z!r}")
+    n = [int(c) * 2 ** int(level) for c in cells]
+    axes = [np.linspace(a, b, k + 1) for (a, b), k in zip(bounds, n, strict=True)]
+    Z, Y, X = np.meshgrid(axes[2], axes[1], axes[0], indexing="ij")  # (nz+1, ny+1, nx+1)
+    points = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)  # (n_nodes, 3)
+    idx = np.arange(points.shape[0]).reshape(n[2] + 1, n[1] + 1, n[0] + 1)  # idx[k, j, i]
+
+    def corner(di: int, dj: int, dk: int) -> np.ndarray:
+        return idx[dk : dk + n[2], dj : dj + n[1], di : di + n[0]].ravel()  # (n_hex,)
+
+    order = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+    hexes = np.stack([corner(*c) for c in order], axis=1)  # (n_hex, 8)
+    conn = hexes if element == "hexahedron" else hexes[:, _kuhn_tets()].reshape(-1, 4)
+    faces = exterior_facets(conn, element)  # (n_ext, k)
+    F = points[faces]  # (n_ext, k, 3)
+    boundaries = {}
+    for s, name in enumerate(SIDES):
+        axis, end = divmod(s, 2)
+        on = np.isclose(F[:, :, axis], bounds[axis][end], rtol=0, atol=1e-12).all(axis=1)
+        boundaries[name] = faces[on]
+    mesh = Mesh(points, conn, boundaries)
+    check_cells(mesh)
     return mesh
+
+
+def transform(mesh: Mesh, func: Callable[[np.ndarray], np.ndarray]) -> Mesh:
+    """The mesh (2D or 3D) with nodes moved to func(points) ((n, d) -> (n, d)); same cells and
+    parts.
+
+    Raises ValueError (via `check_cells`) if the map inverts a cell.
+    """
+    pts = np.asarray(func(mesh.points.copy()), dtype=float)
+    if pts.shape != mesh.points.shape:
+        raise ValueError(f"func returned shape {pts.shape}, expected {mesh.points.shape}")
+    out = Mesh(pts, mesh.cells, mesh.boundaries)
+    check_cells(out)
+    return out
+
+
+END_PARTS = ("z0", "z1")  # the end faces of an extruded mesh
+
+
+def extrude(mesh2d: Mesh, z: tuple[float, float], layers: int = 1) -> Mesh:
+    """The 2D quadrilateral mesh `mesh2d` (x–y plane) extruded over [z0, z1] in `layers` layers
+    of hexahedra.
+
+    Node (i, layer l) is i + l·n (the 2D numbering repeated per layer); a 2D boundary part
+    becomes the quadrilaterals [a, b, b', a'] over its edges (a, b) (outward, as the 2D edges
+    have the domain on their left); the end faces are the parts "z0" (z = z0) and "z1".
+    ValueError for triangles, a part named like an end, or bad z/layers.
+    """
+    if mesh2d.cells.shape[1] != 4:
+        raise ValueError(f"extrude needs quadrilateral cells, got {mesh2d.cells.shape[1]} nodes")
+    if int(layers) != layers or layers < 1:
+        raise ValueError(f"layers must be a positive integer, got {layers!r}")
+    if not z[0] < z[1]:
+        raise ValueError(f"need z0 < z1, got z={z!r}")
+    clash = sorted(set(END_PARTS) & set(mesh2d.boundaries))
+    if clash:
+        raise ValueError(f"the 2D mesh has parts named {clash}, reserved for the end faces")
+    n, L = mesh2d.points.shape[0], int(layers)
+    zs = np.linspace(z[0], z[1], L + 1)  # (L + 1,)
+    points = np.concatenate([np.column_stack([mesh2d.points, np.full(n, zk)]) for zk in zs])
+    off = n * np.arange(L)[:, None, None]  # (L, 1, 1)
+    q = mesh2d.cells  # (n_c, 4) counterclockwise seen from +z
+    cells = np.concatenate([q + off, q + off + n], axis=2).reshape(-1, 8)  # (L n_c, 8)
+    boundaries = {
+        name: np.concatenate(
+            [np.stack([e[:, 0], e[:, 1], e[:, 1] + n, e[:, 0] + n], 1) + k * n for k in range(L)]
+        )  # (L n_e, 4) layer by layer
+        for name, e in mesh2d.boundaries.items()
+    }
+    boundaries[END_PARTS[0]] = q[:, ::-1].copy()
+    boundaries[END_PARTS[1]] = q + L * n
+    out = Mesh(points, cells, boundaries)
+    check_cells(out)
+    return out

@@ -1,6 +1,6 @@
 """Sizes of a uniformly refined mesh, counted on the coarse mesh without refining it.
 
-Uniform refinement (`fem.meshing.refine`, `fem.mesh3d.refine`) puts every fine node in the
+Uniform refinement (`fem.refine.refine`) puts every fine node in the
 interior of exactly one entity of the coarse mesh (a vertex, an edge, a face or a cell: its
 *parent*), and the fine nodes of a coarse entity are the same whichever cell is refined.
 So a per-node quantity w that depends only on the parent entity (free unknowns of a node:
@@ -34,11 +34,9 @@ from functools import cache
 
 import numpy as np
 
-from .elements import FACETS, reference_element
-from .mesh import CellMesh, Mesh
-from .mesh3d import EDGES, Mesh3D
-from .mesh3d import refine as refine3d
-from .meshing import refine as refine2d
+from .elements import EDGES, FACETS, reference_element
+from .mesh import DIM, Mesh
+from .refine import refine
 
 # reference vertices in [0, 1]^d (cubes) or the unit simplex, in each cell type's local order
 _REFERENCE = {
@@ -55,12 +53,8 @@ def _local_entities(cell_type: str) -> list[tuple[int, ...]]:
     """The reference cell's entities as sorted tuples of local vertices: vertices, edges,
     faces (3D), the cell."""
     k = len(_REFERENCE[cell_type])
-    if cell_type in ("triangle", "quad"):
-        edges = [tuple(sorted((i, (i + 1) % k))) for i in range(k)]
-        faces: list[tuple[int, ...]] = []
-    else:
-        edges = [tuple(sorted(e)) for e in EDGES[cell_type].tolist()]
-        faces = [tuple(sorted(f)) for f in FACETS[cell_type].tolist()]
+    edges = [tuple(sorted(e)) for e in EDGES[cell_type].tolist()]
+    faces = [tuple(sorted(f)) for f in FACETS[cell_type].tolist()] if DIM[cell_type] == 3 else []
     return [(i,) for i in range(k)] + edges + faces + [tuple(range(k))]
 
 
@@ -71,10 +65,6 @@ def _codes(rows: np.ndarray) -> np.ndarray:
         _, code = np.unique(code * (int(col.max(initial=0)) + 1) + col, return_inverse=True)
         code = code.ravel()
     return code
-
-
-def _cell_type(mesh: CellMesh) -> str:
-    return mesh.cell_type  # type: ignore[attr-defined]
 
 
 def _supports(x: np.ndarray, y: np.ndarray, cell_type: str) -> np.ndarray:
@@ -99,10 +89,7 @@ def reference_tables(cell_type: str, level: int) -> tuple[np.ndarray, np.ndarray
     V = _REFERENCE[cell_type]
     k = len(V)
     cells = np.arange(k)[None, :]
-    if cell_type in ("triangle", "quad"):
-        fine: CellMesh = refine2d(Mesh(V.copy(), cells, {}), level)
-    else:
-        fine = refine3d(Mesh3D(V.copy(), cells, {}), level)
+    fine = refine(Mesh(V.copy(), cells, {}), level)
     index = {sum(1 << v for v in e): j for j, e in enumerate(_local_entities(cell_type))}
     lookup = np.vectorize(index.__getitem__, otypes=[int])
     P = fine.points  # (n_fine, d)
@@ -121,8 +108,8 @@ class Skeleton:
     """The entities of a coarse mesh (vertices, edges, faces in 3D, cells), numbered in that
     order, with each cell's local entities mapped to them and the cells holding each."""
 
-    def __init__(self, mesh: CellMesh):
-        self.cell_type = _cell_type(mesh)
+    def __init__(self, mesh: Mesh):
+        self.cell_type = mesh.cell_type
         local = _local_entities(self.cell_type)
         cells = mesh.cells  # (C, k)
         self._keys: dict[int, np.ndarray] = {}  # size of the vertex tuple → sorted unique keys

@@ -6,7 +6,6 @@ from pathlib import Path
 import pytest
 
 from fem.mesh_import import body_mesh, read_mesh
-from fem.mesh_import3d import body_mesh3d
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "problems" / "scenes" / "meshes"
@@ -27,8 +26,8 @@ def test_the_mesh_script_makes_the_shipped_meshes(tmp_path):
             m, s = body_mesh(made, b), body_mesh(shipped, b)
             assert (m.cell_type, sorted(m.boundaries)) == (s.cell_type, sorted(s.boundaries))
             assert abs(m.n_cells - s.n_cells) <= 0.05 * s.n_cells  # gmsh versions may differ
-    made = body_mesh3d(read_mesh(tmp_path / "bracket3d.msh", planar=False), "bracket")
-    shipped = body_mesh3d(read_mesh(SHIPPED / "bracket3d.msh", planar=False), "bracket")
+    made = body_mesh(read_mesh(tmp_path / "bracket3d.msh", planar=False), "bracket")
+    shipped = body_mesh(read_mesh(SHIPPED / "bracket3d.msh", planar=False), "bracket")
     assert (made.cell_type, sorted(made.boundaries)) == (
         shipped.cell_type,
         sorted(shipped.boundaries),

@@ -14,6 +14,11 @@ Layers, lowest first (a module may import its own layer and the layers below it)
 
 `vi_core` and `fem` are side by side: neither imports the other. Every import counts, including
 those inside functions (a lazy import is still a dependency).
+
+The installed packages hold no research scripts: a module runnable as `python -m` (an
+`if __name__ == "__main__":` block) is the `mixvi` command or a generator of a shipped scene
+(SCRIPTS); measurements and studies live in benchmarks/, which none of the packages imports
+(nor tests/).
 """
 
 from __future__ import annotations
@@ -25,6 +30,15 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("vi_core", "fem", "problems")
+# the modules of the packages that may run as `python -m`: the mixvi command, and the generators
+# of shipped scenes (their output is a file in problems/scenes)
+SCRIPTS = {
+    "problems.commands.main",
+    "problems.commands.entry",
+    "problems.scene.manufactured",
+    "problems.scene.manufactured3d",
+}
+OUTSIDE = ("benchmarks", "tests")  # never imported by the packages
 # layer name → the layers it may import (besides itself)
 ALLOWED = {
     "vi_core": set(),
@@ -207,3 +221,83 @@ def test_a_cycle_is_caught():
     g["problems.commands.study"] = g["problems.commands.study"] | {"problems.commands.main"}
     g["problems.commands.main"] = g["problems.commands.main"] | {"problems.commands.study"}
     assert cycles(g)
+
+
+def _package_files() -> list[Path]:
+    return [p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")]
+
+
+def scripts(sources: dict[str, str]) -> set[str]:
+    """The modules (name → source) with an `if __name__ == "__main__":` block."""
+    out = set()
+    for name, text in sources.items():
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.If) and isinstance(node.test, ast.Compare):
+                sides = [node.test.left, *node.test.comparators]
+                if any(isinstance(x, ast.Name) and x.id == "__name__" for x in sides) and any(
+                    isinstance(x, ast.Constant) and x.value == "__main__" for x in sides
+                ):
+                    out.add(name)
+    return out
+
+
+def outside_imports(sources: dict[str, str]) -> list[str]:
+    """`module → name` for each import of benchmarks/ or tests/ in the modules (name → source)."""
+    bad = []
+    for name, text in sources.items():
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and not node.level:
+                names = [node.module or ""]
+            else:
+                continue
+            bad += [f"{name} → {n}" for n in names if n.split(".")[0] in OUTSIDE]
+    return sorted(bad)
+
+
+def _sources() -> dict[str, str]:
+    return {module_name(p): p.read_text() for p in _package_files()}
+
+
+def test_the_packages_hold_no_research_scripts():
+    assert scripts(_sources()) <= SCRIPTS
+
+
+def test_the_packages_do_not_import_benchmarks_or_tests():
+    assert outside_imports(_sources()) == []
+
+
+def test_benchmarks_are_not_installed():
+    """setuptools finds the three packages only (benchmarks/ and tests/ stay in the repository)."""
+    import tomllib
+
+    find = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    assert sorted(find["find"]["include"]) == sorted(f"{p}*" for p in PACKAGES)
+    assert (ROOT / "benchmarks" / "bench_ordering.py").is_file()
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        'import sys\n\nif __name__ == "__main__":\n    sys.exit(0)\n',
+        "if '__main__' == __name__:\n    pass\n",
+    ],
+)
+def test_a_research_script_in_a_package_is_caught(text):
+    """Mutation: a study runnable as `python -m problems.commands.study_x` in the package."""
+    sources = {**_sources(), "problems.commands.study_x": text}
+    assert "problems.commands.study_x" in scripts(sources) - SCRIPTS
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "from benchmarks.bench_ordering import VARIANTS\n",
+        "def f():\n    import benchmarks.hertz_table\n",
+        "from tests.vi_core.newton_systems import lower_vi\n",
+    ],
+)
+def test_an_import_of_benchmarks_is_caught(text):
+    sources = {**_sources(), "vi_core.ssn": _sources()["vi_core.ssn"] + text}
+    assert outside_imports(sources)

@@ -5,8 +5,8 @@ the whole restart length up front, 2 · restart · n floats (restart 50: 800 byt
 whatever the iterations a solve takes — at the paper scene's level 5 (386k unknowns) the
 largest allocation after the multigrid set-up, for 19 iterations. Here only the Arnoldi vectors
 V are kept, in a list: (k + 1) · n floats after k iterations. The preconditioner M of the
-iterative path (`krylov.KrylovSolver.preconditioner`: multigrid cycles with fixed smoothers, an
-exact coarse solve, exact tied rows) is one fixed linear map during a cycle, so the iterate
+iterative path (`tied_preconditioner.TiedPreconditioner`: multigrid cycles with fixed smoothers,
+an exact coarse solve, exact tied rows) is one fixed linear map during a cycle, so the iterate
 x0 + Σ y_j M v_j is x0 + M (V y): one more application of M at the end instead of keeping the
 preconditioned vectors z_j = M v_j (flexible GMRES keeps them, for a preconditioner that
 changes between iterations). That halves the vectors: on the 10.7M-unknown variant of the paper

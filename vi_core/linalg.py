@@ -32,7 +32,7 @@ next, so at most one factor per Refactorizer is alive.
 `Refactorizer` factorises a sequence of matrices (the Newton steps of ssn). With PARDISO, a
 matrix with the same sparsity pattern (indptr and indices) as the previous one reuses the
 previous symbolic analysis (ordering and symbolic factorisation: PARDISO phase 22, numerical
-factorisation only, instead of phase 12); `python -m problems.commands.bench_reuse` measures the
+factorisation only, instead of phase 12); `python benchmarks/bench_reuse.py` measures the
 gain. SuperLU (SciPy) offers no such reuse: every factorisation is a full one.
 """
 

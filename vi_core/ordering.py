@@ -10,7 +10,7 @@ neighbour on the far side to the near part. Parts with at most `leaf` vertices k
 order.
 
 Measured against SuperLU's own orderings on the condensed Newton matrices of the paper scene
-(`python -m problems.commands.bench_ordering paper_two_body@L`), these level-set separators
+(`python benchmarks/bench_ordering.py paper_two_body@L`), these level-set separators
 are not good enough: the factors fill more than with minimum degree on Aᵀ + A (which
 `vi_core.linalg` therefore uses), though far less than with COLAMD. This ordering is kept as
 that measured alternative; a graph partitioner's separators (METIS, as PARDISO uses) would be

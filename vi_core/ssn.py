@@ -36,18 +36,12 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from .krylov import (
-    ETA_MAX,
-    ETA_MAX_WARM,
-    LINEAR_SOLVERS,
-    CondensedNewton,
-    KrylovSolver,
-    auto_linear_solver,
-    bodies,
-    forcing_term,
-    thread_settings,
-)
+from .amg import bodies
+from .condensed_newton import CondensedNewton
+from .forcing import ETA_MAX, ETA_MAX_WARM, forcing_term
+from .krylov import KrylovSolver
 from .linalg import FactorizationTooLarge, Refactorizer, condition_estimate, resolve_backend
+from .linear_solvers import LINEAR_SOLVERS, auto_linear_solver, thread_settings
 from .problem import MixedVI, natural_residual
 from .sets import Free
 from .solution import Solution
@@ -201,7 +195,7 @@ class _Stepper:
             self.BR_t = sp.csr_matrix(e.B[:, c.R].T)  # (n−m, m)
             self.rhs_R = e.f[c.R] - self.BR_t @ (c.Dt_inv @ self.f_S)
         if self.krylov is not None:
-            return  # the iterative path applies K without storing it (`krylov.CondensedNewton`)
+            return  # the iterative path applies K without storing it (`CondensedNewton`)
         G = _block_structure(e.Lambda.block_sizes())  # (m, m) structure of J and W
         if self.cond is not None:
             c = self.cond
@@ -321,7 +315,7 @@ def solve_ssn(
 
     Stops when the relative natural-map residual (`MixedVI.residual`) is ≤ tol.
     linear_solver : auto|splu|pardiso|amg; "auto" is the iterative path for a large condensable
-        problem (`krylov.auto_linear_solver`), a direct backend otherwise. A direct
+        problem (`linear_solvers.auto_linear_solver`), a direct backend otherwise. A direct
         factorisation over its budget (`linalg.FactorizationTooLarge`) restarts the solve on
         the iterative path where the steps condense: ``info["factorisation_fallback"]`` and a
         warning say so.

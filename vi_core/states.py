@@ -14,8 +14,13 @@ a fixed 1e-9: the thresholds are `factor · max(residual, eps) · scale`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .problem import MixedVI
+    from .solution import Solution
 
 #: how far beyond the achieved residual a piece of evidence must stand to count
 FACTOR = 100.0
@@ -38,6 +43,15 @@ def thresholds(residual: float, lam_scale: float, u_scale: float) -> Thresholds:
     displacement or jump)."""
     r = FACTOR * max(float(residual), 16 * _EPS)
     return Thresholds(r * max(float(lam_scale), 1e-300), r * max(float(u_scale), 1e-300))
+
+
+def solution_thresholds(sol: Solution, lam_scale: float, u_scale: float) -> Thresholds:
+    """`thresholds` at the solution's achieved residual, the stress threshold raised to FACTOR
+    times the accuracy of λ its solver records beyond the residual
+    (`info["states"]["lam_accuracy"]`: the fixed point's last change of the bound)."""
+    th = thresholds(sol.residual, lam_scale, u_scale)
+    acc = float((sol.info.get("states") or {}).get("lam_accuracy", 0.0))
+    return Thresholds(max(th.lam, FACTOR * acc), th.u)
 
 
 def normal_states(lam_n: np.ndarray, gap: np.ndarray | None, th: Thresholds) -> np.ndarray:
@@ -96,6 +110,71 @@ def counts(states: np.ndarray) -> dict[str, int]:
     """Number of nodes per state label."""
     labels, n = np.unique(np.asarray(states, dtype=str), return_counts=True)
     return {str(k): int(v) for k, v in zip(labels, n, strict=True)}
+
+
+def vi_states(
+    vi: MixedVI, u: np.ndarray, lam: np.ndarray, residual: float, lam_accuracy: float = 0.0
+) -> np.ndarray:
+    """The states (k_total,) of (u, λ) at the nodes of `vi`'s contact blocks
+    (`vi_core.coulomb.ContactSet`, block after block), by the same rule on the VI's own
+    quantities — for a solver that must confirm its partition (the fixed point), where the
+    plug-in's weights are unknown.
+
+    Per node: λ_n and the gap gap_n − (B u)_n (touch/open), |λ_t| against the radius
+    `tresca_bound(λ_n)` and the slip |(B u − gap)_t| (stick/slip). A mortar row of B is W_k
+    times the nodal jump, so each row is divided by its weight ‖B_row‖₁ (W_k up to a factor
+    between 1 and 2√dim: the normal's components, a master's row). Thresholds: the achieved
+    `residual`, the stress scale max(|λ|, radius) (where nothing presses: |A u| on the
+    displacement per smallest weight) and the displacement scale max |u| (the "displacement"
+    field of `vi.fields` if named, else all of u). `lam_accuracy`: an accuracy of λ the solver
+    knows beyond its residual (the fixed point: the last step's change of the bound); the
+    stress threshold is at least FACTOR times it."""
+    from .coulomb import ContactSet
+
+    u, lam = np.asarray(u, dtype=float), np.asarray(lam, dtype=float)
+    weight = _row_weights(vi.B)  # (m,)
+    z = (vi.B @ u - vi.gap) / np.where(weight > 0, weight, 1.0)  # (m,) the rows' nodal jumps
+    disp = (vi.fields or {}).get("displacement", slice(None))
+    parts = []
+    for block, sl in zip(vi.Lambda.blocks(), vi.Lambda.slices(), strict=True):
+        if isinstance(block, ContactSet):
+            lam_n, lam_t = block.split(lam[sl])
+            z_n, z_t = block.split(z[sl])
+            parts.append((block, lam_n, np.linalg.norm(lam_t, axis=1), -z_n, z_t, weight[sl]))
+    if not parts:
+        return np.array([], dtype=object)
+    radius = [b.tresca_bound(ln) for b, ln, *_ in parts]
+    lam_scale = max(
+        float(np.abs(lam).max(initial=0.0)), max(float(r.max(initial=0.0)) for r in radius)
+    )
+    if lam_scale == 0.0:  # nothing presses: the elastic force per weight is the scale
+        w_min = min(float(w[w > 0].min(initial=np.inf)) for *_, w in parts)
+        lam_scale = float(np.abs((vi.A @ u)[disp]).max(initial=0.0)) / min(w_min, 1.0)
+    th = thresholds(residual, lam_scale, float(np.abs(u[disp]).max(initial=0.0)))
+    th = Thresholds(max(th.lam, FACTOR * float(lam_accuracy)), th.u)
+    out = []
+    for (_, lam_n, lam_t, gap, z_t, _), r in zip(parts, radius, strict=True):
+        normal = normal_states(lam_n, gap, th)
+        rho = r * (normal != "open")  # (k,) no friction where open
+        tang = tangential_states(lam_t, rho, np.linalg.norm(z_t, axis=1), th)
+        out.append(node_states(normal, tang))
+    return np.concatenate(out)
+
+
+def _row_weights(B) -> np.ndarray:
+    """(m,) ‖B_row‖₁: a mortar row's weight W_k up to a factor of order 1 (`vi_states`)."""
+    return np.asarray(abs(B).sum(axis=1)).ravel()
+
+
+def warnings(states: np.ndarray) -> list[str]:
+    """The user's warning about ambiguous nodes among `states` (k,), or none."""
+    n = int(np.sum(np.asarray(states, dtype=object) == "ambiguous"))
+    if not n:
+        return []
+    return [
+        f"{n} contact node(s) ambiguous: at the achieved residual neither the stress margin "
+        "nor the gap/slip settles their state; solve with a smaller --tol to decide"
+    ]
 
 
 def compare(a: np.ndarray, b: np.ndarray) -> dict:

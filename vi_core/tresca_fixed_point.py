@@ -21,6 +21,17 @@ proof for small friction); its factor is *measured*: `info["rates"]` holds
 warning and `converged=False`, never as an answer — when an inner solve fails, when `max_iter`
 is reached, or when the step does not shrink (ratio ≥ `NO_CONTRACTION`) `patience` times in a row
 (divergence or a cycle: measured, e.g. a 2-cycle with ratio 1.0 on a gallery problem at F = 3).
+
+**States confirmed.** The last Tresca answer's |λ_t| at a slipping node is F λ_n of the
+previous iterate, short of F λ_n by the last step: at a loose tolerance its margin can read as
+stick. So a converged answer's partition is checked by the rule every plug-in reports with
+(`vi_core.states.vi_states`: multiplier margin and gap/slip, thresholds scaled by the achieved
+residual, the stress threshold at least FACTOR times the last step's change of the bound —
+the shortfall a slipping node's |λ_t| may have); while some node is ambiguous the iteration
+goes on at a tolerance 10 times tighter, at most `TIGHTEN` times and not below `TIGHTEST`.
+Still ambiguous: a warning (the states are reported ambiguous, never guessed); a tightened
+round that fails keeps the confirmed answer.
+`info["states"]` records each round (tolerance, residual, ambiguous nodes) and the counts.
 """
 
 from __future__ import annotations
@@ -30,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from . import states as node_states
 from .coulomb import ContactSet
 from .problem import MixedVI
 from .sets import Ball, Box, ConvexSet, NonNegative, product
@@ -37,6 +49,10 @@ from .solution import Solution
 
 INNER = ("ssn", "homotopy", "conic")
 NO_CONTRACTION = 0.999  # a step ratio at least this large counts as "not contracting"
+# confirming the states: while the answer's partition has ambiguous nodes (vi_core.states),
+# iterate on at a tolerance 10 times tighter, at most TIGHTEN times and not below TIGHTEST
+TIGHTEN = 3
+TIGHTEST = 1e-14
 
 
 class TrescaSequence:
@@ -131,37 +147,73 @@ def solve_tresca_fixed_point(
     inner_iterations: list[int] = []
     warnings: list[str] = []
     converged, grew, j = res <= tol, 0, 0
-    while not converged and j < max_iter:
-        j += 1
-        sub = seq.problem(seq.bounds(lam))
-        sol = _inner_solve(sub, inner, inner_tol, u, lam[seq.perm], dict(inner_options))
-        inner_iterations.append(sol.iterations)
-        if not sol.converged:
-            warnings.append(
-                f"fixed_point: the Tresca problem of iteration {j} did not converge "
-                f"({inner}: residual {sol.residual:.3e})"
+    target = tol  # the tolerance of the current round (tightened while states are ambiguous)
+    shortfall = 0.0
+    rounds: list[dict] = []  # per round: its tolerance, residual and ambiguous nodes
+    while True:
+        while not converged and j < max_iter:
+            j += 1
+            sub = seq.problem(seq.bounds(lam))
+            sol = _inner_solve(sub, inner, inner_tol, u, lam[seq.perm], dict(inner_options))
+            inner_iterations.append(sol.iterations)
+            if not sol.converged:
+                warnings.append(
+                    f"fixed_point: the Tresca problem of iteration {j} did not converge "
+                    f"({inner}: residual {sol.residual:.3e})"
+                )
+                break
+            lam_new = sol.lam[seq.inverse]
+            steps.append(float(np.linalg.norm((lam_new[seq.normal] - lam[seq.normal]) / s_n)))
+            if len(steps) > 1 and steps[-2] > 0:
+                rates.append(steps[-1] / steps[-2])
+                grew = grew + 1 if rates[-1] >= NO_CONTRACTION else 0
+            # the last step's change of the bound: how far |λ_t| of a slipping node may lie
+            # short of the bound at the new λ_n (the states' stress accuracy)
+            shortfall = max(
+                float(np.abs(a - b).max(initial=0.0))
+                for a, b in zip(seq.bounds(lam_new), seq.bounds(lam), strict=True)
             )
+            u, lam = sol.u, lam_new
+            res = vi.residual(u, lam).relative
+            history.append(res)
+            converged = res <= target
+            if not converged and grew >= patience:
+                warnings.append(f"fixed_point: the step did not shrink {grew} times in a row")
+                break
+        # as ssn: return a multiplier in Λ(λ) exactly (the last Tresca answer satisfies the
+        # bound of the previous λ_n); keep it only if the residual does not grow beyond target
+        lam_feasible = vi.Lambda.project(lam)
+        res_feasible = vi.residual(u, lam_feasible).relative
+        if res_feasible <= max(res, target):
+            lam, res = lam_feasible, res_feasible
+            history[-1] = res
+            converged = res <= target
+        if not converged:
             break
-        lam_new = sol.lam[seq.inverse]
-        steps.append(float(np.linalg.norm((lam_new[seq.normal] - lam[seq.normal]) / s_n)))
-        if len(steps) > 1 and steps[-2] > 0:
-            rates.append(steps[-1] / steps[-2])
-            grew = grew + 1 if rates[-1] >= NO_CONTRACTION else 0
-        u, lam = sol.u, lam_new
-        res = vi.residual(u, lam).relative
-        history.append(res)
-        converged = res <= tol
-        if not converged and grew >= patience:
-            warnings.append(f"fixed_point: the step did not shrink {grew} times in a row")
+        # confirm the partition (vi_core.states): a node whose evidence is ambiguous at this
+        # residual (e.g. |λ_t| short of F λ_n by the last step while it slips) is settled by
+        # more iterations at a tighter tolerance, at most TIGHTEN times
+        labels = node_states.vi_states(vi, u, lam, res, lam_accuracy=shortfall)
+        ambiguous = int(np.sum(labels == "ambiguous"))
+        rounds.append({"tol": target, "residual": float(res), "ambiguous": ambiguous})
+        if not ambiguous or len(rounds) > TIGHTEN or target / 10 < TIGHTEST:
             break
-    # as ssn: return a multiplier in Λ(λ) exactly (the last Tresca answer satisfies the bound of
-    # the previous λ_n); keep it only if the residual does not grow beyond tol
-    lam_feasible = vi.Lambda.project(lam)
-    res_feasible = vi.residual(u, lam_feasible).relative
-    if res_feasible <= max(res, tol):
-        lam, res = lam_feasible, res_feasible
-        history[-1] = res
+        target, inner_tol, converged, grew = target / 10, inner_tol / 10, False, 0
+        kept = (u, lam, res, len(warnings), shortfall)
+    if not converged and rounds:  # a tightening round failed: keep the confirmed answer
+        u, lam, res, shortfall = (*kept[:3], kept[4])
+        del warnings[kept[3] :]
+        warnings.append(
+            f"fixed_point: {rounds[-1]['ambiguous']} contact node(s) ambiguous at residual "
+            f"{res:.3e}; tightening the tolerance to {target:.1e} did not converge"
+        )
         converged = res <= tol
+    elif converged and rounds[-1]["ambiguous"]:
+        warnings.append(
+            f"fixed_point: {rounds[-1]['ambiguous']} contact node(s) still ambiguous at "
+            f"tolerance {target:.1e} (residual {res:.3e}, {len(rounds) - 1} tightening(s)): "
+            "their states are reported ambiguous"
+        )
     tail = rates[len(rates) // 2 :]
     if not converged:
         warnings.append(
@@ -182,6 +234,11 @@ def solve_tresca_fixed_point(
             "steps": steps,
             "rates": rates,
             "contraction": float(np.median(tail)) if tail else None,
+            "states": {
+                "rounds": rounds,
+                "counts": node_states.counts(labels) if rounds else {},
+                "lam_accuracy": shortfall,
+            },
         },
         warnings=warnings,
     )

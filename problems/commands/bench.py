@@ -44,8 +44,8 @@ from problems.errors import SceneError
 from problems.output import signals
 from problems.output.files import Output, claim
 from vi_core import Free, MixedVI
-from vi_core.krylov import LINEAR_SOLVERS, thread_settings
 from vi_core.linalg import resolve_backend
+from vi_core.linear_solvers import LINEAR_SOLVERS, thread_settings
 
 from . import bench_scaling, options, resources
 

@@ -17,6 +17,10 @@ A record fails (exit status 1) when
 - a method fails by its own criterion (ssn/homotopy: residual ≤ tol not reached; conic: Clarabel
   status not "optimal"), or its independent residual exceeds what it must reach: 10·tol for
   ssn and homotopy (which iterate to tol), CONIC_RAW_ACCEPT for Clarabel's raw answer; or
+- a pair's contact states disagree at some node (plug-ins with `contact_state`: each answer's
+  states by `vi_core.states` at its own residual, compared per node by
+  `vi_core.states.compare` — a node ambiguous in either answer is no disagreement, touch/open
+  or stick/slip contradictions are); or
 - a pair differs by more than `allowed` (`vi_core.kkt.Checker.compare`):
       allowed = 10 · κ · (‖F(a)‖ + ‖F(b)‖) / min(‖u'‖, ‖λ'‖),
   κ = est‖J⁻¹‖₁ of the natural map's generalised Jacobian at the answer with the smallest
@@ -33,7 +37,9 @@ import numpy as np
 import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
+from problems.output import signals
 from problems.output.files import Output, claim, jsonable
+from vi_core import states as node_states
 from vi_core.kkt import Checker
 
 from . import options, resources
@@ -63,6 +69,25 @@ def _run(plugin, model, meth: str, tol: float) -> vi_core.Solution:
     inner = "conic" if model.vi.structure != "general" else "homotopy"
     extra = {"conic": {"polish": 0}, "fixed_point": {"inner": inner}}.get(meth, {})
     return pipeline.solve_model(plugin, model, method=meth, tol=tol, **extra)
+
+
+def _states(plugin, model, sol: vi_core.Solution) -> np.ndarray | None:
+    """The contact states (k,) of an answer by the plug-in's `contact_state` (vi_core.states at
+    the answer's own residual), None where the plug-in or the scene has no contact."""
+    if not hasattr(plugin, "contact_state") or getattr(model, "contact", True) is None:
+        return None
+    return np.asarray(plugin.contact_state(model, sol)["state"], dtype=object)
+
+
+def _state_line(a: str, b: str, cmp: dict, la: np.ndarray, lb: np.ndarray) -> str:
+    """The failure line of a states disagreement: the node count and the states each says."""
+    bad = cmp["disagree_nodes"]
+    kinds: dict[str, int] = {}
+    for i in bad:
+        key = f"{a} {la[i]} / {b} {lb[i]}"
+        kinds[key] = kinds.get(key, 0) + 1
+    said = ", ".join(f"{k} at {n}" for k, n in kinds.items())
+    return f"{a} / {b}: contact states disagree at {len(bad)} node(s) ({said}; nodes {bad[:8]})"
 
 
 def _own_ok(meth: str, sol: vi_core.Solution) -> bool:
@@ -99,6 +124,7 @@ def _check_level(scene, plugin, level, tol) -> tuple[bool, dict]:
             f"{label:<12}{'pass' if own else 'FAIL':>9}{sol.iterations:>6}{sol.residual:>11.2e}"
             f"{k.relative:>11.2e}{sol.time:>10.2f}"
         )
+    labels = {m: _states(plugin, model, s) for m, s in sols.items()}  # each None or (k,)
     outer = {m: s.info["outer"] for m, s in sols.items() if "outer" in s.info}
     if outer:
         steps = ", ".join(f"{m} {o['iterations']}" for m, o in outer.items())
@@ -122,6 +148,19 @@ def _check_level(scene, plugin, level, tol) -> tuple[bool, dict]:
                 f"{a + ' / ' + b:<20}{c['diff_u']:>11.2e}{c['diff_lam']:>11.2e}"
                 f"{c['allowed']:>11.2e}{'' if within else '  BEYOND'}"
             )
+    for pair in pairs:  # the contact states, node by node
+        la, lb = labels.get(pair["a"]), labels.get(pair["b"])
+        if la is None or lb is None:
+            continue
+        cmp = node_states.compare(la, lb)
+        pair["states"] = cmp
+        line = (
+            f"states {pair['a']} / {pair['b']}: {cmp['nodes']} nodes, agree {cmp['agree']}, "
+            f"ambiguous {cmp['ambiguous']}, disagree {cmp['disagree']}"
+        )
+        print(line + ("  DISAGREE" if cmp["disagree"] else ""))
+        if cmp["disagree"]:
+            reasons.append(_state_line(pair["a"], pair["b"], cmp, la, lb))
     polish = None
     if "conic" in sols and vi.m:
         raw = sols["conic"]
@@ -155,6 +194,7 @@ def _check_level(scene, plugin, level, tol) -> tuple[bool, dict]:
                 "complementarity": kkts[k].complementarity,
                 "time_s": v.time,
                 "outer_iterations": v.info.get("outer", {}).get("iterations"),
+                "states": None if labels[k] is None else node_states.counts(labels[k]),
             }
             for k, v in sols.items()
         },
@@ -224,7 +264,8 @@ def cmd_check(args: argparse.Namespace) -> int:
 def _check(scene, plugin, levels, tol, target) -> int:
     records, ok = [], True
     for level in levels:
-        good, rec = _check_level(scene, plugin, level, tol)
+        # in a worker thread: a signal ends the run even inside SuperLU or Clarabel
+        good, rec = signals.interruptible(_check_level, scene, plugin, level, tol)
         ok = ok and good
         records.append(rec)
         if good:

@@ -2,7 +2,8 @@
 imports (NumPy, SciPy, cvxpy, matplotlib take a second or more), so a Ctrl-C at any moment
 ends with one line and exit status 130, never a traceback. An address-space limit too small
 for those imports is refused before them, and an import that fails for lack of memory is
-reported as such (`failures`), both with exit status 2."""
+reported as such (`failures`), both with exit status 2. After an interruption (exit status
+130 or 143, its clean-up done) the process ends at once (`signals.finish`)."""
 
 from __future__ import annotations
 
@@ -31,7 +32,10 @@ def run() -> int:
         return sig.exit_status if isinstance(sig, signals.Interrupted) else 130
     except Exception as err:  # an import that failed for lack of memory, or a bug
         return failures.report(err, "--debug" in sys.argv)
-    return main()
+    status = main()
+    if status in (130, 143):  # interrupted, its clean-up done: no interpreter tear-down
+        signals.finish(status)
+    return status
 
 
 if __name__ == "__main__":

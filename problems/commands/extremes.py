@@ -31,6 +31,7 @@ import numpy as np
 import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
+from problems.output import signals
 from problems.output.files import output_folder
 from problems.plugins import registry
 from problems.plugins.contract import ExtremeRow, needs
@@ -234,7 +235,7 @@ def extremes_main(argv: list[str]) -> int:
         print(HEADER)
         records = []
         for row in selected:
-            rec = run_row(row)
+            rec = signals.interruptible(run_row, row)  # a signal acts inside compiled code
             records.append(rec)
             print(format_row(rec), flush=True)
         with folder.staging() as tmp:

@@ -1,8 +1,10 @@
 """`mixvi figures`: the scene solved for each value of its plug-in's SWEEP, one panel each.
 
-The plug-in declares (contract v2) `SWEEP = Sweep(path, label, values | factors, file)`: the
-scene value at `path` is set to each of `values`, or to the scene's own value times each of
-`factors`, and `draw(ax, model, sol)` (default `contract.draw_multiplier`) draws each panel.
+The plug-in declares (contract v2) `SWEEP = Sweep(path, label, values | factors, file,
+otherwise)`: the scene value at `path` is set to each of `values`, or to the scene's own value
+times each of `factors` (a scene without a number there: the `otherwise` sweep, e.g. Coulomb
+friction's coefficient F where Tresca friction has a bound g), and `draw(ax, model, sol)`
+(default `contract.draw_multiplier`) draws each panel.
 For piezo_contact on the paper scene this is Fig. 5.4: g = 1.5e8, 1e8, 0.6e8 Pa.
 """
 
@@ -15,7 +17,7 @@ from pathlib import Path
 
 import problems.pipeline as pipeline
 from problems.errors import SceneError
-from problems.output import plots
+from problems.output import plots, signals
 from problems.output.files import output_folder
 from problems.plugins import registry
 from problems.plugins.contract import Sweep, draw_multiplier, needs
@@ -26,22 +28,40 @@ from .options import DEFAULT_SCENE
 from .progress import bar as progress_bar
 
 
-def sweep_values(sweep: Sweep, scene: Scene) -> list[float]:
-    """The values of the sweep: absolute, or the scene's number at `sweep.path` × factors."""
-    if sweep.values:
-        return [float(v) for v in sweep.values]
+def _value(scene: Scene, path: str):
+    """The scene's value at the dotted `path` (None where it has none)."""
     node = scene.data
-    for part in sweep.path.split("."):
+    for part in path.split("."):
         node = node.get(part) if isinstance(node, dict) else None
-    if isinstance(node, bool) or not isinstance(node, int | float) or not math.isfinite(node):
-        raise SceneError(
-            sweep.path,
-            node,
-            f"a number (mixvi figures sweeps it by the factors {list(sweep.factors)}; "
-            f"set it with --set {sweep.path}=VALUE)",
-            scene.path,
-        )
-    return [float(node) * f for f in sweep.factors]
+    return node
+
+
+def _number(node) -> bool:
+    return not isinstance(node, bool) and isinstance(node, int | float) and math.isfinite(node)
+
+
+def sweep_values(sweep: Sweep, scene: Scene) -> tuple[Sweep, list[float]]:
+    """The sweep that applies to the scene (`sweep`, or the first of its `otherwise` chain with
+    a number at its path) and its values: absolute, or that number × factors. SceneError where
+    none applies, naming the key of the chain the scene sets (else the first) and what it must
+    be: a Coulomb scene with a field F is told about F, never about g."""
+    chain = [sweep]
+    while chain[-1].otherwise is not None:
+        chain.append(chain[-1].otherwise)
+    for s in chain:
+        if s.values:
+            return s, [float(v) for v in s.values]
+        node = _value(scene, s.path)
+        if _number(node):
+            return s, [float(node) * f for f in s.factors]
+    named = next((s for s in chain if _value(scene, s.path) is not None), chain[0])
+    raise SceneError(
+        named.path,
+        _value(scene, named.path),
+        f"a number (mixvi figures sweeps it by the factors {list(named.factors)}; "
+        f"set it with --set {named.path}=VALUE)",
+        scene.path,
+    )
 
 
 def panel_heading(label: str, value: float) -> str:
@@ -52,14 +72,20 @@ def panel_heading(label: str, value: float) -> str:
     return f"{name} = {value:.3g}" + (f" {unit}" if unit and unit != "1" else "")
 
 
+def _solve(plugin, scene: Scene, level: int) -> tuple:
+    """(model, ssn's solution) of `scene` at `level` (the scene's problem:
+    `pipeline.solve_model`)."""
+    model = plugin.build(scene, level)
+    return model, pipeline.solve_model(plugin, model, method="ssn")
+
+
 def cmd_figures(args: argparse.Namespace) -> int:
     """Solve the scene for each value of the plug-in's SWEEP and plot them side by side."""
     name = args.scene or DEFAULT_SCENE
     probe = load_scene(name, args.set or [])
     plugin = registry.for_scene(probe)
     needs(plugin, "mixvi figures", "SWEEP")
-    sweep: Sweep = plugin.SWEEP
-    values = sweep_values(sweep, probe)
+    sweep, values = sweep_values(plugin.SWEEP, probe)
     draw = getattr(plugin, "draw", draw_multiplier)
     level = args.level if args.level is not None else resources.default_level(plugin, probe)
     option = "--level" if args.level is not None else "scene.level"  # where the level came from
@@ -70,8 +96,8 @@ def cmd_figures(args: argparse.Namespace) -> int:
         panels = []
         for v in progress_bar(iterable=values, desc=f"solving for each {sweep.path}", unit="solve"):
             scene = load_scene(name, [*(args.set or []), f"{sweep.path}={v!r}"])
-            model = plugin.build(scene, level)
-            sol = pipeline.solve_model(plugin, model, method="ssn")  # the scene's problem
+            # the scene's problem, in a worker thread: a signal acts inside compiled code
+            model, sol = signals.interruptible(_solve, plugin, scene, level)
             if not sol.converged:
                 print(
                     f"mixvi: {sweep.path} = {v:g} did not converge (residual {sol.residual:.2e})",

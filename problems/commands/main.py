@@ -21,7 +21,7 @@ import sys
 
 from problems.errors import SceneError
 from problems.output import signals
-from vi_core.krylov import LINEAR_SOLVERS
+from vi_core.linear_solvers import LINEAR_SOLVERS
 
 from . import failures, options
 from .check import cmd_check

@@ -25,11 +25,11 @@ over- rather than underestimates). AMG (`--linear-solver amg`): x = nnz(A), b = 
 bytes per stored entry, fitted (least squares, base fixed) to the peaks AMG_MEASURED of `mixvi
 bench --scenes paper_two_body --levels 2..5 --linear-solvers amg` at commit 7b9e7e2, after
 GMRES held one vector per iteration, the multigrid set-up stopped forming Â = T0ᵀ A T0 (its
-field blocks gathered from A's index arrays, `krylov.field_blocks`) and the finest
-prolongation smoothing stopped copying A (`krylov.energy_smoothing`): 142, 164, 255, 619 MiB,
+field blocks gathered from A's index arrays, `block_amg.field_blocks`) and the finest
+prolongation smoothing stopped copying A (`amg.energy_smoothing`): 142, 164, 255, 619 MiB,
 estimate / measured 0.83 … 1.01. Before: a = 68.9 (the Newton matrix an operator,
-`krylov.CondensedNewton`, the equilibrated A on A's indices, the hierarchies built by
-`krylov.smoothed_aggregation`, the bodies' A and the Gram matrix X not held; peaks 141, 170,
+`condensed_newton.CondensedNewton`, the equilibrated A on A's indices, the hierarchies built by
+`amg.smoothed_aggregation`, the bodies' A and the Gram matrix X not held; peaks 141, 170,
 273, 688 MB), a = 128.3 (peaks 146, 199, 400, 1191 MB and 4328 MB at level 6), before that
 a = 151 and 179. It has its own model so that the guard neither refuses an AMG run by the direct
 solver's larger peak nor lets one through by it.
@@ -76,8 +76,8 @@ import numpy as np
 
 from problems.errors import SceneError
 from problems.scene.geometry import check_sizes
-from vi_core.krylov import auto_linear_solver
 from vi_core.linalg import pardiso_available, resolve_backend
+from vi_core.linear_solvers import auto_linear_solver
 
 from .options import MAX_LEVEL
 
@@ -273,7 +273,7 @@ class Sizes:
         direct backend `auto`/splu/pardiso resolves to)."""
         N, nnz, n = self._at(level)
         ls = self.linear_solver
-        if ls == "auto":  # the iterative path above a size (vi_core.krylov.auto_linear_solver)
+        if ls == "auto":  # the iterative path above a size (`linear_solvers.auto_linear_solver`)
             ls = auto_linear_solver(nnz, n)
         solver = "amg" if ls == "amg" else resolve_backend(ls, n)
         dim = self.dimension

@@ -208,6 +208,8 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
         parts = [f"{c['nodes']} nodes", f"stick {c['stick']}", f"slip {c['slip']}"]
         if c.get("open"):
             parts.append(f"open {c['open']}")
+        if c.get("ambiguous"):
+            parts.append(f"ambiguous {c['ambiguous']}")
         if "stick_length" in c:
             parts[1] += f" ({c['stick_length']:.4g} m)"
             parts[2] += f" ({c['slip_length']:.4g} m)"

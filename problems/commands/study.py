@@ -17,7 +17,9 @@ the same solver at the tightest tolerance (that level's own records then carry o
 error of looser tolerances, and rates are fitted over the levels below it).
 
 With `--workers N` the (level, solver) cases run as Dask tasks on a local cluster of N
-single-threaded worker processes; with `--scheduler ADDRESS` on a running dask.distributed
+single-threaded worker processes (N lowered, with a one-line notice, to the cores, to the
+workers whose memory estimate of the finest level fits in the memory available, and to the
+cases); with `--scheduler ADDRESS` on a running dask.distributed
 cluster (optional extra: `pip install mixvi[dask]`). Every case is solved with BLAS limited to
 one thread, in the serial run too, so every number except times and memory peaks is the same
 either way. A task that fails (not bad input) is a failed record with its cause (`error`).
@@ -41,6 +43,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import sys
 import tracemalloc
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -53,6 +57,7 @@ from threadpoolctl import threadpool_limits
 import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
+from problems.output import signals
 from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import output_folder
 from problems.plugins import registry
@@ -153,7 +158,8 @@ def run_study(
         if client is None:
             for level, solver in cases:
                 bar.set_description(f"level {level} {solver}")
-                done[level, solver] = run_case(scene, level, solver, tols)
+                # in a worker thread: a signal acts even inside compiled code
+                done[level, solver] = signals.interruptible(run_case, scene, level, solver, tols)
                 bar.update(len(tols))
         else:
             from dask.distributed import as_completed
@@ -177,7 +183,9 @@ def run_study(
     solved = [r for r in records if "error" not in r]
     exact = bool(solved) and all(r["err"] is not None for r in solved)
     if not exact:
-        _reference_errors(plugin, scene, records, runs, max(levels), tols[-1])
+        signals.interruptible(
+            _reference_errors, plugin, scene, records, runs, max(levels), tols[-1]
+        )
     ok = [r for r in records if r.get("err") is not None]
     norms = getattr(plugin, "EXACT_NORMS", plugin.NORMS) if exact else plugin.NORMS
     return {
@@ -321,7 +329,8 @@ def write_series(plugin: Any, scene: Scene, solutions: dict, tmp: Path) -> list[
         sub = Path(solver) / f"level_{level}"
         (tmp / sub).mkdir(parents=True)
         with threadpool_limits(1):
-            model = plugin.build(scene, level)
+            # the build in a worker thread (signals); the writes in this one, never in a worker
+            model = signals.interruptible(plugin.build, scene, level)
             files = plugin.postprocess(model, sol, tmp / sub).get("files", [])
         series.setdefault(solver, []).extend(
             vtu_datasets(level, [(sub / f).as_posix() for f in files])
@@ -379,6 +388,47 @@ def _workers(text: str) -> int:
     return n
 
 
+# a Dask worker process beyond the memory model's own base (`resources.MEMORY_MODEL`, 115 MB):
+# 175 MB resident with mixvi's imports in a LocalCluster worker against 115 MB (measured once)
+DASK_WORKER_BYTES = 60e6
+
+
+def cores() -> int:
+    """The cores this process may run on (its CPU affinity; os.cpu_count where unknown)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def worker_count(asked: int, per_worker: float, cases: int) -> tuple[int, str | None]:
+    """The local workers to start for `--workers asked`: at most the cores, as many as fit in
+    the memory available now at `per_worker` bytes each (at least one) and no more than the
+    cases; with the one-line notice to print when that is fewer than asked (else None)."""
+    _, available = resources.memory()
+    fit = max(1, int(available // per_worker))
+    n = min(asked, cores(), fit, cases)
+    if n == asked:
+        return n, None
+    why = (
+        f"{cores()} cores, {resources.gb(available)} available at up to "
+        f"{resources.gb(per_worker)} per worker, {cases} case(s)"
+    )
+    return n, f"mixvi study: --workers {asked} lowered to {n} ({why})"
+
+
+def _end_workers() -> None:
+    """After a signal: kill the local cluster's worker processes (this process's children) and
+    silence Dask's log. A worker inside compiled code does not stop when asked: the cluster's
+    close waited 4 s for it and logged two warnings after the signal."""
+    import logging
+    import multiprocessing
+
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    for child in multiprocessing.active_children():
+        child.kill()
+
+
 @contextmanager
 def _client(args: argparse.Namespace) -> Iterator[Any]:
     """A Dask client for --workers / --scheduler (None without either: a serial study)."""
@@ -399,7 +449,11 @@ def _client(args: argparse.Namespace) -> Iterator[Any]:
             ) as cluster,
             Client(cluster) as client,
         ):
-            yield client
+            try:
+                yield client
+            except KeyboardInterrupt:  # a signal: end the workers now (`_end_workers`)
+                _end_workers()
+                raise
         return
     try:
         client = Client(args.scheduler, timeout=30)
@@ -420,7 +474,12 @@ def study_main(argv: list[str] | None = None) -> int:
     scene = load_scene(args.scene, args.set or [])
     plugin = registry.for_scene(scene)
     needs(plugin, "mixvi study", *STUDY_NEEDS)
-    resources.check_levels(plugin, scene, (a, b), "--levels", args.levels, args.force)
+    sizes = resources.check_levels(plugin, scene, (a, b), "--levels", args.levels, args.force)
+    if args.workers is not None:  # 256 workers on 2 cores were killed for memory (issue 29)
+        per_worker = sizes.estimate(b).upper_bytes + DASK_WORKER_BYTES
+        args.workers, note = worker_count(args.workers, per_worker, (b - a + 1) * len(solvers))
+        if note:
+            print(note, file=sys.stderr)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_study"
     inputs = scene.files()
     with output_folder(out, "--out", overwrite=args.overwrite, inputs=inputs) as folder:

@@ -166,10 +166,11 @@ class ContactTable:
 
     def summary(self) -> dict:
         """summary.json's `contact` entries of the table: `nodes` (those carrying a
-        multiplier), the stick/slip (and, for unilateral contact, open) counts, the totals
+        multiplier), the stick/slip/ambiguous (and, for unilateral contact, open) counts, the
+        totals
         and the rows."""
         totals = self.totals()
-        counts = {k: totals["counts"][k] for k in ("stick", "slip", "open")}
+        counts = {k: totals["counts"][k] for k in ("stick", "slip", "open", "ambiguous")}
         if self.gap is None:
             del counts["open"]
         nodes = int((self.state != "no_multiplier").sum())

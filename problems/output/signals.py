@@ -205,3 +205,22 @@ def exit_if_abandoned(status: int) -> None:
             except (OSError, ValueError):
                 pass
         os._exit(status)
+
+
+def finish(status: int) -> None:
+    """End the process now with `status` after an interruption whose clean-up has run (the
+    `finally` blocks the signal went through): the exit handlers (`atexit`) unless a worker is
+    still inside its work, the standard streams flushed, then `os._exit` — without the
+    interpreter's tear-down of every module and object, which took 1.1–1.4 s of the 1.2–1.5 s
+    from a SIGTERM to the exit of `mixvi bench` on a loaded 2-core machine (its child, the
+    solve, was already gone after 0.1 s)."""
+    if not any(t.is_alive() for t in _abandoned):
+        import atexit
+
+        atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(status)

@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from pydantic import BeforeValidator, Field, model_validator
 
 from fem import assembly
-from fem.boundary import Trace, trace
+from fem.facets import Trace, trace
 from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots, results
@@ -37,6 +37,7 @@ from problems.scene.geometry import Geometry
 from problems.scene.imported import require_curve
 from problems.scene.model import head, one_or_many
 from vi_core import Box, MixedVI, Solution
+from vi_core import states as node_states
 
 from .contract import (
     Boundaries,
@@ -203,17 +204,22 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
 
 def contact_state(model: Model, sol: Solution) -> dict:
-    """Per-node quantities along Γ3 in the layout of `plots.contact_plots`."""
+    """Per-node quantities along Γ3 in the layout of `plots.contact_plots`; "state" (m,) stick,
+    slip or ambiguous from the answer (`vi_core.states`: the margin g − |λ| and the slip |w|,
+    thresholds scaled by the achieved residual), "slip" the slip nodes."""
     w3 = model.full(sol.u)[model.tr.nodes[model.rows]]  # (m,)
     g = model.g_weights / model.tr.weights[model.rows]  # (m,) g_i
-    slip = np.abs(sol.lam) >= g - 1e-9 * max(float(g.max(initial=0.0)), 1e-300)
+    lam_scale = max(float(np.abs(sol.lam).max(initial=0.0)), float(g.max(initial=0.0)))
+    th = node_states.solution_thresholds(sol, lam_scale, float(np.abs(sol.u).max(initial=0.0)))
+    state = node_states.tangential_states(sol.lam, g, w3, th)  # (m,)
     return {
+        "state": state,
+        "slip": state == "slip",
         "s": model.tr.s[model.rows],
         "lam_t": sol.lam,
         "g": g,
         "jump_t": w3,
         "ut_slave": w3,
-        "slip": slip,
         **PLOT_LABELS,
     }
 
@@ -251,14 +257,14 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
     lam = np.full(k, np.nan)  # (k,)
     lam[model.rows] = st["lam_t"]
     state = np.full(k, "no_multiplier", dtype=object)
-    state[model.rows] = np.where(st["slip"], "slip", "stick")
+    state[model.rows] = st["state"]
     tangents = np.zeros((k, 1, 3))  # (k, 1, 3): e_z at every node
     tangents[:, 0, 2] = 1.0
     return ContactTable(
         points=model.mesh.points[tr.nodes],
         normals=tr.normals,
         weights=tr.weights,
-        segments=tr.segments,
+        segments=tr.facets,
         lambda_n=None,
         lambda_t=lam,
         jump_t=model.full(sol.u)[tr.nodes],
@@ -284,6 +290,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         "lemma_4_2": lemma,
         "complementarity": lemma,
         "files": sorted([*files, *written, "antiplane.vtu"]),
+        "warnings": node_states.warnings(state["state"]),
     }
     if model.exact is not None:
         summary["errors"] = model.errors(sol)
@@ -307,8 +314,8 @@ reference_errors = scalar_reference_errors
 
 
 def _counts(model: Model, sol: Solution) -> dict[str, int]:
-    slip = contact_state(model, sol)["slip"]
-    return {"stick": int((~slip).sum()), "slip": int(slip.sum())}
+    state = contact_state(model, sol)["state"]
+    return {"stick": int(np.sum(state == "stick")), "slip": int(np.sum(state == "slip"))}
 
 
 def extremes() -> list[ExtremeRow]:

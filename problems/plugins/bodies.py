@@ -17,7 +17,7 @@ import scipy.sparse as sp
 from pydantic import BeforeValidator, model_validator
 
 from fem import assembly
-from fem.mesh import CellMesh
+from fem.mesh import Mesh
 from fem.refined_counts import Skeleton
 from fem.tensors import Material3D
 from problems.scene import Section
@@ -37,7 +37,7 @@ def vector(components: list[Expression]):
     return lambda *coords: evaluate(components, *coords)
 
 
-def coordinates(mesh: CellMesh, nodes: np.ndarray) -> list[np.ndarray]:
+def coordinates(mesh: Mesh, nodes: np.ndarray) -> list[np.ndarray]:
     """The coordinate arrays x, y[, z], each (len(nodes),), of `nodes`."""
     return [mesh.points[nodes, i] for i in range(mesh.points.shape[1])]
 
@@ -47,7 +47,7 @@ class Body:
     """One body (2D or 3D): mesh, material, full-numbering offset and its assembled blocks."""
 
     name: str
-    mesh: CellMesh
+    mesh: Mesh
     material: Material | Material3D
     offset: int  # first full dof of this body
     # (n_b, n_b): [[K, Gᵀ], [−G, P]] or K; released once the model's MixedVI holds it

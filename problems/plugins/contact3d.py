@@ -5,12 +5,12 @@ Per contact node k of the slave surface Γ3 (a boundary part of a 3D body): a no
 λ_n,k (free: bilateral contact) and a tangential one λ_t,k in the tangent plane with the
 friction disc |λ_t,k| ≤ g_k (`vi_core.Ball(g, 2)`); λ_h = Σ_k (λ_n,k n_k + λ_t1,k t1_k +
 λ_t2,k t2_k) ψ̃_k with the dual basis ψ̃_k of the contact faces (Q1 quadrilaterals or P1
-triangles, `fem.surface3d`), so that ∫ψ̃_k φ_j = δ_kj W_k with W_k = ∫_Γ3 φ_k and the slave
+triangles, `fem.facets`), so that ∫ψ̃_k φ_j = δ_kj W_k with W_k = ∫_Γ3 φ_k and the slave
 block D = diag(W) is diagonal. g_k = ∫g φ_k / W_k. Frames (t1, t2, n) are right-handed and
-continuous on curved surfaces (`fem.surface3d.frames`). With a rigid foundation (the slave
+continuous on curved surfaces (`fem.facets.frames`). With a rigid foundation (the slave
 surface itself, flat or curved: bilateral contact has no initial gap) the rows are
 W_k n_kᵀu_k and W_k t_kᵀu_k; a master body adds −Σ_j M_kj (·)ᵀu_m,j (a `Coupling`: the 3D dual
-mortar of `fem.mortar3d`, `mortar_coupling`; docs/fem3d.md "Two bodies in contact3d").
+mortar of `fem.mortar`, `mortar_coupling`; docs/fem3d.md "Two bodies in contact3d").
 
 Multiplier order: the normal rows, then the disc nodes (t1, t2 per node), then the nodes that
 keep one tangent only. Crosspoint rules (per node, from its prescribed displacement
@@ -23,7 +23,7 @@ else is refused (SceneError naming the nodes).
 Crosspoint basis (`[contact] ends`, `class_blocks`), per class (normal; tangential): "keep"
 drops the dual functions of the nodes the rules give no row of the class; "merge" (default;
 Wohlmuth's modification, the 2D default too) gives them to the class's carrying neighbours in each
-face (`fem.mortar3d.multiplier_basis`), so that Σ_k ψ̃_k = 1 on every face with a carrier. A
+face (`fem.facets.multiplier_basis`), so that Σ_k ψ̃_k = 1 on every face with a carrier. A
 line node keeps its tangential class (it cannot give away one tangent's function: the
 neighbours' rows would re-impose the tangent it keeps); its other tangent's function is dropped.
 The rows of node k in class c are then Σ_j S_c,kj d_kᵀu_s,j − Σ_j M_c,kj d_kᵀu_m,j with
@@ -55,15 +55,16 @@ import scipy.sparse as sp
 from pydantic import Field, model_validator
 from scipy.spatial import cKDTree
 
-from fem.mortar3d import covered_nodes, dual_mass, mortar_coupling3d, multiplier_basis
+from fem import mortar as dual_mortar
+from fem.facets import Trace, dual_mass, facet_integrals, frames, multiplier_basis, trace
 from fem.refined_counts import Skeleton
-from fem.surface3d import Surface, face_integrals, frames, surface
 from problems.errors import SceneError
 from problems.scene import Scene, SceneModel
 from problems.scene.exact import ExactSection3
-from problems.scene.fields3d import NonNegativeExpr3
+from problems.scene.fields import NonNegativeExpr3
 from problems.scene.model import head, refuse
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
+from vi_core import states as node_states
 
 from . import (
     contact3d_checks,
@@ -98,7 +99,7 @@ class Coupling:
     """The master side of a two-body interface (`None` in `Contact3D` = rigid foundation).
 
     M_loc (m·n_f, n_master_nodes): the face-local mortar matrix ∫_e ψ_{e,a} φ_j^m dA of
-    `fem.mortar3d` (a class's rows are Q_c M_loc, `class_blocks`); dofs (n_master_nodes, 3) the
+    `fem.mortar` (a class's rows are Q_c M_loc, `class_blocks`); dofs (n_master_nodes, 3) the
     master's full displacement dofs; `patch_defect` max over the rows of
     |W_c,k − Σ_j M_c,kj| / W_c,k.
     """
@@ -116,14 +117,14 @@ class Coupling:
 class Contact3D:
     """The contact interface Γ3 of a 3D scene: slave surface, frames, multiplier rows, bounds.
 
-    Surface arrays are per slave surface node (k); rows_n (N_n,), disc (N_b,) and line (N_l,)
+    Trace arrays are per slave surface node (k); rows_n (N_n,), disc (N_b,) and line (N_l,)
     index the nodes carrying a normal multiplier, two tangential ones, one tangential one.
     A `line` node keeps the tangent t1 (line_slot 0) or t2 (line_slot 1): `line_dir`.
     """
 
     slave: Body
     slave_part: str
-    surf: Surface
+    surf: Trace
     normals: np.ndarray  # (k, 3)
     t1: np.ndarray  # (k, 3)
     t2: np.ndarray  # (k, 3)
@@ -356,7 +357,7 @@ def row_nodes_weights(c: Contact3D) -> np.ndarray:
     return c.surf.node_sizes()[row_nodes(c)] * c.row_weights()
 
 
-def _where(body: Body, surf: Surface, i: int) -> str:
+def _where(body: Body, surf: Trace, i: int) -> str:
     node = int(surf.nodes[i])
     return f"node {node} at {body.mesh.points[node].tolist()}"
 
@@ -413,14 +414,14 @@ def carrying(
 
 
 def class_blocks(
-    surf: Surface,
+    surf: Trace,
     carry: np.ndarray,
     covered: np.ndarray,
     ends: str,
     M_loc: sp.csr_matrix | None = None,
 ) -> tuple[sp.csr_matrix, sp.csr_matrix | None, np.ndarray, sp.csr_matrix]:
     """The rows of one multiplier class (normal, or tangential) in the basis ψ̃ = Q ψ of
-    `fem.mortar3d.multiplier_basis(surf, carry, ends)`: carry (k,) the nodes the crosspoint
+    `fem.facets.multiplier_basis(surf, carry, ends)`: carry (k,) the nodes the crosspoint
     rules give a row of the class ("merge": the others give their dual functions to their
     neighbours in each face; "keep": they are dropped). Rows of nodes whose support the master
     does not cover (covered (k,) False) are then dropped as they are (never merged).
@@ -440,8 +441,8 @@ def class_blocks(
     Qk = (P @ Q).tocsr()  # (k, m n_f)
     S = (Qk @ dual_mass(surf)).tocsr()  # (k, k)
     C = Qk.tocoo()
-    given = surf.faces.ravel()[C.col] != C.row  # (nnz,) entries of another node's function
-    fw = surf.face_weights.ravel()  # (m n_f,) ∫_e φ_a = ∫_e ψ_{e,a}
+    given = surf.facets.ravel()[C.col] != C.row  # (nnz,) entries of another node's function
+    fw = surf.facet_weights.ravel()  # (m n_f,) ∫_e φ_a = ∫_e ψ_{e,a}
     received = np.bincount(C.row[given], C.data[given] * fw[C.col[given]], surf.size)  # (k,)
     Wc = surf.weights + received  # (k,) = W exactly where nothing was merged in
     Mc = None if M_loc is None else (Qk @ M_loc).tocsr()
@@ -476,19 +477,21 @@ def contact_rows(
 
 
 def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Coupling:
-    """The master side of a two-body interface: the 3D dual mortar (`fem.mortar3d`), face-local
+    """The master side of a two-body interface: the 3D dual mortar (`fem.mortar`), face-local
     (a class's rows are Q_c M_loc); nodes without the master behind their whole support carry
     no multiplier (`covered`); patch_defect is set by `slave_contact`."""
     try:
         order = SURFACE_ORDER[slave.mesh.cell_type]  # that of the slave block in slave_contact
         reach = 1.0 + _distance(slave, part, master, mpart)
-        mo = mortar_coupling3d(slave.mesh, part, master.mesh, mpart, face_order=order, reach=reach)
+        mo = dual_mortar.mortar_coupling(
+            slave.mesh, part, master.mesh, mpart, face_order=order, reach=reach
+        )
     except ValueError as err:
         raise SceneError(
             "contact.master", f"{master.name}.{mpart}", f"a master surface facing the slave ({err})"
         ) from None
     dofs = master.u_dofs(mo.master.nodes)  # (k_m, 3)
-    return Coupling(master, mpart, mo.M, dofs, np.nan, covered_nodes(mo), mo.n_cells)
+    return Coupling(master, mpart, mo.M, dofs, np.nan, dual_mortar.covered_nodes(mo), mo.n_cells)
 
 
 def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
@@ -503,6 +506,26 @@ def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
     d, _ = cKDTree(xm).query(xs)
     size = np.linalg.norm(P[faces[:, 0]] - P[faces[:, 2]], axis=1).min()  # a diagonal
     return float(d.max() / size)
+
+
+def _not_facing(surf: Trace, master: Coupling) -> str:
+    """What is wrong with a master surface that lies behind no slave node's support (what a
+    master must be, and which of the three ways it is not: it faces the same way as the slave,
+    it lies behind the slave, or the two do not overlap seen along the slave's normal)."""
+    mesh = master.body.mesh
+    msurf = trace(mesh, master.part, SURFACE_ORDER[mesh.cell_type])
+    n_s, n_m = surf.normals.mean(axis=0), msurf.normals.mean(axis=0)  # (3,) mean outward normals
+    ahead = float((msurf.points.mean(axis=0) - surf.points.mean(axis=0)) @ n_s)
+    if float(n_s @ n_m) > 0:
+        why = "the two surfaces face the same way (their outward normals agree)"
+    elif ahead < 0:
+        why = "the two surfaces face away from each other (the master lies behind the slave)"
+    else:
+        why = "the two surfaces do not overlap seen along the slave's normal"
+    return (
+        "a master surface facing the slave one and overlapping it: no slave node has this master "
+        f"behind its faces, so no contact multiplier can be placed; {why}"
+    )
 
 
 def _rigid_gap(gap, points: np.ndarray) -> np.ndarray:
@@ -538,7 +561,7 @@ def slave_contact(
     gfun = law.g if law.friction == "tresca" else law.F
     key = "contact.slave"
     try:
-        surf = surface(slave.mesh, part, SURFACE_ORDER[slave.mesh.cell_type])
+        surf = trace(slave.mesh, part, SURFACE_ORDER[slave.mesh.cell_type])
         t1, t2 = frames(surf.normals)
     except ValueError as err:
         raise SceneError(
@@ -549,6 +572,10 @@ def slave_contact(
     # the two classes' bases from the crosspoint rules (a line node keeps its tangential class:
     # it cannot give away one tangent's function), then the rows the master covers
     covered = np.ones(surf.size, dtype=bool) if master is None else master.covered
+    if master is not None and not covered.any():  # no multiplier at all: say why
+        raise SceneError(
+            "contact.master", f"{master.body.name}.{master.part}", _not_facing(surf, master)
+        )
     M_loc = None if master is None else master.M_loc
     S_n, M_n, W_n, _ = class_blocks(surf, carry_n, covered, law.ends, M_loc)
     S_t, M_t, W_t, Q_t = class_blocks(surf, n_tan > 0, covered, law.ends, M_loc)
@@ -595,11 +622,11 @@ def slave_contact(
         return gv
 
     order = SURFACE_ORDER[slave.mesh.cell_type]
-    gloc = face_integrals(slave.mesh, surf, g_checked, order)  # (n_f, m) ∫_e g φ_{e,a}
+    gloc = facet_integrals(slave.mesh, surf, g_checked, order)  # (n_f, m) ∫_e g φ_{e,a}
     g = np.where(  # ∫gφ̃_k / W_t,k; the plain nodal mean ∫gφ_k / W_k at the other nodes
         n_tan > 0,
         (Q_t @ gloc.ravel()) / W_t,
-        np.bincount(surf.faces.ravel(), gloc.ravel(), surf.size) / surf.weights,
+        np.bincount(surf.facets.ravel(), gloc.ravel(), surf.size) / surf.weights,
     )
     rows_n = np.flatnonzero(carry_n)
     disc = np.flatnonzero(n_tan == 2)
@@ -736,10 +763,10 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     r2 = np.einsum("ij,ij->i", r, fc.t2)
     rd = np.stack([r1[fc.disc], r2[fc.disc]], axis=1)  # (N_b, 2)
     norm = np.linalg.norm(rd, axis=1)
-    slip_b = norm >= 1.0 - 1e-9  # (N_b,)
+    slip_b = norm >= 1.0 - transfer.ON_BOUND  # (N_b,)
     rd = np.where(slip_b[:, None], rd / np.maximum(norm, 1e-300)[:, None], rd)
     rl = np.clip(np.einsum("ij,ij->i", r[fc.line], fc.line_dir), -1.0, 1.0)
-    slip_l = np.abs(rl) >= 1.0 - 1e-9  # (N_l,)
+    slip_l = np.abs(rl) >= 1.0 - transfer.ON_BOUND  # (N_l,)
     rl = np.where(slip_l, np.sign(rl), rl)
     idx_n, idx_b, idx_l = fc.rows()
     lam0 = np.zeros(fc.B_full.shape[0])
@@ -773,10 +800,12 @@ def contact_state(model: Model, sol: Solution) -> dict:
     """Per surface node (k): lam_n, lam_t1, lam_t2 (NaN where not carried), lam_t_vec (k, 3),
     jump_n, jump_t1, jump_t2 ((Bu)/W in the frame: the slave displacement for a rigid
     foundation, the mortar jump with a master), g (the friction radius of the solution: g;
-    unilateral Tresca g where the node touches, 0 elsewhere; Coulomb F·λ_n), touch (every
-    node with rows for bilateral contact; λ_n beyond 1e-9 of the pressure scale `pressure`
-    for unilateral), gap (the remaining normal gap (gap₀ − [u]_n), unilateral; NaN elsewhere),
-    slip (k,) bool and state (stick, slip, normal_only, open, no_multiplier); the Lemma 4.2
+    unilateral Tresca g where the node is not open, 0 elsewhere; Coulomb F·λ_n), gap (the
+    remaining normal gap (gap₀ − [u]_n), unilateral; NaN elsewhere), and the states, which
+    follow from the answer by one rule (`vi_core.states`: multiplier margin and gap/slip,
+    thresholds scaled by the achieved residual): state (stick, slip, normal_only, open,
+    ambiguous, no_multiplier), touch (k,) bool (touch evidence: every node with rows for
+    bilateral contact), slip (k,) bool; `pressure` the pressure scale; the Lemma 4.2
     identity λᵀ(B u − gap₀) = Σ_k ρ_k W_t,k |[u]_t,k| ([u]_t since the previous load step on a
     load path: `incremental`) and its relative defect (unilateral: relative
     to the larger of Σρ W|[u]_t| and the pressure scale times Σ|B u − gap₀|)."""
@@ -812,39 +841,46 @@ def contact_state(model: Model, sol: Solution) -> dict:
     has_t = np.zeros(k, dtype=bool)
     has_t[c.disc] = has_t[c.line] = True
     gap_rows = np.zeros(Bu.size)  # the initial gap in B_full's rows (unilateral)
-    touch = np.isin(np.arange(k), c.rows_n) | has_t  # bilateral: every node carrying rows
+    has_n = np.isin(np.arange(k), c.rows_n)  # (k,) nodes carrying a normal row
     pressure = 0.0
+    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
+    gap = np.full(k, np.nan)
     if c.law == "unilateral":
         gap_rows[idx_n] = c.gap0
-        # touching: λ_n beyond rounding of the pressure scale, the largest λ_n or the elastic
-        # nodal forces per area (all of λ is rounding when the bodies are apart)
-        disp = model.unknown_fields()["displacement"]
+        # the pressure scale: the largest λ_n or the elastic nodal forces per area (all of λ is
+        # rounding when the bodies are apart)
         force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / W.min()
         pressure = max(float(lam[idx_n].max(initial=0.0)), force)
-        touch = np.zeros(k, dtype=bool)
-        touch[c.rows_n] = lam[idx_n] > 1e-9 * max(pressure, 1e-300)
-    rho = c.bound(lam) * touch  # (k,) the friction radius; a rounding-level λ_n does not touch
-    mag = np.linalg.norm(vec, axis=1)
-    # slip where |λ_t| reaches ρ up to the solver's accuracy, which is relative to the whole λ
-    # (with ρ ≪ λ_n a rounding-level shortfall of |λ_t| must not read as stick)
-    scale = max(float(rho.max(initial=0.0)), float(np.abs(lam).max(initial=0.0)), 1e-300)
-    slip = has_t & touch & (mag >= rho - 1e-9 * scale)
-    state = np.full(k, "no_multiplier", dtype=object)
-    state[has_t] = np.where(slip[has_t], "slip", "stick")
-    state[~has_t & np.isin(np.arange(k), c.rows_n)] = "normal_only"
-    state[np.isin(np.arange(k), c.rows_n) & ~touch] = "open"
+        gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / c.W_n[c.rows_n]  # the remaining normal gap
+    radius = c.bound(lam)  # (k,) the friction radius at λ
     Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
-    b_uh_lam = float(lam @ (Bi - gap_rows))
     ji = np.zeros((k, 2))  # the tangential jump (since the origin) in the node's frame
     ji[c.disc] = Bi[idx_b] / Wt[c.disc, None]
     ji[c.line, 0] = Bi[idx_l] / Wt[c.line]
-    jt = np.linalg.norm(ji, axis=1)
+    jt = np.linalg.norm(ji, axis=1)  # (k,)
+    # states from the answer (vi_core.states): multiplier margin and gap/slip, thresholds
+    # scaled by the achieved residual, the stress scale (the whole λ: with ρ ≪ λ_n a rounding
+    # shortfall of |λ_t| relative to λ is no stick evidence) and the displacement scale
+    th = node_states.solution_thresholds(
+        sol,
+        max(float(np.abs(lam).max(initial=0.0)), float(radius.max(initial=0.0)), pressure),
+        float(np.abs(sol.u[disp]).max(initial=0.0)),
+    )
+    normal = np.full(k, "touch", dtype=object)  # bilateral: every node with rows touches
+    if c.law == "unilateral":
+        normal[c.rows_n] = node_states.normal_states(lam[idx_n], gap[c.rows_n], th)
+    rows = has_n | has_t  # (k,) nodes carrying rows
+    touch = (normal == "touch") & rows  # (k,)
+    rho = radius * ((normal != "open") & rows)  # (k,) the friction radius; none where open
+    mag = np.linalg.norm(vec, axis=1)  # (k,) |λ_t|
+    tang = node_states.tangential_states(mag, rho, jt, th)
+    state = np.full(k, "no_multiplier", dtype=object)
+    state[rows] = node_states.node_states(normal, tang, has_t)[rows]
+    slip = state == "slip"
+    b_uh_lam = float(lam @ (Bi - gap_rows))
     g_abs = float(np.sum((rho * Wt * jt)[has_t]))
     tiny = np.finfo(float).eps * float(np.sum(rho * Wt)) * max(np.abs(x_full).max(), 1e-300)
     ref = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))  # unilateral: P × slack
-    gap = np.full(k, np.nan)
-    if c.law == "unilateral":
-        gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / c.W_n[c.rows_n]  # the remaining normal gap
     return {
         **out,
         "lam_t_vec": vec,
@@ -882,7 +918,15 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 # ------------------------------------------------------------------ contract v2 declarations
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
-SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="g_sweep3d.png")
+SWEEP = Sweep(
+    "contact.g",
+    "friction bound g [Pa]",
+    factors=(1.5, 1.0, 0.6),
+    file="g_sweep3d.png",
+    otherwise=Sweep(
+        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep3d.png"
+    ),
+)
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
 # against the scene's [exact] table: exact_errors (contact3d_errors)
 EXACT_NORMS = contact3d_errors.NORMS

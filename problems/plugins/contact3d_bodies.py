@@ -13,9 +13,9 @@ from typing import Annotated, Literal
 
 import numpy as np
 
-from problems.scene.fields3d import Expression3, Vector3
-from problems.scene.geometry3d import Geometry3
-from problems.scene.materials3d import MaterialSpec3
+from problems.scene.fields import Expression3, Vector3
+from problems.scene.geometry import Geometry3
+from problems.scene.materials import MaterialSpec3
 
 from .bodies import (
     COMPONENTS,

@@ -6,7 +6,7 @@
   R_k (rows of the node × its displacement dofs), must be W_k times an orthonormal right-handed
   frame whose normal row is the surface normal: W_k and n_k are recomputed from
   `fem.assembly` (its own face quadrature: W_k = ∫φ_k dA, n_k ∝ ∫φ_k n dA), not from
-  `fem.surface3d`. Reported: the relative defects of the weights, of the normal rows, of
+  `fem.facets`. Reported: the relative defects of the weights, of the normal rows, of
   orthonormality (R_k R_kᵀ = W_k² I on the rows a node carries) and the handedness
   (det R_k = W_k³ where all three rows are present).
 
@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from fem import assembly
+from vi_core import states as node_states
 
 from .bodies import operator
 from .contact3d_bodies import SURFACE_ORDER
@@ -122,7 +123,7 @@ def _shares(faces: np.ndarray, carry: np.ndarray | None) -> np.ndarray:
     """(n_f, m, m) the part of each face's local function a (last axis) that node t (middle)
     takes: the identity, or with carry (N,) bool ("merge") a node without carry gives its share
     to the face's carrying nodes next to it along an edge (to all carrying ones if none is),
-    equally. Written apart from `fem.mortar3d.multiplier_basis`."""
+    equally. Written apart from `fem.facets.multiplier_basis`."""
     n_f, m = faces.shape
     if carry is None:
         return np.broadcast_to(np.eye(m), (n_f, m, m))
@@ -186,7 +187,7 @@ def separation(model, sol) -> dict[str, float]:
     `penetration` max(−d_k, 0), `tension` max(−λ_n,k, 0), `open_pressure` max λ_n,k over the
     nodes open by more than 1e-6 of the length scale, `complementarity` max |λ_n,k d_k|, and
     `friction`: the excess of |λ_t,k| over the friction radius ρ_k (Coulomb F_k λ_n,k; Tresca
-    g_k where λ_n,k > 1e-9 of the pressure scale, 0 elsewhere; F_k, g_k the nodal means of the
+    g_k where the node is not open by `vi_core.states`, 0 elsewhere; F_k, g_k the nodal means of the
     scene's field by the same quadrature) and, where the node slips (by more than 1e-6 of the
     length scale), the shortfall. Each is rounding at a solution; a wrong sign of the gap, a
     dropped complementarity row or a wrong scaling of F makes one O(1)
@@ -244,7 +245,10 @@ def separation(model, sol) -> dict[str, float]:
             tan |= ~c.master.covered
         carry = np.isin(np.arange(body.mesh.n_nodes), surf.nodes[tan])
     bound = _nodal_means(body.mesh, c.slave_part, c.bound_field, carry)[nodes]  # (N_n,)
-    touch = lam_n > 1e-9 * p  # Tresca acts where the node presses on the foundation
+    # Tresca acts where the node is not open by the contact states (vi_core.states: λ_n and
+    # the gap d against thresholds scaled by the achieved residual)
+    th = node_states.solution_thresholds(sol, p, length)
+    touch = node_states.normal_states(lam_n, d, th) != "open"
     rho = bound * np.maximum(lam_n, 0.0) if c.friction == "coulomb" else bound * touch
     slips = ut > 1e-6 * length
     excess = np.maximum(lam_t - rho, 0.0)

@@ -20,10 +20,13 @@ from pathlib import Path
 import numpy as np
 
 from fem import assembly
-from fem.surface3d import frames
+from fem.facets import frames
 from problems.output.results import write_csv
+from vi_core import states as node_states
 
-STATES = ("stick", "slip", "normal_only", "open", "no_multiplier")
+# "ambiguous" (vi_core.states: not settled at the achieved residual) is the last code, so the
+# others keep theirs
+STATES = ("stick", "slip", "normal_only", "open", "no_multiplier", "ambiguous")
 VTK_ORDER = [0, 1, 2, 5, 3, 4]  # Voigt (xx, yy, zz, yz, xz, xy) → VTK (XX, YY, ZZ, XY, YZ, XZ)
 UNITS = {"x": "m", "normal": "1", "tangent": "1", "lambda": "Pa", "jump": "m", "g": "Pa"}
 CSV_TITLE = "mixvi contact3d results, one row per node of the slave contact surface"
@@ -38,7 +41,8 @@ CSV_NOTES = [
     "jump_t, jump_t2 [m]: tangential jump along t1, t2 (slave displacement for a rigid foundation)",
     "g [Pa]: friction bound g_k = int g phi_k / int phi_k",
     "state: stick (|lambda_t| < g), slip (|lambda_t| = g), normal_only (tangents prescribed), "
-    "no_multiplier (clamped node)",
+    "no_multiplier (clamped node), ambiguous (not settled at the achieved residual: neither "
+    "the stress margin nor the gap/slip decides it; solve with a smaller --tol)",
 ]
 
 
@@ -118,7 +122,7 @@ def write_surface_vtu(path: Path, model, st: dict) -> None:
         **{f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)},
     }
     meshio.Mesh(
-        c.slave.mesh.points[c.surf.nodes], [(c.surf.face_type, c.surf.faces)], point_data=point
+        c.slave.mesh.points[c.surf.nodes], [(c.surf.facet_type, c.surf.facets)], point_data=point
     ).write(str(path), file_format="vtu")
 
 
@@ -143,7 +147,7 @@ def contact_map(path: Path, model, st: dict, title: str = "") -> None:
 
     c = model.contact
     uv, a, b = chart(model)
-    faces = c.surf.faces
+    faces = c.surf.facets
     tris = (
         faces if faces.shape[1] == 3 else np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
     )
@@ -156,7 +160,13 @@ def contact_map(path: Path, model, st: dict, title: str = "") -> None:
     )
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
     ax = axes[0]
-    colors = {"stick": "tab:blue", "slip": "tab:red", "normal_only": "0.6", "no_multiplier": "k"}
+    colors = {
+        "stick": "tab:blue",
+        "slip": "tab:red",
+        "normal_only": "0.6",
+        "no_multiplier": "k",
+        "ambiguous": "tab:orange",
+    }
     ax.triplot(tri, color="0.85", lw=0.4)
     for s, col in colors.items():
         sel = st["state"] == s
@@ -220,6 +230,7 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             "nodes": int(st["has_t"].sum()),
             "stick": counts["stick"],
             "slip": counts["slip"],
+            "ambiguous": counts["ambiguous"],
             "counts": counts,
             **{f"{s}_area": a for s, a in zip(STATES, areas(c, st), strict=True)},
             "force_on_slave": force.tolist(),
@@ -254,9 +265,11 @@ def areas(c, st: dict) -> list[float]:
     w = np.where(st["has_t"], c.W_t, c.W_n)  # (k,)
     state = st["state"]
     carried = state != "no_multiplier"
-    out = [float(w[state == s].sum()) for s in STATES[:-1]]
     given = 0.0 if c.ends == "keep" else float((w[carried] - c.W[carried]).sum())
-    return [*out, float(c.W[~carried].sum()) - given]
+    return [
+        float(c.W[~carried].sum()) - given if s == "no_multiplier" else float(w[state == s].sum())
+        for s in STATES
+    ]
 
 
 def uncovered(c) -> list[int]:
@@ -266,8 +279,9 @@ def uncovered(c) -> list[int]:
 
 def _warnings(st: dict) -> list[str]:
     g, has_t = st["g"], st["has_t"]
+    out = node_states.warnings(st["state"])
     if not g[has_t].any():
-        return ["g = 0 on Γ3: frictionless sliding (a linear problem)"]
+        return [*out, "g = 0 on Γ3: frictionless sliding (a linear problem)"]
     if not st["slip"].any():
         used = float(
             np.max(
@@ -275,8 +289,8 @@ def _warnings(st: dict) -> list[str]:
                 / np.where(g[has_t] > 0, g[has_t], np.inf)
             )
         )
-        return [
+        out.append(
             f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
             "bound (the problem is tied)"
-        ]
-    return []
+        )
+    return out

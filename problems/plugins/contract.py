@@ -175,13 +175,16 @@ V1_TO_V2 = (
 class Sweep:
     """What `mixvi figures` sweeps: the scene value at `path` (dotted, as for --set) set to each
     of `values`, or to the scene's own value times each of `factors` (exactly one is given);
-    `label` names the parameter with its units, e.g. "friction bound g [Pa]"."""
+    `label` names the parameter with its units, e.g. "friction bound g [Pa]". `otherwise`: the
+    sweep for a scene without a number at `path` (Coulomb friction has a coefficient F where
+    Tresca friction has a bound g)."""
 
     path: str
     label: str
     values: tuple[float, ...] = ()
     factors: tuple[float, ...] = ()
     file: str = "sweep.png"
+    otherwise: Sweep | None = None
 
     def __post_init__(self) -> None:
         if bool(self.values) == bool(self.factors):

@@ -49,7 +49,10 @@ from vi_core import MixedVI, Solution
 
 KINDS = ("insulating", "conductive", "grounded")
 LAWS = ("saturated", "power")
-TOUCH = 1e-9  # grounded: a node touches where λ_n > TOUCH · max λ_n (rounding of 0 is not)
+# the grounded law's switch, part of the model (like vi_core.coulomb.OPEN): the electrode acts
+# where λ_n > TOUCH · max λ_n (rounding of 0 is not). Reported contact states follow from the
+# answer instead (vi_core.states: `touching` takes them).
+TOUCH = 1e-9
 
 
 class ElectricalSection(Section):
@@ -263,23 +266,29 @@ def report(c: Coupling, sol: Solution) -> dict:
     at the answer with D·n recovered from the insulating equations (`Coupling.flux`):
     law_defect = max_i |D·n_i − k(λ_n,i)(φ_i − φ_F)| / max(max_i |D·n_i|, tiny)."""
     lam_n = sol.lam[c.normal]
-    keep = c.phi >= 0
     jump = c.jump(sol.u)  # (N,) φ_s − Πφ_m − φ_F, NaN where φ_s is prescribed
     flux = c.flux(sol.u, sol.lam)  # (N,)
-    k = c.law(lam_n)
-    law = k * jump
+    law = c.law(lam_n) * jump
     top = float(np.nanmax(np.abs(flux), initial=0.0))
     defect = float(np.nanmax(np.abs(flux - law), initial=0.0)) / max(top, 1e-300)
-    touching = lam_n > TOUCH * max(float(lam_n.max(initial=0.0)), 1e-300)
-    out = {
+    return {
         "kind": c.law.kind,
         "phi_F": c.phi_F,
         "k_scale": c.law.scale,
         "flux_max": top,
         "law_defect": defect if top > 0 else float(np.nanmax(np.abs(law), initial=0.0)),
-        "touching_nodes": int(touching.sum()),
         "fixed_point": sol.info.get("electrical"),
     }
-    if touching.any() and keep[touching].any():
-        out["potential_gap_touching"] = float(np.nanmax(np.abs(jump[touching])))
+
+
+def touching(c: Coupling, sol: Solution, touch: np.ndarray) -> dict:
+    """summary.json["electrical"]'s entries on the touching nodes `touch` (N,) — the contact
+    states of the answer (`vi_core.states`, the plug-in's `contact_state`), not the law's
+    switch TOUCH: their count and, where their potential is unknown, the largest potential
+    gap |φ_s − Πφ_m − φ_F| (grounded: the penalty's accuracy)."""
+    touch = np.asarray(touch, dtype=bool)
+    out: dict = {"touching_nodes": int(touch.sum())}
+    keep = c.phi >= 0
+    if touch.any() and keep[touch].any():
+        out["potential_gap_touching"] = float(np.nanmax(np.abs(c.jump(sol.u)[touch])))
     return out

@@ -40,14 +40,15 @@ class LineContact:
 
 
 def measure(
-    x: np.ndarray, w: np.ndarray, lam_n: np.ndarray, R: float, E_star: float
+    x: np.ndarray, w: np.ndarray, lam_n: np.ndarray, R: float, E_star: float, touch: np.ndarray
 ) -> LineContact:
-    """The line contact of nodal pressures lam_n (N,) at abscissae x (N,), weights w (N,)."""
+    """The line contact of nodal pressures lam_n (N,) at abscissae x (N,), weights w (N,);
+    `touch` (N,) the nodes in contact (the plug-in's states, `vi_core.states`), whose farthest
+    gives `a_nodes`."""
     P = float(w @ lam_n)
-    if P <= 0:
+    if P <= 0 or not np.any(touch):
         raise ValueError("no contact force: nothing touches")
     a = 2.0 * float(np.sqrt((w * lam_n * x**2).sum() / P))
-    touch = lam_n > 1e-9 * lam_n.max()
     ref = hertz_line_contact(P, R, E_star)
     return LineContact(
         P=P,
@@ -73,16 +74,12 @@ def of_model(model, sol, R: float) -> LineContact:
             f"electrical contact law {kind!r}: no Hertz reference (insulating or grounded only)"
         )
     c = getattr(model, "contact", None)
-    if c is None:  # signorini: λ = [normal rows, tangential rows], nodal weights
-        body, nodes, w, lam_n = (
-            model.body,
-            model.tr.nodes,
-            model.tr.weights,
-            sol.lam[: model.tr.size],
-        )
-    else:  # piezo_contact: the normal rows where they sit in λ, their weights ∫φ̃_k
-        body, nodes, w, lam_n = c.slave, c.tr.nodes[c.rows_n], c.W_n, c.normal(sol.lam)
+    if c is None:
+        raise ValueError("no contact interface: no Hertz reference")
+    # the normal rows where they sit in λ, their weights ∫φ̃_k, the touching nodes
+    body, nodes, w, lam_n = c.slave, c.tr.nodes[c.rows_n], c.W_n, c.normal(sol.lam)
+    touch = model.contact_state(sol)["touch"]
     mat = body.material
     x = body.mesh.points[nodes, 0]
     E_star = hertz_modulus(mat.C, mat.e, mat.kappa, conducting=kind == "grounded")
-    return measure(x, w, lam_n, R, E_star)
+    return measure(x, w, lam_n, R, E_star, touch)

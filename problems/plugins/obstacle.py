@@ -29,6 +29,7 @@ from problems.scene.fields import Expression
 from problems.scene.geometry import Geometry
 from problems.scene.model import head, one_or_many
 from vi_core import MixedVI, NonNegative, Solution
+from vi_core import states as node_states
 
 from .contract import (
     DirichletPart,
@@ -174,7 +175,8 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     u = model.full(sol.u)  # (n_nodes,)
     lam = np.zeros_like(u)
     lam[model.free] = sol.lam
-    on = _touching(model, sol)  # (n_free,)
+    labels = _states(model, sol)  # (n_free,)
+    on = labels == "touch"
     contact = np.zeros_like(u)
     contact[model.free[on]] = 1.0
     write_vtu(
@@ -184,9 +186,14 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     )
     _plot(model, u, contact > 0, outdir / "obstacle.png")
     summary = {
-        "obstacle": {"nodes": int(model.free.size), "contact": int(on.sum())},
+        "obstacle": {
+            "nodes": int(model.free.size),
+            "contact": int(on.sum()),
+            "ambiguous": int(np.sum(labels == "ambiguous")),
+        },
         "complementarity": model.complementarity(sol),
         "files": ["obstacle.png", "obstacle.vtu"],
+        "warnings": node_states.warnings(labels),
     }
     if model.exact is not None:
         summary["errors"] = model.errors(sol)
@@ -227,11 +234,21 @@ SWEEP = Sweep("domain.load", "load f [1]", values=(0.0, -2.0, -8.0))  # pressed 
 NORMS = ("h1", "l2")
 
 
-def _touching(model: Model, sol: Solution) -> np.ndarray:
-    """(n_free,) bool: nodes where the obstacle pushes, λ > 0 beyond rounding relative to the
-    largest nodal force, λ or the elastic force Au (λ is all rounding when nothing touches)."""
+def _states(model: Model, sol: Solution) -> np.ndarray:
+    """(n_free,) "touch", "open" or "ambiguous", decided from the answer (`vi_core.states`):
+    the force λ and the gap u − ψ, thresholds scaled by the achieved residual, the largest
+    nodal force (λ or the elastic force Au: λ is all rounding when nothing touches) and the
+    length scale max(|u|, |ψ|)."""
     force = float(np.abs(model.vi.A @ sol.u).max(initial=0.0))
-    return sol.lam > 1e-9 * max(float(sol.lam.max(initial=0.0)), force, 1e-300)
+    gap = model.vi.gap - model.vi.B @ sol.u  # (n_free,) u − ψ
+    length = max(float(np.abs(sol.u).max(initial=0.0)), float(np.abs(model.vi.gap).max()))
+    th = node_states.solution_thresholds(sol, max(float(sol.lam.max(initial=0.0)), force), length)
+    return node_states.normal_states(sol.lam, gap, th)
+
+
+def _touching(model: Model, sol: Solution) -> np.ndarray:
+    """(n_free,) bool: nodes where the obstacle pushes (`_states`; ambiguous ones do not)."""
+    return _states(model, sol) == "touch"
 
 
 def draw(ax, model: Model, sol: Solution) -> str:

@@ -63,7 +63,7 @@ def _multiplier_at_gauss(model: Any, lam: np.ndarray):
     """
     c = model.contact
     P = c.slave.mesh.points[c.tr.nodes]  # (k, 2)
-    seg = c.tr.segments  # (n_seg, 2)
+    seg = c.tr.facets  # (n_seg, 2)
     L, n, tau = _frames(P, seg)
     lam_n, lam_t = c.normal(lam)[:, None], c.tangential(lam)[:, None]  # (N_n, 1), (N_t, 1)
     vec = c.Q_n.T @ (lam_n * n[c.rows_n]) + c.Q_t.T @ (lam_t * tau[c.rows_t])

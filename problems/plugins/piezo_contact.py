@@ -12,7 +12,7 @@ Contact rules (README "Contact interfaces"):
   node where one component is prescribed and that direction is the contact tangent (normal),
   only the tangential (normal) multiplier is dropped; any other partially prescribed node is
   refused, per node. `[contact] ends` = "merge" (default, Wohlmuth's end-node modification of
-  the dual basis) or "keep" (`fem.boundary.multiplier_basis`).
+  the dual basis) or "keep" (`fem.facets.multiplier_basis`).
 - coverage: a slave node carries a multiplier only if the master lies behind its whole support;
   the others are left free and listed (warning, summary `contact.uncovered_nodes`); if no node
   is covered the scene is refused.
@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from pydantic import Field, model_validator
 
 import vi_core
-from fem.boundary import ENDS, Trace, dual_mass, multiplier_basis, segment_loads, trace
+from fem.facets import ENDS, Trace, dual_mass, facet_integrals, multiplier_basis, trace
 from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots, results
@@ -102,7 +102,7 @@ class Contact:
     tr: Trace  # slave trace
     master: Body | None
     master_part: str | None
-    ends: str  # "merge" or "keep" (fem.boundary.multiplier_basis)
+    ends: str  # "merge" or "keep" (fem.facets.multiplier_basis)
     rows_n: np.ndarray  # (N_n,) trace indices carrying a normal multiplier
     rows_t: np.ndarray  # (N_t,) trace indices carrying a tangential multiplier
     Q_n: sp.csr_matrix  # (N_n, 2·n_seg) normal multiplier basis
@@ -346,7 +346,7 @@ def _electrical(
         phi=np.where(found, pos, -1),
         normal=contact.idx_n,
         weights=tr.weights[nodes],
-        law=e.law_of(kappa_max, float(tr.lengths.max())),
+        law=e.law_of(kappa_max, float(tr.measures.max())),
         phi_F=phi_F,
         max_iter=int(e.max_iter),
         tol=float(e.tol),
@@ -406,8 +406,8 @@ def _contact_rows(contact: Contact):
         pairs = contact_law.pair_set(contact.friction, bound, dim=2)
         Lam = product(pairs, NonNegative(n_n - p)) if n_n > p else product(pairs)
     h_i = np.zeros(tr.size)
-    np.maximum.at(h_i, tr.segments[:, 0], tr.lengths)
-    np.maximum.at(h_i, tr.segments[:, 1], tr.lengths)
+    np.maximum.at(h_i, tr.facets[:, 0], tr.measures)
+    np.maximum.at(h_i, tr.facets[:, 1], tr.measures)
     rows = np.empty(n_n + n_t, dtype=int)  # trace index of each row of B_full
     rows[contact.idx_n], rows[contact.idx_t] = contact.rows_n, contact.rows_t
     Y = sp.diags(h_i[rows] * tr.weights[rows])  # mesh-dependent H^{-1/2} stand-in
@@ -491,7 +491,7 @@ def _contact(
             "node of this one is clamped by a [[displacement]] part, so no contact remains; "
             "remove the Dirichlet condition on it or the [contact] table",
         )
-    n_seg = tr.segments.shape[0]
+    n_seg = tr.facets.shape[0]
     uncovered_local = np.zeros(2 * n_seg, dtype=bool)
     gap_nodes = np.zeros(tr.size)  # (N,) initial normal gap at the slave nodes
     if master is not None:
@@ -499,7 +499,7 @@ def _contact(
             gap_nodes = _initial_gap(slave, part, tr, tr.normals, master, mpart, level)
         else:
             _check_separation(slave, part, tr, tr.normals, master, mpart, level)
-        reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.lengths.min())
+        reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.measures.min())
         mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, reach=reach)
         assert np.array_equal(tr.nodes, mort.slave_nodes)
         uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,)
@@ -628,7 +628,7 @@ def _friction_local(mesh: Mesh, tr: Trace, gfun, key: str) -> np.ndarray:
             raise SceneError(key, float(gv.min()), f"{what} ≥ 0 everywhere on Γ3")
         return gv
 
-    return segment_loads(mesh, tr, g_checked)
+    return facet_integrals(mesh, tr, g_checked)
 
 
 def _normal_distances(
@@ -666,11 +666,11 @@ def _separation(slave: Body, part: str, tr: Trace, normals, master: Body, mpart:
     mtr = trace(master.mesh, mpart)
     P = master.mesh.points[mtr.nodes]
     t, k = _normal_distances(
-        slave.mesh.points[tr.nodes], normals, P[mtr.segments[:, 0]], P[mtr.segments[:, 1]]
+        slave.mesh.points[tr.nodes], normals, P[mtr.facets[:, 0]], P[mtr.facets[:, 1]]
     )
-    h = mtr.lengths[k]
-    np.maximum.at(h, tr.segments[:, 0], tr.lengths)
-    np.maximum.at(h, tr.segments[:, 1], tr.lengths)
+    h = mtr.measures[k]
+    np.maximum.at(h, tr.facets[:, 0], tr.measures)
+    np.maximum.at(h, tr.facets[:, 1], tr.measures)
     return t, h * 2.0**level  # the size at level 0, where the interface geometry was given
 
 
@@ -739,7 +739,9 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     rc = cc.bound(lam_c)
     ratio_c = np.divide(cc.tangential(lam_c), rc, out=np.zeros(rc.size), where=rc > 0)
     ratio = np.clip(np.interp(sf[fc.rows_t], sc[cc.rows_t], ratio_c), -1.0, 1.0)
-    on_bound = (np.abs(ratio) >= 1.0 - 1e-9) | _slip_ahead(sc[cc.rows_t], ratio_c, sf[fc.rows_t])
+    on_bound = (np.abs(ratio) >= 1.0 - transfer.ON_BOUND) | _slip_ahead(
+        sc[cc.rows_t], ratio_c, sf[fc.rows_t]
+    )
     ratio[on_bound] = np.sign(ratio[on_bound])
     lam0 = np.zeros(fc.B_full.shape[0])
     lam0[fc.idx_n] = lam_n
@@ -759,7 +761,7 @@ def _slip_ahead(xc: np.ndarray, ratio_c: np.ndarray, xf: np.ndarray) -> np.ndarr
     midpoint; 0.934, 0.784 at level 4: 1.009), which took the fine level a second Newton step
     with its own linear solve; at levels 2 and 3 extrapolation gives 0.84 and 0.61: stick, as
     the fine solutions have it."""
-    slip = np.abs(ratio_c) >= 1.0 - 1e-9  # (K,)
+    slip = np.abs(ratio_c) >= 1.0 - transfer.ON_BOUND  # (K,)
     out = np.zeros(xf.size, dtype=bool)
     if xc.size < 3:
         return out
@@ -783,9 +785,12 @@ def contact_state(model: Model, sol: Solution) -> dict:
     The arrays "s", "points", "lam_t", "g", "jump_t", "ut_slave", "slip", "touch_t" (and
     "ut_master") are per tangential multiplier row (`Contact.rows_t`), "s_n", "lam_n",
     "touch", "u_n", "gap" per normal row. "g" is the friction radius of the solution (g; unilateral
-    Tresca: g where the node touches, 0 elsewhere; Coulomb: F·λ_n); "slip" marks touching
-    nodes whose |λ_τ| reaches it; "touch" is True everywhere for bilateral contact and where
-    λ_n exceeds 1e-9 of its largest value for unilateral contact; "u_n" and "gap" (unilateral
+    Tresca: g where the node is not open, 0 elsewhere; Coulomb: F·λ_n). States follow from the
+    answer by one rule (`vi_core.states`: multiplier margin and gap/slip, thresholds scaled by
+    the achieved residual): "state" per tangential row (stick, slip, open or ambiguous),
+    "normal_state" per normal row (touch, open or ambiguous); "slip" marks the slip nodes,
+    "touch" ("touch_t") the nodes with touch evidence (every node for bilateral contact);
+    "u_n" and "gap" (unilateral
     only) are the normal jump [u]_n and the initial gap gap₀ (the remaining gap is their
     difference), "pressure" the pressure scale (largest λ_n or elastic stress). Lemma 4.2
     reads λᵀ(B u − gap₀) = Σ_k ρ_k W_k|[u]_τ,k| (normal complementarity makes the normal part
@@ -801,30 +806,25 @@ def contact_state(model: Model, sol: Solution) -> dict:
     ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents[c.rows_t])
     gap_rows = np.zeros(Bu.size)
     force = 0.0
-    if c.law == "bilateral":
-        touch = np.ones(lam_n.size, dtype=bool)
-    else:
-        gap_rows[c.idx_n] = c.gap0
-        # beyond rounding of the largest pressure: λ_n, or the elastic nodal forces per length
-        # (all of λ is rounding when the bodies are apart)
-        disp = model.unknown_fields()["displacement"]
-        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / c.W_n.min()
-        touch = lam_n > 1e-9 * max(float(lam_n.max(initial=0.0)), force, 1e-300)
-    touch_t = np.zeros(c.tr.size, dtype=bool)
-    touch_t[c.rows_n] = touch
-    touch_t = touch_t[c.rows_t] if c.law == "unilateral" else np.ones(c.rows_t.size, dtype=bool)
-    rho = c.bound(sol.lam) * touch_t  # (N_t,); a rounding-level λ_n does not touch
-    rmax = float(rho.max(initial=0.0))
-    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
     disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
-    th = node_states.thresholds(
-        sol.residual,
-        max(float(np.abs(sol.lam).max(initial=0.0)), rmax, force),
+    if c.law == "unilateral":
+        gap_rows[c.idx_n] = c.gap0
+        # the elastic nodal forces per length: the pressure scale when the bodies are apart
+        # (all of λ is rounding then)
+        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / c.W_n.min()
+    radius = c.bound(sol.lam)  # (N_t,) the friction radius at λ
+    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    th = node_states.solution_thresholds(
+        sol,
+        max(float(np.abs(sol.lam).max(initial=0.0)), float(radius.max(initial=0.0)), force),
         float(np.abs(sol.u[disp]).max(initial=0.0)),
     )
-    normal = np.full(c.tr.size, "touch", dtype=object)
+    normal = np.full(c.tr.size, "touch", dtype=object)  # bilateral: every node touches
     if c.law == "unilateral":
         normal[c.rows_n] = node_states.normal_states(lam_n, (c.gap0 - c.normal(Bu)) / c.W_n, th)
+    touch = normal[c.rows_n] == "touch"  # (N_n,)
+    touch_t = normal[c.rows_t] == "touch"  # (N_t,)
+    rho = radius * (normal[c.rows_t] != "open")  # (N_t,); an open node has no friction
     tang = node_states.tangential_states(lam_t, rho, c.tangential(Bi) / c.W_t, th)
     labels = node_states.node_states(normal[c.rows_t], tang)  # (N_t,)
     slip = labels == "slip"
@@ -850,6 +850,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "state": labels,
         "touch": touch,
         "touch_t": touch_t,
+        "normal_state": normal[c.rows_n],
         "b_uh_lam": b_uh_lam,
         "int_g_abs_u": g_abs,
         "lemma_4_2": float(lemma),
@@ -906,13 +907,7 @@ def contact_warnings(state: dict) -> list[str]:
         return ["no node of Γ3 touches: the bodies are apart (λ = 0)"]
     if not g.any():
         return ["zero friction on Γ3: frictionless sliding"]
-    out = []
-    n_amb = int(np.sum(state["state"] == "ambiguous"))
-    if n_amb:
-        out.append(
-            f"{n_amb} contact node(s) ambiguous: at the achieved residual neither the stress "
-            "margin nor the gap/slip settles their state; solve with a smaller --tol to decide"
-        )
+    out = node_states.warnings(state["state"])
     if not state["slip"].any():
         used = float(np.max(np.abs(lam_t) / np.where(g > 0, g, np.inf)))
         out.append(
@@ -925,7 +920,7 @@ def contact_warnings(state: dict) -> list[str]:
 def _unilateral_summary(contact: Contact, state: dict) -> dict:
     """The summary entries only unilateral contact has: open nodes, the law and friction."""
     return {
-        "open": int((~state["touch"]).sum()),
+        "open": int(np.sum(state["normal_state"] == "open")),
         "law": contact.law,
         "friction": contact.friction,
         "min_gap": float((state["gap"] - state["u_n"]).min(initial=np.inf)),
@@ -953,7 +948,7 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
         points=c.slave.mesh.points[tr.nodes],
         normals=tr.normals,
         weights=tr.weights,
-        segments=tr.segments,
+        segments=tr.facets,
         lambda_n=lam_n,
         lambda_t=lam_t,
         jump_t=jump_t,
@@ -1002,7 +997,10 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
         }
         summary["lemma_4_2"] = state["lemma_4_2"]
         if model.electrical is not None:
-            summary["electrical"] = electrical_contact.report(model.electrical, sol)
+            summary["electrical"] = {
+                **electrical_contact.report(model.electrical, sol),
+                **electrical_contact.touching(model.electrical, sol, state["touch"]),
+            }
         summary["warnings"] = contact_warnings(state)
     if notes:
         summary["notes"] = notes
@@ -1024,7 +1022,15 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 CONTRACT = 2
-SWEEP = Sweep("contact.g", "friction bound g [Pa]", factors=(1.5, 1.0, 0.6), file="fig_5_4.png")
+SWEEP = Sweep(
+    "contact.g",
+    "friction bound g [Pa]",
+    factors=(1.5, 1.0, 0.6),
+    file="fig_5_4.png",
+    otherwise=Sweep(
+        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep.png"
+    ),
+)
 NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
 extremes = piezo_extremes.rows
 

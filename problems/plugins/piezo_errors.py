@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from fem import assembly
-from fem.boundary import dual_basis_on_segment
+from fem.facets import SEGMENT_DUAL, facet_values
 from fem.locate import evaluate
 from problems.scene.exact import Exact
 
@@ -52,7 +52,7 @@ def _multiplier(model: Any, lam: np.ndarray):
 
 def _dual_values(coef: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Σ_a coef[e, a] ψ_{e,a} at points t ∈ [0, 1] of segments e = `seg` (both (k,)): (k,)."""
-    psi = dual_basis_on_segment(t)  # (k, 2)
+    psi = facet_values("line", t[:, None]) @ SEGMENT_DUAL.T  # (k, 2) ψ_a = Σ_b A_ab φ_b
     return np.einsum("ka,ka->k", psi, coef[seg])
 
 
@@ -70,15 +70,15 @@ def exact_errors(model: Any, u: np.ndarray, lam: np.ndarray, exact: Exact) -> di
     if model.contact is not None:
         tr, gam, alp = _multiplier(model, lam)
         P = model.contact.slave.mesh.points[tr.nodes]  # (N, 2)
-        n_seg, n_q = tr.segments.shape[0], GAUSS_T.size
+        n_seg, n_q = tr.facets.shape[0], GAUSS_T.size
         seg = np.repeat(np.arange(n_seg), n_q)  # (n_seg·n_q,)
         t = np.tile(GAUSS_T, n_seg)  # (n_seg·n_q,)
-        A, B = P[tr.segments[seg, 0]], P[tr.segments[seg, 1]]  # (n_seg·n_q, 2)
+        A, B = P[tr.facets[seg, 0]], P[tr.facets[seg, 1]]  # (n_seg·n_q, 2)
         X = (1 - t)[:, None] * A + t[:, None] * B  # (n_seg·n_q, 2)
         ex = exact.lam(X[:, 0], X[:, 1])  # (n_seg·n_q, 2): (λ·n, λ·τ)
         d2 = (_dual_values(gam, seg, t) - ex[:, 0]) ** 2
         d2 += (_dual_values(alp, seg, t) - ex[:, 1]) ** 2  # (n_seg·n_q,)
-        w = np.tile(GAUSS_W, n_seg) * tr.lengths[seg] ** 2  # h_E · |E| · Gauss weight
+        w = np.tile(GAUSS_W, n_seg) * tr.measures[seg] ** 2  # h_E · |E| · Gauss weight
         sq["lam"] = float(w @ d2)
     return {k: float(np.sqrt(v)) for k, v in sq.items()}
 
@@ -86,8 +86,8 @@ def exact_errors(model: Any, u: np.ndarray, lam: np.ndarray, exact: Exact) -> di
 # ------------------------------------------------------------------ transfer between levels
 def _locate_on_trace(tr, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Segment index and local t ∈ [0, 1] of normalised arc lengths s ∈ [0, 1] (both (M,))."""
-    edges = np.concatenate([[0.0], np.cumsum(tr.lengths)]) / tr.lengths.sum()  # (n_seg + 1,)
-    seg = np.clip(np.searchsorted(edges, s, side="right") - 1, 0, tr.lengths.size - 1)
+    edges = np.concatenate([[0.0], np.cumsum(tr.measures)]) / tr.measures.sum()  # (n_seg + 1,)
+    seg = np.clip(np.searchsorted(edges, s, side="right") - 1, 0, tr.measures.size - 1)
     t = np.clip((s - edges[seg]) / (edges[seg + 1] - edges[seg]), 0.0, 1.0)
     return seg, t
 
@@ -112,13 +112,13 @@ def reference_errors(
     if model.contact is not None:
         tr, gam, alp = _multiplier(model, lam)
         trf, gam_f, alp_f = _multiplier(ref, lam_ref)
-        n_seg, n_q = trf.segments.shape[0], GAUSS_T.size
+        n_seg, n_q = trf.facets.shape[0], GAUSS_T.size
         seg_f = np.repeat(np.arange(n_seg), n_q)  # (n_seg·n_q,)
         t_f = np.tile(GAUSS_T, n_seg)
-        s = np.concatenate([[0.0], np.cumsum(trf.lengths)])[seg_f] + t_f * trf.lengths[seg_f]
-        seg, t = _locate_on_trace(tr, s / trf.lengths.sum())
+        s = np.concatenate([[0.0], np.cumsum(trf.measures)])[seg_f] + t_f * trf.measures[seg_f]
+        seg, t = _locate_on_trace(tr, s / trf.measures.sum())
         d2 = (_dual_values(gam_f, seg_f, t_f) - _dual_values(gam, seg, t)) ** 2
         d2 += (_dual_values(alp_f, seg_f, t_f) - _dual_values(alp, seg, t)) ** 2
-        w = np.tile(GAUSS_W, n_seg) * trf.lengths[seg_f] * tr.lengths[seg]  # |E_f| w_q · h_E
+        w = np.tile(GAUSS_W, n_seg) * trf.measures[seg_f] * tr.measures[seg]  # |E_f| w_q · h_E
         sq["lam"] = float(w @ d2)
     return {k: float(np.sqrt(v)) for k, v in sq.items()}

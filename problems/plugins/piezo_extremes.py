@@ -51,7 +51,7 @@ def contact_checks(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Soluti
     rec = {
         "lemma_4_2": st["lemma_4_2"] if gmax > 0 else None,
         "friction_excess": excess / scale,
-        "stick": int((st["touch_t"] & ~st["slip"]).sum()),
+        "stick": int(np.sum(st["state"] == "stick")),
         "slip": int(st["slip"].sum()),
     }
     notes = [f"stick {rec['stick']}, slip {rec['slip']}"]
@@ -188,8 +188,8 @@ def counts(model: Any, sol: vi_core.Solution) -> dict[str, int]:
     st = model.contact_state(sol)
     return {
         "touching": int(st["touch"].sum()),
-        "open": int((~st["touch"]).sum()),
-        "stick": int((st["touch_t"] & ~st["slip"]).sum()),
+        "open": int(np.sum(st["normal_state"] == "open")),
+        "stick": int(np.sum(st["state"] == "stick")),
         "slip": int(st["slip"].sum()),
     }
 

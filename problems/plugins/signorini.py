@@ -146,9 +146,14 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     normal plot contact_normal.png and the summary entry "signorini" (nodes in contact)."""
     out = pc.postprocess(model, sol, outdir)
     st = contact_state(model, sol)
-    n, n_touch = st["touch"].size, int(st["touch"].sum())
+    normal = st["normal_state"]  # (N_n,) touch, open or ambiguous (vi_core.states)
     out["files"] = sorted([*out["files"], _normal_plot(st, outdir, model.scene.name)])
-    out["signorini"] = {"nodes": n, "in_contact": n_touch, "separated": n - n_touch}
+    out["signorini"] = {
+        "nodes": int(normal.size),
+        "in_contact": int(np.sum(normal == "touch")),
+        "separated": int(np.sum(normal == "open")),
+        "ambiguous": int(np.sum(normal == "ambiguous")),
+    }
     out["complementarity"] = model.complementarity(sol)
     return out
 
@@ -200,7 +205,7 @@ def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution)
 def _counts(model: Model, sol: Solution) -> dict[str, int]:
     st = contact_state(model, sol)
     return {
-        "stick": int((st["touch_t"] & ~st["slip"]).sum()),
+        "stick": int(np.sum(st["state"] == "stick")),
         "slip": int(st["slip"].sum()),
         "in_contact": int(st["touch"].sum()),
     }

@@ -13,11 +13,11 @@ value) giving the exact solution:
 `ExactSection` is its scene model (validated with the rest of the scene); `split_exact` removes
 the table from a scene and compiles it. The study engine measures errors against it.
 
-The generator of the shipped manufactured scene is `problems.scene.manufactured`.
+The generator of the shipped manufactured scenes (2D and 3D) is `problems.scene.manufactured`.
 
 contact3d scenes carry the same table with fields of (x, y, z) (`ExactSection3`): u, grad_u
 (3 × 3), phi, grad_phi (3) and lam = λ = −σn on Γ3 as a Cartesian 3-vector (frame-free);
-generator `problems.scene.manufactured3d`, errors `problems.plugins.contact3d_errors`.
+errors `problems.plugins.contact3d_errors`.
 """
 
 from __future__ import annotations
@@ -29,8 +29,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field, model_validator
 
-from .fields import Expression, Text, Vector, evaluate
-from .fields3d import Expression3, Vector3
+from .fields import Expression, Expression3, Text, Vector, Vector3, evaluate
 from .model import Section, refuse, validate
 from .reader import Scene
 

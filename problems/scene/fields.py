@@ -1,4 +1,5 @@
-"""Value types of the scene model (pydantic): checked numbers, expression fields, intervals.
+"""Value types of the scene model (pydantic), for 2D and 3D scenes: checked numbers,
+expression fields, intervals, cell counts, directions.
 
 Every type refuses what it cannot take with a pydantic error; `problems.scene.model.validate`
 turns the first one into a SceneError naming the field path, the value and what is allowed.
@@ -12,7 +13,10 @@ turns the first one into a SceneError naming the field path, the value and what 
   a `[load_path]` (checked by `problems.scene.model.validate`); it is evaluated at the t of
   the enclosing `load_parameter(t)` block (a load step), and outside one at the path's last t
   (`Expression.t_end`, set by validation).
-- `Interval`, `IntPair`, `Point`: [a, b] pairs.
+- `Expression3`: the same for 3D scenes, a field f(x, y, z) (one class with `Expression`,
+  the coordinates are its only difference); `Vector3` is three of them.
+- `Interval`, `IntPair`, `Point`: [a, b] pairs; `Cells`/`Cells3`: cell counts per axis;
+  `Direction`: a non-zero 3-vector (a poling axis).
 """
 
 from __future__ import annotations
@@ -126,30 +130,34 @@ class Expression:
             raise SceneError(self.path, self.source, NO_LOAD_PATH)
         return t
 
-    def __call__(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Values at the points (x, y): an array of their broadcast shape (SceneError if any
-        value is not finite or larger than MAX_MAGNITUDE)."""
-        shape = np.broadcast_shapes(np.shape(x), np.shape(y))
+    def __call__(self, *coords: np.ndarray) -> np.ndarray:
+        """Values at the points whose coordinates are `coords` ((x, y), or (x, y, z) for an
+        `Expression3`): an array of their broadcast shape (SceneError if any value is not
+        finite or larger than MAX_MAGNITUDE)."""
+        names = self.VARIABLES[:-1]  # the coordinates; the last variable is t
+        if len(coords) != len(names):
+            raise TypeError(f"{self!r} takes the coordinates {', '.join(names)}")
+        shape = np.broadcast_shapes(*(np.shape(c) for c in coords))
         if self._fn is None:
             return np.full(shape, float(self.source))
         t = self.load_t()
-        out = self._fn(x, y, np.float64(t))
+        out = self._fn(*coords, np.float64(t))
         bad = ~(np.isfinite(out) & (np.abs(out) <= MAX_MAGNITUDE))
         if bad.any():
             i = np.unravel_index(int(np.argmax(bad)), shape)
-            xi, yi = (float(np.broadcast_to(a, shape)[i]) for a in (x, y))
+            at = ", ".join(f"{float(np.broadcast_to(c, shape)[i]):.6g}" for c in coords)
             at_t = f", t = {t:.6g}" if self.uses_t else ""
             raise SceneError(
                 self.path,
                 self.source,
                 f"an expression whose values are finite and of size ≤ {MAX_MAGNITUDE:g} on the "
-                f"domain (at (x, y) = ({xi:.6g}, {yi:.6g}){at_t} it is {float(out[i])!r}: a "
+                f"domain (at ({', '.join(names)}) = ({at}){at_t} it is {float(out[i])!r}: a "
                 "division by zero, an overflow or a function outside its domain)",
             )
         return out
 
     def __repr__(self) -> str:
-        return f"Expression({self.source!r})"
+        return f"{type(self).__name__}({self.source!r})"
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Expression) and other.source == self.source
@@ -206,7 +214,7 @@ class Expression:
                 {"type": "number"},
                 {"type": "string", "maxLength": MAX_LENGTH, "minLength": 1},
             ],
-            "description": ALLOWED,
+            "description": cls.ALLOWED_TEXT,
         }
 
 
@@ -228,9 +236,19 @@ def _nonnegative(e: Expression) -> Expression:
     return e
 
 
+class Expression3(Expression):
+    """A compiled scalar field f(x, y, z) of a 3D scene: the same grammar, limits, refusals
+    and field paths, called with three coordinates."""
+
+    VARIABLES = ("x", "y", "z", "t")
+    ALLOWED_TEXT = ALLOWED.replace("of x, y", "of x, y, z")
+
+
 NonNegativeExpr = Annotated[Expression, AfterValidator(_nonnegative)]  # constants checked now,
 # expressions where they are evaluated
+NonNegativeExpr3 = Annotated[Expression3, AfterValidator(_nonnegative)]
 Vector = Annotated[list[Expression], Field(min_length=2, max_length=2)]
+Vector3 = Annotated[list[Expression3], Field(min_length=3, max_length=3)]
 
 
 def evaluate(components: Sequence[Expression], *coords: np.ndarray) -> np.ndarray:
@@ -245,14 +263,35 @@ def _increasing(v: list) -> list:
     return v
 
 
-def _positive_ints(v: list) -> list:
-    if min(v) < 1:
-        raise PydanticCustomError("cells", "two positive integers [nx, ny]")
+def _positive_ints(allowed: str) -> AfterValidator:
+    """The check of a cell count per axis: every entry ≥ 1, else `allowed` is the refusal."""
+
+    def check(v: list) -> list:
+        if min(v) < 1:
+            raise PydanticCustomError("cells", allowed)
+        return v
+
+    return AfterValidator(check)
+
+
+def _nonzero(v: list) -> list:
+    if not np.linalg.norm(np.asarray(v, float)) > 0:
+        raise PydanticCustomError("direction", "a non-zero direction [dx, dy, dz]")
     return v
 
 
-Pair = Annotated[list[Number], Field(min_length=2, max_length=2)]
+def _numbers(n: int) -> Any:
+    return Annotated[list[Number], Field(min_length=n, max_length=n)]
+
+
+def _integers(n: int) -> Any:
+    return Annotated[list[Integer], Field(min_length=n, max_length=n)]
+
+
+Pair = _numbers(2)
 Point = Pair
 Interval = Annotated[Pair, AfterValidator(_increasing)]
-IntPair = Annotated[list[Integer], Field(min_length=2, max_length=2)]
-Cells = Annotated[IntPair, AfterValidator(_positive_ints)]
+IntPair = _integers(2)
+Cells = Annotated[IntPair, _positive_ints("two positive integers [nx, ny]")]
+Cells3 = Annotated[_integers(3), _positive_ints("three positive integers [nx, ny, nz]")]
+Direction = Annotated[_numbers(3), AfterValidator(_nonzero)]  # a 3D direction, not normalised

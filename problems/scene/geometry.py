@@ -1,19 +1,33 @@
-"""Geometry tables of a scene (pydantic sections) → meshes at a refinement level.
+"""Geometry tables of 2D and 3D scenes (pydantic sections) → meshes at a refinement level.
 
-Kinds, a union told apart by `kind`: "rectangle" (structured P1/Q1), "half_disc" and "cradle"
-(the paper's two bodies as mapped Q1 blocks with boundary nodes on the true arc); or a file,
-`{ mesh = "FILE", body = "GROUP" }` or `{ geo = "FILE.geo", body = "GROUP" }` (`imported`; the
-path relative to the scene file). The built-in kinds name their boundary parts (BOUNDARIES,
-checked against the scene's references before anything is built); a file's parts are known
-only once it is read (BOUNDARIES None: the plug-ins check them after meshing, `check_meshed`).
-A mesh that would exceed MAX_NODES nodes, or that the mesher refuses (inverted or degenerate
-cells), is a SceneError naming the key. Every geometry counts its nodes at a level before
-meshing (`GeometryTable.nodes`, exact), so a command refuses a level range before it solves the
-coarser levels (`problems.commands.resources.check_levels`).
+2D kinds (`Geometry`), a union told apart by `kind`: "rectangle" (structured P1/Q1), "half_disc"
+and "cradle" (the paper's two bodies as mapped Q1 blocks with boundary nodes on the true arc);
+or a file, `{ mesh = "FILE", body = "GROUP" }` or `{ geo = "FILE.geo", body = "GROUP" }`
+(`imported`; the path relative to the scene file). The built-in kinds name their boundary parts
+(BOUNDARIES, checked against the scene's references before anything is built); a file's parts
+are known only once it is read (BOUNDARIES None: the plug-ins check them after meshing,
+`check_meshed`). A mesh that would exceed MAX_NODES nodes, or that the mesher refuses (inverted
+or degenerate cells), is a SceneError naming the key. Every geometry counts its nodes at a level
+before meshing (`GeometryTable.nodes`, exact), so a command refuses a level range before it
+solves the coarser levels (`problems.commands.resources.check_levels`).
+
+3D kinds (`Geometry3`, 3D `fem.mesh.Mesh`es): "box", [x0, x1] × [y0, y1] × [z0, z1] in
+nx × ny × nz hexahedra (Q1) or 6 tetrahedra each (P1), each level halving the cells' size; parts
+"left"/"right" (x), "front"/"back" (y), "bottom"/"top" (z). An optional `bottom_lift` = h(x, y)
+curves the bottom into the surface z = z0 + h(x, y): every node moves up by
+h(x, y)·(z1 − z)/(z1 − z0) (nodes on the true surface at every level; the top stays flat);
+`top_lift` likewise curves the top (nodes move by h(x, y)·(z − z0)/(z1 − z0)). "extruded": a
+built-in 2D geometry table (`section`: rectangle, half_disc or cradle, in the x–y plane)
+extruded over z in `layers` layers of hexahedra (`fem.meshing.extrude`; a level refines the
+section and doubles the layers); its parts are the section's (surfaces over its curves) and
+"z0"/"z1" (the ends). A mesh file, `{ mesh = "part.msh", body = "bracket" }`: a physical volume
+group of linear tetrahedra or hexahedra, its physical surface groups the parts.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
@@ -29,12 +43,12 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from fem.boundary import trace
+from fem.facets import trace
 from fem.mesh import Mesh
-from fem.meshing import rectangle
+from fem.meshing import END_PARTS, box, extrude, rectangle, transform
 from problems.errors import SceneError
 
-from .fields import Cells, Integer, Interval, Number, Pair, Point, Text
+from .fields import Cells, Cells3, Expression3, Integer, Interval, Number, Pair, Point, Text
 from .imported import file_mesh, geo_base, geo_mesh, imported_mesh, resolve
 from .model import UNION_TAGS, Section, refuse
 
@@ -239,16 +253,18 @@ class MeshFile(_File):
 
     FILE_KEY: ClassVar[str] = "mesh"
     FILE_ATTR: ClassVar[str] = "mesh_file"  # `mesh` is the method
+    PLANAR: ClassVar[bool] = True  # a 2D file (MeshFile3: a 3D one)
     mesh_file: Text = Field(alias="mesh", description="the file, relative to the scene file")
 
     def nodes(self, level: int) -> int:
         """The file's mesh's nodes after `level` uniform refinements."""
-        return file_mesh(self.resolved(), self.body, self.key("mesh")).refined_nodes(level)
+        key = self.key("mesh")
+        return file_mesh(self.resolved(), self.body, key, self.PLANAR).refined_nodes(level)
 
     def mesh(self, level: int) -> Mesh:
         """The body's mesh at refinement `level`."""
         self.check_size(level)
-        return imported_mesh(self.resolved(), self.body, level, self.key("mesh"))
+        return imported_mesh(self.resolved(), self.body, level, self.key("mesh"), self.PLANAR)
 
 
 class GeoFile(_File):
@@ -261,13 +277,101 @@ class GeoFile(_File):
 
     def nodes(self, level: int) -> int:
         """gmsh's level-0 mesh's nodes after `level` uniform refinements (gmsh refines by
-        splitting every cell as `fem.meshing.refine` does)."""
+        splitting every cell as `fem.refine.refine` does)."""
         return geo_base(self.resolved(), self.body, self.key("geo")).refined_nodes(level)
 
     def mesh(self, level: int) -> Mesh:
         """The body's mesh at refinement `level`."""
         self.check_size(level)
         return geo_mesh(self.resolved(), self.body, level, self.key("geo"))
+
+
+class Box(GeometryTable):
+    """A box of hexahedra or tetrahedra, optionally with a curved bottom or top (`bottom_lift`,
+    `top_lift`)."""
+
+    BOUNDARIES: ClassVar[tuple[str, ...]] = ("left", "right", "front", "back", "bottom", "top")
+    SIZE_KEY: ClassVar[str] = "cells"
+    kind: Literal["box"]
+    x: Interval
+    y: Interval
+    z: Interval
+    cells: Cells3
+    element: Literal["hexahedron", "tetra"] = "hexahedron"
+    bottom_lift: Expression3 | None = None
+    top_lift: Expression3 | None = None
+
+    def nodes(self, level: int) -> int:
+        """The grid's nodes (tetrahedra split the hexahedra without new nodes)."""
+        return int(np.prod([c * 2**level + 1 for c in self.cells]))
+
+    def mesh(self, level: int) -> Mesh:
+        """The mesh at refinement `level`."""
+        self.check_size(level)
+        z0, z1 = self.z
+        with _meshing(self):
+            mesh = box(
+                tuple(self.x), tuple(self.y), tuple(self.z), tuple(self.cells), self.element, level
+            )
+            if self.bottom_lift is not None:
+                mesh = transform(mesh, _lifted(self.bottom_lift, z0, lambda z: z1 - z, z1 - z0))
+            if self.top_lift is not None:
+                mesh = transform(mesh, _lifted(self.top_lift, z1, lambda z: z - z0, z1 - z0))
+        return mesh
+
+
+def _lifted(
+    h: Expression3, at: float, weight: Callable[[np.ndarray], np.ndarray], height: float
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The node map z += h(x, y, at)·weight(z)/height (a box's curved bottom or top)."""
+
+    def lift(p: np.ndarray) -> np.ndarray:
+        dz = h(p[:, 0], p[:, 1], np.full(len(p), at))  # (n,)
+        p[:, 2] += dz * weight(p[:, 2]) / height
+        return p
+
+    return lift
+
+
+class Extruded(GeometryTable):
+    """A built-in 2D geometry extruded along z in layers of hexahedra (plane-strain scenes)."""
+
+    SIZE_KEY: ClassVar[str] = "layers"
+    kind: Literal["extruded"]
+    section: Annotated[Rectangle | HalfDisc | Cradle, Field(discriminator="kind")]
+    z: Interval
+    layers: Annotated[Integer, Field(ge=1)] = 1
+
+    @property
+    def BOUNDARIES(self) -> tuple[str, ...]:  # noqa: N802 (the name every geometry has)
+        """The section's parts and the two ends."""
+        return (*self.section.BOUNDARIES, *END_PARTS)
+
+    def nodes(self, level: int) -> int:
+        """The section's nodes times the node layers, layers·2^level + 1."""
+        return self.section.nodes(level) * (self.layers * 2**level + 1)
+
+    def mesh(self, level: int) -> Mesh:
+        """The section's mesh at `level` extruded in layers·2^level layers."""
+        self.check_size(level)
+        m2 = self.section.mesh(level)
+        layers = self.layers * 2**level
+        if m2.cells.shape[1] != 4:
+            raise SceneError(
+                self.key("section"), self.section.model_dump(), "a section of quadrilaterals"
+            )
+        return extrude(m2, tuple(self.z), layers)
+
+
+class MeshFile3(MeshFile):
+    """`{ mesh = "FILE", body = "GROUP" }`: a 3D mesh file (gmsh .msh or any meshio format) of
+    linear tetrahedra or hexahedra, the volume group's cells refined `level` times (each into 8,
+    new nodes on the file's faces); its physical surface groups are the boundary parts."""
+
+    PLANAR: ClassVar[bool] = False
+    body: Text | None = Field(
+        None, description="a physical volume group (omitted: every volume cell of the file)"
+    )
 
 
 def _tag(v: Any) -> str | None:
@@ -281,21 +385,24 @@ def _tag(v: Any) -> str | None:
     return getattr(v, "kind", None)
 
 
-def _known_kind(v: Any) -> Any:
+def _known_kind(kinds: tuple[str, ...], files: str) -> BeforeValidator:
     """An unknown `kind` is refused at `kind` (the union's own error would name the table)."""
-    if isinstance(v, dict) and "kind" in v and v["kind"] not in KINDS:
-        raise refuse(
-            ["kind"],
-            v["kind"],
-            "one of " + ", ".join(KINDS) + " (or a file: mesh = FILE or geo = FILE.geo)",
-        )
-    return v
+
+    def check(v: Any) -> Any:
+        if isinstance(v, dict) and "kind" in v and v["kind"] not in kinds:
+            raise refuse(
+                ["kind"], v["kind"], "one of " + ", ".join(kinds) + f" (or a file: {files})"
+            )
+        return v
+
+    return BeforeValidator(check)
 
 
 # The geometry kinds, told apart by `kind` (a file by its `mesh` or `geo` key): add a kind by
 # adding a Section with a `kind` literal, BOUNDARIES (None: known only once meshed) and
-# mesh(level) to this union.
+# mesh(level) to a union.
 KINDS = ("rectangle", "half_disc", "cradle")
+FILES = "mesh = FILE or geo = FILE.geo"
 Geometry = Annotated[
     Annotated[Rectangle, Tag("rectangle")]
     | Annotated[HalfDisc, Tag("half_disc")]
@@ -308,10 +415,24 @@ Geometry = Annotated[
         custom_error_message="a table with kind = " + " | ".join(KINDS) + ", or with mesh = "
         "FILE or geo = FILE.geo (and body = GROUP)",
     ),
-    BeforeValidator(_known_kind),
+    _known_kind(KINDS, FILES),
 ]
 GEOMETRIES = (*KINDS, "mesh", "geo")
-UNION_TAGS.update(("geometry", k) for k in GEOMETRIES)
+KINDS3 = ("box", "extruded")
+FILES3 = "mesh = FILE, a 3D mesh file"
+Geometry3 = Annotated[
+    Annotated[Box, Tag("box")]
+    | Annotated[Extruded, Tag("extruded")]
+    | Annotated[MeshFile3, Tag("mesh")],
+    Discriminator(
+        _tag,
+        custom_error_type="geometry",
+        custom_error_message="a table with kind = " + " | ".join(KINDS3) + ", or with mesh = "
+        "FILE (a 3D mesh file; and body = GROUP)",
+    ),
+    _known_kind(KINDS3, FILES3),
+]
+UNION_TAGS.update(("geometry", k) for k in (*GEOMETRIES, *KINDS3))
 
 
 def check_sizes(model: Section, level: int) -> None:
@@ -331,16 +452,23 @@ def check_sizes(model: Section, level: int) -> None:
             todo.extend(item)
 
 
-def _meshed(t: Section, mesher, *args) -> Mesh:
-    """Call a mesher and trace every boundary part; a ValueError (inverted or degenerate
-    cells, zero-length boundary segments) becomes a SceneError naming the geometry."""
+@contextmanager
+def _meshing(t: Section) -> Iterator[None]:
+    """A ValueError while meshing (inverted or degenerate cells, zero-length boundary segments)
+    becomes a SceneError naming the geometry table `t`."""
     with np.errstate(all="ignore"):
         try:
-            mesh = mesher(*args)
-            for part in mesh.boundaries:
-                trace(mesh, part)
-            return mesh
+            yield
         except ValueError as err:
             raise SceneError(
                 t._path, t.model_dump(), f"a geometry that meshes into valid cells ({err})"
             ) from None
+
+
+def _meshed(t: Section, mesher, *args) -> Mesh:
+    """Call a 2D mesher and trace every boundary part (refusals as for `_meshing`)."""
+    with _meshing(t):
+        mesh = mesher(*args)
+        for part in mesh.boundaries:
+            trace(mesh, part)
+        return mesh

@@ -10,8 +10,8 @@ polyline's geometric error (docs/design.md, "Meshes from files"). From a `.geo` 
 and refines, putting new boundary nodes on the geometry's curves.
 
 A 3D scene's geometry `{ mesh = "part.msh", body = "bracket" }` names a physical volume group;
-its physical surface groups become the boundary parts (`imported_mesh3d`, `fem.mesh_import3d`),
-and a level refines every cell into 8 (`fem.mesh3d.refine`, new nodes on the file's faces).
+its physical surface groups become the boundary parts (`imported_mesh`, `fem.mesh_import`),
+and a level refines every cell into 8 (`fem.refine`, new nodes on the file's faces).
 
 Everything here is independent of how the scene is read: `imported_mesh` takes the resolved
 path, the group name and the key to blame, and turns `fem.mesh_import` refusals into
@@ -23,12 +23,10 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
-from fem import mesh3d
 from fem.mesh import Mesh
 from fem.mesh_import import MeshFile, MeshImportError, body_mesh, mesh_geo, read_mesh
 from fem.mesh_import import require_curve as _require_curve
-from fem.mesh_import3d import body_mesh3d
-from fem.meshing import refine
+from fem.refine import refine
 from problems.errors import SceneError
 
 
@@ -63,12 +61,12 @@ def _stat(path: Path, key: str, what: str):
 
 def file_mesh(path: Path, body: str | None, key: str, planar: bool = True):
     """The body `body` of the mesh file `path`, unrefined: a 2D `Mesh` (planar) or a 3D
-    `fem.mesh3d.Mesh3D`. SceneError naming `key` and the file for a missing or unusable file,
+    one. SceneError naming `key` and the file for a missing or unusable file,
     an unknown group (the available ones listed), unsupported or invalid cells."""
     st = _stat(path, key, "mesh file")
     try:
         mf = _read(str(path), st.st_mtime_ns, st.st_size, planar)
-        return body_mesh(mf, body) if planar else body_mesh3d(mf, body)
+        return body_mesh(mf, body)
     except MeshImportError as err:
         raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
 
@@ -83,17 +81,12 @@ def geo_base(path: Path, body: str | None, key: str) -> Mesh:
         raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
 
 
-def imported_mesh(path: Path, body: str | None, level: int, key: str) -> Mesh:
-    """The body `body` of the mesh file `path`, refined `level` times (new boundary nodes on
-    the file's polyline); SceneErrors naming `key` (the scene's mesh key) as for `file_mesh`.
-    """
-    return refine(file_mesh(path, body, key), level)
-
-
-def imported_mesh3d(path: Path, body: str | None, level: int, key: str) -> mesh3d.Mesh3D:
-    """The body `body` (a physical volume group) of the 3D mesh file `path`, refined `level`
-    times (each cell into 8, new nodes on the file's faces); refusals as for `imported_mesh`."""
-    return mesh3d.refine(file_mesh(path, body, key, False), level)
+def imported_mesh(path: Path, body: str | None, level: int, key: str, planar: bool = True) -> Mesh:
+    """The body `body` of the mesh file `path` (a physical surface group, or with `planar`
+    False a volume group of a 3D file), refined `level` times (new boundary nodes on the file's
+    polyline; in 3D each cell into 8, new nodes on the file's faces); SceneErrors naming `key`
+    (the scene's mesh key) as for `file_mesh`."""
+    return refine(file_mesh(path, body, key, planar), level)
 
 
 def geo_mesh(path: Path, body: str | None, level: int, key: str) -> Mesh:

@@ -31,8 +31,8 @@ from fem.assembly import (
 )
 from fem.dirichlet import expand, reduce_dirichlet
 from fem.mesh import Mesh
-from fem.mesh3d import SIDES, Mesh3D, box, transform
-from fem.meshing import rectangle, refine
+from fem.meshing import SIDES, box, rectangle, transform
+from fem.refine import refine
 from fem.tensors import NAMED, VOIGT_PAIRS, Material3D, orthotropic, poled, rotate
 
 from .helpers import same_matrix, shifted_geometry
@@ -434,7 +434,7 @@ def wavy(p: np.ndarray, amount: float = 0.08) -> np.ndarray:
     return p + 4 * amount * b * s
 
 
-def wavy_box(element: str, n: int = 2, level: int = 0) -> Mesh3D:
+def wavy_box(element: str, n: int = 2, level: int = 0) -> Mesh:
     return transform(box((0, 1), (0, 1), (0, 1), (n, n, n), element, level=level), wavy)
 
 
@@ -547,7 +547,7 @@ def test_energy_check_catches_voigt_faults(monkeypatch, fault):
     assert energy_defect("tetra") > 1e-2
 
 
-def piezo_patch_defect(mesh: Mesh3D, m: Material3D = PIEZO) -> float:
+def piezo_patch_defect(mesh: Mesh, m: Material3D = PIEZO) -> float:
     """Linear u and φ, Dirichlet data on "left", tractions σn and charges −D·n on the other
     sides: the discrete solution must be the exact one; returns the max relative nodal error."""
     rng = np.random.default_rng(5)
@@ -625,7 +625,7 @@ def rotation_defect(element: str) -> float:
     rng = np.random.default_rng(8)
     U = rng.normal(size=(mesh.n_nodes, 3))  # nodal displacements
     phi, theta = rng.normal(size=(2, mesh.n_nodes))
-    rmesh = Mesh3D(mesh.points @ R.T, mesh.cells, mesh.boundaries)
+    rmesh = Mesh(mesh.points @ R.T, mesh.cells, mesh.boundaries)
     rm = tensors.rotate(PIEZO, R)
     u, ru = U.ravel(), (U @ R.T).ravel()  # u'(x') = R u(Rᵀx')
     pairs = [
@@ -699,7 +699,7 @@ def test_bad_shapes():
     cells = mesh.cells.copy()
     cells[0, [1, 2]] = cells[0, [2, 1]]
     with pytest.raises(ValueError, match="inverted"):
-        elasticity_matrix(Mesh3D(mesh.points, cells), np.eye(6))
+        elasticity_matrix(Mesh(mesh.points, cells), np.eye(6))
 
 
 # chunked assembly: any chunk size gives the one-shot matrix (same pattern, values to rounding)
@@ -711,7 +711,7 @@ _FORMS_3D = {
 }
 
 
-def _one_shot_elasticity(mesh: Mesh3D, C: np.ndarray) -> sp.csr_matrix:
+def _one_shot_elasticity(mesh: Mesh, C: np.ndarray) -> sp.csr_matrix:
     """∫ C ε(u)·ε(v) from the whole mesh's geometry and one global COO array (the reference)."""
     g = cell_geometry(mesh, 0 if mesh.cell_type == "tetra" else 2)
     B = strain_operator(g.grad)  # (n_cells, n_qp, 6, 3 n_loc)
@@ -756,4 +756,4 @@ def test_an_inverted_cell_in_a_later_chunk_is_refused():
     last = mesh.n_cells - 1
     cells[last, [1, 2]] = cells[last, [2, 1]]
     with pytest.raises(ValueError, match=f"inverted or degenerate cell {last} "):
-        elasticity_matrix(Mesh3D(mesh.points, cells), PIEZO.C, chunk=3)
+        elasticity_matrix(Mesh(mesh.points, cells), PIEZO.C, chunk=3)

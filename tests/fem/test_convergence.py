@@ -17,7 +17,7 @@ import scipy.sparse.linalg as spla
 
 import fem.assembly as asm
 from fem.assembly import h1_seminorm_error, interpolate, l2_error, volume_load
-from fem.mesh3d import box, transform
+from fem.meshing import box, transform
 from fem.tensors import NAMED, VOIGT_PAIRS, Material3D, poled
 
 C0, K0 = 1e10, 1e-8

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fem import locate, mesh3d, meshing
+from fem import locate, meshing
 from fem.shapes import half_disc
 
 ELEMENTS = ["triangle", "quad", "tetra", "hexahedron"]
@@ -25,7 +25,7 @@ def _nested(element: str, graded: bool):
             meshing.rectangle(*grid, (4, 6), element, **kw),
         )
     box = ((0.0, 1.0), (0.0, 2.0), (0.0, 0.5), (2, 3, 1), element)
-    return mesh3d.box(*box, 0), mesh3d.box(*box, 1)
+    return meshing.box(*box, 0), meshing.box(*box, 1)
 
 
 def _nested_error(element: str, graded: bool) -> float:
@@ -112,7 +112,7 @@ def test_a_point_outside_the_mesh_is_found_outside_and_extrapolated(element):
     if element in ("triangle", "quad"):
         coarse = meshing.rectangle((0.0, 1.0), (0.0, 1.0), (1, 1), element)
     else:
-        coarse = mesh3d.box((0.0, 1.0), (0.0, 1.0), (0.0, 1.0), (1, 1, 1), element, 0)
+        coarse = meshing.box((0.0, 1.0), (0.0, 1.0), (0.0, 1.0), (1, 1, 1), element, 0)
     dim = coarse.points.shape[1]
     pts = np.full((2, dim), 0.5)  # (2, d) inside, outside
     pts[1, 0] = 1.5

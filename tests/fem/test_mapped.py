@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fem.boundary import trace
+from fem.facets import trace
 from fem.mapped import arc, coons_block, glue, reparametrise, segment
 
 ALL = {"bottom": "bottom", "right": "right", "top": "top", "left": "left"}
@@ -51,7 +51,7 @@ def test_sides_have_outward_normals_and_are_ordered(name, normal):
     m = square(n=5)
     t = trace(m, name)
     np.testing.assert_allclose(t.normals, np.broadcast_to(normal, t.normals.shape), atol=1e-14)
-    assert t.nodes.size == 6 and np.isclose(t.lengths.sum(), 1.0)
+    assert t.nodes.size == 6 and np.isclose(t.measures.sum(), 1.0)
 
 
 def test_sides_with_one_name_form_one_counterclockwise_loop():
@@ -60,7 +60,7 @@ def test_sides_with_one_name_form_one_counterclockwise_loop():
     t = trace(m, "o")  # one chain: right, then top, then left
     np.testing.assert_allclose(m.points[t.nodes[[0, -1]]], [[1, 0], [0, 0]])
     loop = trace(m, ["b", "o"])  # closed loop
-    assert loop.segments.shape[0] == loop.nodes.size == 12
+    assert loop.facets.shape[0] == loop.nodes.size == 12
     P = m.points[loop.nodes]
     shoelace = 0.5 * np.sum(P[:, 0] * np.roll(P[:, 1], -1) - np.roll(P[:, 0], -1) * P[:, 1])
     assert np.isclose(shoelace, 1.0)  # counterclockwise
@@ -148,8 +148,8 @@ def test_glue_merges_nodes_parts_and_drops_interior_edges():
     assert m.n_cells == 2 * n * n
     assert "iface" not in m.boundaries  # the shared side became interior
     t = trace(m, "outer")  # a single closed counterclockwise loop
-    assert t.segments.shape[0] == t.nodes.size == 6 * n
-    assert np.isclose(t.lengths.sum(), 6.0)
+    assert t.facets.shape[0] == t.nodes.size == 6 * n
+    assert np.isclose(t.measures.sum(), 6.0)
     P = m.points[t.nodes]
     assert np.isclose(
         0.5 * np.sum(P[:, 0] * np.roll(P[:, 1], -1) - np.roll(P[:, 0], -1) * P[:, 1]), 2.0

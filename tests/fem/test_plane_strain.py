@@ -18,8 +18,7 @@ import scipy.sparse.linalg as spla
 
 import fem.assembly as asm
 from fem.mesh import Mesh
-from fem.mesh3d import box, transform
-from fem.meshing import rectangle
+from fem.meshing import box, rectangle, transform
 from fem.tensors import NAMED, Material3D, plane_strain
 
 C0, K0 = 1e10, 1e-8

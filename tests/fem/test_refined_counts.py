@@ -17,23 +17,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fem import refined_counts
-from fem.mesh import CellMesh
-from fem.mesh3d import box
-from fem.mesh3d import refine as refine3d
+from fem.mesh import Mesh
 from fem.mesh_import import body_mesh, read_mesh
-from fem.mesh_import3d import body_mesh3d
-from fem.meshing import rectangle
-from fem.meshing import refine as refine2d
+from fem.meshing import box, rectangle
+from fem.refine import refine
 from fem.refined_counts import Skeleton
 
 DIM = 3  # unknowns a node may have (before its parts fix some): the weights are 0 … DIM
 
 
-def _refined(mesh: CellMesh, level: int) -> CellMesh:
-    return (refine2d if mesh.points.shape[1] == 2 else refine3d)(mesh, level)
-
-
-def _weights(mesh: CellMesh, fixes: dict[str, int]) -> np.ndarray:
+def _weights(mesh: Mesh, fixes: dict[str, int]) -> np.ndarray:
     """(n_nodes,) DIM minus the most any part holding the node fixes (as `dirichlet` does
     with components: a node keeps the unknowns no part fixes)."""
     fixed = np.zeros(mesh.n_nodes, dtype=int)
@@ -43,7 +36,7 @@ def _weights(mesh: CellMesh, fixes: dict[str, int]) -> np.ndarray:
     return DIM - fixed
 
 
-def _entity_weights(sk: Skeleton, mesh: CellMesh, fixes: dict[str, int]) -> np.ndarray:
+def _entity_weights(sk: Skeleton, mesh: Mesh, fixes: dict[str, int]) -> np.ndarray:
     fixed = np.zeros(sk.n_entities, dtype=int)
     for name, k in fixes.items():
         on = sk.closure(mesh.boundaries[name])
@@ -51,7 +44,7 @@ def _entity_weights(sk: Skeleton, mesh: CellMesh, fixes: dict[str, int]) -> np.n
     return DIM - fixed
 
 
-def _built(mesh: CellMesh, w: np.ndarray) -> tuple[int, int]:
+def _built(mesh: Mesh, w: np.ndarray) -> tuple[int, int]:
     """(Σ w_i, Σ_{i~j} w_i w_j) on the mesh itself: the cell pattern, every pair once."""
     c, N = mesh.cells, mesh.n_nodes
     k = c.shape[1]
@@ -64,7 +57,7 @@ def _built(mesh: CellMesh, w: np.ndarray) -> tuple[int, int]:
     return int(w.sum()), int(w @ (P @ w))
 
 
-def _gmsh_2d(element: str) -> CellMesh:
+def _gmsh_2d(element: str) -> Mesh:
     """A plate with a hole and a V notch, gmsh-meshed in triangles or quadrilaterals; parts
     left, right, notch, hole, rest."""
     gmsh = pytest.importorskip("gmsh")
@@ -111,7 +104,7 @@ def _gmsh_2d(element: str) -> CellMesh:
     return mesh
 
 
-def _gmsh_3d() -> CellMesh:
+def _gmsh_3d() -> Mesh:
     """A block with a cylindrical hole and a notch, gmsh-meshed in tetrahedra; parts by the
     faces' positions."""
     gmsh = pytest.importorskip("gmsh")
@@ -145,13 +138,13 @@ def _gmsh_3d() -> CellMesh:
             gmsh.write(str(path))
         finally:
             gmsh.finalize()
-        mesh = body_mesh3d(read_mesh(path, planar=False), "block")
+        mesh = body_mesh(read_mesh(path, planar=False), "block")
     assert mesh.cell_type == "tetra"
     return mesh
 
 
 @cache
-def _mesh(kind: str) -> CellMesh:
+def _mesh(kind: str) -> Mesh:
     """The test meshes, made once per process (read-only afterwards)."""
     if kind in ("triangle", "quad"):
         return _gmsh_2d(kind)
@@ -180,7 +173,7 @@ def test_the_counts_on_the_coarse_mesh_are_the_refined_meshs(kind, level, seed):
     fixes = {name: int(rng.integers(0, DIM + 1)) for name in coarse.boundaries}
     sk = Skeleton(coarse)
     w = _entity_weights(sk, coarse, fixes)
-    fine = _refined(coarse, level)
+    fine = refine(coarse, level)
     nodes, pairs = _built(fine, _weights(fine, fixes))
     got_nodes, got_pairs = sk.sums(w, level)
     assert got_nodes == nodes
@@ -197,7 +190,7 @@ def test_mutation_a_formula_off_by_one_entity_kind_is_caught(monkeypatch):
     fixes = {"left": 2, "bottom": 1}
     sk = Skeleton(coarse)
     w = _entity_weights(sk, coarse, fixes)
-    fine = _refined(coarse, 2)
+    fine = refine(coarse, 2)
     want = _built(fine, _weights(fine, fixes))
     assert sk.sums(w, 2) == want
     edges = sk.of_size(2)
@@ -216,11 +209,8 @@ def test_the_reference_tables_count_every_fine_node_and_pair():
     cell type (a dropped class or a node without a parent fails)."""
     for cell_type, V in refined_counts._REFERENCE.items():
         k = len(V)
-        from fem.mesh import Mesh
-        from fem.mesh3d import Mesh3D
-
-        one = (Mesh if V.shape[1] == 2 else Mesh3D)(V.copy(), np.arange(k)[None, :], {})
-        fine = _refined(one, 2)
+        one = Mesh(V.copy(), np.arange(k)[None, :], {})
+        fine = refine(one, 2)
         N, T = refined_counts.reference_tables(cell_type, 2)
         assert N.sum() == fine.n_nodes
         assert T[:, 3].sum() == _built(fine, np.ones(fine.n_nodes))[1]

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fem.boundary import trace
+from fem.facets import trace
 from fem.shapes import contact_ends, cradle, half_disc
 
 CENTER, R, ANGLE = np.array([0.0, 1.5]), 1.0, np.pi / 2
@@ -57,7 +57,7 @@ def test_contact_arcs_lie_on_the_circle_with_exact_ends(level):
         (cradle(level=level), 12, (Cr, Cl)),
     ):
         t = trace(m, "contact")
-        assert t.segments.shape[0] == n_seg * 2**level
+        assert t.facets.shape[0] == n_seg * 2**level
         P = m.points[t.nodes]  # (k, 2)
         np.testing.assert_allclose(np.linalg.norm(P - CENTER, axis=1), R, atol=1e-13, rtol=0)
         np.testing.assert_array_equal(P[0], ends[0])
@@ -101,7 +101,7 @@ def test_parts_and_non_matching_defaults():
     closed_d = trace(d, ["top", "free_left", "contact", "free_right"])
     closed_c = trace(c, ["bottom", "right", "contact", "left"])
     for t in (closed_d, closed_c):
-        assert t.segments.shape[0] == t.nodes.size  # each body's boundary is one closed loop
+        assert t.facets.shape[0] == t.nodes.size  # each body's boundary is one closed loop
     bottom = trace(c, "bottom")
     np.testing.assert_allclose(c.points[bottom.nodes], np.c_[np.linspace(-1, 1, 13), np.zeros(13)])
 

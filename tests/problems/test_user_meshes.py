@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 
 from fem.mesh_import import body_mesh, read_mesh
-from fem.mesh_import3d import body_mesh3d
 from problems.api import solve_scene
 from problems.commands.main import main
 
@@ -64,7 +63,7 @@ def differences(made: Path, committed: Path, name: str) -> list[str]:
         out.append(f"{name}.msh groups {sorted(a.groups)} != {sorted(b.groups)}")
         return out
     for body in bodies:
-        ma, mb = (body_mesh3d(m, body) if solid else body_mesh(m, body) for m in (a, b))
+        ma, mb = (body_mesh(m, body) for m in (a, b))
         for what in ("cell_type", "n_nodes", "n_cells"):
             if getattr(ma, what) != getattr(mb, what):
                 out.append(f"{name}.{body}: {what} {getattr(ma, what)} != {getattr(mb, what)}")

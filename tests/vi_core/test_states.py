@@ -129,3 +129,65 @@ def test_mutations_of_the_comparison_are_caught(mutant):
     real = (states.compare(a, b)["disagree"], states.compare(a, same)["disagree"])
     assert real == (1, 0)
     assert (mutant(a, b)["disagree"], mutant(a, same)["disagree"]) != real
+
+
+# ------------------------------------------------------------------ on a VI's own rows
+def _node_springs(seed: int):
+    """k contact nodes, each a spring pair of stiffness a = a₀ w behind a Coulomb node of
+    weight w (B = w per row, graded 1e-6 … 1), loaded by the pressure p: pushed in
+    (f_n = p w) it touches with λ_n = p and sticks where |f_t| < F f_n (λ_t = f_t/w, u_t = 0)
+    or slips (λ_t = ±F λ_n, u_t = (f_t − w λ_t)/a, a length independent of w); pulled
+    (f_n = −p w) it is open (λ = 0, u = f/a). The exact answer and the states."""
+    import scipy.sparse as sp
+
+    from vi_core import Coulomb, MixedVI
+
+    rng = np.random.default_rng(seed)
+    k = 10
+    truth = rng.choice(np.array(["stick", "slip", "open"], dtype=object), size=k)
+    w = 10 ** rng.uniform(-6, 0, k)
+    a = rng.uniform(1.0, 10.0, k) * w
+    F = rng.uniform(0.2, 1.0, k)
+    p = rng.uniform(0.5, 2.0, k)
+    fn = np.where(truth == "open", -1.0, 1.0) * p * w
+    ratio = np.where(truth == "stick", rng.uniform(0.2, 0.8, k), rng.uniform(1.2, 3.0, k))
+    ft = ratio * F * np.abs(fn) * rng.choice([-1.0, 1.0], k)
+    lam_n = np.where(truth == "open", 0.0, fn / w)
+    lam_t = np.where(truth == "stick", ft / w, np.sign(ft) * F * lam_n)
+    u_n = np.where(truth == "open", fn / a, 0.0)
+    u_t = np.where(truth == "stick", 0.0, (ft - w * lam_t) / a)
+    inter = lambda x, y: np.column_stack([x, y]).ravel()  # noqa: E731 node by node [n, t]
+    vi = MixedVI(
+        A=sp.diags(np.repeat(a, 2)).tocsr(),
+        B=sp.diags(np.repeat(w, 2)).tocsr(),
+        f=inter(fn, ft),
+        Lambda=Coulomb(F, 2),
+    )
+    return vi, inter(u_n, u_t), inter(lam_n, lam_t), truth
+
+
+@given(seed=st.integers(0, 2**31))
+def test_vi_states_of_the_exact_answer_and_the_fixed_point(seed):
+    from vi_core import solve
+
+    vi, u, lam, truth = _node_springs(seed)
+    res = vi.residual(u, lam).relative
+    assert list(states.vi_states(vi, u, lam, res)) == list(truth)
+    fp = solve(vi, "fixed_point", tol=1e-10)
+    assert fp.converged and fp.info["states"]["counts"] == states.counts(truth)
+    assert list(states.vi_states(vi, fp.u, fp.lam, fp.residual)) == list(truth)
+
+
+def test_vi_states_without_row_weights_is_caught(monkeypatch):
+    """Mutation: the rows' jumps not divided by their weight W_k (graded 1e-6 … 1): at a
+    residual of 1e-6 a slip at a light node falls below the threshold, while the real rule
+    still labels every node right."""
+    wrong = 0
+    for seed in range(6):
+        vi, u, lam, truth = _node_springs(seed)
+        res = 1e-6
+        assert list(states.vi_states(vi, u, lam, res)) == list(truth)
+        with monkeypatch.context() as m:
+            m.setattr(states, "_row_weights", lambda B: np.ones(B.shape[0]))
+            wrong += list(states.vi_states(vi, u, lam, res)) != list(truth)
+    assert wrong

@@ -28,3 +28,29 @@ def test_figures_panels_solve_the_electrical_contact_problem(fault, tmp_path, mo
     assert len(panels) == 3 and (tmp_path / "f" / "fig_5_4.png").exists()
     for _, model, sol in panels:
         assert matches(model, sol) != fault
+
+
+@pytest.mark.parametrize("scene", ["coulomb_strip", "coulomb_strip3d"])
+def test_a_coulomb_scene_sweeps_its_friction_coefficient(scene, tmp_path, capsys):
+    """A Coulomb scene has no bound g (issue 29: figures told the user to set g): the sweep is
+    over its coefficient F, one panel per value of F × (1.5, 1, 0.6)."""
+    out = tmp_path / "f"
+    assert main(["figures", scene, "--level", "0", "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    panels = [ln for ln in lines if ln.startswith("friction coefficient F = ")]
+    assert [ln.split(":")[0] for ln in panels] == [
+        f"friction coefficient F = {v}" for v in ("0.75", "0.5", "0.3")
+    ]
+    assert sorted(p.name for p in out.glob("*.png")) == [
+        "F_sweep.png" if scene == "coulomb_strip" else "F_sweep3d.png"
+    ]
+
+
+def test_a_coulomb_scene_with_a_field_f_is_told_about_f_not_g(tmp_path, capsys):
+    out = tmp_path / "f"
+    argv = ["figures", "coulomb_strip", "--level", "0", "--set", 'contact.F="0.3*(1+x)"']
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "contact.F = '0.3*(1+x)': a number" in err[0], err
+    assert "--set contact.F=VALUE" in err[0] and "contact.g" not in err[0], err
+    assert not out.exists()

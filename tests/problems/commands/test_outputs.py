@@ -222,6 +222,7 @@ def test_sigkill_then_a_rerun_to_the_same_out(tmp_path):
     rc, err = run_subprocess(d, ["solve", SCENE, "--level", "0", "--out", "o"])
     assert rc == 0, err
     (out / "mine.txt").write_text("the user's")
+    before = hashes(out)
     proc = subprocess.Popen(
         [MIXVI, "solve", "paper_two_body", "--level", "3", "--out", "o", "--overwrite"],
         cwd=d,
@@ -237,6 +238,10 @@ def test_sigkill_then_a_rerun_to_the_same_out(tmp_path):
     proc.kill()
     assert proc.wait(30) == -signal.SIGKILL
     assert (out / ".mixvi-lock").exists()
+    left = {
+        k: v for k, v in hashes(out).items() if not k.startswith((".mixvi-lock", ".mixvi-tmp-"))
+    }
+    assert left == before  # the killed run changed nothing of the previous run's or the user's
     rc, err = run_subprocess(d, ["solve", SCENE, "--level", "0", "--out", "o", "--overwrite"])
     lines = err.strip().splitlines()
     assert rc == 0 and len(lines) == 1, err

@@ -96,7 +96,7 @@ def test_caps_and_refusals_name_the_option_and_print_the_estimate(monkeypatch):
 
 def test_auto_is_estimated_as_the_solver_it_will_choose():
     """--linear-solver auto: the direct model below AUTO_AMG_NNZ, the amg model above."""
-    from vi_core.krylov import AUTO_AMG_NNZ
+    from vi_core.linear_solvers import AUTO_AMG_NNZ
 
     scene = load_scene("paper_two_body")
     sizes = Sizes(registry.for_scene(scene), scene)  # auto

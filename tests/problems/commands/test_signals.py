@@ -3,13 +3,18 @@ one line, exit status 130 / 143, no traceback, no temporary file or lock left, a
 previous run's files in the output folder byte-identical with their marker.
 
 Inside compiled code (the work runs in a worker thread, problems.output.signals): a SIGINT
-sent as SuperLU starts to factorise a 96,576-unknown matrix ends the run within 2 s (the test
-hook vi_core.marks, MIXVI_MARK, tells when it starts); in the slow tier the same with
-SIGTERM, inside a pyamg set-up, inside a Clarabel solve, and inside the factorisation of the
-The factorisation of the paper scene's level-4 matrix takes only ~1 s, so the mechanism and its
-mutation are also shown on one SuperLU factorisation that takes a minute (a 3D Laplacian of
-54,872 unknowns): through `interruptible` the SIGINT ends it within 2 s; called directly (the
-fault: the work in the main thread), the process is still running 5 s after the signal.
+sent as SuperLU starts to factorise a 96,576-unknown matrix ends `mixvi solve` within 2 s
+(the test hook vi_core.marks, MIXVI_MARK, tells when the call starts and in which thread);
+`check`, `figures`, `study` and `extremes` likewise inside their SuperLU or Clarabel calls, each
+signal ending the run in one line with the case folder byte-identical; `bench` (its cases in
+child processes) and `study --workers` (Dask worker processes, killed at once) in the slow
+tier, with SIGTERM, a pyamg set-up and a Clarabel solve. Those calls take 0.5–5 s here, so a
+run whose work sat in the main thread could still exit within 2 s of the signal: the tests also
+assert that the call ran outside the main thread, and the mutation (MUTANT: `interruptible` a
+plain call, as the real `mixvi` command) is caught by that. On a call that takes minutes the
+time alone decides (slow tier): a 3D box of 51,984 unknowns whose SuperLU factorisation runs
+for minutes is interrupted within 2 s, and under MUTANT still runs 5 s after the signal; so
+does one SuperLU factorisation of a 3D Laplacian (54,872 unknowns) called directly.
 
 The slow tier also measures the reaction time on the paper scene at level 5 during the long
 factorisations (printed; no timed assert):
@@ -232,10 +237,54 @@ def test_reaction_time_during_one_level_5_factorisation():
 
 
 # the first SuperLU factorisation of `mixvi solve paper_two_body --level 4 --cold`: 96,576
-# unknowns, ~5–10 s on 2 cores (the nested levels skipped: the run reaches it soonest)
+# unknowns, ~4–5 s on 2 cores (the nested levels skipped: the run reaches it soonest)
 SPLU = (["paper_two_body", "--level", "4", "--cold", "--linear-solver", "splu"], "splu", 50_000)
 AMG = (["paper_two_body", "--level", "4", "--cold", "--linear-solver", "amg"], "amg", 50_000)
 CONIC = (["paper_two_body", "--level", "3", "--solver", "conic"], "clarabel", 0)
+
+# a piezoelectric box of 36 × 18 × 18 hexahedra at level 0 (issue 34's 3D block, finer): its
+# first Newton matrix has 51,984 rows, and SuperLU factorises it for minutes (>100 s of CPU),
+# reached ~15 s after the start
+BOX3D = """
+format = 2
+[scene]
+title = "BaTiO3 box pressed on a rigid foundation (3D, Tresca): a long factorisation"
+plugin = "contact3d"
+level = 0
+[bodies.block]
+material = { name = "BaTiO3", poling = [0.0, 0.0, 1.0] }
+[bodies.block.geometry]
+kind = "box"
+x = [0.0, 2.0]
+y = [0.0, 1.0]
+z = [0.0, 1.0]
+cells = [36, 18, 18]
+element = "hexahedron"
+[[bodies.block.displacement]]
+boundary = "left"
+value = [0.0, 0.0, 0.0]
+[[bodies.block.potential]]
+boundary = "left"
+value = 0.0
+[[bodies.block.traction]]
+boundary = "top"
+value = [2.0e6, 0.0, -4.0e6]
+[contact]
+slave = "block.bottom"
+master = "rigid"
+g = 1.0e6
+"""
+
+# the fault the tests below must catch: the commands' numerical work in the main thread (the
+# wrapper of problems.output.signals replaced by a plain call), run as the `mixvi` command
+NO_WORKER = """
+import sys
+from problems.output import signals
+signals.interruptible = lambda fn, /, *args, **kwargs: fn(*args, **kwargs)
+from problems.commands.entry import run
+sys.exit(run())
+"""
+MUTANT = [sys.executable, "-c", NO_WORKER]
 
 
 def previous_solve(out: Path, scene: str) -> dict:
@@ -247,47 +296,110 @@ def previous_solve(out: Path, scene: str) -> dict:
     return snapshot(out)
 
 
-def marked(mark: Path, what: str, n_min: int) -> bool:
-    """The hook's file (vi_core.marks) names a `what` call of more than n_min unknowns."""
-    lines = mark.read_text().splitlines() if mark.exists() else []
-    return any(w == what and int(n) > n_min for w, n in (line.split() for line in lines))
+def calls(mark: Path) -> list[tuple[str, int, str]]:
+    """The calls the hook's file (vi_core.marks) names so far: (what, unknowns, thread); only
+    lines written whole."""
+    text = mark.read_text() if mark.exists() else ""
+    lines = text[: text.rfind("\n") + 1].splitlines()
+    return [(w, int(n), t) for w, n, t in (line.split() for line in lines)]
 
 
-def interrupt_inside(
-    tmp_path, case, sig, command: list[str] | None = None, limit: float = 600.0
-) -> float:
-    """Run `mixvi solve` of `case` into a folder holding a previous run, send `sig` as soon as
-    the hook reports the compiled call, check the clean interruption; the seconds from the
-    signal to the exit (inf, the process killed, if it runs on `limit` seconds after it)."""
-    argv, what, n_min = case
-    out, mark = tmp_path / "o", tmp_path / "mark"
-    before = previous_solve(out, argv[0])
-    env = {**ENV, "MIXVI_MARK": str(mark)}
+def first_call(mark: Path, what: str, n_min: int) -> tuple[str, int, str] | None:
+    """The first `what` call of more than n_min unknowns the hook names (None: none yet)."""
+    return next((c for c in calls(mark) if c[0] == what and c[1] > n_min), None)
+
+
+def tree(root: Path) -> dict:
+    """Every file and folder under root, with the files' bytes."""
+    return {str(p.relative_to(root)): p.read_bytes() if p.is_file() else None
+            for p in sorted(root.rglob("*"))}  # fmt: skip
+
+
+def interrupt_at_mark(
+    argv: list[str],
+    what: str,
+    n_min: int,
+    sig: int,
+    cwd: Path,
+    command: list[str] | None = None,
+    limit: float = 600.0,
+) -> tuple[float, str]:
+    """Run `mixvi argv` in `cwd`, send `sig` as soon as the hook (vi_core.marks) reports a
+    `what` call of more than n_min unknowns, and check the exit: status 128 + sig and one line.
+    Returns the seconds from the signal to the exit (inf, the process killed, if it still runs
+    `limit` seconds after it) and the thread the call was made in ("main" or a worker's name)."""
+    mark = cwd.parent / f"mark-{cwd.name}"
     proc = subprocess.Popen(
-        [*(command or [MIXVI]), "solve", *argv, "--out", str(out)],
-        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        [*(command or [MIXVI]), *argv], cwd=cwd, env={**ENV, "MIXVI_MARK": str(mark)},
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
-    wait_for(lambda: marked(mark, what, n_min), proc, timeout=300)
+    wait_for(lambda: first_call(mark, what, n_min) is not None, proc, timeout=300)
     t0 = time.monotonic()
     proc.send_signal(sig)
+    thread = first_call(mark, what, n_min)[2]
     try:
         _, err = proc.communicate(timeout=limit)
     except subprocess.TimeoutExpired:  # still inside the call: a fault (mutation test)
         proc.kill()
         proc.communicate()
-        return float("inf")
+        return float("inf"), thread
     dt = time.monotonic() - t0
     assert proc.returncode == 128 + sig, err
     assert err.strip().splitlines() == [f"mixvi: interrupted by {NAMES[sig]}"], err
-    assert snapshot(out) == before  # byte-identical; no staging folder, no lock
+    return dt, thread
+
+
+def interrupt_inside(
+    tmp_path, case, sig, command: list[str] | None = None, limit: float = 600.0
+) -> float:
+    """`mixvi solve` of `case` into a folder holding a previous run, `sig` sent as soon as the
+    hook reports the compiled call: the clean interruption checked, the call made in the worker
+    thread (the main thread free to act on the signal); the seconds from the signal to the exit
+    (inf, the process killed, if it runs on `limit` seconds after it)."""
+    argv, what, n_min = case
+    out = tmp_path / "o"
+    before = previous_solve(out, "paper_two_body")
+    dt, thread = interrupt_at_mark(
+        ["solve", *argv, "--out", str(out)], what, n_min, sig, tmp_path, command, limit
+    )
+    if dt < float("inf"):
+        assert thread != "main", f"{what} ran in the main thread"
+        assert snapshot(out) == before  # byte-identical; no staging folder, no lock
     return dt
 
 
 def test_sigint_inside_a_superlu_factorisation(tmp_path):
-    """The acceptance test of issue 34: exit 130 within 2 s of a SIGINT sent inside the
-    factorisation of a >50k-unknown matrix, nothing left."""
+    """The acceptance test of issue 34 (CI tier): exit 130 within 2 s of a SIGINT sent inside
+    the factorisation of a >50k-unknown matrix, nothing left, the factorisation made outside
+    the main thread."""
     dt = interrupt_inside(tmp_path, SPLU, signal.SIGINT)
     assert dt < 2.0, f"{dt:.2f} s from SIGINT to the exit"
+
+
+@pytest.mark.slow
+def test_sigint_inside_a_minutes_long_factorisation_of_a_3d_box(tmp_path):
+    """The acceptance test of issue 34 on a factorisation that alone takes minutes (51,984
+    rows; the run reaches it in ~15 s): exit 130 within 2 s, the previous run byte-identical."""
+    (tmp_path / "box.toml").write_text(BOX3D)
+    case = (["box.toml", "--linear-solver", "splu", "--cold", "--force"], "splu", 50_000)
+    dt = interrupt_inside(tmp_path, case, signal.SIGINT)
+    assert dt < 2.0, f"{dt:.2f} s from SIGINT to the exit"
+
+
+@pytest.mark.slow
+def test_mutation_the_3d_factorisation_in_the_main_thread_ignores_sigint(tmp_path):
+    """The fault the test above catches: with the work in the main thread (MUTANT) the run is
+    still inside the factorisation 5 s after the SIGINT."""
+    (tmp_path / "box.toml").write_text(BOX3D)
+    case = (["box.toml", "--linear-solver", "splu", "--cold", "--force"], "splu", 50_000)
+    assert interrupt_inside(tmp_path, case, signal.SIGINT, MUTANT, limit=5.0) == float("inf")
+
+
+@pytest.mark.slow
+def test_mutation_the_work_in_the_main_thread_is_caught(tmp_path):
+    """The CI-tier acceptance test fails when the commands' work runs in the main thread."""
+    with pytest.raises(AssertionError, match="main thread|from SIGINT to the exit"):
+        interrupt_inside(tmp_path, SPLU, signal.SIGINT, MUTANT, limit=10.0)
 
 
 @pytest.mark.slow
@@ -305,6 +417,131 @@ def test_signal_inside_compiled_code(tmp_path, case, sig):
     dt = interrupt_inside(tmp_path, case, sig)
     print(f"\n{NAMES[sig]} inside {case[1]} ({' '.join(case[0])}): exit after {dt:.2f} s")
     assert dt < 2.0, f"{dt:.2f} s from {NAMES[sig]} to the exit"
+
+
+# every other command that solves, with its outputs in a user's case folder: (arguments, the
+# compiled call to interrupt, its least size). Paper scene level 3: 24k-row factorisations.
+PAPER3 = ["paper_two_body", "--level", "3"]
+COMMANDS = {
+    "check": (["check", *PAPER3, "--json", "r.json"], "splu", 20_000),
+    "figures": (["figures", *PAPER3, "--out", "o"], "splu", 20_000),
+    "study": (
+        [
+            "study",
+            "paper_two_body",
+            "--levels",
+            "3..3",
+            "--solvers",
+            "ssn",
+            "--tols",
+            "1e-6",
+            "--no-progress",
+            "--out",
+            "o",
+        ],
+        "splu",
+        20_000,
+    ),  # fmt: skip
+    "study-conic": (
+        [
+            "study",
+            "paper_two_body",
+            "--levels",
+            "2..2",
+            "--solvers",
+            "conic",
+            "--tols",
+            "1e-6",
+            "--no-progress",
+            "--out",
+            "o",
+        ],
+        "clarabel",
+        0,
+    ),  # fmt: skip
+    # on a local Dask cluster (the optional extra): the workers are killed at once
+    "study-dask": (
+        [
+            "study",
+            "paper_two_body",
+            "--levels",
+            "2..3",
+            "--solvers",
+            "ssn",
+            "--tols",
+            "1e-6",
+            "--workers",
+            "2",
+            "--no-progress",
+            "--out",
+            "o",
+        ],
+        "splu",
+        20_000,
+    ),  # fmt: skip
+    "extremes": (["extremes", "--only", "(thin layer)", "--out", "o"], "splu", 0),
+    # the cases run in child processes (the parent waits in a loop of short reads)
+    "bench": (
+        [
+            "bench",
+            "--scenes",
+            "paper_two_body",
+            "--levels",
+            "3..3",
+            "--linear-solvers",
+            "splu",
+            "--out",
+            "b.json",
+        ],
+        "splu",
+        20_000,
+    ),  # fmt: skip
+}
+SIGNALS_OF = {
+    "check": signal.SIGINT,
+    "figures": signal.SIGTERM,
+    "study": signal.SIGINT,
+    "study-conic": signal.SIGTERM,
+    "study-dask": signal.SIGINT,
+    "extremes": signal.SIGINT,
+    "bench": signal.SIGTERM,
+}
+
+
+def interrupt_command(tmp_path, name: str, command: list[str] | None = None) -> None:
+    """`mixvi` command `name` (COMMANDS) run in a user's case folder and signalled inside its
+    compiled call: exit 128 + signal within 2 s, one line, the case folder byte-identical (no
+    output, no staging, no lock), and the call made outside the main thread (bench: in a child
+    process)."""
+    argv, what, n_min = COMMANDS[name]
+    sig = SIGNALS_OF[name]
+    if "--workers" in argv:
+        pytest.importorskip("dask.distributed")
+    case = tmp_path / "case"
+    case.mkdir()
+    (case / "notes.json").write_text('{"the user\'s": true}\n')
+    before = tree(case)
+    dt, thread = interrupt_at_mark(argv, what, n_min, sig, case, command, limit=60.0)
+    assert tree(case) == before
+    if name not in ("bench", "study-dask"):  # those two: in the main thread of a child process
+        assert thread != "main", f"{what} ran in the main thread"
+    assert dt < 2.0, f"{dt:.2f} s from {NAMES[sig]} to the exit"
+
+
+SLOW_COMMANDS = ("study-conic", "bench", "study-dask")  # 12–40 s each
+
+
+@pytest.mark.parametrize(
+    "name",
+    [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_COMMANDS else n for n in COMMANDS],
+)
+def test_every_command_is_interrupted_inside_compiled_code(tmp_path, name):
+    interrupt_command(tmp_path, name)
+
+
+def test_mutation_a_command_solving_in_the_main_thread_is_caught(tmp_path):
+    with pytest.raises(AssertionError, match="ran in the main thread"):
+        interrupt_command(tmp_path, "check", MUTANT)
 
 
 LONG_FACTORISATION = """

@@ -4,7 +4,7 @@
 
 Cross-checks: every record's errors are those of an independent build, solve and
 `contact3d.exact_errors` of that level; the rates written are the fit of the records
-and pass the slopes of `test_manufactured3d.py` (MIN_SLOPE). Mutation: the exact displacement
+and pass the slopes of `test_manufactured.py` (MIN_SLOPE). Mutation: the exact displacement
 gradient transposed (a wrong reference) must fail the slopes."""
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from problems.plugins import contact3d
 from problems.scene import load_scene
 from problems.scene.exact import Exact, ExactSection3
 
-from ..plugins.test_manufactured3d import slope_failures
+from ..plugins.test_manufactured import slope_failures
 
 ARGS = ["manufactured3d", "--levels", "0..2", "--solvers", "ssn", "--tols", "1e-10"]
 

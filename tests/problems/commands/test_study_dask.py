@@ -91,3 +91,54 @@ def test_bad_worker_counts_are_refused(value, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--workers" in err and value in err and "1 … 256" in err
     assert not (tmp_path / "o").exists()
+
+
+class Started(Exception):
+    """Raised by the stand-in cluster once it knows how many workers it was asked for."""
+
+
+def asked_workers(monkeypatch, argv: list[str]) -> list[int]:
+    """`mixvi study argv` up to the start of its local cluster (a stand-in that records
+    n_workers and stops the run): the worker counts asked for."""
+    asked = []
+
+    def cluster(n_workers, **kwargs):
+        asked.append(n_workers)
+        raise Started
+
+    monkeypatch.setattr(distributed, "LocalCluster", cluster)
+    with pytest.raises(Started):
+        study.study_main(argv)
+    return asked
+
+
+def test_256_workers_on_this_machine_are_lowered_to_its_cores_with_a_notice(
+    tmp_path, capsys, monkeypatch
+):
+    """issue 29: `--workers 256` on a 2-core machine was killed for memory."""
+    argv = ["paper_two_body", "--levels", "0..3", "--solvers", "ssn,conic,homotopy"]
+    asked = asked_workers(monkeypatch, [*argv, "--workers", "256", "--out", str(tmp_path / "o")])
+    assert asked == [min(study.cores(), 12)]  # 4 levels × 3 solvers = 12 cases
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"mixvi study: --workers 256 lowered to {asked[0]}")
+    assert f"{study.cores()} cores" in err[0] and "per worker" in err[0]
+
+
+def test_workers_are_lowered_to_those_whose_memory_fits(tmp_path, capsys, monkeypatch):
+    """With 1 GB available and ~0.4 GB per worker at level 4: 2 workers of the 4 asked (for 3
+    cases on 64 cores)."""
+    monkeypatch.setattr(study, "cores", lambda: 64)
+    monkeypatch.setattr(study.resources, "memory", lambda: (64e9, 1e9))
+    argv = ["paper_two_body", "--levels", "4..4", "--solvers", "ssn,conic,homotopy"]
+    asked = asked_workers(monkeypatch, [*argv, "--workers", "4", "--out", str(tmp_path / "o")])
+    scene = load_scene("paper_two_body")
+    per = study.resources.Sizes(registry.for_scene(scene), scene).estimate(4).upper_bytes
+    assert asked == [int(1e9 // (per + study.DASK_WORKER_BYTES))] == [2]
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"lowered to {asked[0]}" in err[0] and "1.0 GB available" in err[0]
+
+
+def test_workers_that_fit_are_started_as_asked(tmp_path, capsys, monkeypatch):
+    argv = ["obstacle", "--levels", "0..1", "--solvers", "ssn", "--workers", "1"]
+    assert asked_workers(monkeypatch, [*argv, "--out", str(tmp_path / "o")]) == [1]
+    assert capsys.readouterr().err == ""

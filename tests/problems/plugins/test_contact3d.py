@@ -246,7 +246,7 @@ def test_crosspoint_rules_keep_exactly_the_unprescribed_directions(seed):
     k = 12
     normals = AXES[rng.integers(0, 3, k)] * rng.choice([-1.0, 1.0], k)[:, None]
     fixed = rng.random((k, 3)) < 0.4
-    from fem.surface3d import frames
+    from fem.facets import frames
 
     t1, t2 = frames(normals, np.array([1.0, 2.0, 3.0]) / np.sqrt(14))
     carry_n, n_tan, a, b, slot, bad = contact3d.carrying(fixed, normals, t1, t2)
@@ -318,7 +318,7 @@ def test_count_is_the_built_size_and_a_level_multiplies_by_about_8(name, overrid
 def test_count_meshes_nothing_finer_than_level_0(monkeypatch):
     """Every geometry `count` meshes is level 0, whatever level it counts (mutation: meshing
     `level`, as before, fails)."""
-    from problems.scene.geometry3d import Box
+    from problems.scene.geometry import Box
 
     seen = []
     mesh = Box.mesh
@@ -358,7 +358,7 @@ def test_warm_start_predicts_slip_between_two_coarse_slip_nodes(bracket_warm):
     coarse, cs, fine, warm = bracket_warm
     cc, fc = coarse.contact, fine.contact
     slip_c = contact3d.contact_state(coarse, cs)["slip"]  # (k_c,)
-    F = cc.surf.faces  # (n_f, 3)
+    F = cc.surf.facets  # (n_f, 3)
     E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), 1), axis=0)
     both = E[slip_c[E[:, 0]] & slip_c[E[:, 1]]]  # (n_e, 2) edges slipping at both ends
     mid = cc.surf.points[both].mean(axis=1)  # (n_e, 3)

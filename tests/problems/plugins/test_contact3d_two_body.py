@@ -1,4 +1,4 @@
-"""Two-body 3D contact (contact3d with the 3D dual mortar of fem.mortar3d): the paper's example
+"""Two-body 3D contact (contact3d with the 3D dual mortar of fem.mortar): the paper's example
 extruded reproduces the 2D two-body solution (piezo_contact, paper_two_body) to rounding,
 multipliers included; the spherical cap in a piezo pad (non-matching curved surfaces) solves
 with a rigid-body patch defect at rounding level in summary.json — and the checks fail when
@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-import fem.mortar3d as fm3
+import fem.clipping as fc
 import problems
 from problems.commands import main as cli
 from problems.errors import SceneError
@@ -67,7 +67,7 @@ def test_extruded_paper_example_reproduces_the_2d_two_body_solution(layers):
 def test_mutation_plane_normal_projection_breaks_the_extruded_reproduction(monkeypatch):
     """The textbook auxiliary-plane projection (constant normal per face) is a different
     coupling: the 3D answer leaves the 2D one far above rounding."""
-    monkeypatch.setattr(fm3, "_rays", lambda face_type, X, y, xi, **kw: xi)
+    monkeypatch.setattr(fc, "_rays", lambda face_type, X, y, xi, **kw: xi)
     d = _extruded_against_2d(0, 1)
     assert d["cradle.displacement"] > 1e-6 and d["patch_defect"] <= 1e-12, d
 
@@ -92,14 +92,14 @@ def test_mutation_dropped_cell_is_seen(monkeypatch):
     """A dropped integration cell leaves its slave face partly uncovered: the nodes of that
     face lose their multipliers (so the patch defect of the rows kept stays at rounding) and
     are listed as uncovered, which the unbroken scene has none of."""
-    real = fm3.cells
+    real = fc.cells
 
     def drop(*args, **kw):
         e, f, poly, count, *rest = real(*args, **kw)
         keep = np.arange(e.size) != e.size // 2
         return (e[keep], f[keep], poly[keep], count[keep], *rest)
 
-    monkeypatch.setattr(fm3, "cells", drop)
+    monkeypatch.setattr(fc, "cells", drop)
     m = contact3d.build(load_scene(CAP), 0)
     assert (~m.contact.master.covered).sum() >= 3  # the nodes of one face
     assert m.contact.master.patch_defect <= 1e-12
@@ -110,3 +110,23 @@ def test_master_must_be_another_body():
         problems.load_scene(EXTRUDED, contact__master="disc.top")
     with pytest.raises(SceneError, match="contact.master"):
         problems.load_scene(EXTRUDED, contact__master="cradle.nowhere")
+
+
+@pytest.mark.parametrize(
+    ("change", "why"),
+    [
+        ("contact.master=base.bottom", "face the same way"),
+        ("bodies.top.geometry.z=[-1.0,-0.5]", "face away from each other"),
+        ("bodies.top.geometry.x=[3.0,4.0]", "do not overlap seen along the slave's normal"),
+    ],
+    ids=["same-way", "facing-away", "beside"],
+)
+def test_surfaces_that_do_not_face_each_other_are_named_as_such(tmp_path, capsys, change, why):
+    """Two 3D bodies whose contact surfaces do not face each other (issue 29): exit 2 with one
+    line naming contact.master and what is wrong — not "displacement not fully prescribed"."""
+    out = tmp_path / "o"
+    assert cli.main(["solve", "two_blocks3d", "--set", change, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "contact.master" in err[0], err
+    assert why in err[0] and "no slave node has this master behind its faces" in err[0], err
+    assert "prescribed" not in err[0] and not out.exists()

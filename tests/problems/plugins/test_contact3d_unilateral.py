@@ -166,9 +166,9 @@ def test_separation_check_sees_a_dropped_complementarity_row(monkeypatch):
 
 
 def test_separation_check_sees_a_wrong_scaling_of_F(monkeypatch):
-    real = contact3d.face_integrals
+    real = contact3d.facet_integrals
     monkeypatch.setattr(  # F_k = ∫Fφ_k instead of ∫Fφ_k / W_k
-        contact3d, "face_integrals", lambda mesh, surf, f, order: real(mesh, surf, f, order) ** 2
+        contact3d, "facet_integrals", lambda mesh, surf, f, order: real(mesh, surf, f, order) ** 2
     )
     bad = _model("coulomb_strip3d", 0)
     sep = contact3d_checks.separation(bad, _solve(bad))

@@ -10,8 +10,7 @@ from hypothesis import strategies as st
 from problems.errors import SceneError
 from problems.plugins import contact3d, contact_law, piezo_contact
 from problems.scene import load_scene
-from problems.scene.fields import NonNegativeExpr
-from problems.scene.fields3d import NonNegativeExpr3
+from problems.scene.fields import NonNegativeExpr, NonNegativeExpr3
 
 SCENES = {"piezo_contact": "coulomb_strip", "contact3d": "coulomb_strip3d"}
 # (overrides, the key refused, words of the message)

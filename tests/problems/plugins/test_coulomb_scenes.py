@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import vi_core
-from problems.plugins import contact_law, coulomb_range
+from benchmarks import coulomb_range
+from problems.plugins import contact_law
 from problems.plugins import piezo_contact as pc
 from problems.scene import load_scene
 from vi_core.coulomb import Coulomb

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import fem.mortar3d as fm3
+import fem.facets as ff
 import vi_core
 from problems.commands import check
 from problems.commands.main import main
@@ -75,7 +75,7 @@ def _one_class(monkeypatch, cls: str):
 
 def _wrong_share(monkeypatch):
     """A dropped node's function given twice over (shares sum to 2, not 1)."""
-    real = fm3.multiplier_basis
+    real = ff.multiplier_basis
 
     def faulty(s, carry, ends="merge"):
         Q, K = real(s, carry, ends), real(s, carry, "keep")
@@ -123,7 +123,7 @@ def test_each_merge_fault_breaks_the_2d_reproduction(monkeypatch, fault):
 
 def _clamped_manufactured(ends: str):
     """manufactured3d with its left and front sides clamped to the exact u (as
-    test_manufactured3d's clamped test)."""
+    test_manufactured's clamped 3D test)."""
     scene = load_scene("manufactured3d", [f"contact.ends={ends}"])
     blk = scene.data["bodies"]["block"]
     u = blk["displacement"][0]["value"]

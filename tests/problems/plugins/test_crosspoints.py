@@ -8,6 +8,7 @@ an elastic base (non-matching, matching, either body the slave).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -261,7 +262,7 @@ def test_patch_defect_above_the_limit_exits_1_unless_allowed(monkeypatch, tmp_pa
         M = mo.M.tolil()
         r, c = mo.M.nonzero()
         M[r[5], c[5]] = 0.0
-        return fm.Mortar(mo.slave, mo.master_nodes, M.tocsr(), mo.coverage)
+        return dataclasses.replace(mo, M=M.tocsr())
 
     monkeypatch.setattr(fm, "mortar_coupling", dropped_entry)
     for extra, rc in (([], 1), (["--allow-defect"], 0)):

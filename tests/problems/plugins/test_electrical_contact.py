@@ -267,7 +267,7 @@ def test_grounded_is_the_limit_of_large_conductance():
     """Grounded: φ = φ_F on the touching nodes to the penalty's accuracy; the conductive law
     approaches it as k0 grows, with error ∝ 1/k0 (the closed form's φ0 − φ_F)."""
     mg, sg = _solve(['contact.electrical.kind="grounded"'])
-    rep = ec.report(mg.electrical, sg)
+    rep = ec.touching(mg.electrical, sg, pc.contact_state(mg, sg)["touch"])
     assert sg.converged and rep["touching_nodes"] == 5
     assert rep["potential_gap_touching"] <= 1e-5 * 100.0
     phi_g, _ = _bottom(mg, sg)
@@ -442,7 +442,7 @@ def test_two_bodies_grounded_equalise_the_potentials_where_they_touch():
     """grounded: φ_s = Πφ_m on the touching nodes (the penalty's accuracy), the closed form
     with k = K."""
     model, sol = _two_body(['contact.electrical.kind="grounded"'], level=1)
-    rep = ec.report(model.electrical, sol)
+    rep = ec.touching(model.electrical, sol, pc.contact_state(model, sol)["touch"])
     assert rep["touching_nodes"] == 9 and rep["potential_gap_touching"] <= 1e-5
     assert max(_two_body_errors(model, sol).values()) <= MATCH
 

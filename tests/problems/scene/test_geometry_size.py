@@ -9,13 +9,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fem import mesh3d, meshing
+from fem import mesh, meshing, refine
 from problems.commands import resources
 from problems.errors import SceneError
 from problems.plugins import registry
 from problems.scene import geometry, load_scene
-from problems.scene.geometry import Cradle, HalfDisc, MeshFile, Rectangle
-from problems.scene.geometry3d import Box, Extruded, MeshFile3
+from problems.scene.geometry import Box, Cradle, Extruded, HalfDisc, MeshFile, MeshFile3, Rectangle
 
 MESHES = Path(__file__).parents[3] / "problems" / "scenes" / "meshes"
 
@@ -74,16 +73,16 @@ def test_refined_nodes_counts_uniform_refinement_of_any_cells(seed):
         keep[0] = True
         m = type(m)(m.points, m.cells[keep], {})
         for t in (0, 1, 2):
-            assert m.refined_nodes(t) == meshing.refine(m, t).n_nodes
+            assert m.refined_nodes(t) == refine.refine(m, t).n_nodes
     for element in ("hexahedron", "tetra"):
-        m = mesh3d.box(
+        m = meshing.box(
             (0, 1), (0, 1), (0, 1), tuple(int(c) for c in rng.integers(1, 4, 3)), element
         )
         keep = rng.random(m.n_cells) < 0.7
         keep[0] = True
-        m = mesh3d.Mesh3D(m.points, m.cells[keep], {})
+        m = mesh.Mesh(m.points, m.cells[keep], {})
         for t in (0, 1, 2):
-            assert m.refined_nodes(t) == mesh3d.refine(m, t).n_nodes
+            assert m.refined_nodes(t) == refine.refine(m, t).n_nodes
 
 
 def test_a_level_range_is_refused_by_check_levels_before_it_is_solved(monkeypatch):

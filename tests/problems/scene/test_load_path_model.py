@@ -15,8 +15,7 @@ from hypothesis import strategies as st
 from problems.errors import SceneError
 from problems.plugins import registry
 from problems.scene import SCENES_DIR, load_scene
-from problems.scene.fields import Expression, load_parameter
-from problems.scene.fields3d import Expression3
+from problems.scene.fields import Expression, Expression3, load_parameter
 from problems.scene.model import expressions
 
 SHIPPED = sorted(p.stem for p in SCENES_DIR.glob("*.toml"))

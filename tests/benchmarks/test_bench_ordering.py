@@ -1,8 +1,8 @@
-"""`python -m problems.commands.bench_ordering`: the JSON contract on a small level."""
+"""`python benchmarks/bench_ordering.py`: the JSON contract on a small level."""
 
 import json
 
-from problems.commands.bench_ordering import main
+from benchmarks.bench_ordering import main
 
 
 def test_bench_ordering_writes_each_variant_and_solve(tmp_path, capsys):

@@ -1,7 +1,7 @@
 """Coulomb friction on the contact gallery: semismooth Newton against the fixed point on Tresca
 problems, over a range of friction coefficients F.
 
-    python -m vi_core.bench_coulomb [--json FILE] [--seeds N] [--F 0,0.1,...] [--problems A,B]
+    python benchmarks/bench_coulomb.py [--json FILE] [--seeds N] [--F 0,0.1,...] [--problems A,B]
                                     [--quick]
 
 For each gallery problem (`PROBLEMS`: vi_core.testing.random_contact_vi with 8 contact nodes,
@@ -27,10 +27,10 @@ from typing import Any
 
 import numpy as np
 
-from .kkt import Checker
-from .problem import MixedVI
-from .solve import solve
-from .testing import random_contact_vi
+from vi_core.kkt import Checker
+from vi_core.problem import MixedVI
+from vi_core.solve import solve
+from vi_core.testing import random_contact_vi
 
 TOL = 1e-10
 AGREE = 1e-6  # relative difference of λ and of u for "agree"
@@ -156,7 +156,7 @@ def table(result: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m vi_core.bench_coulomb", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python benchmarks/bench_coulomb.py", description=__doc__)
     parser.add_argument("--json", help="write the records to this new file (never overwritten)")
     parser.add_argument("--seeds", type=int, default=3, help="seeds per problem and F (3)")
     parser.add_argument("--F", help="comma-separated friction coefficients (default: F_GRID)")

@@ -1,8 +1,8 @@
-"""The Coulomb benchmark command (vi_core.bench_coulomb): its records, its refusals."""
+"""The Coulomb benchmark command (benchmarks/bench_coulomb.py): its records, its refusals."""
 
 import json
 
-from vi_core.bench_coulomb import PROBLEMS, main, run
+from benchmarks.bench_coulomb import PROBLEMS, main, run
 
 
 def test_records_and_range():

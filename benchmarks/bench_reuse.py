@@ -1,6 +1,6 @@
 """Benchmark: PARDISO symbolic reuse across the Newton steps of semismooth Newton.
 
-    python -m problems.commands.bench_reuse [SCENE] [--level L]
+    python benchmarks/bench_reuse.py [SCENE] [--level L]
 
 Records the Newton matrices of a cold ssn solve (fixed sparsity pattern, explicit zeros kept),
 then factorises the same sequence twice in one run: with a fresh PARDISO analysis per matrix
@@ -33,7 +33,7 @@ class _Recording(linalg.Refactorizer):
 
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark; exit status 2 without pypardiso."""
-    p = argparse.ArgumentParser(prog="python -m problems.commands.bench_reuse")
+    p = argparse.ArgumentParser(prog="python benchmarks/bench_reuse.py")
     p.add_argument("scene", nargs="?", default="paper_two_body")
     p.add_argument("--level", type=int, default=4)
     args = p.parse_args(argv)

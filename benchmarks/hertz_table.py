@@ -2,7 +2,7 @@
 load P, half-width a and peak pressure p0 against Hertz at the measured load, their relative
 errors and the observed rates between levels), printed and written as JSON.
 
-    python -m problems.commands.hertz_table [--scene hertz] [--levels 0..3] [--radius 1.0]
+    python benchmarks/hertz_table.py [--scene hertz] [--levels 0..3] [--radius 1.0]
         [--set KEY=VALUE ...] [--json FILE]
 
 With `--set contact.electrical.kind='"grounded"'` on hertz_piezo the cylinder is a conducting
@@ -48,7 +48,9 @@ def rows(scene: str, levels: range, R: float, overrides: list[str] = ()) -> list
 
 def main(argv: list[str] | None = None) -> int:
     """Print the table; 1 if a level did not converge."""
-    ap = argparse.ArgumentParser(prog="hertz_table", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python benchmarks/hertz_table.py", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("--scene", default="hertz", help="a Hertz scene (rigid cylinder at x = 0)")
     ap.add_argument("--levels", default="0..3", help="A..B, the levels solved")
     ap.add_argument("--radius", type=float, default=1.0, help="the cylinder's radius R (m)")

@@ -1,10 +1,10 @@
-"""python -m problems.commands.hertz_table: the table, its JSON and its refusals."""
+"""python benchmarks/hertz_table.py: the table, its JSON and its refusals."""
 
 import json
 
 import pytest
 
-from problems.commands import hertz_table
+from benchmarks import hertz_table
 
 
 def test_table_and_json(tmp_path, capsys):

@@ -1,6 +1,6 @@
 """Benchmark: SuperLU orderings and pivoting on Newton matrices, and the linear solver `auto` picks.
 
-    python -m problems.commands.bench_ordering [CASE ...] [--timeout S] [--no-solve]
+    python benchmarks/bench_ordering.py [CASE ...] [--timeout S] [--no-solve]
         [--out FILE]
 
 CASE is SCENE or SCENE@LEVEL (a shipped scene's name or a scene file; default: the scene's own
@@ -173,7 +173,7 @@ def _case(text: str) -> tuple[str, int | None]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark (prints the tables, writes JSON)."""
-    p = argparse.ArgumentParser(prog="python -m problems.commands.bench_ordering")
+    p = argparse.ArgumentParser(prog="python benchmarks/bench_ordering.py")
     p.add_argument("cases", nargs="*", default=["paper_two_body@4"])
     p.add_argument("--timeout", type=float, default=120.0)
     p.add_argument("--no-solve", action="store_true")

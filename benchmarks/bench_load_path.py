@@ -1,6 +1,6 @@
 """Benchmark: a load path with every step rebuilt vs. updated (the plug-in's `update`).
 
-    python -m problems.commands.bench_load_path [SCENE ...] [--levels 1 2 3] [--repeat 2]
+    python benchmarks/bench_load_path.py [SCENE ...] [--levels 1 2 3] [--repeat 2]
         [--out FILE]
 
 Solves each scene's [load_path] at each level `--repeat` times (default 2, alternating) each
@@ -58,7 +58,7 @@ def _difference(a: list, b: list) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark, print the table, write the JSON."""
-    p = argparse.ArgumentParser(prog="python -m problems.commands.bench_load_path")
+    p = argparse.ArgumentParser(prog="python benchmarks/bench_load_path.py")
     p.add_argument("scenes", nargs="*", default=list(SCENES))
     p.add_argument("--levels", type=int, nargs="+", default=[1, 2, 3])
     p.add_argument("--repeat", type=int, default=2, help="runs of each kind (the fastest kept)")

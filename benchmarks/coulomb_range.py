@@ -3,7 +3,7 @@ on a scene (issue 17): semismooth Newton on the combined map and the fixed point
 problems g ← F λ_n (vi_core.tresca_fixed_point), each Tresca problem solved by `inner`; for
 piezo_contact (2D) and contact3d (3D) scenes with law = "unilateral".
 
-    python -m problems.plugins.coulomb_range SCENE [--F 0,0.1,0.3] [--levels 0..2]
+    python benchmarks/coulomb_range.py SCENE [--F 0,0.1,0.3] [--levels 0..2]
         [--inner conic|ssn|homotopy] [--set KEY=VALUE ...] [--json FILE]
 
 For each level and F (the scene's [contact] F replaced by a constant) it prints one row: Newton
@@ -28,11 +28,10 @@ from pathlib import Path
 import numpy as np
 
 from problems.errors import SceneError
+from problems.plugins.contract import problem_at, solve_model
+from problems.plugins.registry import for_scene
 from problems.scene import load_scene
 from vi_core.kkt import Checker
-
-from .contract import problem_at, solve_model
-from .registry import for_scene
 
 ACCEPT = 10.0  # a path's independent residual must be ≤ ACCEPT · tol (as `mixvi check`)
 
@@ -59,7 +58,8 @@ def _zones(st: dict) -> tuple[int, int, int, float]:
     if "has_t" in st:  # contact3d
         state = st["state"]
         return int((state == "open").sum()), int((state == "stick").sum()), slip, mean_p
-    return int((~touch).sum()), int(st["touch_t"].sum()) - slip, slip, mean_p
+    state = st["state"]
+    return int(np.sum(st["normal_state"] == "open")), int(np.sum(state == "stick")), slip, mean_p
 
 
 def measure(name: str, F: float, level: int, inner: str, overrides=(), tol=1e-10) -> dict:
@@ -128,7 +128,7 @@ def _print(rows: list[dict]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line (module docstring); returns the exit status."""
-    p = argparse.ArgumentParser(prog="python -m problems.plugins.coulomb_range")
+    p = argparse.ArgumentParser(prog="python benchmarks/coulomb_range.py")
     p.add_argument("scene")
     p.add_argument("--F", default="0,0.1,0.3,1,3", help="comma-separated values of F")
     p.add_argument("--levels", default="1", help="a level or LO..HI")
