@@ -21,6 +21,9 @@ def test_inverted_cell_is_refused(element):
     cells[5, swap] = cells[5, swap[::-1]]  # mirror the local order: det J < 0
     with pytest.raises(ValueError, match="cell 5"):
         check_cells(Mesh(mesh.points, cells, mesh.boundaries))
+    for chunk in (2, 3, 5):  # the cell in a later chunk keeps its global index
+        with pytest.raises(ValueError, match=r"cell 5 \(.*1 bad cell"):
+            check_cells(Mesh(mesh.points, cells, mesh.boundaries), chunk=chunk)
     with pytest.raises(ValueError, match="inverted"):
         transform(mesh, lambda p: p * np.array([1.0, 1.0, -1.0]))  # a reflection
 
