@@ -1,17 +1,24 @@
-"""Vectorised (over cells) assembly of P1/Q1 forms, loads, post-processing and error norms.
+"""Vectorised (over cells) assembly of P1/Q1 forms, loads, post-processing and error norms in
+2D and 3D: the dimension d, the reference element and its quadrature come from the mesh's cell
+type (`fem.elements`).
 
 Matrices are assembled in chunks of `CHUNK` cells: the quadrature data and local matrices of
 one chunk, not of the whole mesh, are alive at a time, and their values are summed into the
 matrix's final sparsity pattern (built first from the cells' dof pairs, so it is the same
-whatever the chunk size: explicit zeros where entries cancel are kept).
+whatever the chunk size: explicit zeros where entries cancel are kept). Computed for all cells
+at once, the 3D elasticity matrix's were the peak of a 3D solve with AMG (3,456 B per
+tetrahedron: bracket3d level 2, 406 MiB against the AMG set-up's 246 MiB). The cells are
+checked once, before the first chunk (`check_cells`).
 
-Dof numbering: displacement component k of node i is dof 2 i + k; scalar fields (the electric
-potential) have dof = node index. Voigt order on (xx, yy, xy) with engineering shear strain
-γ_xy = 2 ε_xy. Sign convention of the paper: σ = C ε(u) + eᵀ∇φ, D = e ε(u) − κ∇φ.
+Dof numbering: displacement component k of node i is dof d i + k; scalar fields (the electric
+potential) have dof = node index. Voigt order (xx, yy, xy) in 2D, (xx, yy, zz, yz, xz, xy) in
+3D (`VOIGT`, see `fem.tensors`), with engineering shear strains γ_ij = 2 ε_ij. Sign
+convention of the paper: σ = C ε(u) + eᵀ∇φ, D = e ε(u) − κ∇φ; the coupled operator is
+[[K, Gᵀ], [−G, P]].
 
-Functions `func` given to loads, interpolation and error norms are called as func(x, y) with
-arrays of any shape and return x.shape + (ncomp,) (or x.shape when ncomp = 1); a constant (float
-or length-ncomp sequence) may be given instead.
+Functions `func` given to loads, interpolation and error norms are called as func(x, y) (2D) or
+func(x, y, z) (3D) with arrays of any shape and return x.shape + (ncomp,) (or x.shape when
+ncomp = 1); a constant (float or length-ncomp sequence) may be given instead.
 """
 
 from __future__ import annotations
@@ -23,19 +30,24 @@ import numpy as np
 import scipy.sparse as sp
 
 from .elements import reference_element
+from .jacobians import CHUNK, check_cells, cofactors, determinants
 from .mesh import Mesh
+from .tensors import VOIGT_PAIRS
 
-Func = Callable[[np.ndarray, np.ndarray], np.ndarray] | float | Sequence[float]
+Func = Callable[..., np.ndarray] | float | Sequence[float]
+
+# Voigt index I -> tensor index pair (i, j), by dimension
+VOIGT: dict[int, np.ndarray] = {2: np.array([[0, 0], [1, 1], [0, 1]]), 3: VOIGT_PAIRS}
 
 
 @dataclass(frozen=True, eq=False)
 class Geometry:
-    """Quadrature data of all cells.
+    """Quadrature data of cells.
 
-    x : (n_cells, n_qp, 2) physical quadrature points.
-    w : (n_cells, n_qp) quadrature weights × |det J|.
+    x : (n_cells, n_qp, d) physical quadrature points.
+    w : (n_cells, n_qp) quadrature weights × det J.
     phi : (n_qp, n_loc) shape function values.
-    grad : (n_cells, n_qp, n_loc, 2) physical shape function gradients.
+    grad : (n_cells, n_qp, n_loc, d) physical shape function gradients.
     """
 
     x: np.ndarray
@@ -44,36 +56,19 @@ class Geometry:
     grad: np.ndarray
 
 
-def _det(J: np.ndarray) -> np.ndarray:
-    """Determinants of a stack of 2×2 matrices (..., 2, 2) -> (...)."""
-    return J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
-
-
-CHUNK = 16384  # cells per assembly chunk
-
-
 def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray, cells: slice = slice(None)) -> Geometry:
-    """Quadrature data of the cells mesh.cells[cells] (a slice: first cell = its start)."""
+    """Quadrature data of the cells mesh.cells[cells] (a slice), not checked for inversion."""
     ref = reference_element(mesh.cell_type)
-    X = mesh.points[mesh.cells[cells]]  # (n_cells, n_loc, 2)
-    # det J is constant (P1) or affine in the reference coordinates (Q1): it is positive on the
-    # whole cell iff it is positive at the vertices
-    XT = X.transpose(0, 2, 1)[:, None]  # (n_cells, 1, 2, n_loc)
-    Jv = XT @ ref.gradients(ref.vertices)  # (n_cells, n_loc, 2, 2) J at the vertices
-    bad = np.flatnonzero((_det(Jv) <= 0).any(axis=1)) + (cells.start or 0)  # (n_bad,)
-    if bad.size:
-        raise ValueError(
-            f"inverted or degenerate cell {bad[0]} (nodes {mesh.cells[bad[0]].tolist()}): "
-            f"det J <= 0; {bad.size} bad cell(s) in total"
-        )
+    X = mesh.points[mesh.cells[cells]]  # (n_cells, n_loc, d)
     phi = ref.values(pts)  # (n_qp, n_loc)
-    dphi = ref.gradients(pts)  # (n_qp, n_loc, 2)
-    J = XT @ dphi  # (n_cells, n_qp, 2, 2) J_ij = ∂x_i/∂ξ_j
-    detJ = _det(J)  # (n_cells, n_qp)
-    adj = np.stack([J[..., 1, 1], -J[..., 0, 1], -J[..., 1, 0], J[..., 0, 0]], axis=-1)
-    invJ = adj.reshape(J.shape) / detJ[..., None, None]  # (n_cells, n_qp, 2, 2)
-    grad = dphi @ invJ  # (n_cells, n_qp, n_loc, 2) ∇φ = J⁻ᵀ ∇_ξ φ
-    x = phi @ X  # (n_cells, n_qp, 2)
+    dphi = ref.gradients(pts)  # (n_qp, n_loc, d)
+    # J is constant on a simplex: computed once per cell
+    J = ref.jacobians(X, pts[:1] if ref.simplex else pts)  # (n_cells, n_J, d, d) ∂x_i/∂ξ_j
+    cof = cofactors(J)  # (n_cells, n_J, d, d)
+    detJ = determinants(J, cof)  # (n_cells, n_J)
+    invJ = np.divide(cof.transpose(0, 1, 3, 2), detJ[..., None, None], order="C")  # (…, d, d)
+    grad = dphi @ invJ  # (n_cells, n_qp, n_loc, d) ∇φ = J⁻ᵀ ∇_ξ φ (as rows: ∇_ξφᵀ J⁻¹)
+    x = phi @ X  # (n_cells, n_qp, d)
     w = wts[None, :] * detJ  # (n_cells, n_qp)
     return Geometry(x=x, w=w, phi=phi, grad=grad)
 
@@ -81,15 +76,17 @@ def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray, cells: slice = slice
 def cell_geometry(mesh: Mesh, order: int = 2) -> Geometry:
     """Quadrature points, weights, shape values and physical gradients for a rule of `order`.
 
-    Raises ValueError naming the first cell whose Jacobian determinant is ≤ 0 (inverted).
+    Raises ValueError naming the first inverted or degenerate cell (`check_cells`).
     """
+    check_cells(mesh)
     pts, wts = reference_element(mesh.cell_type).quadrature(order)
     return _geometry(mesh, pts, wts)
 
 
-def _vector_dofs(mesh: Mesh) -> np.ndarray:
-    """(n_cells, 2 n_loc) global dofs 2 i + k, local order 2 a + k."""
-    return (2 * mesh.cells[:, :, None] + np.arange(2)).reshape(mesh.n_cells, -1)
+def vector_dofs(mesh: Mesh) -> np.ndarray:
+    """(n_cells, d n_loc) global dofs d i + k, local order d a + k."""
+    d = mesh.points.shape[1]
+    return (d * mesh.cells[:, :, None] + np.arange(d)).reshape(mesh.n_cells, -1)
 
 
 def _keys(rows: np.ndarray, cols: np.ndarray, ncol: int) -> np.ndarray:
@@ -137,28 +134,35 @@ def _assemble_chunks(
 def _assemble_forms(
     mesh: Mesh,
     kernel: Callable[[Geometry], np.ndarray],
+    order: int,
     rows: np.ndarray,
     cols: np.ndarray,
     shape: tuple[int, int],
-    chunk: int = CHUNK,
+    chunk: int,
 ) -> sp.csr_matrix:
-    """Σ over cells of kernel(g) (k, r, c), g the order-2 quadrature data of a chunk of k
-    cells, computed chunk by chunk."""
-    pts, wts = reference_element(mesh.cell_type).quadrature(2)
+    """Σ over cells of kernel(g) (k, r, c), g the quadrature data (rule of `order`) of a chunk
+    of k cells, computed chunk by chunk; the cells are checked once first (`check_cells`)."""
+    check_cells(mesh)
+    pts, wts = reference_element(mesh.cell_type).quadrature(order)
     return _assemble_chunks(
         lambda cells: kernel(_geometry(mesh, pts, wts, cells)), rows, cols, shape, chunk
     )
 
 
-def _strain_operator(grad: np.ndarray) -> np.ndarray:
-    """Voigt strain-displacement matrices B: (n_cells, n_qp, 3, 2 n_loc), local dof 2 a + k."""
-    n_cells, n_qp, n_loc, _ = grad.shape
-    B = np.zeros((n_cells, n_qp, 3, n_loc, 2))  # (n_cells, n_qp, 3, n_loc, 2)
-    B[:, :, 0, :, 0] = grad[..., 0]
-    B[:, :, 1, :, 1] = grad[..., 1]
-    B[:, :, 2, :, 0] = grad[..., 1]
-    B[:, :, 2, :, 1] = grad[..., 0]
-    return B.reshape(n_cells, n_qp, 3, 2 * n_loc)
+def strain_operator(grad: np.ndarray) -> np.ndarray:
+    """Voigt strain-displacement matrices B: (..., v, d n_loc) from gradients (..., n_loc, d),
+    v = 3 (d = 2) or 6 (d = 3), local dof d a + k.
+
+    Row I = (i, j) of `VOIGT[d]`: ε_ii = ∂_i u_i, γ_ij = ∂_j u_i + ∂_i u_j (i ≠ j).
+    """
+    *lead, n_loc, d = grad.shape
+    pairs = VOIGT[d]  # (v, 2)
+    B = np.zeros((*lead, len(pairs), n_loc, d))  # (..., v, n_loc, d)
+    for row, (i, j) in enumerate(pairs):
+        B[..., row, :, i] = grad[..., j]
+        if i != j:
+            B[..., row, :, j] = grad[..., i]
+    return B.reshape(*lead, len(pairs), d * n_loc)
 
 
 def _check_matrix(name: str, M: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -168,67 +172,90 @@ def _check_matrix(name: str, M: np.ndarray, shape: tuple[int, int]) -> np.ndarra
     return M
 
 
+def _sizes(mesh: Mesh) -> tuple[int, int]:
+    """(d, v): the dimension and the Voigt size d(d + 1)/2."""
+    d = mesh.points.shape[1]
+    return d, d * (d + 1) // 2
+
+
 def elasticity_matrix(mesh: Mesh, C: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
-    """(2N × 2N) ∫ C ε(u)·ε(v), C the 3×3 Voigt matrix on (xx, yy, xy); `chunk` cells at a
-    time (module docstring)."""
-    C = _check_matrix("C", C, (3, 3))
+    """(dN × dN) ∫ C ε(u)·ε(v), C the v×v Voigt matrix; `chunk` cells at a time."""
+    d, v = _sizes(mesh)
+    C = _check_matrix("C", C, (v, v))
 
     def kernel(g: Geometry) -> np.ndarray:
-        B = _strain_operator(g.grad)  # (k, n_qp, 3, 2 n_loc)
-        wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (k, n_qp, 2 n_loc, 3)
-        return (wBt @ (C @ B)).sum(axis=1)  # (k, 2 n_loc, 2 n_loc)
+        B = strain_operator(g.grad)  # (k, n_qp, v, d n_loc)
+        wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (k, n_qp, d n_loc, v)
+        return (wBt @ (C @ B)).sum(axis=1)  # (k, d n_loc, d n_loc)
 
-    dofs = _vector_dofs(mesh)  # (n_cells, 2 n_loc)
-    n = 2 * mesh.n_nodes
-    return _assemble_forms(mesh, kernel, dofs, dofs, (n, n), chunk)
+    ref = reference_element(mesh.cell_type)
+    dofs = vector_dofs(mesh)  # (n_cells, d n_loc)
+    n = d * mesh.n_nodes
+    return _assemble_forms(mesh, kernel, ref.form_order, dofs, dofs, (n, n), chunk)
 
 
 def coupling_matrix(mesh: Mesh, e: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
-    """(N × 2N) G[θ, u] = ∫ ∇θ · (e ε(u)), e the 2×3 piezoelectric matrix (rows D_x, D_y)."""
-    e = _check_matrix("e", e, (2, 3))
+    """(N × dN) G[θ, u] = ∫ ∇θ · (e ε(u)), e the d×v piezoelectric matrix (rows D_x, D_y(, D_z));
+    `chunk` cells at a time."""
+    d, v = _sizes(mesh)
+    e = _check_matrix("e", e, (d, v))
 
     def kernel(g: Geometry) -> np.ndarray:
-        B = _strain_operator(g.grad)  # (k, n_qp, 3, 2 n_loc)
-        wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, 2)
-        return (wgrad @ (e @ B)).sum(axis=1)  # (k, n_loc, 2 n_loc)
+        B = strain_operator(g.grad)  # (k, n_qp, v, d n_loc)
+        wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, d)
+        return (wgrad @ (e @ B)).sum(axis=1)  # (k, n_loc, d n_loc)
 
-    shape = (mesh.n_nodes, 2 * mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, mesh.cells, _vector_dofs(mesh), shape, chunk)
+    ref = reference_element(mesh.cell_type)
+    shape = (mesh.n_nodes, d * mesh.n_nodes)
+    return _assemble_forms(
+        mesh, kernel, ref.form_order, mesh.cells, vector_dofs(mesh), shape, chunk
+    )
 
 
 def permittivity_matrix(mesh: Mesh, kappa: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
-    """(N × N) ∫ κ∇φ·∇θ, κ a 2×2 symmetric positive definite matrix."""
-    kappa = _check_matrix("kappa", kappa, (2, 2))
+    """(N × N) ∫ κ∇φ·∇θ, κ a d×d symmetric positive definite matrix; `chunk` cells at a time."""
+    d, _ = _sizes(mesh)
+    kappa = _check_matrix("kappa", kappa, (d, d))
 
     def kernel(g: Geometry) -> np.ndarray:
-        wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, 2)
+        wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, d)
         return (wgrad @ kappa @ g.grad.transpose(0, 1, 3, 2)).sum(axis=1)  # (k, n_loc, n_loc)
 
+    ref = reference_element(mesh.cell_type)
     shape = (mesh.n_nodes, mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk)
+    return _assemble_forms(mesh, kernel, ref.form_order, mesh.cells, mesh.cells, shape, chunk)
 
 
 def stiffness_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
     """(N × N) ∫ ∇φ·∇θ (the H¹ seminorm Gram matrix)."""
-    return permittivity_matrix(mesh, np.eye(2), chunk)
+    return permittivity_matrix(mesh, np.eye(mesh.points.shape[1]), chunk)
+
+
+def piezo_matrix(mesh: Mesh, C: np.ndarray, e: np.ndarray, kappa: np.ndarray) -> sp.csr_matrix:
+    """The coupled operator [[K, Gᵀ], [−G, P]] on (u interleaved, then φ): ((d+1)N × (d+1)N)."""
+    K = elasticity_matrix(mesh, C)
+    G = coupling_matrix(mesh, e)
+    P = permittivity_matrix(mesh, kappa)
+    return sp.bmat([[K, G.T], [-G, P]], format="csr")
 
 
 def mass_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
-    """(N × N) ∫ φ θ (the L² Gram matrix)."""
+    """(N × N) ∫ φ θ (the L² Gram matrix); `chunk` cells at a time."""
 
     def kernel(g: Geometry) -> np.ndarray:
         return np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (k, n_loc, n_loc)
 
+    ref = reference_element(mesh.cell_type)
     shape = (mesh.n_nodes, mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk)
+    return _assemble_forms(mesh, kernel, ref.mass_order, mesh.cells, mesh.cells, shape, chunk)
 
 
-def _evaluate(func: Func, x: np.ndarray, y: np.ndarray, ncomp: int) -> np.ndarray:
-    """func at points (x, y) of any shape as an array x.shape + (ncomp,)."""
-    shape = x.shape + (ncomp,)
+def _evaluate(func: Func, x: np.ndarray, ncomp: int) -> np.ndarray:
+    """func at points x (..., d) as an array x.shape[:-1] + (ncomp,)."""
+    shape = x.shape[:-1] + (ncomp,)
     if callable(func):
-        v = np.asarray(func(x, y), dtype=float)
-        if ncomp == 1 and v.shape == x.shape:
+        v = np.asarray(func(*np.moveaxis(x, -1, 0)), dtype=float)
+        if ncomp == 1 and v.shape == x.shape[:-1]:
             v = v[..., None]
         ok = v.shape == shape or v.ndim == 0
     else:
@@ -237,7 +264,9 @@ def _evaluate(func: Func, x: np.ndarray, y: np.ndarray, ncomp: int) -> np.ndarra
         v = v.reshape(-1)  # (ncomp,)
     if not ok:
         what = "function values" if callable(func) else "constant"
-        raise ValueError(f"{what} of shape {v.shape} do not fit points {x.shape}, ncomp={ncomp}")
+        raise ValueError(
+            f"{what} of shape {v.shape} do not fit points {x.shape[:-1]}, ncomp={ncomp}"
+        )
     return np.broadcast_to(v, shape)
 
 
@@ -251,45 +280,63 @@ def _scatter(local: np.ndarray, nodes: np.ndarray, n_nodes: int) -> np.ndarray:
 def volume_load(mesh: Mesh, func: Func, ncomp: int, order: int = 4) -> np.ndarray:
     """∫_Ω f·v dx as a vector of length ncomp·N (interleaved: dof ncomp·i + k)."""
     g = cell_geometry(mesh, order)
-    f = _evaluate(func, g.x[..., 0], g.x[..., 1], ncomp)  # (n_cells, n_qp, ncomp)
+    f = _evaluate(func, g.x, ncomp)  # (n_cells, n_qp, ncomp)
     Fe = np.einsum("cq,qa,cqk->cak", g.w, g.phi, f, optimize=True)  # (n_cells, n_loc, ncomp)
     return _scatter(Fe, mesh.cells, mesh.n_nodes)
 
 
-_GAUSS3_T = 0.5 + 0.5 * np.sqrt(0.6) * np.array([-1.0, 0.0, 1.0])  # (3,) on [0, 1]
-_GAUSS3_W = np.array([5.0, 8.0, 5.0]) / 18.0  # (3,) sum 1
+def facet_geometry(
+    mesh: Mesh, name: str, order: int = 4
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Quadrature on the facets of boundary part `name`: straight edges (2D), flat triangles or
+    bilinear quadrilaterals (3D).
 
-
-def boundary_load(mesh: Mesh, name: str, func: Func, ncomp: int) -> np.ndarray:
-    """∫_Γ f·v ds over boundary part `name` (straight segments, 3-point Gauss per edge).
-
-    Same layout and `func` conventions as `volume_load`; KeyError for an unknown part.
+    Returns x (n_f, n_qp, d) points, w (n_f, n_qp) weights × facet measure, phi (n_qp, k) facet
+    shape values and n (n_f, n_qp, d) unit outward normals. KeyError for an unknown part.
     """
     if name not in mesh.boundaries:
         raise KeyError(
             f"unknown boundary {name!r}; this mesh has: {', '.join(sorted(mesh.boundaries))}"
         )
-    edges = mesh.boundaries[name]  # (n_e, 2)
-    P = mesh.points[edges]  # (n_e, 2, 2)
-    L = np.linalg.norm(P[:, 1] - P[:, 0], axis=1)  # (n_e,)
-    N = np.stack([1 - _GAUSS3_T, _GAUSS3_T], axis=1)  # (3, 2) trace shape functions
-    x = np.einsum("qa,eai->eqi", N, P, optimize=True)  # (n_e, 3, 2)
-    f = _evaluate(func, x[..., 0], x[..., 1], ncomp)  # (n_e, 3, ncomp)
-    Fe = np.einsum("e,q,qa,eqk->eak", L, _GAUSS3_W, N, f, optimize=True)  # (n_e, 2, ncomp)
-    return _scatter(Fe, edges, mesh.n_nodes)
+    ref = reference_element(reference_element(mesh.cell_type).facet_type)
+    pts, wts = ref.quadrature(order)  # (n_qp, d − 1), (n_qp,)
+    F = mesh.points[mesh.boundaries[name]]  # (n_f, k, d)
+    phi = ref.values(pts)  # (n_qp, k)
+    T = ref.jacobians(F, pts)  # (n_f, n_qp, d, d − 1) tangents ∂x/∂s (, ∂x/∂t)
+    if T.shape[-2] == 2:  # an edge with the domain on its left: outward = tangent turned right
+        N = np.stack([T[..., 1, 0], -T[..., 0, 0]], axis=-1)  # (n_f, n_qp, 2)
+    else:
+        N = np.cross(T[..., 0], T[..., 1])  # (n_f, n_qp, 3) ∂x/∂s × ∂x/∂t
+    dA = np.linalg.norm(N, axis=-1)  # (n_f, n_qp)
+    return phi @ F, wts[None, :] * dA, phi, N / dA[..., None]
+
+
+def boundary_load(mesh: Mesh, name: str, func: Func, ncomp: int, order: int = 4) -> np.ndarray:
+    """∫_Γ f·v ds over boundary part `name` (a traction when ncomp = d, a surface charge when 1).
+
+    Same layout and `func` conventions as `volume_load`; KeyError for an unknown part.
+    """
+    x, w, phi, _ = facet_geometry(mesh, name, order)
+    f = _evaluate(func, x, ncomp)  # (n_f, n_qp, ncomp)
+    Fe = np.einsum("fq,qa,fqk->fak", w, phi, f, optimize=True)  # (n_f, k, ncomp)
+    return _scatter(Fe, mesh.boundaries[name], mesh.n_nodes)
+
+
+def interpolate(mesh: Mesh, func: Func, ncomp: int) -> np.ndarray:
+    """Nodal interpolant: vector of length ncomp·N (interleaved)."""
+    return np.array(_evaluate(func, mesh.points, ncomp)).ravel()
 
 
 def cell_gradients(
     mesh: Mesh, u: np.ndarray, phi: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray | None]:
-    """Strain ε(u) in Voigt order (xx, yy, 2xy) (n_cells, 3) and ∇φ (n_cells, 2) (None if
-    `phi` is None) at the cell centroids."""
+    """Strain ε(u) in Voigt order (n_cells, v) and ∇φ (n_cells, d) (None if `phi` is None) at
+    the cell centroids."""
+    check_cells(mesh)
     ref = reference_element(mesh.cell_type)
-    g = _geometry(mesh, ref.centroid[None, :], np.ones(1))
-    grad = g.grad[:, 0]  # (n_cells, n_loc, 2)
-    U = np.asarray(u, dtype=float).reshape(mesh.n_nodes, 2)[mesh.cells]  # (n_cells, n_loc, 2)
-    Du = np.einsum("cak,cai->cki", U, grad, optimize=True)  # (n_cells, 2, 2) ∂u_k/∂x_i
-    eps = np.stack([Du[:, 0, 0], Du[:, 1, 1], Du[:, 0, 1] + Du[:, 1, 0]], axis=1)  # (n_cells, 3)
+    grad = _geometry(mesh, ref.centroid[None, :], np.ones(1)).grad[:, 0]  # (n_cells, n_loc, d)
+    U = np.asarray(u, dtype=float).reshape(mesh.n_nodes, ref.dim)[mesh.cells]  # (nc, n_loc, d)
+    eps = np.einsum("cIa,ca->cI", strain_operator(grad), U.reshape(mesh.n_cells, -1))  # (nc, v)
     if phi is None:
         return eps, None
     return eps, np.einsum("ca,cai->ci", np.asarray(phi, dtype=float)[mesh.cells], grad)
@@ -303,25 +350,20 @@ def cell_fields(
     e: np.ndarray | None,
     kappa: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Stress σ = Cε(u) + eᵀ∇φ (n_cells, 3) and electric displacement D = eε(u) − κ∇φ
-    (n_cells, 2) at the cell centroids.
+    """Stress σ = Cε(u) + eᵀ∇φ (n_cells, v, Voigt) and electric displacement D = eε(u) − κ∇φ
+    (n_cells, d) at the cell centroids.
 
     With `phi` None (purely elastic body) σ = Cε(u), D = 0 and `e`, `kappa` are ignored.
     """
-    C = _check_matrix("C", C, (3, 3))
-    eps, E = cell_gradients(mesh, u, phi)  # (n_cells, 3), (n_cells, 2) ∇φ
-    sigma = eps @ C.T  # (n_cells, 3)
+    d, v = _sizes(mesh)
+    C = _check_matrix("C", C, (v, v))
+    eps, E = cell_gradients(mesh, u, phi)  # (n_cells, v), (n_cells, d) ∇φ
+    sigma = eps @ C.T  # (n_cells, v)
     if phi is None:
-        return sigma, np.zeros((mesh.n_cells, 2))
-    e = _check_matrix("e", e, (2, 3))
-    kappa = _check_matrix("kappa", kappa, (2, 2))
+        return sigma, np.zeros((mesh.n_cells, d))
+    e = _check_matrix("e", e, (d, v))
+    kappa = _check_matrix("kappa", kappa, (d, d))
     return sigma + E @ e, eps @ e.T - E @ kappa.T
-
-
-def interpolate(mesh: Mesh, func: Func, ncomp: int) -> np.ndarray:
-    """Nodal interpolant: vector of length ncomp·N (interleaved)."""
-    x, y = mesh.points.T  # (N,) each
-    return np.array(_evaluate(func, x, y, ncomp)).ravel()
 
 
 def l2_error(mesh: Mesh, uh: np.ndarray, exact: Func, ncomp: int, order: int = 4) -> float:
@@ -329,22 +371,24 @@ def l2_error(mesh: Mesh, uh: np.ndarray, exact: Func, ncomp: int, order: int = 4
     g = cell_geometry(mesh, order)
     U = np.asarray(uh, dtype=float).reshape(mesh.n_nodes, ncomp)[mesh.cells]  # (n_c, n_loc, nc)
     vh = np.einsum("qa,cak->cqk", g.phi, U, optimize=True)  # (n_cells, n_qp, ncomp)
-    d = _evaluate(exact, g.x[..., 0], g.x[..., 1], ncomp) - vh  # (n_cells, n_qp, ncomp)
-    return float(np.sqrt(np.einsum("cq,cqk,cqk->", g.w, d, d)))
+    diff = _evaluate(exact, g.x, ncomp) - vh  # (n_cells, n_qp, ncomp)
+    return float(np.sqrt(np.einsum("cq,cqk,cqk->", g.w, diff, diff)))
 
 
 def h1_seminorm_error(
     mesh: Mesh, uh: np.ndarray, grad_exact: Callable, ncomp: int, order: int = 4
 ) -> float:
-    """|u − u_h|_{H¹(Ω)}; grad_exact(x, y) returns x.shape + (ncomp, 2) (or x.shape + (2,))."""
+    """|u − u_h|_{H¹(Ω)}; grad_exact(x, y(, z)) returns x.shape + (ncomp, d) (or x.shape + (d,)
+    when ncomp = 1)."""
     g = cell_geometry(mesh, order)
+    d = mesh.points.shape[1]
     U = np.asarray(uh, dtype=float).reshape(mesh.n_nodes, ncomp)[mesh.cells]  # (n_c, n_loc, nc)
-    Gh = np.einsum("cqai,cak->cqki", g.grad, U, optimize=True)  # (n_cells, n_qp, ncomp, 2)
-    x, y = g.x[..., 0], g.x[..., 1]  # (n_cells, n_qp) each
-    G = np.asarray(grad_exact(x, y), dtype=float)  # (n_cells, n_qp, ncomp, 2)
-    if ncomp == 1 and G.shape == x.shape + (2,):
-        G = G[..., None, :]
-    if G.shape != x.shape + (ncomp, 2):
-        raise ValueError(f"grad_exact returned shape {G.shape}, expected {x.shape + (ncomp, 2)}")
-    d = G - Gh  # (n_cells, n_qp, ncomp, 2)
-    return float(np.sqrt(np.einsum("cq,cqki,cqki->", g.w, d, d)))
+    Gh = np.einsum("cqai,cak->cqki", g.grad, U, optimize=True)  # (n_cells, n_qp, ncomp, d)
+    x = g.x[..., 0]  # (n_cells, n_qp)
+    G = np.asarray(grad_exact(*np.moveaxis(g.x, -1, 0)), dtype=float)  # (n_c, n_qp, ncomp, d)
+    if ncomp == 1 and G.shape == x.shape + (d,):
+        G = G[..., None, :]  # (n_cells, n_qp, 1, d)
+    if G.shape != x.shape + (ncomp, d):
+        raise ValueError(f"grad_exact returned shape {G.shape}, expected {x.shape + (ncomp, d)}")
+    diff = G - Gh  # (n_cells, n_qp, ncomp, d)
+    return float(np.sqrt(np.einsum("cq,cqki,cqki->", g.w, diff, diff)))

@@ -63,7 +63,8 @@ from typing import NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .facets import Trace, facet_values, segment_rule, triangle_rule
+from .elements import reference_element
+from .facets import Trace, facet_values, triangle_rule
 
 
 class Pieces(NamedTuple):
@@ -198,7 +199,7 @@ def segment_pieces(ts: Trace, tm: Trace, reach: float, order: int) -> Pieces:
     n_cells = int(e.size)
     e, f, lo, hi = _nearest(e, f, lo, hi, _pair_geometry(xs, ts, xm, tm, e, f))
     geo = _pair_geometry(xs, ts, xm, tm, e, f)  # six (n_piece, 2)
-    g, w = segment_rule(order)  # (n_qp, 1), (n_qp,) on [0, 1]
+    g, w = reference_element("line").quadrature(order)  # (n_qp, 1), (n_qp,) on [0, 1]
     t = lo[:, None] + (hi - lo)[:, None] * g[None, :, 0]  # (n_piece, n_qp)
     eta, _ = _hit(t.ravel(), *(np.repeat(v, w.size, axis=0) for v in geo))
     jw = (ts.measures[e] * (hi - lo))[:, None] * w[None, :]  # (n_piece, n_qp)

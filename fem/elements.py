@@ -1,13 +1,21 @@
-"""Reference elements: P1 on the triangle (0,0)-(1,0)-(0,1), Q1 on the square [−1, 1]².
+"""Reference elements of P1/Q1 in 1D, 2D and 3D as data: one `ReferenceElement` type.
 
-Local node order is counterclockwise, matching `Mesh.cells`. Quadrature rules integrate
-polynomials of total degree `order` exactly (triangle) or of degree `order` in each variable
-(quad, tensor Gauss–Legendre).
+Cells: P1 on the triangle (0,0)-(1,0)-(0,1) ("triangle") and the tetrahedron (0,0,0), (1,0,0),
+(0,1,0), (0,0,1) ("tetra"); Q1 on the square [−1, 1]² ("quad") and the cube [−1, 1]³
+("hexahedron"). Facets of 2D cells: P1 on the segment [0, 1] ("line"). Names and local node
+orders are meshio's/VTK's: triangles and quads counterclockwise (as `fem.mesh.Mesh.cells`);
+tetrahedra positively oriented (det J > 0); hexahedra with the bottom face (ζ = −1)
+counterclockwise seen from above, then the top face.
+
+Quadrature rules integrate polynomials of total degree `order` exactly on simplices (Dunavant
+on the triangle; the centroid, the symmetric 4-point rule and collapsed Gauss products on the
+tetrahedron) or of degree `order` in each variable on tensor cells (Gauss–Legendre products).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import reduce
 
 import numpy as np
 
@@ -29,6 +37,11 @@ _TRIANGLE_RULES: dict[int, list[tuple[float, float]]] = {
 }
 
 
+def _check_order(order: int) -> None:
+    if order < 0:
+        raise ValueError(f"quadrature order must be non-negative, got {order}")
+
+
 def _triangle_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
     avail = [o for o in sorted(_TRIANGLE_RULES) if o >= order]
     if order < 0 or not avail:
@@ -43,63 +56,238 @@ def _triangle_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
     return np.array(pts), 0.5 * np.array(wts)
 
 
-def _quad_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
-    if order < 0:
-        raise ValueError(f"quadrature order must be non-negative, got {order}")
+def _tet_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Points (n_qp, 3) and weights (n_qp,) (sum 1/6) on the reference tetrahedron."""
+    _check_order(order)
+    if order <= 1:
+        return np.full((1, 3), 0.25), np.array([1.0 / 6.0])
+    if order == 2:  # the symmetric 4-point rule, a = (5 + 3√5)/20, b = (5 − √5)/20
+        a, b = (5 + 3 * np.sqrt(5)) / 20, (5 - np.sqrt(5)) / 20
+        bary = np.full((4, 4), b)  # (4 points, barycentrics λ0..λ3)
+        np.fill_diagonal(bary, a)
+        return bary[:, 1:], np.full(4, 1.0 / 24.0)
+    # Collapsed (Duffy) Gauss product: s = a, t = b(1 − a), u = c(1 − a)(1 − b), Jacobian
+    # (1 − a)²(1 − b); a monomial of total degree d becomes degree ≤ d + 2 in each variable.
+    n = (order + 4) // 2  # 2n − 1 ≥ order + 2
+    t, w = np.polynomial.legendre.leggauss(n)
+    x, w = 0.5 * (t + 1.0), 0.5 * w  # (n,) each: Gauss on [0, 1]
+    A, B, Cc = np.meshgrid(x, x, x, indexing="ij")  # (n, n, n) each
+    W = np.einsum("i,j,k->ijk", w, w, w)  # (n, n, n)
+    s, t, u = A, B * (1 - A), Cc * (1 - A) * (1 - B)
+    jac = (1 - A) ** 2 * (1 - B)
+    return np.stack([s.ravel(), t.ravel(), u.ravel()], axis=1), (W * jac).ravel()
+
+
+def _line_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre on [0, 1]: points (n_qp, 1), weights (n_qp,) summing to 1."""
+    _check_order(order)
     t, w = np.polynomial.legendre.leggauss(order // 2 + 1)  # exact to degree 2n − 1 ≥ order
-    X, Y = np.meshgrid(t, t, indexing="ij")
-    return np.stack([X.ravel(), Y.ravel()], axis=1), np.outer(w, w).ravel()
+    return 0.5 * (t[:, None] + 1.0), 0.5 * w
 
 
-@dataclass(frozen=True)
+def _tensor_rule(order: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre product on [−1, 1]^dim: points (n^dim, dim), weights (n^dim,)."""
+    _check_order(order)
+    t, w = np.polynomial.legendre.leggauss(order // 2 + 1)  # exact to degree 2n − 1 ≥ order
+    grids = np.meshgrid(*[t] * dim, indexing="ij")  # dim × (n, …, n)
+    W = reduce(np.multiply.outer, [w] * dim)  # (n, …, n)
+    return np.stack([g.ravel() for g in grids], axis=1), W.ravel()
+
+
+_RULES = {
+    "line": _line_rule,
+    "triangle": _triangle_rule,
+    "tetra": _tet_rule,
+    "quad": lambda order: _tensor_rule(order, 2),
+    "hexahedron": lambda order: _tensor_rule(order, 3),
+}
+
+
+@dataclass(frozen=True, eq=False)
 class ReferenceElement:
-    """Shape functions, reference gradients and quadrature of P1 ("triangle") or Q1 ("quad")."""
+    """One reference element as data: its local nodes, facets and quadrature orders.
+
+    name : meshio's cell type name.
+    vertices : (n_loc, d) reference coordinates of the local nodes.
+    simplex : P1 (shape functions barycentric) or else Q1 (tensor products of 1D hats).
+    facets : (n_facets, k) local nodes of the facets, outward (2D: the domain on the left of
+        each edge; 3D: counterclockwise seen from outside); (0, 1) empty for "line".
+    facet_type : name of the facets' reference element ("" for "line").
+    form_order : quadrature order of the forms ∫ ∇φ·∇θ (exact: constant gradients on a simplex,
+        degree 2 in each variable on a parallelogram/parallelepiped).
+    mass_order : quadrature order of ∫ φ θ (exact: det J of a Q1 map has degree d − 1 in each
+        variable, so the integrand has degree 2 + (d − 1) ≤ 2n − 1 with n = 2 (2D) or 3 (3D)).
+    """
 
     name: str
+    vertices: np.ndarray
+    simplex: bool
+    facets: np.ndarray
+    facet_type: str
+    form_order: int
+    mass_order: int
+
+    @property
+    def dim(self) -> int:
+        """Dimension of the reference cell."""
+        return self.vertices.shape[1]
 
     @property
     def n_loc(self) -> int:
         """Number of local nodes (shape functions)."""
-        return 3 if self.name == "triangle" else 4
-
-    @property
-    def vertices(self) -> np.ndarray:
-        """(n_loc, 2) reference coordinates of the local nodes."""
-        if self.name == "triangle":
-            return np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-        return np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+        return self.vertices.shape[0]
 
     @property
     def centroid(self) -> np.ndarray:
-        """(2,) reference coordinates of the centroid."""
+        """(d,) reference coordinates of the centroid."""
         return self.vertices.mean(axis=0)
 
+    @property
+    def check_points(self) -> np.ndarray:
+        """(n_pts, d) points where det J > 0 is checked: constant on a simplex; affine in each
+        variable on a quad, so its vertices suffice; on a hexahedron of degree 2 in each
+        variable, checked at the vertices (necessary: 6 × the corner tetrahedra's volumes) and
+        at the 3×3×3 Gauss points, where the integrals use it."""
+        if self.simplex:
+            return self.centroid[None, :]
+        if self.dim < 3:
+            return self.vertices
+        return np.concatenate([self.vertices, self.quadrature(4)[0]])  # (8 + 27, 3)
+
     def values(self, pts: np.ndarray) -> np.ndarray:
-        """Shape function values at reference points `pts` (n_pts, 2): (n_pts, n_loc)."""
-        s, t = np.asarray(pts, dtype=float).T  # (n_pts,) each
-        if self.name == "triangle":
-            return np.stack([1 - s - t, s, t], axis=1)
-        xs, ys = self.vertices.T  # (4,) each
-        return 0.25 * (1 + s[:, None] * xs) * (1 + t[:, None] * ys)
+        """Shape function values at reference points `pts` (n_pts, d): (n_pts, n_loc)."""
+        p = np.asarray(pts, dtype=float)  # (n_pts, d)
+        if self.simplex:
+            return np.concatenate([1 - p.sum(axis=1, keepdims=True), p], axis=1)
+        # Π_i (1 + ξ_i v_ai) / 2^d
+        return 0.5**self.dim * np.prod(1 + p[:, None, :] * self.vertices[None], axis=2)
 
     def gradients(self, pts: np.ndarray) -> np.ndarray:
-        """Reference gradients at `pts` (n_pts, 2): (n_pts, n_loc, 2)."""
-        s, t = np.asarray(pts, dtype=float).T  # (n_pts,) each
-        if self.name == "triangle":
-            g = np.array([[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]])  # (3, 2)
-            return np.broadcast_to(g, (s.size, 3, 2)).copy()
-        xs, ys = self.vertices.T  # (4,) each
-        ds = 0.25 * xs * (1 + t[:, None] * ys)  # (n_pts, 4)
-        dt = 0.25 * ys * (1 + s[:, None] * xs)  # (n_pts, 4)
-        return np.stack([ds, dt], axis=2)
+        """Reference gradients at `pts` (n_pts, d): (n_pts, n_loc, d)."""
+        p = np.asarray(pts, dtype=float)  # (n_pts, d)
+        d = self.dim
+        if self.simplex:
+            g = np.concatenate([-np.ones((1, d)), np.eye(d)])  # (d + 1, d)
+            return np.broadcast_to(g, (p.shape[0], d + 1, d)).copy()
+        f = 1 + p[:, None, :] * self.vertices[None]  # (n_pts, n_loc, d) the 1D factors
+        g = np.empty_like(f)  # (n_pts, n_loc, d)
+        for i in range(d):
+            others = np.prod(np.delete(f, i, axis=2), axis=2)  # (n_pts, n_loc)
+            g[..., i] = 0.5**d * self.vertices[:, i] * others
+        return g
 
     def quadrature(self, order: int) -> tuple[np.ndarray, np.ndarray]:
-        """Points (n_qp, 2) and weights (n_qp,) exact for polynomials of degree `order`."""
-        return _triangle_rule(order) if self.name == "triangle" else _quad_rule(order)
+        """Points (n_qp, d) and weights (n_qp,) exact for polynomials of degree `order`."""
+        return _RULES[self.name](order)
+
+    def jacobians(self, X: np.ndarray, pts: np.ndarray) -> np.ndarray:
+        """J_ij = ∂x_i/∂ξ_j of cells with nodes X (n_cells, n_loc, d) at `pts` (n_pts, d):
+        (n_cells, n_pts, d, d)."""
+        return np.einsum("cai,qaj->cqij", X, self.gradients(pts), optimize=True)
+
+
+# the hexahedron's vertices: the bottom face (ζ = −1) counterclockwise from above, then the top
+_HEX = np.array(
+    [
+        [-1.0, -1.0, -1.0],
+        [1.0, -1.0, -1.0],
+        [1.0, 1.0, -1.0],
+        [-1.0, 1.0, -1.0],
+        [-1.0, -1.0, 1.0],
+        [1.0, -1.0, 1.0],
+        [1.0, 1.0, 1.0],
+        [-1.0, 1.0, 1.0],
+    ]
+)
+ELEMENTS: dict[str, ReferenceElement] = {
+    e.name: e
+    for e in (
+        ReferenceElement("line", np.array([[0.0], [1.0]]), True, np.zeros((0, 1), int), "", 0, 2),
+        ReferenceElement(
+            "triangle",
+            np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
+            True,
+            np.array([[0, 1], [1, 2], [2, 0]]),
+            "line",
+            0,
+            2,
+        ),
+        ReferenceElement(
+            "quad",
+            np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]),
+            False,
+            np.array([[0, 1], [1, 2], [2, 3], [3, 0]]),
+            "line",
+            2,
+            2,
+        ),
+        ReferenceElement(
+            "tetra",
+            np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]),
+            True,
+            np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]),
+            "triangle",
+            0,
+            2,
+        ),
+        ReferenceElement(
+            "hexahedron",
+            _HEX,
+            False,
+            np.array(
+                [
+                    [0, 4, 7, 3],  # ξ = −1
+                    [1, 2, 6, 5],  # ξ = +1
+                    [0, 1, 5, 4],  # η = −1
+                    [2, 3, 7, 6],  # η = +1
+                    [0, 3, 2, 1],  # ζ = −1
+                    [4, 5, 6, 7],  # ζ = +1
+                ]
+            ),
+            "quad",
+            2,
+            4,
+        ),
+    )
+}
+CELL_TYPES: dict[int, tuple[str, ...]] = {2: ("quad", "triangle"), 3: ("hexahedron", "tetra")}
+# Local facets (the cell's boundary entities of dimension d − 1) oriented outward, and their type
+FACETS: dict[str, np.ndarray] = {n: e.facets for n, e in ELEMENTS.items() if e.facet_type}
+FACET_TYPE: dict[str, str] = {n: e.facet_type for n, e in ELEMENTS.items() if e.facet_type}
+
+
+def _cycle(k: int) -> np.ndarray:
+    """(k, 2) the sides (i, i+1 mod k) of a polygon with k corners."""
+    return np.stack([np.arange(k), np.roll(np.arange(k), -1)], axis=1)
+
+
+# Local edges (pairs of local nodes) of each cell type; a polygon's follow its corners.
+EDGES: dict[str, np.ndarray] = {
+    "line": np.array([[0, 1]]),
+    "triangle": _cycle(3),
+    "quad": _cycle(4),
+    "tetra": np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]]),
+    "hexahedron": np.array(
+        [
+            [0, 1],
+            [1, 2],
+            [3, 2],
+            [0, 3],
+            [4, 5],
+            [5, 6],
+            [7, 6],
+            [4, 7],
+            [0, 4],
+            [1, 5],
+            [2, 6],
+            [3, 7],
+        ]
+    ),
+}
 
 
 def reference_element(cell_type: str) -> ReferenceElement:
-    """The reference element of a mesh's `cell_type` ("triangle" or "quad")."""
-    if cell_type not in ("triangle", "quad"):
-        raise ValueError(f"unknown cell type {cell_type!r}; expected 'triangle' or 'quad'")
-    return ReferenceElement(cell_type)
+    """The reference element of `cell_type` (a mesh's cell type, or "line" for 2D facets)."""
+    if cell_type not in ELEMENTS:
+        raise ValueError(f"unknown cell type {cell_type!r}; expected one of {tuple(ELEMENTS)}")
+    return ELEMENTS[cell_type]

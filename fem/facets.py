@@ -15,7 +15,8 @@ diagonal. On a segment A_e = [[2, −1], [−1, 2]] (ψ_1 = 2φ_1 − φ_2), on 
 the diagonal and −1 off it, on a parallelogram the tensor product of the segment's rule.
 
 Facet integrals use one rule per facet type and order (`facet_rule`): Gauss on the segment
-[0, 1] and on the quadrilateral [−1, 1]², collapsed Gauss on the triangle (any order).
+[0, 1] and on the quadrilateral [−1, 1]² (`fem.elements`), collapsed Gauss on the triangle
+(any order).
 
 Nodal normals are the outward unit vectors n_k ∝ ∫_Γ φ_k n (the φ_k-weighted mean of the facet
 normals: exact on a line or plane, continuous on curved boundaries). Tangents (`frames`): in 2D
@@ -47,8 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .elements import reference_element
-from .elements3d import FACE_TYPE
+from .elements import FACET_TYPE, reference_element
 from .mesh import Mesh
 
 ENDS = ("merge", "keep")  # multiplier end treatments, see the module docstring
@@ -64,7 +64,7 @@ class Trace:
         body), in 3D sorted.
     facets : (n_f, m) local indices into `nodes`, m = 2 (segments) or 3, 4 (faces,
         counterclockwise seen from outside); a 2D chain's segment e is (e, e + 1) (mod k).
-    facet_type : "segment", "triangle" or "quad".
+    facet_type : "line" (segments), "triangle" or "quad": `fem.elements` names.
     points : (k, d) node coordinates.
     normals : (k, d) outward unit nodal normals ∝ ∫_Γ φ_k n.
     weights : (k,) ∫_Γ φ_k, the diagonal of D.
@@ -96,14 +96,14 @@ class Trace:
     @property
     def s(self) -> np.ndarray:
         """(k,) arc length from the first node of a 2D chain (ValueError in 3D)."""
-        if self.facet_type != "segment":
+        if self.facet_type != "line":
             raise ValueError("arc length is defined on a 2D trace (a chain of segments) only")
         return np.concatenate([[0.0], np.cumsum(self.measures)])[: self.size]
 
     def node_sizes(self) -> np.ndarray:
         """(k,) local mesh size per node: the largest length (2D) or √area (3D) of its facets."""
         h = np.zeros(self.size)
-        size = self.measures if self.facet_type == "segment" else np.sqrt(self.measures)
+        size = self.measures if self.facet_type == "line" else np.sqrt(self.measures)
         for a in range(self.facets.shape[1]):
             np.maximum.at(h, self.facets[:, a], size)
         return h
@@ -125,37 +125,19 @@ def triangle_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
     return pts, (np.outer(w, w) * (1 - a)).ravel()
 
 
-def segment_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss–Legendre on the reference segment [0, 1]: points (n, 1), weights (n,) summing to
-    1, exact to degree `order` (n = order // 2 + 1)."""
-    g, w = np.polynomial.legendre.leggauss(order // 2 + 1)
-    return 0.5 * (g[:, None] + 1.0), 0.5 * w
-
-
 def facet_rule(facet_type: str, order: int) -> tuple[np.ndarray, np.ndarray]:
     """The rule of every facet integral: points (n_qp, d − 1), weights (n_qp,) on the reference
-    facet, exact to degree `order`."""
-    if facet_type == "segment":
-        return segment_rule(order)
+    facet (`fem.elements`), exact to degree `order` (triangles: `triangle_rule`, any order)."""
     if facet_type == "triangle":
         return triangle_rule(order)
     return reference_element(facet_type).quadrature(order)
 
 
 def facet_values(facet_type: str, xi: np.ndarray) -> np.ndarray:
-    """Shape function values (..., m) at reference points xi (..., d − 1) (a segment's
-    reference is [0, 1] with φ = (1 − t, t))."""
-    if facet_type == "segment":
-        return np.concatenate([1.0 - xi, xi], axis=-1)
+    """Shape function values (..., m) at reference points xi (..., d − 1) (`fem.elements`: a
+    segment's reference is [0, 1] with φ = (1 − t, t))."""
     ref = reference_element(facet_type)
-    return ref.values(xi.reshape(-1, 2)).reshape(*xi.shape[:-1], ref.n_loc)
-
-
-def _gradients(facet_type: str, pts: np.ndarray) -> np.ndarray:
-    """Reference gradients (n_qp, m, d − 1) at reference points pts (n_qp, d − 1)."""
-    if facet_type == "segment":
-        return np.broadcast_to(np.array([[-1.0], [1.0]]), (len(pts), 2, 1))
-    return reference_element(facet_type).gradients(pts)
+    return ref.values(xi.reshape(-1, ref.dim)).reshape(*xi.shape[:-1], ref.n_loc)
 
 
 def _facet_quadrature(points: np.ndarray, facet_type: str, order: int):
@@ -164,8 +146,10 @@ def _facet_quadrature(points: np.ndarray, facet_type: str, order: int):
     (3D only, else None), w (n_qp,), phi (n_qp, m)."""
     pts, w = facet_rule(facet_type, order)  # (n_qp, d − 1), (n_qp,)
     phi = facet_values(facet_type, pts)  # (n_qp, m)
-    T = np.einsum("fai,qaj->fqij", points, _gradients(facet_type, pts), optimize=True)
-    N = None if facet_type == "segment" else np.cross(T[..., 0], T[..., 1])  # (n_f, n_qp, 3)
+    T = np.einsum(
+        "fai,qaj->fqij", points, reference_element(facet_type).gradients(pts), optimize=True
+    )
+    N = None if facet_type == "line" else np.cross(T[..., 0], T[..., 1])  # (n_f, n_qp, 3)
     J = np.linalg.norm(T[..., 0] if N is None else N, axis=-1)  # (n_f, n_qp)
     return phi @ points, J, N, w, phi
 
@@ -204,7 +188,7 @@ def _segments(mesh: Mesh, edges: np.ndarray, name: str) -> Trace:
     fw = np.repeat(0.5 * lengths[:, None], 2, axis=1)  # (n_seg, 2) ∫_e φ_a
     nloc = np.repeat(0.5 * (seg_n * lengths[:, None])[:, None], 2, axis=1)  # (n_seg, 2, 2)
     dual = np.broadcast_to(SEGMENT_DUAL, (len(segments), 2, 2))
-    return _gather(nodes, segments, "segment", P, fw, nloc, lengths, dual)
+    return _gather(nodes, segments, "line", P, fw, nloc, lengths, dual)
 
 
 def _faces(mesh: Mesh, glob: np.ndarray, name: str, order: int) -> Trace:
@@ -214,7 +198,7 @@ def _faces(mesh: Mesh, glob: np.ndarray, name: str, order: int) -> Trace:
         raise ValueError(f"boundary part {name!r} has no faces")
     nodes, inv = np.unique(glob, return_inverse=True)
     faces = inv.reshape(glob.shape)  # (n_f, m)
-    ftype = FACE_TYPE[mesh.cell_type]
+    ftype = FACET_TYPE[mesh.cell_type]
     _, J, N, w, phi = _facet_quadrature(mesh.points[glob], ftype, order)
     dA = J * w[None, :]  # (n_f, n_qp)
     areas = dA.sum(axis=1)  # (n_f,)

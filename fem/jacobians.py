@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from .elements import reference_element
-from .elements3d import reference_element3d
 from .mesh import Mesh
+
+CHUNK = 16384  # cells per block of the check and of the assembly (bounds their temporaries)
 
 
 def cofactors(J: np.ndarray) -> np.ndarray:
@@ -24,45 +25,40 @@ def cofactors(J: np.ndarray) -> np.ndarray:
     )
 
 
-def reference(cell_type: str):
-    """The reference element (`fem.elements` or `fem.elements3d`) of a mesh's cell type."""
-    return (
-        reference_element3d(cell_type)
-        if cell_type in ("tetra", "hexahedron")
-        else (reference_element(cell_type))
-    )
+def determinants(J: np.ndarray, cof: np.ndarray) -> np.ndarray:
+    """det J (...) of a stack (..., d, d) from its cofactors `cof`, along row 0."""
+    det = J[..., 0, 0] * cof[..., 0, 0]
+    for j in range(1, J.shape[-1]):
+        det += J[..., 0, j] * cof[..., 0, j]
+    return det
+
+
+def _dets(J: np.ndarray) -> np.ndarray:
+    """det J (...) of a stack (..., d, d); in 2D directly, without the cofactors."""
+    if J.shape[-1] == 2:
+        return J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+    return determinants(J, cofactors(J))
 
 
 def jacobian_determinants(mesh: Mesh, pts: np.ndarray) -> np.ndarray:
     """det ∂x/∂ξ of every cell at reference points `pts` (n_pts, d): (n_cells, n_pts)."""
-    ref = reference(mesh.cell_type)
-    X = mesh.points[mesh.cells]  # (n_cells, n_loc, d)
-    J = np.einsum("cai,qaj->cqij", X, ref.gradients(pts), optimize=True)  # (n_c, n_pts, d, d)
-    if mesh.dim == 2:
-        return J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
-    cof0 = np.cross(J[..., 1, :], J[..., 2, :])  # (n_c, n_pts, 3) row 0 of `cofactors`
-    return np.einsum("...j,...j->...", J[..., 0, :], cof0)  # along row 0
+    ref = reference_element(mesh.cell_type)
+    return _dets(ref.jacobians(mesh.points[mesh.cells], pts))  # (n_cells, n_pts)
 
 
-def check_cells(mesh: Mesh) -> None:
-    """Refuse inverted or degenerate cells: ValueError naming the first cell with det J ≤ 0.
-
-    det J is constant on a simplex and affine on a bilinear quadrilateral (checked at the
-    corners, where it is extreme); on a hexahedron it is checked at the 8 corners (positivity
-    there is necessary: they are 6 × the volumes of the corner tetrahedra) and at the 27 points
-    of the 3×3×3 Gauss rule, where the integrals use it.
-    """
-    ctype = mesh.cell_type  # ValueError for points and cells of no cell type
-    ref = reference(ctype)
-    if ctype in ("triangle", "tetra"):
-        pts = ref.centroid[None, :]  # (1, d)
-    elif ctype == "quad":
-        pts = ref.vertices  # (4, 2)
-    else:
-        pts = np.concatenate([ref.vertices, ref.quadrature(4)[0]])  # (35, 3)
-    det = jacobian_determinants(mesh, pts)  # (n_cells, n_pts)
-    scale = np.ptp(mesh.points, axis=0).max() ** mesh.dim if mesh.n_nodes else 1.0
-    bad = np.flatnonzero((det <= 1e-14 * scale).any(axis=1))  # (n_bad,)
+def check_cells(mesh: Mesh, chunk: int = CHUNK) -> None:
+    """Refuse inverted or degenerate cells: ValueError naming the first cell with det J ≤ 0
+    (relative to the mesh's extent^d), at the reference element's `check_points` (the
+    centroid of a simplex; the corners of a quadrilateral, where its affine det J is extreme;
+    the 8 corners and the 27 Gauss points of a hexahedron), `chunk` cells at a time."""
+    ref = reference_element(mesh.cell_type)  # ValueError for points and cells of no cell type
+    pts = ref.check_points  # (n_pts, d)
+    scale = np.ptp(mesh.points, axis=0).max() ** ref.dim if mesh.n_nodes else 1.0
+    bad = []
+    for lo in range(0, mesh.n_cells, chunk):
+        J = ref.jacobians(mesh.points[mesh.cells[lo : lo + chunk]], pts)  # (k, n_pts, d, d)
+        bad.append(np.flatnonzero((_dets(J) <= 1e-14 * scale).any(axis=1)) + lo)  # (n_bad,)
+    bad = np.concatenate(bad) if bad else np.zeros(0, int)
     if bad.size:
         raise ValueError(
             f"inverted or degenerate cell {bad[0]} (nodes {mesh.cells[bad[0]].tolist()}): "

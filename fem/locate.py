@@ -16,9 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from fem.elements import ReferenceElement, reference_element
-from fem.elements3d import CELL_TYPES as CELL_TYPES_3D
-from fem.elements3d import ReferenceElement3D, reference_element3d
+from fem.elements import reference_element
 from fem.mesh import Mesh
 
 CHUNK = 32_768  # point-cell pairs inverted at once (memory: arrays of (CHUNK, n_loc, d) floats)
@@ -27,13 +25,6 @@ OUTSIDE_TOL = 1e-9  # reference coordinates: a point farther out of a cell is ou
 CANDIDATES = {2: 8, 3: 12}
 NEWTON_STEPS = 8  # at most, inverting a cell map (an affine cell: one step)
 NEWTON_TOL = 1e-13  # reference coordinates: a Newton step this small has converged
-
-
-def _reference(cell_type: str) -> ReferenceElement | ReferenceElement3D:
-    """The reference element of a 2D or 3D cell type."""
-    if cell_type in CELL_TYPES_3D:
-        return reference_element3d(cell_type)
-    return reference_element(cell_type)
 
 
 def outside(cell_type: str, xi: np.ndarray) -> np.ndarray:
@@ -121,7 +112,7 @@ def _invert(mesh: Mesh, pts: np.ndarray, cand: np.ndarray) -> np.ndarray:
     Why written out: the sums over the n_loc nodes as vector operations and the 2 × 2 solves by
     Cramer's rule, where einsum and a batched LAPACK solve took 70 % of the nested warm
     start's point location (paper scene, level 5 located in level 4: 1.05 s CPU)."""
-    ref = _reference(mesh.cell_type)
+    ref = reference_element(mesh.cell_type)
     M, k = cand.shape
     d = pts.shape[1]
     xi = np.empty((M, k, d))
@@ -173,7 +164,7 @@ def _solve_small(J: np.ndarray, r: np.ndarray) -> np.ndarray:
 def interpolate(mesh: Mesh, nodal: np.ndarray, cell: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """(M, c): the P1/Q1 function with nodal values `nodal` (N, c) or (N,) at the reference
     points xi (M, d) of the cells `cell` (M,)."""
-    phi = _reference(mesh.cell_type).values(xi)  # (M, n_loc)
+    phi = reference_element(mesh.cell_type).values(xi)  # (M, n_loc)
     vals = np.asarray(nodal, dtype=float).reshape(mesh.n_nodes, -1)[mesh.cells[cell]]
     return np.einsum("ma,mac->mc", phi, vals)  # (M, c)
 

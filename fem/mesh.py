@@ -2,9 +2,8 @@
 
 One `Mesh` serves 2D (triangles P1, quadrilaterals Q1) and 3D (tetrahedra P1, hexahedra Q1);
 the dimension d is the number of point coordinates and the cell type follows from (d, nodes
-per cell). Local node orders are `fem.elements` (2D, counterclockwise) and `fem.elements3d`
-(3D, meshio's/VTK's). The local topology of every cell type is data here: its edges
-(`EDGES`), its facets with the outward orientation (`FACETS`) and the type of those facets.
+per cell). Local node orders, edges (`EDGES`), outward facets (`FACETS`) and facet types
+(`FACET_TYPE`) of every cell type are the reference elements' data in `fem.elements`.
 """
 
 from __future__ import annotations
@@ -13,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .elements3d import FACES
+from .elements import EDGES, FACETS
 
 # (dimension, nodes per cell) -> meshio's name of the cell type
 CELL_TYPE = {
@@ -24,46 +23,6 @@ CELL_TYPE = {
     (3, 8): "hexahedron",
 }
 DIM = {name: d for (d, _), name in CELL_TYPE.items()}  # cell type -> its dimension
-
-
-def _cycle(k: int) -> np.ndarray:
-    """(k, 2) the sides (i, i+1 mod k) of a polygon with k corners."""
-    return np.stack([np.arange(k), np.roll(np.arange(k), -1)], axis=1)
-
-
-# Local edges (pairs of local nodes) of each cell type; a polygon's follow its corners.
-EDGES: dict[str, np.ndarray] = {
-    "line": np.array([[0, 1]]),
-    "triangle": _cycle(3),
-    "quad": _cycle(4),
-    "tetra": np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]]),
-    "hexahedron": np.array(
-        [
-            [0, 1],
-            [1, 2],
-            [3, 2],
-            [0, 3],
-            [4, 5],
-            [5, 6],
-            [7, 6],
-            [4, 7],
-            [0, 4],
-            [1, 5],
-            [2, 6],
-            [3, 7],
-        ]
-    ),
-}
-# Local facets (the cell's boundary entities of dimension d − 1), oriented outward: a
-# polygon's sides have the cell on their left, a solid's faces are counterclockwise seen from
-# outside (`fem.elements3d.FACES`).
-FACETS: dict[str, np.ndarray] = {
-    "triangle": EDGES["triangle"],
-    "quad": EDGES["quad"],
-    "tetra": FACES["tetra"],
-    "hexahedron": FACES["hexahedron"],
-}
-FACET_TYPE = {"triangle": "line", "quad": "line", "tetra": "triangle", "hexahedron": "quad"}
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,8 +1,9 @@
 """Old home of the 3D meshes: transitional re-export for branches in flight, issue 30; removed
 when the issue closes. `Mesh3D` is `fem.mesh.Mesh` (any dimension)."""
 
+from .elements import EDGES
 from .jacobians import check_cells, cofactors, jacobian_determinants
-from .mesh import EDGES, Mesh, exterior_facets
+from .mesh import Mesh, exterior_facets
 from .meshing import END_PARTS, SIDES, box, extrude, transform
 from .refine import refine
 

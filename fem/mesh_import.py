@@ -43,9 +43,10 @@ from typing import NamedTuple
 import numpy as np
 
 from . import mesh_bounds
-from .jacobians import check_cells, jacobian_determinants, reference
+from .elements import FACET_TYPE, FACETS, reference_element
+from .jacobians import check_cells, jacobian_determinants
 from .mapped import _order_edges
-from .mesh import FACET_TYPE, FACETS, Mesh, exterior_facets
+from .mesh import Mesh, exterior_facets
 
 SURFACE_CELLS = {"triangle": 3, "quad": 4}  # meshio cell types accepted in a 2D body
 VOLUME_CELLS = {"tetra": 4, "hexahedron": 8}  # meshio cell types accepted in a 3D body
@@ -389,7 +390,7 @@ def _positive(path: str, where: str, points: np.ndarray, cells: np.ndarray) -> n
     """3D cells renumbered to det J > 0 at the centroid (a cell with det J < 0 is the mirror
     image of our local order); refusal of the cells still inverted or degenerate."""
     mesh = Mesh(points, cells)
-    centroid = reference(mesh.cell_type).centroid[None, :]  # (1, 3)
+    centroid = reference_element(mesh.cell_type).centroid[None, :]  # (1, 3)
     det = jacobian_determinants(mesh, centroid)  # (n_cells, 1)
     cells = np.where(det < 0, cells[:, MIRROR[mesh.cell_type]], cells)  # (n_cells, k)
     try:

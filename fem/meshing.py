@@ -19,7 +19,7 @@ from itertools import permutations
 
 import numpy as np
 
-from .elements3d import CELL_TYPES
+from .elements import CELL_TYPES
 from .jacobians import check_cells
 from .mesh import Mesh, exterior_facets
 
@@ -127,8 +127,8 @@ def box(
     "left"/"right" (x = x0/x1), "front"/"back" (y = y0/y1), "bottom"/"top" (z = z0/z1), faces
     oriented outward.
     """
-    if element not in CELL_TYPES:
-        raise ValueError(f"unknown element {element!r}; expected one of {CELL_TYPES}")
+    if element not in CELL_TYPES[3]:
+        raise ValueError(f"unknown element {element!r}; expected one of {CELL_TYPES[3]}")
     if int(level) != level or level < 0:
         raise ValueError(f"level must be a non-negative integer, got {level!r}")
     if len(cells) != 3 or any(int(n) != n or n < 1 for n in cells):

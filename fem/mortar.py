@@ -48,7 +48,7 @@ FACE_ORDER = 12
 # parallelograms, the inverse map is not polynomial either; at these orders M agrees with an
 # order-24 rule to ≤ 1e-13 relative on the test geometries
 # (tests/fem/test_mortar.py::test_cell_rule_default_is_converged).
-QUAD_ORDER = {"segment": 9, "triangle": 5, "quad": 10}
+QUAD_ORDER = {"line": 9, "triangle": 5, "quad": 10}
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,8 +1,8 @@
 """Uniform refinement of a `fem.mesh.Mesh` (2D or 3D), with the subdivision rules as data.
 
 A cell of type t is refined on its *local nodes*: its vertices, then the midpoints of its
-edges (`fem.mesh.EDGES[t]`, in order), then the centres of its quadrilateral faces
-(hexahedra: `fem.mesh.FACETS`), then its centre (quadrilaterals, hexahedra). `CHILDREN[t]`
+edges (`fem.elements.EDGES[t]`, in order), then the centres of its quadrilateral faces
+(hexahedra: `fem.elements.FACETS`), then its centre (quadrilaterals, hexahedra). `CHILDREN[t]`
 (n_rules, n_children, k) lists the children as local-node lists: one rule, except tetrahedra,
 whose inner octahedron is split along one of its 3 diagonals (the shortest is chosen per
 cell, which keeps repeated refinement from degrading the cells). A boundary facet is refined
@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .jacobians import check_cells, reference
-from .mesh import EDGES, FACET_TYPE, FACETS, Mesh
+from .elements import EDGES, FACET_TYPE, FACETS, reference_element
+from .jacobians import check_cells
+from .mesh import Mesh
 
 _CENTRED_FACES = ("hexahedron",)  # cell types whose faces get a centre node
 _CENTRED = ("quad", "hexahedron")  # cell types that get a centre node
@@ -44,7 +45,7 @@ def _tetra_rules() -> np.ndarray:
     """(3, 8, 4) the children of a tetrahedron, one rule per octahedron diagonal."""
     corners = [[0, _X01, _X02, _X03], [_X01, 1, _X12, _X13], [_X02, _X12, 2, _X23]]
     corners.append([_X03, _X13, _X23, 3])
-    vertices = reference("tetra").vertices
+    vertices = reference_element("tetra").vertices
     ref10 = np.concatenate([vertices, vertices[EDGES["tetra"]].mean(axis=1)])  # (10, 3)
     rules = []
     for d in range(3):
@@ -57,7 +58,7 @@ def _tetra_rules() -> np.ndarray:
 
 def _hexahedron_rule() -> np.ndarray:
     """(1, 8, 8) the octants of a hexahedron on its 27 local nodes."""
-    V = reference("hexahedron").vertices.astype(int)  # (8, 3) in {−1, 1}
+    V = reference_element("hexahedron").vertices.astype(int)  # (8, 3) in {−1, 1}
     grid = np.empty((3, 3, 3), dtype=int)  # local node at reference point − 1
     grid[tuple((V + 1).T)] = np.arange(8)
     grid[tuple(((V[EDGES["hexahedron"]].sum(axis=1)) // 2 + 1).T)] = 8 + np.arange(12)

@@ -34,16 +34,16 @@ from functools import cache
 
 import numpy as np
 
-from .elements3d import reference_element3d
-from .mesh import DIM, EDGES, FACETS, Mesh
+from .elements import EDGES, FACETS, reference_element
+from .mesh import DIM, Mesh
 from .refine import refine
 
 # reference vertices in [0, 1]^d (cubes) or the unit simplex, in each cell type's local order
 _REFERENCE = {
     "triangle": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
     "quad": np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
-    "tetra": reference_element3d("tetra").vertices.astype(float),
-    "hexahedron": (reference_element3d("hexahedron").vertices.astype(float) + 1.0) / 2.0,
+    "tetra": reference_element("tetra").vertices.astype(float),
+    "hexahedron": (reference_element("hexahedron").vertices.astype(float) + 1.0) / 2.0,
 }
 _SIMPLEX = {"triangle", "tetra"}
 _CHUNK = 4096  # coarse cells per block of `Skeleton.sums` (4096 hexahedra: 24 MB)

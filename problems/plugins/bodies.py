@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from pydantic import BeforeValidator, model_validator
 
-from fem import assembly, assembly3d
+from fem import assembly
 from fem.mesh import Mesh
 from fem.refined_counts import Skeleton
 from fem.tensors import Material3D
@@ -216,8 +216,7 @@ def gram(body: Body) -> sp.csr_matrix:
     assembled from its mesh: mass + stiffness per displacement component, and the same for the
     potential of a piezoelectric material."""
     d = body.dim
-    fem = assembly if d == 2 else assembly3d
-    H1 = (fem.mass_matrix(body.mesh) + fem.permittivity_matrix(body.mesh, np.eye(d))).tocsr()
+    H1 = (assembly.mass_matrix(body.mesh) + assembly.stiffness_matrix(body.mesh)).tocsr()
     blocks = [sp.kron(H1, sp.identity(d)).tocsr()]  # node-major: dof d·i + k ↔ (i, k)
     if body.material.piezoelectric:
         blocks.append(H1)
@@ -228,12 +227,11 @@ def operator(body: Body) -> sp.csr_matrix:
     """(n_b, n_b) the body's operator A assembled from its mesh and material: [[K, Gᵀ], [−G, P]]
     with a piezoelectric material, else K."""
     material = body.material
-    fem = assembly if body.dim == 2 else assembly3d
-    K = fem.elasticity_matrix(body.mesh, material.C)
+    K = assembly.elasticity_matrix(body.mesh, material.C)
     if not material.piezoelectric:
         return K.tocsr()
-    G = fem.coupling_matrix(body.mesh, material.e)
-    P = fem.permittivity_matrix(body.mesh, material.kappa)
+    G = assembly.coupling_matrix(body.mesh, material.e)
+    P = assembly.permittivity_matrix(body.mesh, material.kappa)
     return sp.bmat([[K, G.T], [-G, P]], format="csr")
 
 
@@ -242,18 +240,17 @@ def loads(t: BodySection, body: Body) -> np.ndarray:
     the displacement rows, free charge and surface charge on the potential rows (piezoelectric
     bodies), each expression at the current load parameter."""
     mesh, N, d = body.mesh, body.n_nodes, body.dim
-    fem = assembly if d == 2 else assembly3d
     f = np.zeros(body.size)
     if t.body_force is not None:
-        f[: d * N] += fem.volume_load(mesh, vector(t.body_force), d)
+        f[: d * N] += assembly.volume_load(mesh, vector(t.body_force), d)
     for tt in t.traction:
-        f[: d * N] += fem.boundary_load(mesh, tt.boundary, vector(tt.value), d)
+        f[: d * N] += assembly.boundary_load(mesh, tt.boundary, vector(tt.value), d)
     if body.has_potential:
         fphi = np.zeros(N)
         if t.free_charge is not None:
-            fphi += fem.volume_load(mesh, t.free_charge, 1)
+            fphi += assembly.volume_load(mesh, t.free_charge, 1)
         for tt in t.charge:
-            fphi -= fem.boundary_load(mesh, tt.boundary, tt.value, 1)
+            fphi -= assembly.boundary_load(mesh, tt.boundary, tt.value, 1)
         f[d * N :] = fphi
     return f
 

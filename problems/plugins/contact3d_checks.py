@@ -5,7 +5,7 @@
 - `contact_row_defects`: each contact node's rows, read back from the assembled B as a 3×3 block
   R_k (rows of the node × its displacement dofs), must be W_k times an orthonormal right-handed
   frame whose normal row is the surface normal: W_k and n_k are recomputed from
-  `fem.assembly3d` (its own face quadrature: W_k = ∫φ_k dA, n_k ∝ ∫φ_k n dA), not from
+  `fem.assembly` (its own face quadrature: W_k = ∫φ_k dA, n_k ∝ ∫φ_k n dA), not from
   `fem.facets`. Reported: the relative defects of the weights, of the normal rows, of
   orthonormality (R_k R_kᵀ = W_k² I on the rows a node carries) and the handedness
   (det R_k = W_k³ where all three rows are present).
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fem import assembly3d
+from fem import assembly
 from vi_core import states as node_states
 
 from .bodies import operator
@@ -45,9 +45,9 @@ def rigid_body_defect(body) -> float:
 
 
 def _independent_weights(mesh, part: str) -> tuple[np.ndarray, np.ndarray]:
-    """(N,) ∫φ_i dA and (N, 3) ∫φ_i n dA over boundary `part`, by fem.assembly3d's quadrature."""
+    """(N,) ∫φ_i dA and (N, 3) ∫φ_i n dA over boundary `part`, by fem.assembly's quadrature."""
     order = SURFACE_ORDER[mesh.cell_type]  # the plug-in's order (its own rule, not its code)
-    _, w, phi, n = assembly3d.face_geometry(mesh, part, order)  # (n_f, q), (q, k), (n_f, q, 3)
+    _, w, phi, n = assembly.facet_geometry(mesh, part, order)  # (n_f, q), (q, k), (n_f, q, 3)
     faces = mesh.boundaries[part]  # (n_f, k)
     W = np.zeros(mesh.n_nodes)
     np.add.at(W, faces.ravel(), (w @ phi).ravel())
@@ -139,11 +139,11 @@ def _shares(faces: np.ndarray, carry: np.ndarray | None) -> np.ndarray:
 
 
 def _nodal_means(mesh, part: str, f, carry: np.ndarray | None = None) -> np.ndarray:
-    """(N,) ∫f φ̃_i dA / ∫φ̃_i dA over boundary `part` by fem.assembly3d's face quadrature (the
+    """(N,) ∫f φ̃_i dA / ∫φ̃_i dA over boundary `part` by fem.assembly's face quadrature (the
     nodal value of a friction field as the plug-in defines it, computed apart from it);
     φ̃ = φ, or merged by `_shares` with carry (N,) ("merge")."""
     order = SURFACE_ORDER[mesh.cell_type]
-    x, w, phi, _ = assembly3d.face_geometry(mesh, part, order)  # (n_f, q, 3), (n_f, q), (q, k)
+    x, w, phi, _ = assembly.facet_geometry(mesh, part, order)  # (n_f, q, 3), (n_f, q), (q, k)
     fv = np.broadcast_to(f(x[..., 0], x[..., 1], x[..., 2]), w.shape)  # (n_f, q)
     faces = mesh.boundaries[part]  # (n_f, m)
     sh = _shares(faces, carry)  # (n_f, m, m)
@@ -158,10 +158,10 @@ def _nodal_means(mesh, part: str, f, carry: np.ndarray | None = None) -> np.ndar
 def _row_means(mesh, part: str, carry: np.ndarray | None, v: np.ndarray) -> np.ndarray:
     """(N, ...) Σ_j w_kj v_j / Σ_j w_kj, w_kj = ∫φ̃_k φ_j dA (= δ_kj ∫φ_k under "keep": the
     nodal values): what a contact row of node k reads of a nodal field v (N, ...), by
-    fem.assembly3d's face quadrature and `_shares` (biorthogonality: ∫ψ_{e,a} φ_{e,b} =
+    fem.assembly's face quadrature and `_shares` (biorthogonality: ∫ψ_{e,a} φ_{e,b} =
     δ_ab ∫_e φ_a)."""
     order = SURFACE_ORDER[mesh.cell_type]
-    _, w, phi, _ = assembly3d.face_geometry(mesh, part, order)  # (n_f, q), (q, m)
+    _, w, phi, _ = assembly.facet_geometry(mesh, part, order)  # (n_f, q), (q, m)
     faces = mesh.boundaries[part]  # (n_f, m)
     sh = _shares(faces, carry) * (w @ phi)[:, None, :]  # (n_f, m, m) w of (target, source)
     tgt = np.broadcast_to(faces[:, :, None], sh.shape).ravel()
@@ -175,7 +175,7 @@ def _row_means(mesh, part: str, carry: np.ndarray | None, v: np.ndarray) -> np.n
 def separation(model, sol) -> dict[str, float]:
     """A posteriori unilateral conditions of a solution, per normal node k: the remaining
     gap d_k, λ_n,k, |λ_t,k| and the slip. A rigid foundation: from the displacement itself, not
-    from the assembled rows — d_k = gap(x_k) − n_k·u_k (n_k recomputed from `fem.assembly3d`'s
+    from the assembled rows — d_k = gap(x_k) − n_k·u_k (n_k recomputed from `fem.assembly`'s
     face quadrature, gap from the scene's field), the slip |u_k − (n_k·u_k) n_k|; under
     "merge" the gap and u are the means the rows read (`_row_means`: ψ̃_k reaches the dropped
     neighbours), by a quadrature and a merge rule of this module. Two bodies, and a step of a

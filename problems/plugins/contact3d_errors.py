@@ -4,7 +4,7 @@ manufactured scene `manufactured3d`, docs/fem3d.md "Manufactured 3D solution").
 Norms (absolute, SI units), summed over the bodies:
 
 - ``u_L2`` = ‖u − u_h‖_{L²(Ω)}, ``u_H1`` = |u − u_h|_{H¹(Ω)} (the seminorm), by cell quadrature
-  of order 4 (`fem.assembly3d`);
+  of order 4 (`fem.assembly`);
 - ``phi_L2``, ``phi_H1`` the same for φ (piezoelectric bodies; 0 without any);
 - ``lam`` = (Σ_k W_k |λ_k − λ(x_k)|²)^{1/2} over the contact nodes carrying multipliers: a
   discrete L²(Γ3) norm of the nodal multiplier vectors λ_k = λ_n,k n_k + λ_t,k (the dual-basis
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fem import assembly3d
+from fem import assembly
 from problems.scene.exact import Exact
 from vi_core import Solution
 
@@ -33,12 +33,12 @@ def exact_errors(model: BodiesModel, sol: Solution, exact: Exact, state: dict | 
     nodal = fields(model, sol)
     for b in model.bodies:
         m, disp = b.mesh, nodal[f"{b.name}.displacement"]  # (N, 3)
-        sq["u_L2"] += assembly3d.l2_error(m, disp.ravel(), exact.u, 3) ** 2
-        sq["u_H1"] += assembly3d.h1_seminorm_error(m, disp.ravel(), exact.grad_u, 3) ** 2
+        sq["u_L2"] += assembly.l2_error(m, disp.ravel(), exact.u, 3) ** 2
+        sq["u_H1"] += assembly.h1_seminorm_error(m, disp.ravel(), exact.grad_u, 3) ** 2
         phi = nodal.get(f"{b.name}.potential")  # (N,) or None
         if phi is not None and exact.phi is not None:
-            sq["phi_L2"] += assembly3d.l2_error(m, phi, exact.phi, 1) ** 2
-            sq["phi_H1"] += assembly3d.h1_seminorm_error(m, phi, exact.grad_phi, 1) ** 2
+            sq["phi_L2"] += assembly.l2_error(m, phi, exact.phi, 1) ** 2
+            sq["phi_H1"] += assembly.h1_seminorm_error(m, phi, exact.grad_phi, 1) ** 2
     c, st = model.contact, state
     if c is not None:
         carried = np.isfinite(st["lam_n"]) | st["has_t"]  # (k,)

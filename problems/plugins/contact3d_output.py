@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fem import assembly3d
+from fem import assembly
 from fem.facets import frames
 from problems.output.results import write_csv
 from vi_core import states as node_states
@@ -58,13 +58,13 @@ def body_fields3(body, x_body: np.ndarray) -> tuple[dict, dict]:
     """(point_data, cell_data) of one 3D body from its full vector."""
     u, phi = body.split(x_body)  # (N, 3), (N,) or None
     m = body.material
-    sigma, D = assembly3d.cell_fields(
+    sigma, D = assembly.cell_fields(
         body.mesh, u.ravel(), phi, m.C, m.e, m.kappa
     )  # (nc, 6), (nc, 3)
     point = {"displacement": u}
     cell = {"stress": sigma[:, VTK_ORDER], "von_mises": von_mises3(sigma)}
     if phi is not None:
-        grad = assembly3d.cell_geometry(body.mesh, 0).grad[:, 0]  # (nc, n_loc, 3) at centroids
+        grad = assembly.cell_geometry(body.mesh, 0).grad[:, 0]  # (nc, n_loc, 3) at centroids
         point["electric_potential"] = phi
         cell["electric_field"] = -np.einsum("ca,cai->ci", phi[body.mesh.cells], grad)
         cell["electric_displacement"] = D

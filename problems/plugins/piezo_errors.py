@@ -52,7 +52,7 @@ def _multiplier(model: Any, lam: np.ndarray):
 
 def _dual_values(coef: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Σ_a coef[e, a] ψ_{e,a} at points t ∈ [0, 1] of segments e = `seg` (both (k,)): (k,)."""
-    psi = facet_values("segment", t[:, None]) @ SEGMENT_DUAL.T  # (k, 2) ψ_a = Σ_b A_ab φ_b
+    psi = facet_values("line", t[:, None]) @ SEGMENT_DUAL.T  # (k, 2) ψ_a = Σ_b A_ab φ_b
     return np.einsum("ka,ka->k", psi, coef[seg])
 
 

@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from fem.mesh import EDGES, Mesh
+from fem.elements import EDGES
+from fem.mesh import Mesh
 
 BOUNDS = ((0.0, 2.0), (-0.5, 0.5), (0.0, 1.5))  # the test box
 
@@ -21,7 +22,7 @@ def wavy(p: np.ndarray, amount: float = 0.06) -> np.ndarray:
 
 
 def cell_volumes(mesh: Mesh) -> np.ndarray:
-    from fem.assembly3d import cell_geometry
+    from fem.assembly import cell_geometry
 
     return cell_geometry(mesh, order=2).w.sum(axis=1)
 

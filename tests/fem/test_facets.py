@@ -132,8 +132,8 @@ def _generic_segment_data(mesh, tr, order=4):
     """Mass matrices, ∫φ_a, ∫φ_a n and A_e = D_e M_e⁻¹ of the trace's segments by the generic
     quadrature of `fem.facets` (the path of 3D faces), to check the closed forms of 2D."""
     x = mesh.points[tr.nodes[tr.facets]]  # (n_seg, 2, 2)
-    pts, w = ff.facet_rule("segment", order)  # (q, 1), (q,)
-    phi = ff.facet_values("segment", pts)  # (q, 2)
+    pts, w = ff.facet_rule("line", order)  # (q, 1), (q,)
+    phi = ff.facet_values("line", pts)  # (q, 2)
     d = x[:, 1] - x[:, 0]  # (n_seg, 2)
     L = np.linalg.norm(d, axis=1)
     mass = np.einsum("e,q,qa,qb->eab", L, w, phi, phi)  # (n_seg, 2, 2)

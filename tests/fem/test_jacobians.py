@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fem.elements3d import reference_element3d
+from fem.elements import reference_element
 from fem.jacobians import check_cells, cofactors, jacobian_determinants
 from fem.mesh import Mesh
 from fem.meshing import box, rectangle, transform
@@ -21,6 +21,9 @@ def test_inverted_cell_is_refused(element):
     cells[5, swap] = cells[5, swap[::-1]]  # mirror the local order: det J < 0
     with pytest.raises(ValueError, match="cell 5"):
         check_cells(Mesh(mesh.points, cells, mesh.boundaries))
+    for chunk in (2, 3, 5):  # the cell in a later chunk keeps its global index
+        with pytest.raises(ValueError, match=r"cell 5 \(.*1 bad cell"):
+            check_cells(Mesh(mesh.points, cells, mesh.boundaries), chunk=chunk)
     with pytest.raises(ValueError, match="inverted"):
         transform(mesh, lambda p: p * np.array([1.0, 1.0, -1.0]))  # a reflection
 
@@ -53,7 +56,7 @@ def test_cofactors_and_determinants_against_numpy():
     assert np.allclose(cof, det[..., None, None] * np.linalg.inv(J).transpose(0, 1, 3, 2))
     mesh = transform(box(*BOUNDS, (1, 1, 1)), wavy)
     pts = np.random.default_rng(1).uniform(-1, 1, (6, 3))
-    G = reference_element3d("hexahedron").gradients(pts)  # (6, 8, 3)
+    G = reference_element("hexahedron").gradients(pts)  # (6, 8, 3)
     Jm = np.einsum("cai,qaj->cqij", mesh.points[mesh.cells], G)
     assert np.allclose(jacobian_determinants(mesh, pts), np.linalg.det(Jm), rtol=1e-13)
 
@@ -66,8 +69,6 @@ def test_2d_cofactors_and_determinants_against_numpy():
     mesh = rectangle((0, 2), (0, 1), (2, 2), "quad")
     mesh = Mesh(mesh.points + 0.05 * np.sin(4 * mesh.points[:, ::-1]), mesh.cells)
     pts = np.random.default_rng(3).uniform(-1, 1, (6, 2))
-    from fem.elements import reference_element
-
     G = reference_element("quad").gradients(pts)  # (6, 4, 2)
     Jm = np.einsum("cai,qaj->cqij", mesh.points[mesh.cells], G)
     assert np.allclose(jacobian_determinants(mesh, pts), np.linalg.det(Jm), rtol=1e-13)
@@ -91,3 +92,12 @@ def test_2d_clockwise_degenerate_and_nonconvex_cells_are_refused(element):
         bent[centre] = [1.9, 0.95]
         with pytest.raises(ValueError, match="inverted or degenerate"):
             check_cells(Mesh(bent, mesh.cells))
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_cofactors_against_numpy(d):
+    """cof = det(J) J⁻ᵀ; a transposed cofactor matrix (the adjugate) fails on a non-symmetric J."""
+    J = np.random.default_rng(d).normal(size=(5, 4, d, d))
+    expected = np.linalg.det(J)[..., None, None] * np.linalg.inv(J).transpose(0, 1, 3, 2)
+    assert np.allclose(cofactors(J), expected, rtol=1e-12, atol=1e-12)
+    assert not np.allclose(cofactors(J).transpose(0, 1, 3, 2), expected, rtol=1e-6)

@@ -7,7 +7,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fem import mesh as mesh_module
-from fem.mesh import EDGES, FACET_TYPE, FACETS, Mesh, exterior_facets
+from fem.elements import EDGES, FACET_TYPE, FACETS
+from fem.mesh import Mesh, exterior_facets
 from fem.meshing import box, rectangle
 from fem.refine import refine
 
@@ -44,9 +45,9 @@ def test_unknown_boundary_lists_the_parts():
 def test_local_facets_are_outward_and_cover_every_edge(cell_type):
     """Each local facet's edges are local edges of the cell; the facets of a positive
     reference cell point away from its centroid."""
-    from fem.jacobians import reference
+    from fem.elements import reference_element
 
-    ref = reference(cell_type)
+    ref = reference_element(cell_type)
     edges = {tuple(sorted(e)) for e in EDGES[cell_type].tolist()}
     ftype = FACET_TYPE[cell_type]
     for f in FACETS[cell_type]:

@@ -6,7 +6,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fem import meshing
-from fem.elements3d import FACES
+from fem.elements import FACETS
 from fem.jacobians import jacobian_determinants
 from fem.mesh import Mesh, exterior_facets
 from fem.meshing import END_PARTS, SIDES, box, extrude, rectangle, transform
@@ -98,7 +98,7 @@ def test_box_counts_and_volume(element, level):
 def test_box_is_conforming(element):
     """Every interior face is shared by exactly two cells with opposite orientation."""
     mesh = box(*BOUNDS, (2, 2, 2), element)
-    local = FACES[element]
+    local = FACETS[element]
     faces = mesh.cells[:, local].reshape(-1, local.shape[1])  # (n_cells n_f, k)
     key = np.sort(faces, axis=1)
     _, inv, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
@@ -122,12 +122,12 @@ def test_boundary_sides(element):
     assert tuple(mesh.boundaries) == SIDES
     all_faces = np.concatenate(list(mesh.boundaries.values()))
     assert all_faces.shape[0] == exterior_facets(mesh.cells, element).shape[0]
-    from fem.assembly3d import face_geometry
+    from fem.assembly import facet_geometry
 
     lengths = np.ptp(np.array(BOUNDS), axis=1)  # (3,)
     for s, name in enumerate(SIDES):
         axis, end = divmod(s, 2)
-        x, w, _, n = face_geometry(mesh, name)
+        x, w, _, n = facet_geometry(mesh, name)
         assert np.allclose(x[..., axis], BOUNDS[axis][end], rtol=0, atol=1e-14)
         expected = np.zeros(3)
         expected[axis] = 1.0 if end else -1.0

@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 import fem.clipping as fc
 import fem.mortar as fm
-from fem.assembly3d import permittivity_matrix
+from fem.assembly import permittivity_matrix
 from fem.elements import reference_element
 from fem.facets import Trace, dual_mass, multiplier_basis, rim_nodes, trace
 from fem.mapped import coons_block, reparametrise, segment

@@ -99,11 +99,11 @@ def test_refine_is_nested_and_keeps_the_geometry(element):
     fine = refine(coarse)
     assert np.array_equal(fine.points[: coarse.n_nodes], coarse.points)
     assert np.isclose(cell_volumes(fine).sum(), cell_volumes(coarse).sum(), rtol=1e-12)
-    from fem.assembly3d import face_geometry
+    from fem.assembly import facet_geometry
 
     for name in ("left", "top"):
-        _, w_c, _, _ = face_geometry(coarse, name)
-        _, w_f, _, n_f = face_geometry(fine, name)
+        _, w_c, _, _ = facet_geometry(coarse, name)
+        _, w_f, _, n_f = facet_geometry(fine, name)
         assert np.isclose(w_f.sum(), w_c.sum(), rtol=1e-12)  # plane faces: same area
         axis, end = divmod(SIDES.index(name), 2)
         assert np.allclose(n_f[..., axis], 1.0 if end else -1.0)

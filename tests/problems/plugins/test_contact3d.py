@@ -81,8 +81,8 @@ def test_the_extruded_scene_reproduces_the_2d_solution_to_rounding():
 
 
 def _transposed_coupling(monkeypatch):
-    real = bodies.assembly3d.coupling_matrix
-    monkeypatch.setattr(bodies.assembly3d, "coupling_matrix", lambda m, e: -real(m, e))
+    real = bodies.assembly.coupling_matrix
+    monkeypatch.setattr(bodies.assembly, "coupling_matrix", lambda m, e: -real(m, e))
 
 
 def _flipped_t1(monkeypatch):
@@ -201,7 +201,7 @@ def test_independent_row_and_kernel_checks_hold_and_catch_each_fault(monkeypatch
     m.contact.B_full = sp.csr_matrix((B.data[keep], (B.row[keep], B.col[keep])), shape=B.shape)
     assert contact3d_checks.contact_row_defects(m)["weights"] > 0.1
     # a dropped entry of K: the rigid-body modes leave its kernel
-    real_K = bodies.assembly3d.elasticity_matrix
+    real_K = bodies.assembly.elasticity_matrix
 
     def dropped(*args):
         K = real_K(*args).tolil()
@@ -209,9 +209,9 @@ def test_independent_row_and_kernel_checks_hold_and_catch_each_fault(monkeypatch
         return K.tocsr()
 
     assert contact3d_checks.rigid_body_defect(m.bodies[0]) < 1e-10
-    monkeypatch.setattr(bodies.assembly3d, "elasticity_matrix", dropped)
+    monkeypatch.setattr(bodies.assembly, "elasticity_matrix", dropped)
     assert contact3d_checks.rigid_body_defect(m.bodies[0]) > 1e-3
-    monkeypatch.setattr(bodies.assembly3d, "elasticity_matrix", real_K)
+    monkeypatch.setattr(bodies.assembly, "elasticity_matrix", real_K)
     # a wrong sign in the tangent frame (t2 = t1 × n): the handedness check
     real = contact3d.frames
     monkeypatch.setattr(contact3d, "frames", lambda n, a=None: (real(n, a)[0], -real(n, a)[1]))

@@ -16,8 +16,7 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-import fem.assembly as asm2
-import fem.assembly3d as asm3
+import fem.assembly as asm
 from fem.mesh import Mesh
 from fem.meshing import box, rectangle, transform
 from fem.tensors import NAMED, Material3D, plane_strain
@@ -64,9 +63,9 @@ def prolongation(m2: Mesh, m3) -> sp.csr_matrix:
 
 
 def piezo2(m2: Mesh) -> sp.csr_matrix:
-    K = asm2.elasticity_matrix(m2, MAT2.C)
-    G = asm2.coupling_matrix(m2, MAT2.e)
-    P = asm2.permittivity_matrix(m2, MAT2.kappa)
+    K = asm.elasticity_matrix(m2, MAT2.C)
+    G = asm.coupling_matrix(m2, MAT2.e)
+    P = asm.permittivity_matrix(m2, MAT2.kappa)
     return sp.bmat([[K, G.T], [-G, P]], format="csr")
 
 
@@ -79,8 +78,8 @@ def charge(x, z):
 
 
 def loads2(m2: Mesh) -> np.ndarray:
-    f = asm2.volume_load(m2, body, 2) + asm2.boundary_load(m2, "top", [0.4, -1.0], 2)
-    q = asm2.volume_load(m2, charge, 1) + asm2.boundary_load(m2, "top", lambda x, y: 0.2 * x, 1)
+    f = asm.volume_load(m2, body, 2) + asm.boundary_load(m2, "top", [0.4, -1.0], 2)
+    q = asm.volume_load(m2, charge, 1) + asm.boundary_load(m2, "top", lambda x, y: 0.2 * x, 1)
     return np.concatenate([f, q])
 
 
@@ -89,8 +88,8 @@ def loads3(m3) -> np.ndarray:
         f = body(x, z)
         return np.stack([f[..., 0], 0 * x, f[..., 1]], axis=-1)
 
-    f = asm3.volume_load(m3, body3, 3) + asm3.boundary_load(m3, "top", [0.4, 0.0, -1.0], 3)
-    q = asm3.volume_load(m3, lambda x, y, z: charge(x, z), 1) + asm3.boundary_load(
+    f = asm.volume_load(m3, body3, 3) + asm.boundary_load(m3, "top", [0.4, 0.0, -1.0], 3)
+    q = asm.volume_load(m3, lambda x, y, z: charge(x, z), 1) + asm.boundary_load(
         m3, "top", lambda x, y, z: 0.2 * x, 1
     )
     return np.concatenate([f, q])
@@ -101,7 +100,7 @@ def operator_defect() -> float:
     m2, m3 = meshes()
     P = prolongation(m2, m3)
     A2 = piezo2(m2)
-    A3 = asm3.piezo_matrix(m3, MAT3.C, MAT3.e, MAT3.kappa)
+    A3 = asm.piezo_matrix(m3, MAT3.C, MAT3.e, MAT3.kappa)
     F2, F3 = loads2(m2), loads3(m3)
     return max(
         abs(P.T @ A3 @ P - T * A2).max() / abs(A2).max(),
@@ -123,7 +122,7 @@ def solution_defect() -> float:
     out = []
     for A, F, fixed in (
         (piezo2(m2), loads2(m2), fixed2),
-        (asm3.piezo_matrix(m3, MAT3.C, MAT3.e, MAT3.kappa), loads3(m3), fixed3),
+        (asm.piezo_matrix(m3, MAT3.C, MAT3.e, MAT3.kappa), loads3(m3), fixed3),
     ):
         free = np.flatnonzero(~fixed)
         x = np.zeros(A.shape[0])
@@ -145,10 +144,10 @@ def test_3d_solution_one_cell_thick_equals_the_2d_one():
 @pytest.mark.parametrize("fault", ["half_shear", "flip", "wrong_plane"])
 def test_the_comparison_catches(monkeypatch, fault):
     if fault == "half_shear":  # a missing factor 2 in the 3D Voigt shear strains
-        good = asm3.strain_operator
-        monkeypatch.setattr(asm3, "strain_operator", lambda g: _half_shear_of(good, g))
+        good = asm.strain_operator
+        monkeypatch.setattr(asm, "strain_operator", lambda g: _half_shear_of(good, g))
     elif fault == "flip":  # the 3D coupling blocks with swapped signs (Gᵀ ↔ −G)
-        good_pm = asm3.piezo_matrix
+        good_pm = asm.piezo_matrix
 
         def flipped(mesh, C, e, kappa):
             A = good_pm(mesh, C, e, kappa).tolil()
@@ -156,7 +155,7 @@ def test_the_comparison_catches(monkeypatch, fault):
             A[:n, n:], A[n:, :n] = -A[:n, n:], -A[n:, :n]
             return A.tocsr()
 
-        monkeypatch.setattr(asm3, "piezo_matrix", flipped)
+        monkeypatch.setattr(asm, "piezo_matrix", flipped)
     else:  # the 2D constants taken from the wrong plane of the 3D tensors
         monkeypatch.setattr(sys.modules[__name__], "MAT2", plane_strain(MAT3, "xy"))
     assert operator_defect() > 1e-3

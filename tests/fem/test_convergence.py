@@ -7,7 +7,7 @@ Loads from the full tensors: f_i = −∂_j σ_ij, σ_ij = c_ijkl ∂_l u_k + e_
 q = div D, D_i = e_ijk ∂_k u_j − κ_ij ∂_j φ; Dirichlet data on the whole boundary.
 
 The study for the record (the table up to n = 16 cells per direction):
-    .venv/bin/pytest tests/fem/test_convergence3d.py -m slow -s -o addopts=""
+    .venv/bin/pytest tests/fem/test_convergence.py -m slow -s -o addopts=""
 """
 
 import numpy as np
@@ -15,8 +15,8 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-import fem.assembly3d as asm
-from fem.assembly3d import h1_seminorm_error, interpolate, l2_error, volume_load
+import fem.assembly as asm
+from fem.assembly import h1_seminorm_error, interpolate, l2_error, volume_load
 from fem.meshing import box, transform
 from fem.tensors import NAMED, VOIGT_PAIRS, Material3D, poled
 
