@@ -36,7 +36,6 @@ SCRIPTS = {
     "problems.commands.main",
     "problems.commands.entry",
     "problems.scene.manufactured",
-    "problems.scene.manufactured3d",
 }
 OUTSIDE = ("benchmarks", "tests")  # never imported by the packages
 # layer name → the layers it may import (besides itself)
