@@ -28,6 +28,7 @@ The installed packages hold no research scripts: a module runnable as `python -m
 from __future__ import annotations
 
 import ast
+import functools
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -126,8 +127,14 @@ def imports(path: Path) -> set[str]:
     return out
 
 
-def graph() -> dict[str, set[str]]:
-    """module → the project modules it imports (names that are packages or modules)."""
+def graph() -> dict[str, frozenset[str]]:
+    """module → the project modules it imports (names that are packages or modules); a fresh
+    dict each call (a test may add edges), the files parsed once per process."""
+    return dict(_graph())
+
+
+@functools.cache
+def _graph() -> dict[str, frozenset[str]]:
     files = [p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")]
     known = {module_name(p) for p in files}
     g = {}
@@ -139,7 +146,7 @@ def graph() -> dict[str, set[str]]:
                 name = name.rpartition(".")[0]
             if name and name != module_name(p):
                 targets.add(name)
-        g[module_name(p)] = targets
+        g[module_name(p)] = frozenset(targets)
     return g
 
 
