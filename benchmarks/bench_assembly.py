@@ -14,8 +14,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing as mp
 import time
+
+try:  # python -m benchmarks.NAME, or imported
+    from .runner import record
+except ImportError:  # python benchmarks/NAME.py
+    from runner import record
 
 FORMS = ("elasticity", "coupling", "permittivity", "mass")
 
@@ -24,7 +28,8 @@ def _case(cell_type: str, level: int, repeat: int, q) -> None:
     import numpy as np
 
     from fem import assembly
-    from fem.meshing import box, rectangle, refine
+    from fem.meshing import box, rectangle
+    from fem.refine import refine
     from fem.tensors import NAMED, plane_strain
     from problems.commands.resources import peak_rss
 
@@ -61,17 +66,12 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", default="bench_assembly.json")
     args = ap.parse_args()
-    ctx = mp.get_context("spawn")
     rows = []
     print(f"{'cell type':<11} {'L':>2} {'cells':>8} {'dofs':>8} "
           + " ".join(f"{f + ' s':>14}" for f in FORMS) + f" {'peak MiB':>9}")  # fmt: skip
     for cell_type in ("quad", "triangle", "hexahedron", "tetra"):
         level = args.level2 if cell_type in ("quad", "triangle") else args.level3
-        q = ctx.Queue()
-        p = ctx.Process(target=_case, args=(cell_type, level, args.repeat, q))
-        p.start()
-        r = q.get()
-        p.join()
+        r = record(_case, (cell_type, level, args.repeat))
         rows.append(r)
         print(f"{r['cell_type']:<11} {r['level']:>2} {r['cells']:>8,} {r['dofs']:>8,} "
               + " ".join(f"{r[f + '_s']:>14.3f}" for f in FORMS)

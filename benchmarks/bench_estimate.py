@@ -14,8 +14,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing as mp
 import time
+
+try:  # python -m benchmarks.NAME, or imported
+    from .runner import record
+except ImportError:  # python benchmarks/NAME.py
+    from runner import record
 
 
 def _case(scene_name: str, level: int, q) -> None:
@@ -49,16 +53,11 @@ def main() -> None:
     ap.add_argument("--level", type=int, default=0)
     ap.add_argument("--json", default="bench_estimate.json")
     args = ap.parse_args()
-    ctx = mp.get_context("spawn")
     rows = []
     print(f"{'scene':<28} {'L':>2} {'unknowns':>9} {'estimate s':>10} {'solve s':>9} "
           f"{'ratio':>7} {'peak MiB':>9}")  # fmt: skip
     for name in args.scenes:
-        q = ctx.Queue()
-        p = ctx.Process(target=_case, args=(name, args.level, q))
-        p.start()
-        r = q.get()
-        p.join()
+        r = record(_case, (name, args.level))
         rows.append(r)
         print(f"{r['scene'][-28:]:<28} {r['level']:>2} {r['unknowns']:>9,} "
               f"{r['estimate_s']:>10.2f} {r['solve_s']:>9.2f} {r['ratio']:>7.1%} "

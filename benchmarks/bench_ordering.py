@@ -26,7 +26,6 @@ beside them).
 from __future__ import annotations
 
 import argparse
-import multiprocessing as mp
 import os
 import tempfile
 import time
@@ -37,6 +36,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems.output.files import Output, claim
+
+try:  # python -m benchmarks.NAME, or imported
+    from .runner import in_child
+except ImportError:  # python benchmarks/NAME.py
+    from runner import in_child
 
 # name → (column ordering, SymmetricMode, diag_pivot_thresh); "METIS" orders by pymetis first
 VARIANTS = {
@@ -148,24 +152,6 @@ def _solve(scene: str, level: int | None, linear_solver: str, q) -> None:
     )
 
 
-def _child(target, args: tuple, timeout: float) -> dict | None:
-    """Run target(*args, q) in a spawned process; its record, or None if killed/failed."""
-    ctx = mp.get_context("spawn")
-    q = ctx.Queue()
-    p = ctx.Process(target=target, args=(*args, q), daemon=True)
-    p.start()
-    deadline = time.monotonic() + timeout
-    while p.is_alive() and time.monotonic() < deadline:
-        p.join(0.2)
-        if not q.empty():
-            break
-    out = q.get() if not q.empty() else None
-    if p.is_alive() and out is None:
-        p.kill()
-    p.join()
-    return out
-
-
 def _case(text: str) -> tuple[str, int | None]:
     scene, _, level = text.partition("@")
     return scene, (int(level) if level else None)
@@ -196,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
         for text in args.cases:
             scene, level = _case(text)
             path = os.path.join(tmp, "K.npz")
-            head = _child(_record, (scene, level, path), 20 * args.timeout)
+            head = in_child(_record, (scene, level, path), 20 * args.timeout)
             if head is None:
                 print(f"{text}: could not record its Newton matrix")
                 continue
@@ -213,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
             )
             rows = []
             for v in variants:
-                r = _child(_factor, (path, v), args.timeout) or {"variant": v, "killed": True}
+                r = in_child(_factor, (path, v), args.timeout) or {"variant": v, "killed": True}
                 rows.append(r)
                 if r.get("killed"):
                     print(f"{v:<24}{'-':>8}{'>' + format(args.timeout, '.0f'):>10}")
@@ -229,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"{'wall [s]':>10}{'peak MiB':>10}  fill / fallback"
                 )
                 for ls in SOLVERS:
-                    r = _child(_solve, (scene, level, ls), args.timeout) or {
+                    r = in_child(_solve, (scene, level, ls), args.timeout) or {
                         "linear_solver": ls,
                         "killed": True,
                     }

@@ -13,9 +13,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing as mp
 import time
 from pathlib import Path
+
+try:  # python -m benchmarks.NAME, or imported
+    from .runner import record
+except ImportError:  # python benchmarks/NAME.py
+    from runner import record
 
 CASES = [  # (cell type, cells per direction, refinements)
     ("triangle", 64, 3),
@@ -59,16 +63,11 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if Path(args.json).exists() and not args.overwrite:
         parser.error(f"--json {args.json!r} exists; pass --overwrite to replace it, or a new path")
-    ctx = mp.get_context("spawn")
     rows = []
     head = ("cell type", "coarse", "times", "fine cells", "s", "MiB")
     print("{:12s} {:>8s} {:>5s} {:>10s} {:>7s} {:>7s}".format(*head))
     for case in CASES:
-        q = ctx.Queue()
-        p = ctx.Process(target=_case, args=(*case, q))
-        p.start()
-        row = q.get()
-        p.join()
+        row = record(_case, case)
         rows.append(row)
         print(
             f"{row['cell_type']:12s} {row['coarse_cells']:8d} {row['times']:5d} "

@@ -39,6 +39,11 @@ from pathlib import Path
 from problems.errors import SceneError
 from problems.output.files import Output, claim
 
+try:  # python -m benchmarks.NAME, or imported
+    from .runner import in_child
+except ImportError:  # python benchmarks/NAME.py
+    from runner import in_child
+
 ROOT = Path(__file__).resolve().parents[1]
 USER_MESHES = ROOT / "tests" / "data" / "user_meshes"
 SOLVERS = ("auto", "splu", "splu-colamd", "amg")
@@ -52,17 +57,6 @@ def _user_meshes():
     finally:
         sys.path.pop(0)
     return user_meshes
-
-
-def _child(target, args: tuple, timeout: float) -> dict | None:
-    """benchmarks/bench_ordering.py's `_child`: target(*args, q) in a spawned process killed
-    after `timeout` s; its record, or None."""
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    try:
-        from bench_ordering import _child as run
-    finally:
-        sys.path.pop(0)
-    return run(target, args, timeout)
 
 
 def _scene(text: str) -> tuple[str, int | None]:
@@ -221,7 +215,7 @@ def _case(text: str, scene: str, level: int | None, solvers: list[str], timeout:
     runs: dict[str, dict] = {}
     for solver in solvers:
         t = time.monotonic()
-        r = _child(_run, (scene, level, solver), timeout)
+        r = in_child(_run, (scene, level, solver), timeout)
         if r is None:
             waited = time.monotonic() - t
             cause = "timed out" if waited >= timeout else "killed"

@@ -30,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .elements import reference_element
+from .facets import facet_quadrature
 from .jacobians import CHUNK, check_cells, cofactors, determinants
 from .mesh import Mesh
 from .tensors import VOIGT_PAIRS
@@ -298,17 +299,10 @@ def facet_geometry(
         raise KeyError(
             f"unknown boundary {name!r}; this mesh has: {', '.join(sorted(mesh.boundaries))}"
         )
-    ref = reference_element(reference_element(mesh.cell_type).facet_type)
-    pts, wts = ref.quadrature(order)  # (n_qp, d − 1), (n_qp,)
-    F = mesh.points[mesh.boundaries[name]]  # (n_f, k, d)
-    phi = ref.values(pts)  # (n_qp, k)
-    T = ref.jacobians(F, pts)  # (n_f, n_qp, d, d − 1) tangents ∂x/∂s (, ∂x/∂t)
-    if T.shape[-2] == 2:  # an edge with the domain on its left: outward = tangent turned right
-        N = np.stack([T[..., 1, 0], -T[..., 0, 0]], axis=-1)  # (n_f, n_qp, 2)
-    else:
-        N = np.cross(T[..., 0], T[..., 1])  # (n_f, n_qp, 3) ∂x/∂s × ∂x/∂t
+    ftype = reference_element(mesh.cell_type).facet_type
+    x, wts, N, phi = facet_quadrature(mesh.points[mesh.boundaries[name]], ftype, order)
     dA = np.linalg.norm(N, axis=-1)  # (n_f, n_qp)
-    return phi @ F, wts[None, :] * dA, phi, N / dA[..., None]
+    return x, wts[None, :] * dA, phi, N / dA[..., None]
 
 
 def boundary_load(mesh: Mesh, name: str, func: Func, ncomp: int, order: int = 4) -> np.ndarray:

@@ -32,8 +32,9 @@ is quadratic; π is rational in t on curved ones).
    it and facing it (outward normals opposed) is carried to the slave point whose normal line
    passes through y (Newton on x(ξ) + α n(ξ) = y) and that point is projected onto the plane;
    the master polygon is clipped against the (convex) slave polygon (Sutherland–Hodgman);
-3. each clip polygon is split into triangles about its vertex mean; on each triangle a
-   collapsed Gauss rule; every quadrature point y goes back to the slave parameters by
+3. each clip polygon is split into triangles about its vertex mean; on each triangle the
+   triangle rule of `fem.elements` (collapsed Gauss at the default orders of `fem.mortar`);
+   every quadrature point y goes back to the slave parameters by
    inverting the orthogonal projection (affine for a triangle, Newton for a bilinear
    quadrilateral), and from the slave point x(ξ_s) along n(ξ_s) to the master face's
    parameters (Newton on x_m(η) − β n = x);
@@ -64,7 +65,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .elements import reference_element
-from .facets import Trace, facet_values, triangle_rule
+from .facets import Trace, facet_values
 
 
 class Pieces(NamedTuple):
@@ -495,8 +496,8 @@ def nearest_hits(s: Trace, m: Trace, e, f, poly, count, x0, E, tol: float = 1e-1
 
 def polygon_pieces(s: Trace, m: Trace, reach: float, order: int) -> Pieces:
     """The 3D half: clip polygons of slave and master faces in the slave faces' auxiliary
-    planes (module docstring), split into triangles about their vertex means, a collapsed Gauss
-    rule of total degree `order` on each.
+    planes (module docstring), split into triangles about their vertex means, the triangle rule
+    of total degree `order` (`fem.elements`) on each.
 
     reach : a master face is a candidate for a slave face e if their centres are at most
         (1 + reach)·r_e + r_max apart (r: the largest centre-to-node distance of a face).
@@ -512,7 +513,7 @@ def polygon_pieces(s: Trace, m: Trace, reach: float, order: int) -> Pieces:
     c, k = np.nonzero(valid)  # (n_t,) cell and vertex of every cell triangle
     a, b = poly[c, k] - ctr[c], nxt[c, k] - ctr[c]  # (n_t, 2) edge vectors from the centre
     area2 = _cross(a, b) * sign[c]  # (n_t,) twice the signed area (−: a taken-back overlap)
-    pts, wq = triangle_rule(order)  # (q, 2), (q,)
+    pts, wq = reference_element("triangle").quadrature(order)  # (q, 2), (q,)
     y = ctr[c][:, None] + pts[None, :, :1] * a[:, None] + pts[None, :, 1:] * b[:, None]
     et, ft = e[c], f[c]  # (n_t,) slave and master face of each triangle
     Xs, Xm = s.points[s.facets[et]], m.points[m.facets[ft]]  # (n_t, m_s, 3), (n_t, m_m, 3)

@@ -8,8 +8,10 @@ tetrahedra positively oriented (det J > 0); hexahedra with the bottom face (ζ =
 counterclockwise seen from above, then the top face.
 
 Quadrature rules integrate polynomials of total degree `order` exactly on simplices (Dunavant
-on the triangle; the centroid, the symmetric 4-point rule and collapsed Gauss products on the
-tetrahedron) or of degree `order` in each variable on tensor cells (Gauss–Legendre products).
+on the triangle up to order 5; the centroid and the symmetric 4-point rule on the tetrahedron;
+collapsed Gauss products beyond) or of degree `order` in each variable on tensor cells
+(Gauss–Legendre products). Every integral of fem (cells, facets, mortar pieces) takes its rule
+from here.
 """
 
 from __future__ import annotations
@@ -42,12 +44,36 @@ def _check_order(order: int) -> None:
         raise ValueError(f"quadrature order must be non-negative, got {order}")
 
 
+def _collapsed_rule(order: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """Collapsed (Duffy) Gauss product on the reference simplex of `dim`, exact for total
+    degree ≤ `order`: points (n^dim, dim), weights (n^dim,) summing to 1/dim!.
+
+    ξ_0 = a_0, ξ_i = a_i Π_{j<i} (1 − a_j) on the cube [0, 1]^dim, Jacobian
+    Π_i (1 − a_i)^(dim − 1 − i); a monomial of total degree k becomes degree ≤ k + dim − 1 in
+    each a_i, so n = ⌈(order + dim)/2⌉ Gauss points per direction suffice.
+    """
+    n = (order + dim + 1) // 2  # 2n − 1 ≥ order + dim − 1
+    t, w = np.polynomial.legendre.leggauss(n)
+    x, w = 0.5 * (t + 1.0), 0.5 * w  # (n,) each: Gauss on [0, 1]
+    a = np.meshgrid(*[x] * dim, indexing="ij")  # dim × (n, …, n)
+    W = reduce(np.multiply.outer, [w] * dim)  # (n, …, n)
+    pts, jac = [], 1.0
+    for i in range(dim):
+        p = a[i]
+        for j in range(i):
+            p = p * (1 - a[j])
+        pts.append(p.ravel())
+        jac = jac * (1 - a[i]) ** (dim - 1 - i)
+    return np.stack(pts, axis=1), (W * jac).ravel()
+
+
 def _triangle_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Points (n_qp, 2) and weights (n_qp,) (sum 1/2) on the reference triangle: Dunavant's
+    symmetric rules up to order 5, collapsed Gauss beyond."""
+    _check_order(order)
     avail = [o for o in sorted(_TRIANGLE_RULES) if o >= order]
-    if order < 0 or not avail:
-        raise ValueError(
-            f"no triangle rule of order {order}; available up to {max(_TRIANGLE_RULES)}"
-        )
+    if not avail:
+        return _collapsed_rule(order, 2)
     pts, wts = [], []
     for a, w in _TRIANGLE_RULES[avail[0]]:
         orbit = [(a, a)] if np.isclose(a, 1 / 3) else [(a, a), (1 - 2 * a, a), (a, 1 - 2 * a)]
@@ -66,16 +92,7 @@ def _tet_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
         bary = np.full((4, 4), b)  # (4 points, barycentrics λ0..λ3)
         np.fill_diagonal(bary, a)
         return bary[:, 1:], np.full(4, 1.0 / 24.0)
-    # Collapsed (Duffy) Gauss product: s = a, t = b(1 − a), u = c(1 − a)(1 − b), Jacobian
-    # (1 − a)²(1 − b); a monomial of total degree d becomes degree ≤ d + 2 in each variable.
-    n = (order + 4) // 2  # 2n − 1 ≥ order + 2
-    t, w = np.polynomial.legendre.leggauss(n)
-    x, w = 0.5 * (t + 1.0), 0.5 * w  # (n,) each: Gauss on [0, 1]
-    A, B, Cc = np.meshgrid(x, x, x, indexing="ij")  # (n, n, n) each
-    W = np.einsum("i,j,k->ijk", w, w, w)  # (n, n, n)
-    s, t, u = A, B * (1 - A), Cc * (1 - A) * (1 - B)
-    jac = (1 - A) ** 2 * (1 - B)
-    return np.stack([s.ravel(), t.ravel(), u.ravel()], axis=1), (W * jac).ravel()
+    return _collapsed_rule(order, 3)
 
 
 def _line_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
@@ -250,7 +267,13 @@ ELEMENTS: dict[str, ReferenceElement] = {
         ),
     )
 }
-CELL_TYPES: dict[int, tuple[str, ...]] = {2: ("quad", "triangle"), 3: ("hexahedron", "tetra")}
+# (dimension, nodes per cell) -> the cell type of a mesh, and the cell types of each dimension
+CELL_TYPE: dict[tuple[int, int], str] = {
+    (e.dim, e.n_loc): n for n, e in ELEMENTS.items() if e.facet_type
+}
+CELL_TYPES: dict[int, tuple[str, ...]] = {
+    d: tuple(n for (k, _), n in CELL_TYPE.items() if k == d) for d in (2, 3)
+}
 # Local facets (the cell's boundary entities of dimension d − 1) oriented outward, and their type
 FACETS: dict[str, np.ndarray] = {n: e.facets for n, e in ELEMENTS.items() if e.facet_type}
 FACET_TYPE: dict[str, str] = {n: e.facet_type for n, e in ELEMENTS.items() if e.facet_type}

@@ -14,9 +14,8 @@ so that ∫_e ψ_{e,a} φ_b = δ_ab ∫_e φ_a and the slave mortar matrix D = d
 diagonal. On a segment A_e = [[2, −1], [−1, 2]] (ψ_1 = 2φ_1 − φ_2), on a flat triangle 3 on
 the diagonal and −1 off it, on a parallelogram the tensor product of the segment's rule.
 
-Facet integrals use one rule per facet type and order (`facet_rule`): Gauss on the segment
-[0, 1] and on the quadrilateral [−1, 1]² (`fem.elements`), collapsed Gauss on the triangle
-(any order).
+Facet integrals (`facet_quadrature`) use the rules of the facets' reference elements
+(`fem.elements`).
 
 Nodal normals are the outward unit vectors n_k ∝ ∫_Γ φ_k n (the φ_k-weighted mean of the facet
 normals: exact on a line or plane, continuous on curved boundaries). Tangents (`frames`): in 2D
@@ -114,25 +113,6 @@ class Trace:
         return np.unique(np.sort(e, axis=1), axis=0)
 
 
-def triangle_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
-    """Collapsed Gauss on the reference triangle: points (n², 2), weights (n²,) summing to 1/2,
-    exact for total degree ≤ `order` (n = ⌈(order + 2)/2⌉)."""
-    n = (order + 3) // 2
-    g, w = np.polynomial.legendre.leggauss(n)
-    g, w = 0.5 * (g + 1.0), 0.5 * w  # (n,) on [0, 1]
-    a, b = np.meshgrid(g, g, indexing="ij")
-    pts = np.stack([a.ravel(), (b * (1 - a)).ravel()], axis=1)  # (n², 2)
-    return pts, (np.outer(w, w) * (1 - a)).ravel()
-
-
-def facet_rule(facet_type: str, order: int) -> tuple[np.ndarray, np.ndarray]:
-    """The rule of every facet integral: points (n_qp, d − 1), weights (n_qp,) on the reference
-    facet (`fem.elements`), exact to degree `order` (triangles: `triangle_rule`, any order)."""
-    if facet_type == "triangle":
-        return triangle_rule(order)
-    return reference_element(facet_type).quadrature(order)
-
-
 def facet_values(facet_type: str, xi: np.ndarray) -> np.ndarray:
     """Shape function values (..., m) at reference points xi (..., d − 1) (`fem.elements`: a
     segment's reference is [0, 1] with φ = (1 − t, t))."""
@@ -140,18 +120,26 @@ def facet_values(facet_type: str, xi: np.ndarray) -> np.ndarray:
     return ref.values(xi.reshape(-1, ref.dim)).reshape(*xi.shape[:-1], ref.n_loc)
 
 
-def _facet_quadrature(points: np.ndarray, facet_type: str, order: int):
-    """Facets points (n_f, m, d): x (n_f, n_qp, d), the measure density |J| (n_f, n_qp)
-    (|∂x/∂t| on a segment, |∂x/∂s × ∂x/∂t| on a face), the face normals N (n_f, n_qp, 3)
-    (3D only, else None), w (n_qp,), phi (n_qp, m)."""
-    pts, w = facet_rule(facet_type, order)  # (n_qp, d − 1), (n_qp,)
-    phi = facet_values(facet_type, pts)  # (n_qp, m)
-    T = np.einsum(
-        "fai,qaj->fqij", points, reference_element(facet_type).gradients(pts), optimize=True
-    )
-    N = None if facet_type == "line" else np.cross(T[..., 0], T[..., 1])  # (n_f, n_qp, 3)
-    J = np.linalg.norm(T[..., 0] if N is None else N, axis=-1)  # (n_f, n_qp)
-    return phi @ points, J, N, w, phi
+def facet_quadrature(
+    points: np.ndarray, facet_type: str, order: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The rule of `order` (`fem.elements`) on facets with nodes `points` (n_f, m, d): straight
+    edges (2D), flat triangles or bilinear quadrilaterals (3D).
+
+    Returns x (n_f, n_qp, d) the physical points, w (n_qp,) the reference weights, N (n_f,
+    n_qp, d) the outward normals scaled by the measure density (|N| dA_ref = dA: in 2D the
+    tangent ∂x/∂t turned right, the domain on its left; in 3D ∂x/∂s × ∂x/∂t) and phi (n_qp, m)
+    the facet shape values.
+    """
+    ref = reference_element(facet_type)
+    pts, w = ref.quadrature(order)  # (n_qp, d − 1), (n_qp,)
+    phi = ref.values(pts)  # (n_qp, m)
+    T = ref.jacobians(points, pts)  # (n_f, n_qp, d, d − 1) tangents ∂x/∂s (, ∂x/∂t)
+    if T.shape[-1] == 1:
+        N = np.stack([T[..., 1, 0], -T[..., 0, 0]], axis=-1)  # (n_f, n_qp, 2)
+    else:
+        N = np.cross(T[..., 0], T[..., 1])  # (n_f, n_qp, 3)
+    return phi @ points, w, N, phi
 
 
 def _chain(edges: np.ndarray, name: str) -> np.ndarray:
@@ -199,8 +187,8 @@ def _faces(mesh: Mesh, glob: np.ndarray, name: str, order: int) -> Trace:
     nodes, inv = np.unique(glob, return_inverse=True)
     faces = inv.reshape(glob.shape)  # (n_f, m)
     ftype = FACET_TYPE[mesh.cell_type]
-    _, J, N, w, phi = _facet_quadrature(mesh.points[glob], ftype, order)
-    dA = J * w[None, :]  # (n_f, n_qp)
+    _, w, N, phi = facet_quadrature(mesh.points[glob], ftype, order)
+    dA = np.linalg.norm(N, axis=-1) * w[None, :]  # (n_f, n_qp)
     areas = dA.sum(axis=1)  # (n_f,)
     if (areas <= 0).any():
         raise ValueError(f"boundary part {name!r} has a face of zero area")
@@ -275,8 +263,8 @@ def facet_integrals(
     """(n_f, m) ∫_e f φ_{e,a} of a scalar field f(x, y) or f(x, y, z) (values at the
     quadrature points) per facet e and local node a; a multiplier basis Q (`multiplier_basis`)
     turns them into ∫ f φ̃_k (Q @ result.ravel()), np.bincount(facets, …) into ∫ f φ_k."""
-    x, J, _, w, phi = _facet_quadrature(mesh.points[tr.nodes[tr.facets]], tr.facet_type, order)
-    dA = J * w[None, :]  # (n_f, n_qp)
+    x, w, N, phi = facet_quadrature(mesh.points[tr.nodes[tr.facets]], tr.facet_type, order)
+    dA = np.linalg.norm(N, axis=-1) * w[None, :]  # (n_f, n_qp)
     f = np.broadcast_to(np.asarray(func(*np.moveaxis(x, -1, 0)), float), dA.shape)
     return (dA * f) @ phi  # (n_f, m)
 

@@ -12,17 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .elements import EDGES, FACETS
-
-# (dimension, nodes per cell) -> meshio's name of the cell type
-CELL_TYPE = {
-    (1, 2): "line",
-    (2, 3): "triangle",
-    (2, 4): "quad",
-    (3, 4): "tetra",
-    (3, 8): "hexahedron",
-}
-DIM = {name: d for (d, _), name in CELL_TYPE.items()}  # cell type -> its dimension
+from .elements import CELL_TYPE, EDGES, FACETS
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,7 +40,7 @@ class Mesh:
     def cell_type(self) -> str:
         """'triangle' or 'quad' (2D), 'tetra' or 'hexahedron' (3D): meshio's names."""
         key = (self.dim, self.cells.shape[1])
-        if key not in CELL_TYPE or key[0] == 1:
+        if key not in CELL_TYPE:
             raise ValueError(
                 f"no cell type with {key[1]} nodes in {key[0]}D: need points (n, 2) with cells "
                 f"(n, 3) or (n, 4), or points (n, 3) with cells (n, 4) or (n, 8)"

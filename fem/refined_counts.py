@@ -35,7 +35,7 @@ from functools import cache
 import numpy as np
 
 from .elements import EDGES, FACETS, reference_element
-from .mesh import DIM, Mesh
+from .mesh import Mesh
 from .refine import refine
 
 # reference vertices in [0, 1]^d (cubes) or the unit simplex, in each cell type's local order
@@ -54,7 +54,11 @@ def _local_entities(cell_type: str) -> list[tuple[int, ...]]:
     faces (3D), the cell."""
     k = len(_REFERENCE[cell_type])
     edges = [tuple(sorted(e)) for e in EDGES[cell_type].tolist()]
-    faces = [tuple(sorted(f)) for f in FACETS[cell_type].tolist()] if DIM[cell_type] == 3 else []
+    faces = (
+        [tuple(sorted(f)) for f in FACETS[cell_type].tolist()]
+        if reference_element(cell_type).dim == 3
+        else []
+    )
     return [(i,) for i in range(k)] + edges + faces + [tuple(range(k))]
 
 

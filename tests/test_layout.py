@@ -15,6 +15,10 @@ Layers, lowest first (a module may import its own layer and the layers below it)
 `vi_core` and `fem` are side by side: neither imports the other. Every import counts, including
 those inside functions (a lazy import is still a dependency).
 
+The rooms (issue 30): no module is named for a dimension (`…3d`: one code serves 2D and 3D), a
+plug-in's modules live in its own subpackage of problems/plugins rather than side by side under
+a name prefix (`piezo_*`), and tests/ mirrors the folders of the code it tests.
+
 The installed packages hold no research scripts: a module runnable as `python -m` (an
 `if __name__ == "__main__":` block) is the `mixvi` command or a generator of a shipped scene
 (SCRIPTS); measurements and studies live in benchmarks/, which none of the packages imports
@@ -24,6 +28,8 @@ The installed packages hold no research scripts: a module runnable as `python -m
 from __future__ import annotations
 
 import ast
+import functools
+from collections.abc import Iterable
 from pathlib import Path
 
 import pytest
@@ -36,7 +42,6 @@ SCRIPTS = {
     "problems.commands.main",
     "problems.commands.entry",
     "problems.scene.manufactured",
-    "problems.scene.manufactured3d",
 }
 OUTSIDE = ("benchmarks", "tests")  # never imported by the packages
 # layer name → the layers it may import (besides itself)
@@ -122,8 +127,14 @@ def imports(path: Path) -> set[str]:
     return out
 
 
-def graph() -> dict[str, set[str]]:
-    """module → the project modules it imports (names that are packages or modules)."""
+def graph() -> dict[str, frozenset[str]]:
+    """module → the project modules it imports (names that are packages or modules); a fresh
+    dict each call (a test may add edges), the files parsed once per process."""
+    return dict(_graph())
+
+
+@functools.cache
+def _graph() -> dict[str, frozenset[str]]:
     files = [p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")]
     known = {module_name(p) for p in files}
     g = {}
@@ -135,7 +146,7 @@ def graph() -> dict[str, set[str]]:
                 name = name.rpartition(".")[0]
             if name and name != module_name(p):
                 targets.add(name)
-        g[module_name(p)] = targets
+        g[module_name(p)] = frozenset(targets)
     return g
 
 
@@ -301,3 +312,126 @@ def test_a_research_script_in_a_package_is_caught(text):
 def test_an_import_of_benchmarks_is_caught(text):
     sources = {**_sources(), "vi_core.ssn": _sources()["vi_core.ssn"] + text}
     assert outside_imports(sources)
+
+
+# ---------------------------------------------------------------- the rooms (issue 30)
+# While the contact plug-ins are merged into one subpackage (branch contact1), problems/plugins
+# and its tests keep their old names: these are the exemptions, and
+# test_the_exemptions_are_still_needed fails once they are not (then delete them).
+NAMED_3D_EXEMPT = ("problems/plugins/", "tests/problems/plugins/")
+PREFIX_EXEMPT = {"contact", "contact3d", "piezo"}  # problems/plugins/<prefix>_*.py
+DATA_DIRS = {"tests/baselines", "tests/data", "tests/thirdparty"}  # no test modules mirrored
+
+
+def _repo_modules() -> list[Path]:
+    return [p for top in (*PACKAGES, *OUTSIDE) for p in (ROOT / top).rglob("*.py")]
+
+
+def named_3d(paths: Iterable[Path], exempt: tuple[str, ...] = NAMED_3D_EXEMPT) -> list[str]:
+    """The modules among `paths` (repository-relative posix paths returned) whose name ends in
+    `3d` — a 3D twin of a 2D module — outside the `exempt` folders."""
+    out = []
+    for p in paths:
+        rel = p.relative_to(ROOT).as_posix()
+        if p.stem.lower().endswith("3d") and not rel.startswith(exempt):
+            out.append(rel)
+    return sorted(out)
+
+
+def prefixed_plugin_modules(names: Iterable[str], exempt: set[str] = PREFIX_EXEMPT) -> list[str]:
+    """The module names directly in problems/plugins that share a `prefix_` with another one
+    (a plug-in's parts side by side instead of in its subpackage), outside `exempt`."""
+    names = sorted(names)
+    by_prefix: dict[str, list[str]] = {}
+    for n in names:
+        by_prefix.setdefault(n.split("_")[0], []).append(n)
+    return sorted(
+        n
+        for prefix, group in by_prefix.items()
+        if prefix not in exempt and (len(group) > 1 and any("_" in g for g in group))
+        for n in group
+    )
+
+
+def _plugin_modules() -> list[str]:
+    return [p.stem for p in (ROOT / "problems" / "plugins").glob("*.py") if p.stem != "__init__"]
+
+
+def unmirrored_test_dirs(test_dirs: Iterable[str]) -> list[str]:
+    """The folders of tests/ holding test modules (posix, relative to the repository) that do
+    not mirror a folder of the code (tests/fem ↔ fem, tests/problems/scene ↔ problems/scene)."""
+    return sorted(
+        d
+        for d in test_dirs
+        if d != "tests" and not (ROOT / d.removeprefix("tests/")).is_dir() and d not in DATA_DIRS
+    )
+
+
+def _test_dirs() -> set[str]:
+    return {p.parent.relative_to(ROOT).as_posix() for p in (ROOT / "tests").rglob("test_*.py")}
+
+
+def test_no_module_is_named_for_3d():
+    assert named_3d(_repo_modules()) == []
+
+
+@pytest.mark.parametrize(
+    "rel",
+    [
+        "fem/mortar3d.py",
+        "problems/scene/fields3d.py",
+        "vi_core/krylov3d.py",
+        "benchmarks/bench_assembly3d.py",
+        "tests/fem/test_mesh3d.py",
+        "tests/problems/commands/test_check3d.py",
+    ],
+)
+def test_a_module_named_for_3d_is_caught(rel):
+    """Mutation: a 3D twin module added anywhere outside the exempt folders."""
+    assert named_3d([*_repo_modules(), ROOT / rel]) == [rel]
+
+
+def test_plugin_modules_live_in_their_subpackage():
+    assert prefixed_plugin_modules(_plugin_modules()) == []
+
+
+def test_plugin_modules_side_by_side_are_caught():
+    """Mutation: a plug-in `sheet` with its output beside it (sheet.py, sheet_output.py)."""
+    assert prefixed_plugin_modules([*_plugin_modules(), "sheet", "sheet_output"]) == [
+        "sheet",
+        "sheet_output",
+    ]
+
+
+def test_tests_mirror_the_code():
+    assert unmirrored_test_dirs(_test_dirs()) == []
+
+
+def test_a_test_folder_for_no_code_is_caught():
+    """Mutation: tests/problems/solvers (no problems/solvers)."""
+    assert unmirrored_test_dirs({*_test_dirs(), "tests/problems/solvers"}) == [
+        "tests/problems/solvers"
+    ]
+
+
+def test_the_exemptions_are_still_needed():
+    """Each exemption above covers a module that is still there: once the contact plug-ins are
+    one subpackage, delete NAMED_3D_EXEMPT and PREFIX_EXEMPT (and this test)."""
+    assert named_3d(_repo_modules(), ()) != [], "no module is named for 3D: drop NAMED_3D_EXEMPT"
+    left = {n.split("_")[0] for n in prefixed_plugin_modules(_plugin_modules(), set())}
+    assert PREFIX_EXEMPT <= left, f"PREFIX_EXEMPT has stale prefixes: {PREFIX_EXEMPT - left}"
+
+
+def test_the_core_layers_import_nothing_of_ours():
+    """vi_core imports neither fem nor problems, fem does not import problems (nor vi_core): the
+    table above says so, and an edge from either is caught."""
+    assert ALLOWED["vi_core"] == set() and ALLOWED["fem"] == set()
+    for a, b in [
+        ("vi_core.krylov", "problems.plugins.registry"),
+        ("vi_core.sets", "fem.assembly"),
+        ("fem.assembly", "problems.scene.materials"),
+        ("fem.facets", "vi_core.sets"),
+    ]:
+        g = graph()
+        g[a] = g[a] | {b}
+        assert upward(g) == [f"{a} → {b} ({layer(a)} may not import {layer(b)})"]

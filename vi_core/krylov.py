@@ -27,37 +27,22 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .condensed_newton import CondensedNewton, Split
+from .condensed_newton import CondensedNewton
 from .gmres import gmres_cycle
-from .tied_preconditioner import CYCLE, Spring, TiedPreconditioner
+from .tied_preconditioner import Spring, TiedPreconditioner
 
 
 class KrylovSolver:
     """Solves the condensed Newton systems K u = b of one ssn run (module docstring).
 
-    A, B : the equilibrated operator (n, n) and constraint rows (m, n).
-    cond : the condensation of B (`ssn.Condensation`: R, S, D, Dt_inv).
-    fields, near_null : `MixedVI.fields` / `MixedVI.near_null` of the equilibrated problem.
-    parts : optional (n,) body of each unknown (`amg.bodies`): no aggregate spans two bodies.
-    cycle : the multigrid cycle of each preconditioner application ("V" or "W").
+    preconditioner : the tied-rows preconditioner of the run's equilibrated operator and
+        constraint rows (`TiedPreconditioner`, which takes the problem's data).
+    restart, max_cycles : GMRES(restart), at most `max_cycles` restart cycles before the
+        direct fallback.
     """
 
-    def __init__(
-        self,
-        A: sp.csr_matrix,
-        B: sp.csr_matrix,
-        cond: Split,
-        fields: dict | None = None,
-        near_null: dict | None = None,
-        restart: int = 50,
-        max_cycles: int = 8,
-        couple: bool = True,
-        parts: np.ndarray | None = None,
-        cycle: str = CYCLE,
-    ):
-        self.preconditioner = TiedPreconditioner(
-            A, B, cond, fields, near_null, couple=couple, parts=parts, cycle=cycle
-        )
+    def __init__(self, preconditioner: TiedPreconditioner, restart: int = 50, max_cycles: int = 8):
+        self.preconditioner = preconditioner
         self.S = self.preconditioner.S  # (m,) the slave columns
         self.n = self.preconditioner.n
         self.restart, self.max_cycles = restart, max_cycles

@@ -45,6 +45,7 @@ from .linear_solvers import LINEAR_SOLVERS, auto_linear_solver, thread_settings
 from .problem import MixedVI, natural_residual
 from .sets import Free
 from .solution import Solution
+from .tied_preconditioner import TiedPreconditioner
 
 
 @dataclass(frozen=True)
@@ -185,7 +186,9 @@ class _Stepper:
         self.krylov = None  # the iterative path (condensed steps only)
         if iterative and self.cond is not None:
             self.krylov = KrylovSolver(
-                e.A.tocsr(), e.B, self.cond, e.fields, e.near_null, parts=bodies(e.A)
+                TiedPreconditioner(
+                    e.A.tocsr(), e.B, self.cond, e.fields, e.near_null, parts=bodies(e.A)
+                )
             )
         if self.cond is not None:
             c = self.cond

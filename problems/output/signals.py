@@ -194,17 +194,27 @@ def interruptible(fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> T:
     return outcome["value"]
 
 
+def _worker_running() -> bool:
+    """Whether a worker left behind by an interruption is still inside its work."""
+    return any(t.is_alive() for t in _abandoned)
+
+
+def _exit_now(status: int) -> None:
+    """Flush the standard streams and end the process with `status` (`os._exit`)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(status)
+
+
 def exit_if_abandoned(status: int) -> None:
     """After an interruption: if a worker is still inside its work (compiled code, which
     cannot be cancelled), flush the standard streams and end the process now with `status`
     (`os._exit`: no interpreter shut-down around a thread that still runs); else return."""
-    if any(t.is_alive() for t in _abandoned):
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):
-                pass
-        os._exit(status)
+    if _worker_running():
+        _exit_now(status)
 
 
 def finish(status: int) -> None:
@@ -214,13 +224,8 @@ def finish(status: int) -> None:
     interpreter's tear-down of every module and object, which took 1.1–1.4 s of the 1.2–1.5 s
     from a SIGTERM to the exit of `mixvi bench` on a loaded 2-core machine (its child, the
     solve, was already gone after 0.1 s)."""
-    if not any(t.is_alive() for t in _abandoned):
+    if not _worker_running():
         import atexit
 
         atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
-    os._exit(status)
+    _exit_now(status)

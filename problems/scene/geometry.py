@@ -26,8 +26,10 @@ group of linear tetrahedra or hexahedra, its physical surface groups the parts.
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from functools import reduce
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
@@ -398,41 +400,35 @@ def _known_kind(kinds: tuple[str, ...], files: str) -> BeforeValidator:
     return BeforeValidator(check)
 
 
-# The geometry kinds, told apart by `kind` (a file by its `mesh` or `geo` key): add a kind by
-# adding a Section with a `kind` literal, BOUNDARIES (None: known only once meshed) and
-# mesh(level) to a union.
-KINDS = ("rectangle", "half_disc", "cradle")
-FILES = "mesh = FILE or geo = FILE.geo"
-Geometry = Annotated[
-    Annotated[Rectangle, Tag("rectangle")]
-    | Annotated[HalfDisc, Tag("half_disc")]
-    | Annotated[Cradle, Tag("cradle")]
-    | Annotated[MeshFile, Tag("mesh")]
-    | Annotated[GeoFile, Tag("geo")],
-    Discriminator(
-        _tag,
-        custom_error_type="geometry",
-        custom_error_message="a table with kind = " + " | ".join(KINDS) + ", or with mesh = "
-        "FILE or geo = FILE.geo (and body = GROUP)",
-    ),
-    _known_kind(KINDS, FILES),
-]
-GEOMETRIES = (*KINDS, "mesh", "geo")
-KINDS3 = ("box", "extruded")
-FILES3 = "mesh = FILE, a 3D mesh file"
-Geometry3 = Annotated[
-    Annotated[Box, Tag("box")]
-    | Annotated[Extruded, Tag("extruded")]
-    | Annotated[MeshFile3, Tag("mesh")],
-    Discriminator(
-        _tag,
-        custom_error_type="geometry",
-        custom_error_message="a table with kind = " + " | ".join(KINDS3) + ", or with mesh = "
-        "FILE (a 3D mesh file; and body = GROUP)",
-    ),
-    _known_kind(KINDS3, FILES3),
-]
-UNION_TAGS.update(("geometry", k) for k in (*GEOMETRIES, *KINDS3))
+def _union(members: dict[str, type[Section]], files: str) -> Any:
+    """The annotated union of geometry tables `members` (tag → Section), told apart by `kind`
+    (a file by its `mesh` or `geo` key, `_tag`); `files` says which file tables it takes."""
+    kinds = tuple(t for t in members if t not in ("mesh", "geo"))
+    return Annotated[
+        reduce(operator.or_, [Annotated[m, Tag(t)] for t, m in members.items()]),
+        Discriminator(
+            _tag,
+            custom_error_type="geometry",
+            custom_error_message="a table with kind = " + " | ".join(kinds) + f", or with {files} "
+            "(and body = GROUP)",
+        ),
+        _known_kind(kinds, files),
+    ]
+
+
+# The geometry kinds: add a kind by adding a Section with a `kind` literal, BOUNDARIES (None:
+# known only once meshed) and mesh(level) to a union.
+GEOMETRY_2D = {
+    "rectangle": Rectangle,
+    "half_disc": HalfDisc,
+    "cradle": Cradle,
+    "mesh": MeshFile,
+    "geo": GeoFile,
+}
+GEOMETRY_3D = {"box": Box, "extruded": Extruded, "mesh": MeshFile3}
+Geometry = _union(GEOMETRY_2D, "mesh = FILE or geo = FILE.geo")
+Geometry3 = _union(GEOMETRY_3D, "mesh = FILE, a 3D mesh file")
+UNION_TAGS.update(("geometry", k) for k in (*GEOMETRY_2D, *GEOMETRY_3D))
 
 
 def check_sizes(model: Section, level: int) -> None:

@@ -3,6 +3,8 @@
 import numpy as np
 import scipy.sparse as sp
 
+from fem.tensors import VOIGT_PAIRS, Material3D
+
 
 def same_matrix(M: sp.spmatrix, R: sp.spmatrix) -> bool:
     """M and the reference R have the same stored pattern and values to 1e-13 of R's largest
@@ -27,3 +29,18 @@ def shifted_geometry(real):
         return real(mesh, pts, wts, cells)
 
     return shifted
+
+
+def full_tensors(m: Material3D) -> tuple[np.ndarray, np.ndarray]:
+    """c_ijkl (3, 3, 3, 3) and e_kij (3, 3, 3) from the Voigt matrices (engineering shear): the
+    definitions, independent of the kernels that use the Voigt forms."""
+    c = np.zeros((3, 3, 3, 3))
+    e = np.zeros((3, 3, 3))
+    for I, (i, j) in enumerate(VOIGT_PAIRS):
+        for J, (k, l) in enumerate(VOIGT_PAIRS):
+            for a, b in {(i, j), (j, i)}:
+                for p, q in {(k, l), (l, k)}:
+                    c[a, b, p, q] = m.C[I, J]
+        for a, b in {(i, j), (j, i)}:
+            e[:, a, b] = m.e[:, I]
+    return c, e

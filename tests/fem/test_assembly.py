@@ -35,7 +35,7 @@ from fem.meshing import SIDES, box, rectangle, transform
 from fem.refine import refine
 from fem.tensors import NAMED, VOIGT_PAIRS, Material3D, orthotropic, poled, rotate
 
-from .helpers import same_matrix, shifted_geometry
+from .helpers import full_tensors, same_matrix, shifted_geometry
 
 ELEMENTS = ["quad", "triangle"]
 
@@ -498,7 +498,7 @@ def energy_defect(element: str) -> float:
     Du, a, b = rng.normal(size=(3, 3)), rng.normal(size=3), rng.normal(size=3)
     u = (mesh.points @ Du.T).ravel()  # u(x) = Du x
     phi, theta = mesh.points @ a, mesh.points @ b  # φ = a·x, θ = b·x
-    c, e = _full(PIEZO)
+    c, e = full_tensors(PIEZO)
     eps = 0.5 * (Du + Du.T)
     exact = [
         np.einsum("ij,ijkl,kl->", eps, c, eps),  # ∫ ε:c:ε
@@ -511,19 +511,6 @@ def energy_defect(element: str) -> float:
         phi @ permittivity_matrix(mesh, PIEZO.kappa) @ theta,
     ]
     return max(abs(g - x) / abs(x) for g, x in zip(got, exact, strict=True))
-
-
-def _full(m: Material3D) -> tuple[np.ndarray, np.ndarray]:
-    """c_ijkl and e_kij from the Voigt matrices (the definitions, independent of the kernels)."""
-    c, e = np.zeros((3, 3, 3, 3)), np.zeros((3, 3, 3))
-    for I, (i, j) in enumerate(VOIGT_PAIRS):
-        for J, (k, l) in enumerate(VOIGT_PAIRS):
-            for p, q in {(i, j), (j, i)}:
-                for r, s in {(k, l), (l, k)}:
-                    c[p, q, r, s] = m.C[I, J]
-        for p, q in {(i, j), (j, i)}:
-            e[:, p, q] = m.e[:, I]
-    return c, e
 
 
 @pytest.mark.parametrize("element", ELEMENTS_3D)

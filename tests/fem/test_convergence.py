@@ -18,23 +18,13 @@ import scipy.sparse.linalg as spla
 import fem.assembly as asm
 from fem.assembly import h1_seminorm_error, interpolate, l2_error, volume_load
 from fem.meshing import box, transform
-from fem.tensors import NAMED, VOIGT_PAIRS, Material3D, poled
+from fem.tensors import NAMED, Material3D, poled
+
+from .helpers import full_tensors
 
 C0, K0 = 1e10, 1e-8
 _M = poled(NAMED["BaTiO3"], [0.3, -0.5, 0.8])
 MAT = Material3D("BaTiO3 (scaled)", _M.C / C0, _M.e / np.sqrt(C0 * K0), _M.kappa / K0)
-
-
-def _full(m: Material3D) -> tuple[np.ndarray, np.ndarray]:
-    c, e = np.zeros((3, 3, 3, 3)), np.zeros((3, 3, 3))
-    for I, (i, j) in enumerate(VOIGT_PAIRS):
-        for J, (k, l) in enumerate(VOIGT_PAIRS):
-            for p, q in {(i, j), (j, i)}:
-                for r, s in {(k, l), (l, k)}:
-                    c[p, q, r, s] = m.C[I, J]
-        for p, q in {(i, j), (j, i)}:
-            e[:, p, q] = m.e[:, I]
-    return c, e
 
 
 class PlaneWaves:
@@ -64,13 +54,13 @@ PHI = PlaneWaves(rng.uniform(-1, 1, (1, 3)), rng.uniform(-2.5, 2.5, (3, 3)), rng
 
 
 def body_force(x, y, z):
-    c, e = _full(MAT)
+    c, e = full_tensors(MAT)
     Hu, Hp = U.hess(x, y, z), PHI.hess(x, y, z)[..., 0, :, :]  # (..., 3, 3, 3), (..., 3, 3)
     return -(np.einsum("ijkl,...kjl->...i", c, Hu) + np.einsum("kij,...jk->...i", e, Hp))
 
 
 def charge(x, y, z):
-    _, e = _full(MAT)
+    _, e = full_tensors(MAT)
     Hu, Hp = U.hess(x, y, z), PHI.hess(x, y, z)[..., 0, :, :]
     return np.einsum("ijk,...jik->...", e, Hu) - np.einsum("ij,...ij->...", MAT.kappa, Hp)
 

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 import fem.facets as ff
 from fem import assembly
 from fem.elements import reference_element
-from fem.facets import facet_integrals, frames, reference_direction, trace, triangle_rule
+from fem.facets import facet_integrals, frames, reference_direction, trace
 from fem.mesh import Mesh
 from fem.meshing import box, transform
 from fem.shapes import half_disc
@@ -117,22 +117,12 @@ def test_mutation_a_wrong_sign_in_the_frame_is_caught():
     assert np.abs(np.cross(t1, bad) - surf.normals).max() > 1.0
 
 
-def test_triangle_rule_degree():
-    for order in (3, 5, 10):
-        pts, w = triangle_rule(order)
-        for i in range(order + 1):
-            for j in range(order + 1 - i):  # ∫ s^i t^j = i! j! / (i + j + 2)!
-                exact = np.prod(np.arange(1, i + 1)) * np.prod(np.arange(1, j + 1))
-                exact /= np.prod(np.arange(1, i + j + 3))
-                assert abs(w @ (pts[:, 0] ** i * pts[:, 1] ** j) - exact) <= 1e-15
-
-
 # ---------------------------------------------------------------- 2D chains of segments
 def _generic_segment_data(mesh, tr, order=4):
     """Mass matrices, ∫φ_a, ∫φ_a n and A_e = D_e M_e⁻¹ of the trace's segments by the generic
     quadrature of `fem.facets` (the path of 3D faces), to check the closed forms of 2D."""
     x = mesh.points[tr.nodes[tr.facets]]  # (n_seg, 2, 2)
-    pts, w = ff.facet_rule("line", order)  # (q, 1), (q,)
+    pts, w = reference_element("line").quadrature(order)  # (q, 1), (q,)
     phi = ff.facet_values("line", pts)  # (q, 2)
     d = x[:, 1] - x[:, 0]  # (n_seg, 2)
     L = np.linalg.norm(d, axis=1)

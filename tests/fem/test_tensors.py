@@ -22,25 +22,13 @@ from fem.tensors import (
     rotation_to,
 )
 
+from .helpers import full_tensors
+
 
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
     Q, Rr = np.linalg.qr(rng.normal(size=(3, 3)))
     Q = Q * np.sign(np.diag(Rr))
     return Q if np.linalg.det(Q) > 0 else -Q
-
-
-def full_tensors(m: Material3D) -> tuple[np.ndarray, np.ndarray]:
-    """c_ijkl (3, 3, 3, 3) and e_kij (3, 3, 3) from the Voigt matrices (engineering shear)."""
-    c = np.zeros((3, 3, 3, 3))
-    e = np.zeros((3, 3, 3))
-    for I, (i, j) in enumerate(VOIGT_PAIRS):
-        for J, (k, l) in enumerate(VOIGT_PAIRS):
-            for a, b in {(i, j), (j, i)}:
-                for p, q in {(k, l), (l, k)}:
-                    c[a, b, p, q] = m.C[I, J]
-        for a, b in {(i, j), (j, i)}:
-            e[:, a, b] = m.e[:, I]
-    return c, e
 
 
 def rotation_defect(m: Material3D, R: np.ndarray) -> float:
