@@ -73,6 +73,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from problems.errors import SceneError
 from problems.scene.geometry import check_sizes
@@ -240,7 +241,8 @@ class Sizes:
             counts = [(model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n)]
             del model
         else:  # nothing built (contact3d: levels 0 … d counted on the level-0 mesh)
-            counts = [tuple(int(v) for v in c) for c in count(scene, range(dim + 1))]
+            with threadpool_limits(1):  # small arrays: BLAS threads cost more than they give
+                counts = [tuple(int(v) for v in c) for c in count(scene, range(dim + 1))]
         for lev in range(len(counts), dim + 1):  # levels 1 … d built where the plug-in
             model = plugin.build(scene, lev)  # cannot count them
             counts.append((model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n))
