@@ -341,16 +341,14 @@ def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
             on = skeleton.closure(mesh.boundaries[slave[1]])  # (n_entities,)
             on_slave = np.where(on, disp, 0)  # (n_entities,)
         parts.append((skeleton, disp + pot, on_slave))
-    counts = []
-    for level in levels:
-        n = nnz = m = 0
-        for skeleton, free, on_slave in parts:
-            dn, dnnz = skeleton.sums(free, level)
-            n, nnz = n + dn, nnz + dnnz
-            if on_slave is not None:
-                m = skeleton.sums(on_slave, level)[0]
-        counts.append((n + m, nnz, n))
-    return counts
+    levels = list(levels)
+    n, nnz, m = np.zeros((3, len(levels)), dtype=np.int64)  # per level
+    for skeleton, free, on_slave in parts:
+        n_nnz = np.array(skeleton.sums(free, levels), dtype=np.int64)  # (levels, 2)
+        n, nnz = n + n_nnz[:, 0], nnz + n_nnz[:, 1]
+        if on_slave is not None:
+            m = np.array([s[0] for s in skeleton.sums(on_slave, levels, pairs=False)])
+    return [(int(a + c), int(b), int(a)) for a, b, c in zip(n, nnz, m, strict=True)]
 
 
 def row_nodes(c: Contact3D) -> np.ndarray:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from fem.elements import reference_element
-from fem.jacobians import check_cells, cofactors, jacobian_determinants
+from fem.jacobians import _dets, check_cells, cofactors, determinants, jacobian_determinants
 from fem.mesh import Mesh
 from fem.meshing import box, rectangle, transform
 
@@ -101,3 +101,11 @@ def test_cofactors_against_numpy(d):
     expected = np.linalg.det(J)[..., None, None] * np.linalg.inv(J).transpose(0, 1, 3, 2)
     assert np.allclose(cofactors(J), expected, rtol=1e-12, atol=1e-12)
     assert not np.allclose(cofactors(J).transpose(0, 1, 3, 2), expected, rtol=1e-6)
+
+
+def test_3d_determinants_from_row_0_are_the_cofactor_expansions_bit_for_bit():
+    """`_dets` in 3D (row 0's cofactors only) equals `determinants(J, cofactors(J))` exactly on
+    random stacks (mutation: a cofactor's sign flipped fails)."""
+    J = np.random.default_rng(3).normal(size=(200, 7, 3, 3))  # (cells, points, 3, 3)
+    assert np.array_equal(_dets(J), determinants(J, cofactors(J)))
+    assert np.allclose(_dets(J), np.linalg.det(J))

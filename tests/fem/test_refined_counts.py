@@ -175,7 +175,7 @@ def test_the_counts_on_the_coarse_mesh_are_the_refined_meshs(kind, level, seed):
     w = _entity_weights(sk, coarse, fixes)
     fine = refine(coarse, level)
     nodes, pairs = _built(fine, _weights(fine, fixes))
-    got_nodes, got_pairs = sk.sums(w, level)
+    got_nodes, got_pairs = sk.sums(w, [level])[0]
     assert got_nodes == nodes
     bound = sk.pair_bound(w, level)
     assert abs(got_pairs - pairs) <= bound
@@ -192,25 +192,53 @@ def test_mutation_a_formula_off_by_one_entity_kind_is_caught(monkeypatch):
     w = _entity_weights(sk, coarse, fixes)
     fine = refine(coarse, 2)
     want = _built(fine, _weights(fine, fixes))
-    assert sk.sums(w, 2) == want
+    assert sk.sums(w, [2])[0] == want
     edges = sk.of_size(2)
     bad = sk.holders.copy()
     bad[edges] = 1  # edges held by one cell each
     monkeypatch.setattr(sk, "holders", bad)
-    assert sk.sums(w, 2) != want
+    assert sk.sums(w, [2])[0] != want
     monkeypatch.undo()
     w_bad = w.copy()
     w_bad[edges] = DIM  # the parts' edges forgotten: only their vertices fixed
-    assert sk.sums(w_bad, 2)[0] != want[0]
+    assert sk.sums(w_bad, [2])[0][0] != want[0]
 
 
 def test_the_reference_tables_count_every_fine_node_and_pair():
     """N sums to the refined reference cell's nodes and T to its pattern's entries, for every
     cell type (a dropped class or a node without a parent fails)."""
-    for cell_type, V in refined_counts._REFERENCE.items():
+    for cell_type in ("triangle", "quad", "tetra", "hexahedron"):
+        V = refined_counts.reference_vertices(cell_type)  # (k, d)
         k = len(V)
         one = Mesh(V.copy(), np.arange(k)[None, :], {})
         fine = refine(one, 2)
         N, T = refined_counts.reference_tables(cell_type, 2)
         assert N.sum() == fine.n_nodes
         assert T[:, 3].sum() == _built(fine, np.ones(fine.n_nodes))[1]
+
+
+def test_several_levels_at_once_are_each_level_alone():
+    """`sums` over levels [2, 0, 1] in one call gives each level's own sums in that order;
+    `pairs=False` the same nodal sums and no pair sums (a moment taken per level, or the
+    tables of the wrong level, fails)."""
+    coarse = _mesh("structured")
+    sk = Skeleton(coarse)
+    w = _entity_weights(sk, coarse, {"left": 2, "bottom": 1})
+    alone = [sk.sums(w, [level])[0] for level in (2, 0, 1)]
+    assert sk.sums(w, [2, 0, 1]) == alone
+    assert len(set(alone)) == 3
+    assert sk.sums(w, [2, 0, 1], pairs=False) == [(n, 0) for n, _ in alone]
+
+
+@pytest.mark.parametrize("high", [50, 10**6])
+def test_codes_are_equal_exactly_where_rows_are_and_keep_their_order(high):
+    """`_codes` of (n, 8) rows of node numbers below `high` (10^6: eight columns overflow
+    2^62, so it ranks part-way): equal codes ⇔ equal rows, ordered as the rows
+    lexicographically (mutation: the overflow guard removed wraps around and fails)."""
+    rng = np.random.default_rng(high)
+    rows = rng.integers(0, high, (400, 8))
+    rows = np.concatenate([rows, rows[rng.integers(0, 400, 100)]])  # (500, 8) with repeats
+    code = refined_counts._codes(rows)  # (500,)
+    _, rank = np.unique(rows, axis=0, return_inverse=True)  # lexicographic ranks of the rows
+    _, code_rank = np.unique(code, return_inverse=True)
+    assert np.array_equal(code_rank.ravel(), rank.ravel())
