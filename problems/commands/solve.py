@@ -13,6 +13,7 @@ from problems.errors import SceneError
 from problems.output import signals
 from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import jsonable, output_folder
+from problems.pipeline import adaptive
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 
 from . import load_path, resources
@@ -65,6 +66,8 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
             run, coarse = _solve_levels(args, loaded, level, tmp)
         model, sol, nested = run.model, run.solution, run.nested
         extras = plugin.postprocess(model, sol, tmp)
+        est = adaptive.estimate_output(plugin, model, sol, tmp)  # {} without `estimate`
+        extras = {**extras, **est, "files": [*extras.get("files", []), *est.get("files", [])]}
         files = [*extras.get("files", [])]
         warnings = model.warnings + sol.warnings + extras.get("warnings", [])
         if path is None:
@@ -244,6 +247,9 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
             f"{info['krylov_iterations']}, {len(fb)} direct fallback(s)"
             + "".join(f"; step {f['step']}: {f['reason']}" for f in fb)
         )
+    if "estimate" in summary:  # the plug-in's a posteriori estimate (issue 32)
+        est = summary["estimate"]
+        out.append(f"  error estimate {est['total']:.3e} (relative {est['relative']:.2e})")
     t = summary["time_s"]
     out.append(f"  time {t['total']:.2f} s (build {t['build']:.2f} s, solve {t['solve']:.2f} s)")
     out += [f"  warning: {w}" for w in summary["warnings"]]
