@@ -36,6 +36,24 @@ def level(text: str) -> int:
     return v
 
 
+def accuracy(text: str) -> str | float:
+    """argparse type of --accuracy: a preset name of `solve.ACCURACY`, or a relative error
+    estimate in (0, 1) for the adaptive loop."""
+    from .solve import ACCURACY
+
+    if text in ACCURACY:
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        v = -1.0
+    if not 0.0 < v < 1.0:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: one of {', '.join(ACCURACY)}, or a relative error estimate in (0, 1)"
+        )
+    return v
+
+
 def tol(text: str) -> float:
     """argparse type: a relative residual tolerance in (0, 1)."""
     try:

@@ -29,6 +29,10 @@ def cmd_solve(args: argparse.Namespace) -> int:
     """Solve one scene; exit status 0 converged, 1 not converged or (without --allow-defect) a
     contact interface whose mortar patch defect exceeds PATCH_DEFECT_LIMIT."""
     t0 = time.perf_counter()
+    if isinstance(args.accuracy, float):  # adaptive refinement to that estimate (issue 32)
+        from .adapt import run
+
+        return run(args, load(args), args.accuracy)
     if args.accuracy is not None:  # a preset fills in what was not given explicitly
         level, tol = ACCURACY[args.accuracy]
         args.level = level if args.level is None else args.level
