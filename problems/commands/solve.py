@@ -17,12 +17,9 @@ from problems.pipeline import adaptive
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 
 from . import load_path, resources
-from .options import DEFAULT_SCENE, solver_options
+from .options import ACCURACY, DEFAULT_SCENE, solver_options
 from .progress import bar as progress_bar
 from .progress import newton_status
-
-# --accuracy presets: (level, tol); measured time and error on the paper scene in the README
-ACCURACY = {"fast": (1, 1e-6), "balanced": (2, 1e-8), "fine": (3, 1e-10)}
 
 
 def cmd_solve(args: argparse.Namespace) -> int:

@@ -46,7 +46,7 @@ from vi_core import Solution
 from .bodies import COMPONENTS, vector
 from .contract import Indicator
 
-# the contact terms (docs/adaptivity.md): flux against λ_h, friction bound, complementarity of
+# the contact terms (module docstring): flux against λ_h, friction bound, complementarity of
 # the friction law, normal defect (penetration or weak-constraint defect)
 TERMS = ("flux", "friction", "complementarity", "normal")
 
