@@ -107,10 +107,11 @@ def parser() -> argparse.ArgumentParser:
     )
     s.add_argument(
         "--accuracy",
-        choices=list(ACCURACY),
+        type=options.accuracy,
         default=None,
         help="preset level and tolerance: "
-        + ", ".join(f"{k} = level {lv}, tol {t:g}" for k, (lv, t) in ACCURACY.items()),
+        + ", ".join(f"{k} = level {lv}, tol {t:g}" for k, (lv, t) in ACCURACY.items())
+        + "; or a number in (0, 1): adaptive refinement to that relative error estimate",
     )
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
     s.add_argument("--out", default=None, help="output directory (default out/SCENE)")

@@ -36,6 +36,26 @@ def level(text: str) -> int:
     return v
 
 
+# --accuracy presets: (level, tol); measured time and error on the paper scene in the README
+ACCURACY = {"fast": (1, 1e-6), "balanced": (2, 1e-8), "fine": (3, 1e-10)}
+
+
+def accuracy(text: str) -> str | float:
+    """argparse type of --accuracy: a preset name of `ACCURACY`, or a relative error estimate
+    in (0, 1) for the adaptive loop (`problems.commands.adapt`)."""
+    if text in ACCURACY:
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        v = -1.0
+    if not 0.0 < v < 1.0:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: one of {', '.join(ACCURACY)}, or a relative error estimate in (0, 1)"
+        )
+    return v
+
+
 def tol(text: str) -> float:
     """argparse type: a relative residual tolerance in (0, 1)."""
     try:

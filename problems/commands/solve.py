@@ -13,21 +13,23 @@ from problems.errors import SceneError
 from problems.output import signals
 from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import jsonable, output_folder
+from problems.pipeline import adaptive
 from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
 
 from . import load_path, resources
-from .options import DEFAULT_SCENE, solver_options
+from .options import ACCURACY, DEFAULT_SCENE, solver_options
 from .progress import bar as progress_bar
 from .progress import newton_status
-
-# --accuracy presets: (level, tol); measured time and error on the paper scene in the README
-ACCURACY = {"fast": (1, 1e-6), "balanced": (2, 1e-8), "fine": (3, 1e-10)}
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
     """Solve one scene; exit status 0 converged, 1 not converged or (without --allow-defect) a
     contact interface whose mortar patch defect exceeds PATCH_DEFECT_LIMIT."""
     t0 = time.perf_counter()
+    if isinstance(args.accuracy, float):  # adaptive refinement to that estimate (issue 32)
+        from .adapt import run
+
+        return run(args, load(args), args.accuracy)
     if args.accuracy is not None:  # a preset fills in what was not given explicitly
         level, tol = ACCURACY[args.accuracy]
         args.level = level if args.level is None else args.level
@@ -65,6 +67,8 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
             run, coarse = _solve_levels(args, loaded, level, tmp)
         model, sol, nested = run.model, run.solution, run.nested
         extras = plugin.postprocess(model, sol, tmp)
+        est = adaptive.estimate_output(plugin, model, sol, tmp)  # {} without `estimate`
+        extras = {**extras, **est, "files": [*extras.get("files", []), *est.get("files", [])]}
         files = [*extras.get("files", [])]
         warnings = model.warnings + sol.warnings + extras.get("warnings", [])
         if path is None:
@@ -244,6 +248,9 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
             f"{info['krylov_iterations']}, {len(fb)} direct fallback(s)"
             + "".join(f"; step {f['step']}: {f['reason']}" for f in fb)
         )
+    if "estimate" in summary:  # the plug-in's a posteriori estimate (issue 32)
+        est = summary["estimate"]
+        out.append(f"  error estimate {est['total']:.3e} (relative {est['relative']:.2e})")
     t = summary["time_s"]
     out.append(f"  time {t['total']:.2f} s (build {t['build']:.2f} s, solve {t['solve']:.2f} s)")
     out += [f"  warning: {w}" for w in summary["warnings"]]

@@ -9,6 +9,9 @@ after body, displacement (d·N, node-major: dof d·i + k) then potential (N).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Annotated, ClassVar, Literal
 
@@ -198,10 +201,27 @@ def free_per_entity(
     return body.dim - fixed.sum(axis=1), (~grounded).astype(int)
 
 
+# The meshes to build the bodies on instead of meshing their geometries (body name → Mesh):
+# the adaptive loop (`problems.pipeline.adaptive`) rebuilds a scene on its refined meshes
+GIVEN_MESHES: ContextVar[dict[str, Mesh] | None] = ContextVar("GIVEN_MESHES", default=None)
+
+
+@contextmanager
+def given_meshes(meshes: dict[str, Mesh]) -> Iterator[None]:
+    """Within it, `build_body` takes the body's mesh from `meshes` where it has one."""
+    token = GIVEN_MESHES.set(meshes)
+    try:
+        yield
+    finally:
+        GIVEN_MESHES.reset(token)
+
+
 def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
     """Mesh one validated `[bodies.NAME]` table (2D or 3D) and assemble the body's blocks (the
-    boundary references checked now if the geometry's parts are known only once meshed)."""
-    mesh = t.geometry.mesh(level)
+    boundary references checked now if the geometry's parts are known only once meshed); the
+    mesh is `given_meshes`'s where it has one."""
+    given = (GIVEN_MESHES.get() or {}).get(name)
+    mesh = t.geometry.mesh(level) if given is None else given
     if t.geometry.BOUNDARIES is None:
         check_meshed(mesh, t.boundary_refs())
     body = Body(name, mesh, t.material.material(), offset)

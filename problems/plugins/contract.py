@@ -72,6 +72,11 @@ declaration it needs with exit status 2, naming the declaration):
                                                change `model`); None: that step is built.
                                                Without it every step is built from the scene
                                                (the answers are the same to rounding)
+    estimate(model, sol) -> dict[str, Indicator]  `mixvi solve` (estimate_BODY.vtu, summary
+                                               "estimate"; `--accuracy`): per body its mesh,
+                                               the (n_cells,) a posteriori indicators η_T and
+                                               the energy ‖U_h‖² the relative estimate
+                                               divides by (`Indicator`)
     step_output(model, sol, outdir) -> dict    load paths: the files of one load step (cheap:
                                                VTU datasets, tables; no plots) and the summary
                                                entries "files" and "contact" (counts per state:
@@ -169,6 +174,15 @@ V1_TO_V2 = (
     "reference_errors (mixvi study), extremes() (mixvi extremes) — see docs/plugins.md, "
     "'From contract v1 to v2'"
 )
+
+
+@dataclass(frozen=True, eq=False)
+class Indicator:
+    """One body's a posteriori error indicators (the optional `estimate` declaration)."""
+
+    mesh: Mesh
+    eta: np.ndarray  # (n_cells,) η_T ≥ 0, the estimate is (Σ η_T²)^{1/2}
+    energy: float  # ‖U_h‖² in the norm η estimates (relative estimate: η / √energy)
 
 
 @dataclass(frozen=True)
@@ -269,6 +283,7 @@ def conforms(obj: Any) -> list[str]:
         "problem_at",
         "incremental",
         "step_output",
+        "estimate",
     )
     for attr in optional:
         if hasattr(obj, attr) and not callable(getattr(obj, attr)):

@@ -238,3 +238,11 @@ def extremes() -> list[ExtremeRow]:
             checks=(expect(_counts, in_contact=0),),
         ),
     ]
+
+
+from .contact_estimate import estimate as _estimate  # noqa: E402 (issue 32)
+
+
+def estimate(model: Model, sol: Solution) -> dict:
+    """A posteriori error indicators per cell (`contact_estimate.estimate`)."""
+    return _estimate(lambda scene: piezo_spec(scene.validated(SCENE_MODEL)), model, sol)

@@ -1,0 +1,135 @@
+"""The a posteriori error estimate of a solved model (the plug-in's optional `estimate`): its
+files and summary entries (`estimate_output`), its totals (`totals`), and the adaptive loop
+that refines where it is large (`adapt`, `mixvi solve --accuracy 1e-3`)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fem.io import write_vtu
+from problems.plugins.contract import Indicator
+from vi_core import Solution
+
+
+def totals(indicators: dict[str, Indicator]) -> dict[str, float]:
+    """{"total": (Σ η_T²)^{1/2} over the bodies, "relative": total / (Σ ‖U_h‖²)^{1/2}}."""
+    total = float(np.sqrt(sum(float((i.eta**2).sum()) for i in indicators.values())))
+    energy = sum(i.energy for i in indicators.values())
+    return {"total": total, "relative": total / np.sqrt(energy) if energy > 0 else float("inf")}
+
+
+def estimate_output(plugin: Any, model: Any, sol: Solution, outdir: Path) -> dict:
+    """With the plug-in's `estimate`: estimate_BODY.vtu (cell field "eta") per body in `outdir`
+    and the summary entries {"estimate": {"total", "relative", "bodies": {BODY: total}},
+    "files": [...]}; without it, {}."""
+    if not hasattr(plugin, "estimate"):
+        return {}
+    indicators = plugin.estimate(model, sol)
+    files = []
+    for name, ind in indicators.items():
+        write_vtu(outdir / f"estimate_{name}.vtu", ind.mesh, None, {"eta": ind.eta})
+        files.append(f"estimate_{name}.vtu")
+    bodies = {k: float(np.sqrt((i.eta**2).sum())) for k, i in indicators.items()}
+    return {"estimate": {**totals(indicators), "bodies": bodies}, "files": files}
+
+
+def adapt(
+    plugin: Any,
+    scene: Any,
+    accuracy: float,
+    *,
+    theta: float = 0.5,
+    max_unknowns: int = 200_000,
+    max_cycles: int = 30,
+    solve_options: dict | None = None,
+    on_cycle: Callable[[dict], None] | None = None,
+) -> tuple[Any, Solution, list[dict], str]:
+    """The adaptive loop: solve → estimate → Dörfler mark (θ, over all bodies' cells at once)
+    → newest-vertex bisection (`fem.bisection.refine_marked`) → rebuild the scene on the refined
+    meshes (`bodies.given_meshes`) → solve from the plug-in's nested start (`warm_start`: the
+    previous solution carried to the new nodes), until the relative estimate is ≤ `accuracy`,
+    the next mesh would pass `max_unknowns` (4× the current unknowns, the most one Dörfler step
+    can make), or `max_cycles`. Level 0 of the scene is the first mesh (quadrilaterals split
+    into triangles: `fem.bisection.prepared`). New boundary nodes lie on the coarse boundary
+    segments (a curved boundary stays the level-0 polygon).
+
+    Returns (model, solution, cycles, why it stopped); each cycle is {"cycle", "unknowns",
+    "estimate", "relative", "contact_nodes", "time_s"} plus the plug-in's exact errors where
+    the scene has them ("errors"); `on_cycle(row)` is called after each."""
+    from fem.bisection import prepared, refine_marked
+    from fem.marking import dorfler_mark
+    from problems.plugins.bodies import given_meshes
+    from problems.plugins.contract import nested_start, solve_model
+
+    options = dict(solve_options or {})
+    first = plugin.build(scene, 0)
+    meshes = {b.name: prepared(b.mesh) for b in first.bodies}
+    cycles: list[dict] = []
+    prev = None
+    for k in range(max_cycles):
+        t0 = time.perf_counter()
+        with given_meshes(meshes):
+            model = plugin.build(scene, 0)
+        start = nested_start(plugin, *prev, model)[0] if prev is not None else {}
+        sol = solve_model(plugin, model, **options, **start)
+        indicators = plugin.estimate(model, sol)
+        row = {
+            "cycle": k,
+            "unknowns": int(sum(model.dofs.values())),
+            **totals(indicators),
+            "contact_nodes": 0 if model.contact is None else int(model.contact.tr.size),
+            "converged": bool(sol.converged),
+        }
+        errors = plugin.exact_errors(model, sol) if hasattr(plugin, "exact_errors") else None
+        if errors is not None:
+            row["errors"] = errors
+        row["time_s"] = time.perf_counter() - t0
+        cycles.append(row)
+        if on_cycle is not None:
+            on_cycle(row)
+        if row["relative"] <= accuracy:
+            return model, sol, cycles, f"relative estimate {row['relative']:.3g} ≤ {accuracy:g}"
+        if 4 * row["unknowns"] > max_unknowns:
+            return model, sol, cycles, f"the next mesh could pass {max_unknowns} unknowns"
+        names = list(indicators)
+        eta = np.concatenate([indicators[n].eta for n in names])  # (Σ n_cells,)
+        marked = np.split(
+            dorfler_mark(eta, theta), np.cumsum([indicators[n].eta.size for n in names])[:-1]
+        )
+        meshes = {n: refine_marked(meshes[n], m)[0] for n, m in zip(names, marked, strict=True)}
+        prev = (model, sol)
+    return model, sol, cycles, f"{max_cycles} cycles"
+
+
+def convergence_plot(path: Path, cycles: list[dict], uniform: list[dict], title: str) -> None:
+    """Estimate (and the first exact error norm, where there is one) against unknowns, for the
+    adaptive cycles and the uniform levels, log-log."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    err_ax = None
+    for rows, style, label in ((cycles, "o-", "adaptive"), (uniform, "s--", "uniform")):
+        n = [r["unknowns"] for r in rows]
+        ax.loglog(n, [r["total"] for r in rows], style, color="C0", label=f"estimate, {label}")
+        if rows and rows[0].get("errors"):  # another unit: its own axis
+            key = next(iter(rows[0]["errors"]))
+            err_ax = err_ax or ax.twinx()
+            err_ax.set_yscale("log")
+            err_ax.loglog(n, [r["errors"][key] for r in rows], style, color="C3", mfc="none")
+            err_ax.set_ylabel(f"exact error {key} (red)")
+    ax.set_xlabel("unknowns")
+    ax.set_ylabel("error estimate, energy norm (blue)")
+    ax.set_title(f"{title}: adaptive (circles) and uniform (squares)")
+    ax.legend(fontsize=8, loc="lower left")
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
