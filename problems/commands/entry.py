@@ -1,5 +1,6 @@
 """The `mixvi` console script: SIGINT/SIGTERM are handled before the command line's heavy
-imports (NumPy, SciPy, cvxpy, matplotlib take a second or more), so a Ctrl-C at any moment
+imports (NumPy, SciPy, cvxpy, matplotlib take a second or more; `main` imports them when a
+command runs, inside its own handling of failures and signals), so a Ctrl-C at any moment
 ends with one line and exit status 130, never a traceback. An address-space limit too small
 for those imports is refused before them, and an import that fails for lack of memory is
 reported as such (`failures`), both with exit status 2. After an interruption (exit status
@@ -22,10 +23,7 @@ def run() -> int:
         return 2
     signals.install()
     try:
-        from .main import main
-        from .resources import fix_mmap_threshold
-
-        fix_mmap_threshold()
+        from .main import main  # light: a command's heavy imports happen when it runs
     except KeyboardInterrupt as sig:
         name = str(sig) if isinstance(sig, signals.Interrupted) else "SIGINT"
         print(f"mixvi: interrupted by {name}", file=sys.stderr)

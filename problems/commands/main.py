@@ -15,22 +15,20 @@ interrupted by SIGINT / SIGTERM (one line; output folders as they were before th
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import signal
 import sys
 
 from problems.errors import SceneError
 from problems.output import signals
-from vi_core.linear_solvers import LINEAR_SOLVERS
 
 from . import failures, options
-from .check import cmd_check
-from .figures import cmd_figures
 from .options import DEFAULT_SCENE
-from .scenes import cmd_scenes
-from .schema import cmd_schema
-from .solve import ACCURACY, cmd_solve
-from .validate import cmd_validate
+
+# Nothing heavy is imported at the top (NumPy, SciPy, pydantic, cvxpy, matplotlib: seconds):
+# `mixvi --help` builds only the list of commands (`parser(full=False)`); a command's module is
+# imported when it runs (`_command`). tests/problems/commands/test_startup.py checks it.
 
 SET_HELP = "override a scene value, e.g. contact.g=5e7 (repeatable)"
 
@@ -56,12 +54,28 @@ def add_output_options(p: argparse.ArgumentParser) -> None:
     add_force(p)
 
 
-# the commands with their own argument parsers (dispatched before `parser()` runs); listed in
-# `mixvi --help` with one line each
-OWN_PARSERS = {
+# every command with its one line of `mixvi --help`
+COMMANDS = {
+    "solve": "solve a scene; write results (JSON, CSV, VTU, PNG)",
+    "scenes": "list the shipped scenes with their plug-in and title",
+    "schema": "print the JSON Schema of scenes (every plug-in's section)",
+    "validate": "check a scene, its --set overrides and its mesh files without solving",
+    "new": "write a commented scene template, copied from a shipped scene or a scene file",
+    "check": "solve with every applicable method and compare",
+    "figures": "solve for a few values of one scene parameter (the friction bound g: Fig. 5.4) "
+    "and plot them side by side",
     "study": "accuracy and cost of every solver over levels and tolerances",
+    "sweep": "solve a scene over a grid of parameter values; a table and plots of chosen outputs",
     "bench": "time the nonlinear solve against one linear solve",
     "extremes": "the shipped scenes pushed to extreme data, each row checked",
+}
+# the commands with their own argument parsers: module, entry function (dispatched before
+# `parser()` runs)
+OWN_PARSERS = {
+    "study": ("study", "study_main"),
+    "sweep": ("sweep", "sweep_main"),
+    "bench": ("bench", "bench_main"),
+    "extremes": ("extremes", "extremes_main"),
 }
 EPILOG = (
     "Run 'mixvi COMMAND --help' for a command's options. Exit status: 0 all good, 1 ran but "
@@ -70,8 +84,10 @@ EPILOG = (
 )
 
 
-def parser() -> argparse.ArgumentParser:
-    """The argument parser of solve, scenes, check and figures (and the list of all commands)."""
+def parser(full: bool = True) -> argparse.ArgumentParser:
+    """The argument parser of solve, scenes, schema, validate, new, check and figures (and the
+    list of all commands); `full=False`: the list of commands only (`mixvi --help`, nothing
+    heavy imported)."""
     p = argparse.ArgumentParser(
         prog="mixvi",
         description="mixvi: mixed variational inequalities; frictional contact of "
@@ -79,9 +95,17 @@ def parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
     )
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    if not full:
+        for name, helptext in COMMANDS.items():
+            sub.add_parser(name, help=helptext, add_help=False)
+        return p
+    from vi_core.linear_solvers import LINEAR_SOLVERS
+
+    from .solve import ACCURACY
+
     s = sub.add_parser(
         "solve",
-        help="solve a scene; write results (JSON, CSV, VTU, PNG)",
+        help=COMMANDS["solve"],
         description="Solve a scene and write its results (summary.json, contact.csv, one VTU "
         "per body, contact.vtu, results.pvd, PNG plots) into a folder.",
     )
@@ -132,34 +156,30 @@ def parser() -> argparse.ArgumentParser:
         action="store_true",
         help="exit 0 even if a contact interface's mortar patch defect exceeds 1e-8",
     )
-    s.set_defaults(func=cmd_solve)
-    sc = sub.add_parser("scenes", help="list the shipped scenes with their plug-in and title")
-    sc.set_defaults(func=cmd_scenes)
-    sh = sub.add_parser("schema", help="print the JSON Schema of scenes (every plug-in's section)")
+    s.set_defaults(func="solve:cmd_solve")
+    sc = sub.add_parser("scenes", help=COMMANDS["scenes"])
+    sc.set_defaults(func="scenes:cmd_scenes")
+    sh = sub.add_parser("schema", help=COMMANDS["schema"])
     sh.add_argument(
         "--markdown",
         action="store_true",
         help="print the scene reference (Markdown tables) generated from the schema instead",
     )
-    sh.set_defaults(func=cmd_schema)
+    sh.set_defaults(func="schema:cmd_schema")
     v = sub.add_parser(
         "validate",
-        help="check a scene, its --set overrides and its mesh files without solving",
+        help=COMMANDS["validate"],
         description="Check a scene, its overrides and the mesh files it names (groups, cells, "
         "contact curves) as a solve's build would, at level 0; nothing is solved or written.",
     )
     v.add_argument("scene", help="scene file or shipped name")
     v.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
-    v.set_defaults(func=cmd_validate)
-    for name, fn, helptext in (
-        ("check", cmd_check, "solve with every applicable method and compare"),
-        (
-            "figures",
-            cmd_figures,
-            "solve for a few values of one scene parameter (the friction bound g: Fig. 5.4) "
-            "and plot them side by side",
-        ),
-    ):
+    v.set_defaults(func="validate:cmd_validate")
+    from .template import add_new_parser
+
+    add_new_parser(sub, COMMANDS["new"])
+    for name, fn in (("check", "check:cmd_check"), ("figures", "figures:cmd_figures")):
+        helptext = COMMANDS[name]
         c = sub.add_parser(name, help=helptext, description=helptext[0].upper() + helptext[1:])
         c.add_argument("scene", nargs="?", help=f"scene (default {DEFAULT_SCENE})")
         c.add_argument(
@@ -178,8 +198,8 @@ def parser() -> argparse.ArgumentParser:
             )
         add_output_options(c)
         c.set_defaults(func=fn)
-    for name, helptext in OWN_PARSERS.items():  # listed here, parsed by their own parsers
-        sub.add_parser(name, help=helptext, add_help=False)
+    for name in OWN_PARSERS:  # listed here, parsed by their own parsers
+        sub.add_parser(name, help=COMMANDS[name], add_help=False)
     return p
 
 
@@ -206,22 +226,29 @@ def _glue_values(argv: list[str]) -> list[str]:
     return out
 
 
+def _command(target: str):
+    """The function `"module:name"` of a command module, imported now."""
+    module, _, name = target.partition(":")
+    return getattr(importlib.import_module(f"{__package__}.{module}"), name)
+
+
 def _dispatch(argv: list[str]) -> int:
     argv = _glue_values(argv)
-    if argv[:1] == ["bench"]:  # its own argument parser (benchmark options)
-        from .bench import bench_main
-
-        return bench_main(argv[1:])
-    if argv[:1] == ["extremes"]:  # its own argument parser
-        from .extremes import extremes_main
-
-        return extremes_main(argv[1:])
-    if argv[:1] == ["study"]:  # its own argument parser (study options)
-        from .study import study_main
-
-        return study_main(argv[1:])
+    if argv[:1] and argv[0] in OWN_PARSERS:  # its own argument parser
+        _prepare()
+        return _command(":".join(OWN_PARSERS[argv[0]]))(argv[1:])
+    if not argv or argv[0] not in COMMANDS:  # `mixvi --help`, no command, an unknown one
+        parser(full=False).parse_args(argv)  # prints the help or the error and exits
+    _prepare()
     args = parser().parse_args(argv)
-    return args.func(args)
+    return _command(args.func)(args)
+
+
+def _prepare() -> None:
+    """Before a command runs: glibc's mmap threshold fixed (`resources.fix_mmap_threshold`)."""
+    from .resources import fix_mmap_threshold
+
+    fix_mmap_threshold()
 
 
 def main(argv: list[str] | None = None) -> int:

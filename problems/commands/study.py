@@ -1,10 +1,13 @@
 """`mixvi study`: accuracy and cost of every solver over a range of refinement levels.
 
-    mixvi study SCENE [--levels A..B] [--solvers ssn,conic,homotopy] [--tols 1e-6,1e-8,1e-10]
+    mixvi study SCENE [--levels A..B] [--solvers ssn,conic,...] [--tols 1e-6,1e-8,1e-10]
                       [--set KEY=VALUE ...] [--out DIR] [--no-progress] [--vtu]
                       [--workers N | --scheduler ADDRESS]
 
-Defaults: levels 0..3, all three solvers, tolerances 1e-6, 1e-8, 1e-10.
+Defaults: levels 0..3, every solver that can run the scene (`applicable`: ssn, conic and
+homotopy for a fixed convex set, conic only where A is not general; ssn and fixed_point for
+Coulomb or unilateral contact blocks), tolerances 1e-6, 1e-8, 1e-10. A solver in --solvers
+that cannot run the scene is refused (exit 2).
 
 For each level, solver and tolerance it records the solve time (`Solution.time`, wall clock),
 the iterations, the peak memory (tracemalloc peak during the solve: numpy arrays and Python
@@ -13,14 +16,16 @@ plug-in declares (contract v2: `NORMS`, `mesh_size`, `reference_errors`, optiona
 `exact_errors` with its own names `EXACT_NORMS` where they differ; for
 piezo_contact those of Theorem 4.1, `problems.plugins.piezo_errors`): against the scene's exact
 solution if it has one (`exact_errors` not None), otherwise against the finest level solved by
-the same solver at the tightest tolerance (that level's own records then carry only the solver
-error of looser tolerances, and rates are fitted over the levels below it).
+the same solver at the tightest tolerance. That level is then the reference: its records
+are marked `"reference": true` (they carry only the solver error of looser tolerances, and
+rounding at the tightest) and are left out of the rates, of the table's rate column and of the
+figures.
 
 With `--workers N` the (level, solver) cases run as Dask tasks on a local cluster of N
 single-threaded worker processes (N lowered, with a one-line notice, to the cores, to the
 workers whose memory estimate of the finest level fits in the memory available, and to the
 cases); with `--scheduler ADDRESS` on a running dask.distributed
-cluster (optional extra: `pip install mixvi[dask]`). Every case is solved with BLAS limited to
+cluster (optional extra: `pip install -e ".[dask]"`). Every case is solved with BLAS limited to
 one thread, in the serial run too, so every number except times and memory peaks is the same
 either way. A task that fails (not bad input) is a failed record with its cause (`error`).
 
@@ -29,7 +34,7 @@ Output (committed into DIR, default out/SCENE_study, by problems.output.files): 
     {"scene", "plugin", "norms": [NORMS...], "reference": "exact" | "level N",
      "records": [{"level", "h", "unknowns", "solver", "tol", "time_s", "iterations",
                   "err": {norm: value for norm in NORMS},
-                  "converged", "residual", "peak_mem_mb"}],
+                  "converged", "residual", "peak_mem_mb", ["reference": true]}],
      "rates": {"<solver>": {norm: slope or null}}}
 
 (rates: slope of np.polyfit(log h, log err) over the last three levels with an error, at the
@@ -68,15 +73,36 @@ from . import options, resources
 from .options import level_range
 from .progress import bar as progress_bar
 
-SOLVERS = ("ssn", "conic", "homotopy")
+SOLVERS = ("ssn", "conic", "homotopy", "fixed_point")
 RATE_LEVELS = 3
 STUDY_NEEDS = ("NORMS", "mesh_size", "reference_errors")  # exact_errors: optional
 
 
 # ------------------------------------------------------------------ argument parsing
-def parse_solvers(text: str) -> list[str]:
-    """'ssn,conic' → ['ssn', 'conic'] (each one of SOLVERS, no repeats)."""
-    return options.names(text, "--solvers", SOLVERS)
+def parse_solvers(text: str, allowed: list[str] | tuple[str, ...] = SOLVERS) -> list[str]:
+    """'ssn,conic' → ['ssn', 'conic'] (each one of `allowed`, no repeats)."""
+    return options.names(text, "--solvers", allowed)
+
+
+def applicable(model: Any) -> tuple[list[str], str]:
+    """The solvers of SOLVERS that can run the built `model`, and why the others cannot: ssn
+    and the fixed point for a multiplier set with Coulomb or unilateral contact blocks; ssn,
+    conic (not for a general A) and homotopy for a fixed convex set."""
+    if pipeline.has_contact_set(model.vi):
+        return ["ssn", "fixed_point"], (
+            "its multiplier set holds Coulomb or unilateral contact blocks: conic and "
+            "homotopy need a fixed convex set"
+        )
+    if model.vi.structure == "general":
+        return ["ssn", "homotopy"], (
+            "a fixed convex set with a general A: conic needs a symmetric or skew-coupled A, "
+            "fixed_point iterates on contact blocks"
+        )
+    return [
+        "ssn",
+        "conic",
+        "homotopy",
+    ], "a fixed convex set: fixed_point iterates on contact blocks"
 
 
 def parse_tols(text: str) -> list[float]:
@@ -186,6 +212,10 @@ def run_study(
         signals.interruptible(
             _reference_errors, plugin, scene, records, runs, max(levels), tols[-1]
         )
+    if not exact:  # the finest level is the reference (module docstring)
+        for r in records:
+            if r["level"] == max(levels):
+                r["reference"] = True
     ok = [r for r in records if r.get("err") is not None]
     norms = getattr(plugin, "EXACT_NORMS", plugin.NORMS) if exact else plugin.NORMS
     return {
@@ -286,6 +316,9 @@ def table(result: dict) -> str:
         cells = []
         for k in result["norms"]:
             e, p = r["err"][k], prev.get(key)
+            if r.get("reference"):
+                cells.append(f"{e:9.2e} {'ref':>5}")
+                continue
             ok = p is not None and e > 0 and p["err"][k] > 0
             rate = math.log(p["err"][k] / e) / math.log(p["h"] / r["h"]) if ok else None
             cells.append(f"{e:9.2e} {rate:5.2f}" if rate is not None else f"{e:9.2e} {'':>5}")
@@ -295,7 +328,11 @@ def table(result: dict) -> str:
             f"{r['tol']:7.0e} {r['iterations']:>4} {r['time_s']:8.2f} {r['peak_mem_mb']:8.1f} "
             + " ".join(cells)
         )
-    lines.append(f"errors against: {result['reference']}")
+    ref = result["reference"]
+    lines.append(
+        f"errors against: {ref}"
+        + ("" if ref == "exact" else " (its rows, 'ref': no rate, not in rates or figures)")
+    )
     for solver, rates in result["rates"].items():
         txt = ", ".join(f"{k} {v:.2f}" if v is not None else f"{k} -" for k, v in rates.items())
         lines.append(f"rates ({solver}, last {RATE_LEVELS} levels, tightest tol): {txt}")
@@ -344,7 +381,11 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="mixvi study", description=__doc__.splitlines()[0])
     p.add_argument("scene", help="scene file or shipped name")
     p.add_argument("--levels", default="0..3", help="levels A..B (default 0..3)")
-    p.add_argument("--solvers", default=",".join(SOLVERS), help="comma list (default: all)")
+    p.add_argument(
+        "--solvers",
+        default=None,
+        help="comma list of " + ", ".join(SOLVERS) + " (default: those that can run the scene)",
+    )
     p.add_argument("--tols", default="1e-6,1e-8,1e-10", help="comma list of tolerances")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene value")
     p.add_argument("--out", default=None, help="output directory (default out/SCENE_study)")
@@ -361,7 +402,7 @@ def parser() -> argparse.ArgumentParser:
         type=_workers,
         default=None,
         help="run the cases as Dask tasks on a local cluster of N single-threaded worker "
-        "processes (needs the optional extra: pip install mixvi[dask])",
+        'processes (optional extra: pip install -e ".[dask]")',
     )
     where.add_argument(
         "--scheduler",
@@ -401,10 +442,13 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
-def worker_count(asked: int, per_worker: float, cases: int) -> tuple[int, str | None]:
+def worker_count(
+    asked: int, per_worker: float, cases: int, command: str = "mixvi study"
+) -> tuple[int, str | None]:
     """The local workers to start for `--workers asked`: at most the cores, as many as fit in
     the memory available now at `per_worker` bytes each (at least one) and no more than the
-    cases; with the one-line notice to print when that is fewer than asked (else None)."""
+    cases; with the one-line notice (of `command`) to print when that is fewer than asked
+    (else None)."""
     _, available = resources.memory()
     fit = max(1, int(available // per_worker))
     n = min(asked, cores(), fit, cases)
@@ -414,7 +458,7 @@ def worker_count(asked: int, per_worker: float, cases: int) -> tuple[int, str | 
         f"{cores()} cores, {resources.gb(available)} available at up to "
         f"{resources.gb(per_worker)} per worker, {cases} case(s)"
     )
-    return n, f"mixvi study: --workers {asked} lowered to {n} ({why})"
+    return n, f"{command}: --workers {asked} lowered to {n} ({why})"
 
 
 def _end_workers() -> None:
@@ -440,7 +484,7 @@ def _client(args: argparse.Namespace) -> Iterator[Any]:
         from dask.distributed import Client, LocalCluster
     except ImportError:
         raise SceneError(
-            option, args.workers or args.scheduler, "available after: pip install mixvi[dask]"
+            option, args.workers or args.scheduler, 'available after: pip install -e ".[dask]"'
         ) from None
     if args.workers is not None:
         with (
@@ -469,12 +513,19 @@ def study_main(argv: list[str] | None = None) -> int:
     """Entry point of `mixvi study`: 0 if every solve converged, 1 if not, 2 on bad input."""
     args = parser().parse_args(argv)
     a, b = level_range(args.levels)
-    solvers = parse_solvers(args.solvers)
+    solvers = parse_solvers(args.solvers) if args.solvers is not None else None
     tols = parse_tols(args.tols)
     scene = load_scene(args.scene, args.set or [])
     plugin = registry.for_scene(scene)
     needs(plugin, "mixvi study", *STUDY_NEEDS)
     sizes = resources.check_levels(plugin, scene, (a, b), "--levels", args.levels, args.force)
+    with threadpool_limits(1):
+        can, why = applicable(signals.interruptible(plugin.build, scene, a))
+    if solvers is None:
+        solvers = can
+    for s in solvers:
+        if s not in can:
+            raise SceneError("--solvers", s, f"one of {', '.join(can)} for this scene ({why})")
     if args.workers is not None:  # 256 workers on 2 cores were killed for memory (issue 29)
         per_worker = sizes.estimate(b).upper_bytes + DASK_WORKER_BYTES
         args.workers, note = worker_count(args.workers, per_worker, (b - a + 1) * len(solvers))

@@ -26,7 +26,13 @@ UNITS_NOTE = "H¹ norms mix L² (× m) and gradient parts; lengths in m"
 
 
 def _series(result: dict, solver: str, tol: float) -> list[dict]:
-    rows = [r for r in result["records"] if r["solver"] == solver and r["tol"] == tol]
+    """The records of `solver` at `tol` with errors, by level; the reference level's records
+    (`"reference": true`: errors against themselves) left out."""
+    rows = [
+        r
+        for r in result["records"]
+        if r["solver"] == solver and r["tol"] == tol and not r.get("reference")
+    ]
     return sorted((r for r in rows if r.get("err") is not None), key=lambda r: r["level"])
 
 
@@ -59,7 +65,8 @@ def plot_errors_vs_h(result: dict, path: Path) -> None:
         ax.set_xlabel("mesh size h [m]")
         ax.set_ylabel(LABELS.get(k, k))
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        if ax.get_legend_handles_labels()[0]:  # a norm that is zero everywhere has no line
+            ax.legend(fontsize=8)
     fig.suptitle(
         f"{result['scene']}: errors against {result['reference']} (tol {tight:g}); {UNITS_NOTE}",
         fontsize=9,

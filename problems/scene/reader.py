@@ -97,21 +97,36 @@ class Scene:
 
 
 def find_scene(name_or_path: str) -> Path:
-    """A scene file by path, or by the name of a shipped scene (`mixvi scenes`)."""
+    """A scene file by path, by the name of a local file without `.toml` (`x` for ./x.toml),
+    or by the name of a shipped scene (`mixvi scenes`). A name that is both a local x.toml and
+    a shipped scene is refused (SceneError naming both and how to pick each): neither wins
+    silently."""
     p = Path(name_or_path)
     try:  # a name too long for the file system, or otherwise unusable: not found
         if p.is_file():
             return p
+        local = p.with_name(f"{p.name}.toml") if p.name and p.suffix != ".toml" else None
+        local = local if local is not None and local.is_file() else None
         shipped = SCENES_DIR / f"{name_or_path}.toml"
-        if shipped.is_file():
-            return shipped
+        shipped = shipped if shipped.is_file() else None
     except (OSError, ValueError):
-        pass
+        local = shipped = None
+    if local is not None and shipped is not None:
+        raise SceneError(
+            "scene",
+            name_or_path,
+            f"one scene; this name is both the file {local} and a shipped scene: write "
+            f"{local} for the file, or {shipped} for the shipped scene",
+        )
+    if local is not None or shipped is not None:
+        return local or shipped
     names = sorted(q.stem for q in SCENES_DIR.glob("*.toml"))
     hint = difflib.get_close_matches(name_or_path, names, n=1)
     extra = f" (did you mean {hint[0]!r}?)" if hint else ""
     raise SceneError(
-        "scene", name_or_path, f"an existing file or a shipped scene: {', '.join(names)}{extra}"
+        "scene",
+        name_or_path,
+        f"an existing file (x.toml may be named x) or a shipped scene: {', '.join(names)}{extra}",
     )
 
 

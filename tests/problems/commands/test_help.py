@@ -12,11 +12,13 @@ from problems.commands.main import OWN_PARSERS, main, parser
 COMMANDS = (
     "solve",
     "validate",
+    "new",
     "schema",
     "scenes",
     "check",
     "figures",
     "study",
+    "sweep",
     "bench",
     "extremes",
 )

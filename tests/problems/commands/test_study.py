@@ -129,3 +129,55 @@ def test_study_solves_the_electrical_contact_problem(fault, monkeypatch):
     assert all(r["converged"] for r in res["records"])
     for (level, _, _), sol in sols.items():
         assert matches(pc.build(scene, level), sol) != fault
+
+
+def test_applicable_solvers_follow_the_multiplier_set():
+    from problems.plugins import registry
+
+    for name, want in (("coulomb_strip", ["ssn", "fixed_point"]),
+                       ("rigid_foundation", ["ssn", "conic", "homotopy"])):  # fmt: skip
+        scene = load_scene(name)
+        assert study.applicable(registry.for_scene(scene).build(scene, 0))[0] == want, name
+
+
+@pytest.mark.slow
+def test_a_coulomb_scene_gets_the_solvers_that_can_run_it(tmp_path, capsys):
+    """Default: ssn and fixed_point on a Coulomb scene (conic/homotopy rows all failed, exit 1);
+    conic asked is refused before anything is solved (exit 2)."""
+    out = tmp_path / "c"
+    argv = ["coulomb_strip", "--levels", "0", "--tols", "1e-8", "--no-progress"]
+    assert study.study_main([*argv, "--out", str(out)]) == 0
+    res = json.loads((out / "study.json").read_text())
+    assert [r["solver"] for r in res["records"]] == ["ssn", "fixed_point"]
+    assert all(r["converged"] for r in res["records"])
+    code = main(["study", *argv, "--solvers", "ssn,conic", "--out", str(tmp_path / "n")])
+    assert code == 2 and "--solvers = 'conic': one of ssn, fixed_point" in capsys.readouterr().err
+
+
+def _reference_shown(result: dict) -> list[str]:
+    """Where the reference level's records still show: a rate in the table, a point in the
+    figures' series."""
+    from problems.output.study_plots import _series
+
+    finest = max(r["level"] for r in result["records"])
+    found = []
+    for line in study.table(result).splitlines():
+        cells = line.split()
+        if cells[:1] == [str(finest)] and "ref" not in cells:
+            found.append(f"table row {line!r}")
+    for r in _series(result, "ssn", 1e-10):
+        if r["level"] == finest:
+            found.append("figure point")
+    return found
+
+
+def test_the_reference_level_is_left_out_of_table_rates_and_figures(tmp_path):
+    out = tmp_path / "rf"
+    argv = ["rigid_foundation", "--levels", "0..1", "--solvers", "ssn", "--tols", "1e-10"]
+    assert study.study_main([*argv, "--out", str(out), "--no-progress"]) == 0
+    res = json.loads((out / "study.json").read_text())
+    assert [r.get("reference", False) for r in res["records"]] == [False, True]
+    assert _reference_shown(res) == []
+    for r in res["records"]:  # mutation: the flag dropped shows the reference again
+        r.pop("reference", None)
+    assert len(_reference_shown(res)) == 2
