@@ -101,7 +101,7 @@ def parser(full: bool = True) -> argparse.ArgumentParser:
         return p
     from vi_core.linear_solvers import LINEAR_SOLVERS
 
-    from .solve import ACCURACY
+    from .options import ACCURACY
 
     s = sub.add_parser(
         "solve",
