@@ -9,12 +9,12 @@ Defaults: levels 0..3, all three solvers, tolerances 1e-6, 1e-8, 1e-10.
 For each level, solver and tolerance it records the solve time (`Solution.time`, wall clock),
 the iterations, the peak memory (tracemalloc peak during the solve: numpy arrays and Python
 objects; native workspaces of SuperLU/PARDISO/Clarabel are not seen) and the error norms the
-plug-in declares (contract v2: `NORMS`, `mesh_size`, `reference_errors`, optionally
-`exact_errors` with its own names `EXACT_NORMS` where they differ; for
-piezo_contact those of Theorem 4.1, `problems.plugins.piezo_errors`): against the scene's exact
-solution if it has one (`exact_errors` not None), otherwise against the finest level solved by
-the same solver at the tightest tolerance (that level's own records then carry only the solver
-error of looser tolerances, and rates are fitted over the levels below it).
+plug-in declares (contract v2: `NORMS`, `mesh_size`, `reference_errors`, optionally `exact_errors`
+with its own names `EXACT_NORMS` where they differ; for piezo_contact those of Theorem 4.1,
+`problems.plugins.contact.plane_errors`): against the scene's exact solution if it has one
+(`exact_errors` not None), otherwise against the finest level solved by the same solver at the
+tightest tolerance (that level's own records then carry only the solver error of looser tolerances,
+and rates are fitted over the levels below it).
 
 With `--workers N` the (level, solver) cases run as Dask tasks on a local cluster of N
 single-threaded worker processes (N lowered, with a one-line notice, to the cores, to the

@@ -34,8 +34,8 @@ from problems.scene.fields import NonNegativeExpr, Text
 from problems.scene.model import head
 from vi_core import Solution
 
-from . import piezo_contact as pc
-from .bodies import BodySection
+from .contact import plane as pc
+from .contact.bodies import BodySection
 from .contract import ExtremeRow, Sweep, check_boundaries, expect
 from .transfer import nodal_reference_errors
 

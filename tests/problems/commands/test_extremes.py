@@ -209,7 +209,7 @@ def test_a_displacement_off_is_caught_beside_large_potentials(monkeypatch):
 def test_mutation_one_mixed_field_misses_the_displacement(monkeypatch):
     """Mutation: displacement and potential measured as one vector (the former measure): the
     same 1e-4 in the displacements passes as agreement."""
-    from problems.plugins.contact_model import BodiesModel
+    from problems.plugins.contact.model import BodiesModel
 
     def one_field(self):
         return {"u": np.ones(self.values.size, dtype=bool)}

@@ -17,7 +17,7 @@ from problems.scene import SCENES_DIR, load_scene
 
 SHIPPED = sorted(p.stem for p in SCENES_DIR.glob("*.toml"))  # every shipped scene
 PLANAR = [n for n in SHIPPED if load_scene(n).data["scene"]["plugin"] != "contact3d"]
-# the 3D scenes: tests/problems/plugins/test_contact3d.py (count = the built sizes, ×8 a level)
+# the 3D scenes: tests/problems/plugins/contact/test_solid.py (count = the built sizes, ×8 a level)
 
 
 @pytest.mark.parametrize("name", PLANAR)
