@@ -90,7 +90,7 @@ SCENE_MODEL = SignoriniScene
 BODY = "body"  # the body's name in the piezo_contact model
 
 
-def piezo_spec(spec: SignoriniScene) -> pc.PiezoScene:
+def piezo_spec(spec: SignoriniScene) -> pc.PlaneScene:
     """The piezo_contact scene model of a validated signorini scene (module docstring); its
     expressions keep their signorini field paths for the errors of the build."""
     ct = spec.contact
@@ -105,7 +105,7 @@ def piezo_spec(spec: SignoriniScene) -> pc.PiezoScene:
         ends="keep",
     )
     contact._path = "contact"
-    return pc.PiezoScene.model_construct(
+    return pc.PlaneScene.model_construct(
         format=2,
         scene=spec.scene,
         solver=spec.solver,

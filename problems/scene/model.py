@@ -89,7 +89,7 @@ def head(name: str, default_level: int, *aliases: str) -> type[Head]:
     from pydantic import create_model
 
     return create_model(
-        f"Head_{name}",
+        "Head_" + "_".join((name, *aliases)),
         __base__=Head,
         plugin=(Literal[(name, *aliases)], Field(description="the plug-in this scene is for")),
         level=(Level, Field(default_level, description="default refinement level")),

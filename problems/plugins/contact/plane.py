@@ -83,10 +83,6 @@ DESCRIPTION = (
 # tangent if the sine of the angle between them is at most ALIGN_TOL (a roller on a side
 # perpendicular to a flat contact: exactly 0).
 ALIGN_TOL = 1e-10
-# A slave segment counts as covered by the master if at most COVER_TOL of it is not (rounding
-# where both end nodes coincide): a row whose support is covered transfers rigid translations
-# to ~1e-16 (`fem.mortar`).
-COVER_TOL = 1e-12
 PATCH_DEFECT_LIMIT = 1e-8  # above it `mixvi solve` warns and exits 1 (unless --allow-defect)
 
 
@@ -198,7 +194,7 @@ class OutputSection(Section):
 Head = head(NAME, 1, ALIAS)
 
 
-class PiezoScene(SceneModel):
+class PlaneScene(SceneModel):
     """A piezo_contact scene: bodies, optional contact interface, output and exact solution."""
 
     scene: Head
@@ -208,7 +204,7 @@ class PiezoScene(SceneModel):
     exact: ExactSection | None = None  # read by `mixvi study`
 
     @model_validator(mode="after")
-    def _references(self) -> PiezoScene:
+    def _references(self) -> PlaneScene:
         c = self.contact
         if c is not None:
             slave = reference(self.bodies, ["contact", "slave"], c.slave)
@@ -242,7 +238,7 @@ class PiezoScene(SceneModel):
         return self
 
 
-SCENE_MODEL = PiezoScene
+SCENE_MODEL = PlaneScene
 
 
 def build(scene: Scene, level: int | None = None) -> Model:
@@ -258,7 +254,7 @@ def _build(scene: Scene, level: int | None) -> Model:
 
 
 def build_model(
-    spec: PiezoScene, scene: Scene, level: int | None, model_class: type[Model] = Model
+    spec: PlaneScene, scene: Scene, level: int | None, model_class: type[Model] = Model
 ) -> Model:
     """The Model (of `model_class`, a subclass of Model) of a validated scene model `spec`
     (of `scene`); signorini builds its scenes through it."""
@@ -472,7 +468,7 @@ def _contact(
     law = "unilateral" the rows of a node are put side by side [n, τ] (vi_core.coulomb) and the
     initial gap rows Σ_j Ds_kj gap(x_j) are built (gap: the scene's field for a rigid
     foundation, the distance along n_j to the master polyline for two bodies)."""
-    from fem.mortar import mortar_coupling, patch_defect
+    from fem.mortar import COVER_TOL, mortar_coupling, patch_defect
 
     unilateral = ct.law == "unilateral"
     tr = trace(slave.mesh, part)
@@ -505,7 +501,7 @@ def _contact(
         reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.measures.min())
         mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, reach=reach)
         assert np.array_equal(tr.nodes, mort.slave_nodes)
-        uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,)
+        uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,) (fem.mortar)
         mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
     elif ct.gap is not None:
         x, y = slave.mesh.points[tr.nodes].T  # (N,) each

@@ -34,7 +34,7 @@ g_k = ∫gφ̃_k / W_t,k (φ̃ = Q_t φ, as 2D).
 
 Unilateral contact (`[contact] law = "unilateral"`, the keys of `contact_law`): λ_n ≥ 0,
 gap ≥ 0, λ_n·gap = 0 and |λ_t| ≤ ρ with ρ = F_k λ_n (Coulomb, F_k = ∫Fφ̃_k / W_t,k) or g_k where
-the node touches (Tresca). The rows of a node are then side by side (`Contact3D.rows`):
+the node touches (Tresca). The rows of a node are then side by side (`SolidContact.rows`):
 [n, t1, t2] per disc node (vi_core's contact set with dim 3), [n, t] per line node (dim 2),
 then the normal-only nodes (NonNegative); a node whose normal displacement is prescribed is
 refused. The initial gap is Σ_j S_n,kj gap(x_j) for a rigid foundation (the scene's field) and
@@ -76,7 +76,7 @@ from . import solid_output as contact3d_output
 from .bodies import Body, build_body
 from .model import BodiesModel, reference
 from .sizes import sizes
-from .solid_bodies import SURFACE_ORDER, BodySection3, field_data3
+from .solid_bodies import SURFACE_ORDER, BodySection3, field_data
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
 ALIAS = "contact3d"  # its former name, still accepted (registry.ALIASES)
@@ -95,7 +95,7 @@ OVERLAP_TOL = 0.1
 
 @dataclass
 class Coupling:
-    """The master side of a two-body interface (`None` in `Contact3D` = rigid foundation).
+    """The master side of a two-body interface (`None` in `SolidContact` = rigid foundation).
 
     M_loc (m·n_f, n_master_nodes): the face-local mortar matrix ∫_e ψ_{e,a} φ_j^m dA of
     `fem.mortar` (a class's rows are Q_c M_loc, `class_blocks`); dofs (n_master_nodes, 3) the
@@ -113,7 +113,7 @@ class Coupling:
 
 
 @dataclass
-class Contact3D:
+class SolidContact:
     """The contact interface Γ3 of a 3D scene: slave surface, frames, multiplier rows, bounds.
 
     Trace arrays are per slave surface node (k); rows_n (N_n,), disc (N_b,) and line (N_l,)
@@ -219,7 +219,7 @@ class Model(BodiesModel):
     slip_origin: np.ndarray | None = None
 
 
-class ContactSection3(contact_law.contact_law(NonNegativeExpr3)):
+class ContactSection(contact_law.contact_law(NonNegativeExpr3)):
     """[contact]: the slave boundary (BODY.BOUNDARY), the master ("rigid": a rigid foundation
     along the slave surface, or at the distance `gap` from it; or BODY.BOUNDARY of another body:
     the 3D dual mortar) and the contact law (fields of x, y, z): law = "bilateral" (λ_n of any
@@ -238,16 +238,16 @@ class ContactSection3(contact_law.contact_law(NonNegativeExpr3)):
 Head = head(NAME, 1, ALIAS)
 
 
-class Contact3DScene(SceneModel):
+class SolidScene(SceneModel):
     """A contact3d scene: 3D bodies and an optional contact interface."""
 
     scene: Head
     bodies: Annotated[dict[str, BodySection3], Field(min_length=1)]
-    contact: ContactSection3 | None = None
+    contact: ContactSection | None = None
     exact: ExactSection3 | None = None  # a manufactured solution (contact3d_errors)
 
     @model_validator(mode="after")
-    def _references(self) -> Contact3DScene:
+    def _references(self) -> SolidScene:
         c = self.contact
         if c is not None:
             sbody, _ = reference(self.bodies, ["contact", "slave"], c.slave)
@@ -262,7 +262,7 @@ class Contact3DScene(SceneModel):
         return self
 
 
-SCENE_MODEL = Contact3DScene
+SCENE_MODEL = SolidScene
 
 
 def build(scene: Scene, level: int | None = None) -> Model:
@@ -294,7 +294,7 @@ def _build(scene: Scene, level: int | None) -> Model:
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
         None if contact is None else partial(_rows, contact),
-        field_data3,
+        field_data,
         {"scene": scene.name, "level": level},
     )
     bodies_ = list(bodies.values())
@@ -307,7 +307,7 @@ def update(model: Model, scene: Scene, t: float) -> Model | None:
     return contact_model.update(model, scene.validated(SCENE_MODEL), t)
 
 
-def _rows(contact: Contact3D):
+def _rows(contact: SolidContact):
     """B_full, the gap rows not from Dirichlet data (the initial gap rows), Λ_h and the Y Gram
     matrix of the contact rows (`contact_model.mixed_vi`)."""
     gap = np.zeros(contact.B_full.shape[0])  # (m,)
@@ -322,7 +322,7 @@ def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
     return sizes(scene.validated(SCENE_MODEL), levels)
 
 
-def row_nodes(c: Contact3D) -> np.ndarray:
+def row_nodes(c: SolidContact) -> np.ndarray:
     """(m,) the surface node of every row of B_full, in its row order."""
     idx_n, idx_b, idx_l = c.rows()
     k = np.empty(c.B_full.shape[0], dtype=int)
@@ -330,8 +330,8 @@ def row_nodes(c: Contact3D) -> np.ndarray:
     return k
 
 
-def row_nodes_weights(c: Contact3D) -> np.ndarray:
-    """(m,) h_k W_c,k per row of B_full (W_c the row's class weight, `Contact3D.row_weights`):
+def row_nodes_weights(c: SolidContact) -> np.ndarray:
+    """(m,) h_k W_c,k per row of B_full (W_c the row's class weight, `SolidContact.row_weights`):
     the mesh-dependent H^{-1/2} Gram stand-in (Y)."""
     return c.surf.node_sizes()[row_nodes(c)] * c.row_weights()
 
@@ -529,12 +529,12 @@ def _positions(bodies: list[Body], n_full: int) -> np.ndarray:
 
 def slave_contact(
     slave: Body, part: str, law, n_full: int, master: Coupling | None = None, level: int = 0
-) -> Contact3D:
+) -> SolidContact:
     """The contact of `slave`'s boundary `part` (a rigid foundation along it, or `master`):
     surface, frames, crosspoint rules, g_k (or F_k) and the rows; `law` is the [contact]
-    table (`ContactSection3`: law, friction, g or F, gap). Unilateral contact puts the rows of a
-    node side by side (`Contact3D.rows`) and builds the initial gap rows: Σ_j S_n,kj gap(x_j) for a
-    rigid foundation, the weighted mortar gap −(D x_s − M x_m)·n_k of the geometry for two
+    table (`ContactSection`: law, friction, g or F, gap). Unilateral contact puts the rows of a
+    node side by side (`SolidContact.rows`) and builds the initial gap rows: Σ_j S_n,kj gap(x_j)
+    for a rigid foundation, the weighted mortar gap −(D x_s − M x_m)·n_k of the geometry for two
     bodies (an overlap of more than OVERLAP_TOL × the level-0 node size is refused)."""
     unilateral = law.law == "unilateral"
     gfun = law.g if law.friction == "tresca" else law.F
@@ -653,7 +653,7 @@ def slave_contact(
                     f"node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
                     f"{h0[i]:.3g}) at {_where(slave, surf, int(rows_n[i]))}",
                 )
-    return Contact3D(
+    return SolidContact(
         slave=slave,
         slave_part=part,
         surf=surf,

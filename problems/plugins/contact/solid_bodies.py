@@ -71,7 +71,7 @@ class BodySection3(BodySection):
     charge: Annotated[list[ScalarPart3], Parts] = []
 
 
-def field_data3(bodies: list[Body], free: np.ndarray, n_full: int) -> dict:
+def field_data(bodies: list[Body], free: np.ndarray, n_full: int) -> dict:
     """`MixedVI` keywords fields and near_null: displacement and potential masks over the
     unknowns `free`, and the displacement block's six rigid-body modes (n_disp, 6)."""
     comp = np.full(n_full, -1)  # displacement component of each full dof, −1 = potential

@@ -39,7 +39,7 @@ def test_one_table_class_per_field_type():
     assert contact_law.contact_law(NonNegativeExpr) is contact_law.contact_law(NonNegativeExpr)
     assert contact_law.contact_law(NonNegativeExpr) is not contact_law.contact_law(NonNegativeExpr3)
     assert issubclass(piezo_contact.ContactSection, contact_law.contact_law(NonNegativeExpr))
-    assert issubclass(contact3d.ContactSection3, contact_law.contact_law(NonNegativeExpr3))
+    assert issubclass(contact3d.ContactSection, contact_law.contact_law(NonNegativeExpr3))
 
 
 @pytest.mark.parametrize("plugin", sorted(SCENES))
