@@ -245,7 +245,8 @@ def mesh_geo(path: str | PathLike, level: int = 0) -> MeshFile:
     return MeshFile(path, mf.points, mf.blocks, mf.groups)
 
 
-def _dim(cell_type: str) -> int:
+def cell_dimension(cell_type: str) -> int:
+    """The dimension of a meshio cell type (0 for the ignored ones: vertices)."""
     if cell_type in SURFACE_CELLS or cell_type.startswith(("triangle", "quad", "polygon")):
         return 2
     if cell_type.startswith("line"):
@@ -291,7 +292,7 @@ def body_cells(
     tag = None if body is None else mf._group(body, dim, "body")
     cells_of: dict[str, list[np.ndarray]] = {}
     for ctype, data, phys in mf.blocks:
-        if _dim(ctype) < dim or (_dim(ctype) > dim and tag is not None):
+        if cell_dimension(ctype) < dim or (cell_dimension(ctype) > dim and tag is not None):
             continue
         sel = data if tag is None else data[phys == tag]
         if len(sel) == 0:
@@ -417,7 +418,7 @@ def _boundaries(
     out: dict[str, np.ndarray] = {}
     for name in mf.names(d - 1):
         tag = mf.groups[name][1]
-        local = [(t, new_id[x[p == tag]]) for t, x, p in mf.blocks if _dim(t) == d - 1]
+        local = [(t, new_id[x[p == tag]]) for t, x, p in mf.blocks if cell_dimension(t) == d - 1]
         local = [(t, x[(x >= 0).all(axis=1)]) for t, x in local]  # facets within this body
         local = [(t, x) for t, x in local if len(x)]
         if not local:

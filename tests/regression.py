@@ -54,7 +54,7 @@ LEVELS = (0, 1)
 # The two Hertz scenes likewise: their graded meshes (cells down to h^1.5-size at the first
 # contact point) give κ ≈ 1e4 at level 1 and a derived tolerance of 1.2e-8 / 8.3e-9 there.
 # The 3D scenes too (the CI budget of the 3D tests; their level 1 is compared with the 2D
-# plug-in and the other methods in tests/problems/plugins/test_contact3d.py and test_check3d.py;
+# plug-in and the other methods in tests/problems/plugins/contact/test_solid.py and test_check3d.py;
 # the two-body ones in test_contact3d_two_body.py).
 LEVEL_0_ONLY = (
     "plate_with_hole",

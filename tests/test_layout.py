@@ -315,11 +315,6 @@ def test_an_import_of_benchmarks_is_caught(text):
 
 
 # ---------------------------------------------------------------- the rooms (issue 30)
-# While the contact plug-ins are merged into one subpackage (branch contact1), problems/plugins
-# and its tests keep their old names: these are the exemptions, and
-# test_the_exemptions_are_still_needed fails once they are not (then delete them).
-NAMED_3D_EXEMPT = ("problems/plugins/", "tests/problems/plugins/")
-PREFIX_EXEMPT = {"contact", "contact3d", "piezo"}  # problems/plugins/<prefix>_*.py
 DATA_DIRS = {"tests/baselines", "tests/data", "tests/thirdparty"}  # no test modules mirrored
 
 
@@ -327,7 +322,7 @@ def _repo_modules() -> list[Path]:
     return [p for top in (*PACKAGES, *OUTSIDE) for p in (ROOT / top).rglob("*.py")]
 
 
-def named_3d(paths: Iterable[Path], exempt: tuple[str, ...] = NAMED_3D_EXEMPT) -> list[str]:
+def named_3d(paths: Iterable[Path], exempt: tuple[str, ...] = ()) -> list[str]:
     """The modules among `paths` (repository-relative posix paths returned) whose name ends in
     `3d` — a 3D twin of a 2D module — outside the `exempt` folders."""
     out = []
@@ -338,7 +333,7 @@ def named_3d(paths: Iterable[Path], exempt: tuple[str, ...] = NAMED_3D_EXEMPT) -
     return sorted(out)
 
 
-def prefixed_plugin_modules(names: Iterable[str], exempt: set[str] = PREFIX_EXEMPT) -> list[str]:
+def prefixed_plugin_modules(names: Iterable[str], exempt: Iterable[str] = ()) -> list[str]:
     """The module names directly in problems/plugins that share a `prefix_` with another one
     (a plug-in's parts side by side instead of in its subpackage), outside `exempt`."""
     names = sorted(names)
@@ -412,14 +407,6 @@ def test_a_test_folder_for_no_code_is_caught():
     assert unmirrored_test_dirs({*_test_dirs(), "tests/problems/solvers"}) == [
         "tests/problems/solvers"
     ]
-
-
-def test_the_exemptions_are_still_needed():
-    """Each exemption above covers a module that is still there: once the contact plug-ins are
-    one subpackage, delete NAMED_3D_EXEMPT and PREFIX_EXEMPT (and this test)."""
-    assert named_3d(_repo_modules(), ()) != [], "no module is named for 3D: drop NAMED_3D_EXEMPT"
-    left = {n.split("_")[0] for n in prefixed_plugin_modules(_plugin_modules(), set())}
-    assert PREFIX_EXEMPT <= left, f"PREFIX_EXEMPT has stale prefixes: {PREFIX_EXEMPT - left}"
 
 
 def test_the_core_layers_import_nothing_of_ours():

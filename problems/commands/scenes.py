@@ -21,7 +21,7 @@ def _scene_row(p: Path, label: str) -> tuple[str, str, str, bool]:
         head = tomllib.loads(p.read_text()).get("scene", {})
         if not isinstance(head, dict):
             raise ValueError("[scene] is not a table")
-        plugin, title = head.get("plugin", "piezo_contact"), head.get("title", "")
+        plugin, title = head.get("plugin", registry.DEFAULT), head.get("title", "")
         if not isinstance(plugin, str) or not isinstance(title, str):
             raise ValueError("[scene] plugin and title must be strings")
         return label, plugin, title, True

@@ -14,7 +14,7 @@ from problems.output import signals
 from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import jsonable, output_folder
 from problems.pipeline import adaptive
-from problems.plugins.piezo_contact import PATCH_DEFECT_LIMIT
+from problems.plugins.contact.plane import PATCH_DEFECT_LIMIT
 
 from . import load_path, resources
 from .options import ACCURACY, DEFAULT_SCENE, solver_options

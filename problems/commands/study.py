@@ -13,8 +13,8 @@ For each level, solver and tolerance it records the solve time (`Solution.time`,
 the iterations, the peak memory (tracemalloc peak during the solve: numpy arrays and Python
 objects; native workspaces of SuperLU/PARDISO/Clarabel are not seen) and the error norms the
 plug-in declares (contract v2: `NORMS`, `mesh_size`, `reference_errors`, optionally
-`exact_errors` with its own names `EXACT_NORMS` where they differ; for
-piezo_contact those of Theorem 4.1, `problems.plugins.piezo_errors`): against the scene's exact
+`exact_errors` with its own names `EXACT_NORMS` where they differ; for the 2D contact
+plug-in those of Theorem 4.1, `problems.plugins.contact.plane_errors`): against the scene's exact
 solution if it has one (`exact_errors` not None), otherwise against the finest level solved by
 the same solver at the tightest tolerance. That level is then the reference: its records
 are marked `"reference": true` (they carry only the solver error of looser tolerances, and

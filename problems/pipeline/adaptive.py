@@ -63,7 +63,7 @@ def adapt(
     the scene has them ("errors"); `on_cycle(row)` is called after each."""
     from fem.bisection import prepared, refine_marked
     from fem.marking import dorfler_mark
-    from problems.plugins.bodies import given_meshes
+    from problems.plugins.contact.bodies import given_meshes
     from problems.plugins.contract import nested_start, solve_model
 
     options = dict(solve_options or {})

@@ -16,6 +16,7 @@ built-in ones from working.
 from __future__ import annotations
 
 import importlib
+import sys
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
@@ -24,13 +25,16 @@ from problems.errors import SceneError
 from .contract import CONTRACT, conforms
 
 BUILTIN = {
-    "piezo_contact": "problems.plugins.piezo_contact",
+    "contact": "problems.plugins.contact",
     "obstacle": "problems.plugins.obstacle",
     "antiplane": "problems.plugins.antiplane",
     "signorini": "problems.plugins.signorini",
-    "contact3d": "problems.plugins.contact3d",
 }
+# former names still accepted in scenes (one release): each is the plug-in it names, with a
+# one-line notice on stderr; `contact` reads the dimension they fixed from them
+ALIASES = {"piezo_contact": "contact", "contact3d": "contact"}
 GROUP = "mixvi.plugins"
+DEFAULT = "contact"  # the plug-in of a scene without [scene] plugin
 
 
 def _third_party() -> dict[str, EntryPoint]:
@@ -81,8 +85,22 @@ def plugins() -> dict[str, Any]:
     return {name: _load(name, eps) for name in [*BUILTIN, *sorted(eps)]}
 
 
+def fronts(plugin: Any) -> list[Any]:
+    """The modules that serve a plug-in's scenes: its `FRONTS` (contact: 2D and 3D), or the
+    plug-in itself."""
+    return list(getattr(plugin, "FRONTS", {None: plugin}).values())
+
+
 def get(name: str) -> Any:
-    """The plug-in called `name`, imported and checked (SceneError listing the known ones)."""
+    """The plug-in called `name`, imported and checked (SceneError listing the known ones); a
+    former name (`ALIASES`) gives the plug-in it became, with a notice on stderr."""
+    if name in ALIASES:
+        print(
+            f"notice: plug-in {name!r} is now {ALIASES[name]!r}: write [scene] plugin = "
+            f"{ALIASES[name]!r} (the old name is accepted for one release)",
+            file=sys.stderr,
+        )
+        name = ALIASES[name]
     eps = _third_party()
     if name not in BUILTIN and name not in eps:
         raise SceneError(
@@ -96,13 +114,16 @@ def get(name: str) -> Any:
 
 
 def for_scene(scene: Any) -> Any:
-    """The plug-in a scene asks for (`[scene] plugin`, default "piezo_contact"); any
+    """The plug-in a scene asks for (`[scene] plugin`, default "contact"); a plug-in with
+    several fronts (`front(scene)`: contact's 2D and 3D ones) gives the scene's. Any
     SceneError names the scene file."""
     head = scene.data.get("scene", {})
-    name = head.get("plugin", "piezo_contact") if isinstance(head, dict) else "piezo_contact"
+    name = head.get("plugin", DEFAULT) if isinstance(head, dict) else DEFAULT
     try:
         if not isinstance(name, str):
             raise SceneError("scene.plugin", name, "the name of an installed plug-in (a string)")
-        return get(name)
+        plugin = get(name)
+        front = getattr(plugin, "front", None)
+        return plugin if front is None else _checked(plugin.NAME, front(scene), "its front")
     except SceneError as err:
         raise err.in_file(scene.path) from None

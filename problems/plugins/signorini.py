@@ -34,8 +34,8 @@ from problems.scene.fields import NonNegativeExpr, Text
 from problems.scene.model import head
 from vi_core import Solution
 
-from . import piezo_contact as pc
-from .bodies import BodySection
+from .contact import plane as pc
+from .contact.bodies import BodySection
 from .contract import ExtremeRow, Sweep, check_boundaries, expect
 from .transfer import nodal_reference_errors
 
@@ -90,7 +90,7 @@ SCENE_MODEL = SignoriniScene
 BODY = "body"  # the body's name in the piezo_contact model
 
 
-def piezo_spec(spec: SignoriniScene) -> pc.PiezoScene:
+def piezo_spec(spec: SignoriniScene) -> pc.PlaneScene:
     """The piezo_contact scene model of a validated signorini scene (module docstring); its
     expressions keep their signorini field paths for the errors of the build."""
     ct = spec.contact
@@ -105,7 +105,7 @@ def piezo_spec(spec: SignoriniScene) -> pc.PiezoScene:
         ends="keep",
     )
     contact._path = "contact"
-    return pc.PiezoScene.model_construct(
+    return pc.PlaneScene.model_construct(
         format=2,
         scene=spec.scene,
         solver=spec.solver,
@@ -240,9 +240,9 @@ def extremes() -> list[ExtremeRow]:
     ]
 
 
-from .contact_estimate import estimate as _estimate  # noqa: E402 (issue 32)
+from .contact.error_estimate import estimate as _estimate  # noqa: E402 (issue 32)
 
 
 def estimate(model: Model, sol: Solution) -> dict:
-    """A posteriori error indicators per cell (`contact_estimate.estimate`)."""
+    """A posteriori error indicators per cell (`contact.error_estimate.estimate`)."""
     return _estimate(lambda scene: piezo_spec(scene.validated(SCENE_MODEL)), model, sol)

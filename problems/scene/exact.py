@@ -17,7 +17,7 @@ The generator of the shipped manufactured scenes (2D and 3D) is `problems.scene.
 
 contact3d scenes carry the same table with fields of (x, y, z) (`ExactSection3`): u, grad_u
 (3 × 3), phi, grad_phi (3) and lam = λ = −σn on Γ3 as a Cartesian 3-vector (frame-free);
-errors `problems.plugins.contact3d_errors`.
+errors `problems.plugins.contact.solid_errors`.
 """
 
 from __future__ import annotations

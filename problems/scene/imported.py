@@ -25,6 +25,7 @@ from pathlib import Path
 
 from fem.mesh import Mesh
 from fem.mesh_import import MeshFile, MeshImportError, body_mesh, mesh_geo, read_mesh
+from fem.mesh_import import cell_dimension as mesh_dim
 from fem.mesh_import import require_curve as _require_curve
 from fem.refine import refine
 from problems.errors import SceneError
@@ -57,6 +58,18 @@ def _stat(path: Path, key: str, what: str):
         raise SceneError(
             key, str(path), f"an existing {what}, relative to the scene file ({err.strerror})"
         ) from None
+
+
+def file_dimension(path: Path) -> int | None:
+    """The highest cell dimension (2 or 3) of the mesh file `path`; None if it cannot be read
+    (building its body then names why)."""
+    try:
+        st = path.stat()
+        mf = _read(str(path), st.st_mtime_ns, st.st_size, False)
+    except (OSError, MeshImportError):
+        return None
+    dims = [mesh_dim(cell_type) for cell_type, _, _ in mf.blocks]
+    return max(dims) if dims and max(dims) in (2, 3) else None
 
 
 def file_mesh(path: Path, body: str | None, key: str, planar: bool = True):

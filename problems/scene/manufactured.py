@@ -254,7 +254,7 @@ format = 2  # the scene format (mixvi schema)
 
 [scene]
 title = "Manufactured solution: BaTiO3 block, Tresca contact with stick and slip"
-plugin = "piezo_contact"
+plugin = "contact"
 level = 2
 
 [bodies.block]
@@ -272,7 +272,7 @@ format = 2
 
 [scene]
 title = "Manufactured 3D solution: BaTiO3 box, Tresca friction discs with stick and slip"
-plugin = "contact3d"
+plugin = "contact"
 level = 1
 
 [bodies.block]

@@ -83,14 +83,15 @@ class Head(Section):
     level: Level = 1
 
 
-def head(name: str, default_level: int) -> type[Head]:
-    """The [scene] table of plug-in `name`: plugin = NAME, level defaults to `default_level`."""
+def head(name: str, default_level: int, *aliases: str) -> type[Head]:
+    """The [scene] table of plug-in `name`: plugin = NAME (or one of its deprecated `aliases`),
+    level defaults to `default_level`."""
     from pydantic import create_model
 
     return create_model(
-        f"Head_{name}",
+        "Head_" + "_".join((name, *aliases)),
         __base__=Head,
-        plugin=(Literal[name], Field(description="the plug-in this scene is for")),
+        plugin=(Literal[(name, *aliases)], Field(description="the plug-in this scene is for")),
         level=(Level, Field(default_level, description="default refinement level")),
     )
 
@@ -345,7 +346,8 @@ def assign_paths(obj: Any, path: str) -> None:
 def migrate(data: dict, file: str) -> tuple[dict, list[str]]:
     """A scene's data in the current FORMAT, and the notices about what was migrated.
 
-    Format 1 (no `format` key, or `format = 1`): `[scene] plugin` defaulted to piezo_contact.
+    Format 1 (no `format` key, or `format = 1`): `[scene] plugin` defaulted to piezo_contact,
+    now the 2D front of `contact`.
     Format 2 adds `format = 2` and requires `plugin`. Other formats are refused.
     """
     fmt = data.get("format", 1)
@@ -356,7 +358,7 @@ def migrate(data: dict, file: str) -> tuple[dict, list[str]]:
     out = {k: v for k, v in data.items() if k != "format"}
     head_ = out.get("scene")
     if isinstance(head_, dict) and "plugin" not in head_:
-        out["scene"] = {**head_, "plugin": "piezo_contact"}
+        out["scene"] = {**head_, "plugin": "contact"}
     notice = (
         f"{file}: a format-1 scene (deprecated), read through the migration to format {FORMAT}; "
         f"add `format = {FORMAT}` at its top and `plugin = ...` under [scene] to update it"

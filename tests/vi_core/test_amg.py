@@ -21,7 +21,7 @@ def test_smoothed_aggregation_is_pyamgs_hierarchy(field, monkeypatch):
     not."""
     import pyamg
 
-    from problems.plugins import piezo_contact as pc
+    from problems.plugins.contact import plane as pc
     from problems.scene import load_scene
     from vi_core.ssn import Condensation
 

@@ -162,7 +162,7 @@ def test_newton_matrix_pattern_is_fixed_while_the_active_set_changes(condense, m
     fixed pattern the nonzero count follows the active set (condensed: the S rows no longer fit
     the kept matrix)."""
     import vi_core.ssn as ssn_module
-    from problems.plugins import piezo_contact as pc
+    from problems.plugins.contact import plane as pc
     from problems.scene import load_scene
 
     vi = pc.build(load_scene("paper_two_body"), 1).vi
@@ -179,7 +179,7 @@ def test_newton_matrix_pattern_is_fixed_while_the_active_set_changes(condense, m
 
 @pytest.mark.skipif(not pardiso_available(), reason="pypardiso not installed (extra [fast])")
 def test_pardiso_analyses_once_per_solve():
-    from problems.plugins import piezo_contact as pc
+    from problems.plugins.contact import plane as pc
     from problems.scene import load_scene
 
     vi = pc.build(load_scene("paper_two_body"), 1).vi

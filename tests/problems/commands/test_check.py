@@ -14,7 +14,7 @@ import vi_core.homotopy as homotopy
 import vi_core.sets as sets_module
 import vi_core.ssn as ssn
 from problems.commands.main import main
-from problems.plugins import piezo_contact as pc
+from problems.plugins.contact import plane as pc
 from problems.scene import load_scene
 from vi_core.kkt import Checker
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 from problems.commands.check import _check_level
-from problems.plugins import contact3d
+from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
 
 LEVELS = [

@@ -14,7 +14,7 @@ import pytest
 
 from problems.commands import check
 from problems.commands.main import main
-from problems.plugins import piezo_contact as pc
+from problems.plugins.contact import plane as pc
 from vi_core import states as node_states
 
 SCENE = "piezo_coulomb_strip"  # every base node slips (its closed form)

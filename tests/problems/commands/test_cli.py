@@ -53,7 +53,7 @@ def test_solve_writes_summary_fields_and_plots(tmp_path, capsys):
     assert s["contact"]["uncovered_nodes"] == s["contact"]["crosspoint_nodes"] == []
     assert set(s["time_s"]) == {"build", "solve", "total"}
     assert s["converged"] and s["residual"] <= 1e-10
-    # independent of the contact assembly (problems/plugins/piezo_balance.py)
+    # independent of the contact assembly (problems/plugins/contact/balance.py)
     assert s["lemma_4_2_quadrature"]["gap"] <= 1e-10 and s["force_balance"]["imbalance"] <= 1e-10
     assert s["contact"]["stick"] > 0 and s["contact"]["slip"] > 0
     for f in ("block.vtu", "contact_multiplier.png", "contact_displacement.png", "potential.png"):

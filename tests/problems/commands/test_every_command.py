@@ -22,13 +22,13 @@ from problems.plugins import registry
 
 THIRDPARTY = Path(__file__).resolve().parents[2] / "thirdparty"
 SHIPPED = {  # plug-in → its cheapest shipped scene
-    "piezo_contact": "rigid_foundation",
+    "contact": "rigid_foundation",
     "obstacle": "obstacle",
     "antiplane": "antiplane",
     "signorini": "signorini",
 }
 PLUGINS = [*SHIPPED, "sticky_floor"]
-ONLY = {"piezo_contact": "PZT-5H"}  # extremes: one level-0 row of the 14 (time)
+ONLY = {"contact": "PZT-5H"}  # extremes: one level-0 row of the 14 (time)
 PNG = b"\x89PNG\r\n\x1a\n"
 
 

@@ -25,6 +25,7 @@ from problems.commands.extremes import (
     run_row,
 )
 from problems.plugins import registry
+from problems.plugins.contact import plane, solid
 
 from .electrical import SCENE, drop_electrical
 
@@ -38,8 +39,10 @@ CI_3D = (
     "3D unilateral: Coulomb F = 0.6",
     "3D unilateral: gap 1e-3 (apart, λ = 0)",
 )
-ROWS_CI = [r for r in ROWS if r.plugin != "contact3d" or r.name in CI_3D]
-ROWS_3D_SLOW = [r for r in ROWS if r.plugin == "contact3d" and r.name not in CI_3D]
+SOLID = {r.name for r in solid.extremes()}  # the 3D rows of `contact`
+PLANE = {r.name for r in plane.extremes()}  # its 2D rows
+ROWS_CI = [r for r in ROWS if r.name not in SOLID or r.name in CI_3D]
+ROWS_3D_SLOW = [r for r in ROWS if r.name in SOLID and r.name not in CI_3D]
 
 
 def test_every_builtin_plugin_has_rows():
@@ -58,14 +61,14 @@ def test_extreme_row(row):
     assert agree and max(agree.values()) <= AGREE_OK, rec
     assert rec["admissibility"] <= ADMISSIBLE_OK, rec
     assert rec["ok"], rec
-    if row.plugin == "contact3d":
+    if row.name in SOLID:
         assert rec["friction_excess"] <= 1e-9, rec
         if rec["lemma_4_2"] is not None and rec["slip"] > 0:
             assert rec["lemma_4_2"] <= 1e-9, rec
         if "homogeneity" in rec:
             assert rec["homogeneity"] <= 1e-6, rec
         return
-    if row.plugin != "piezo_contact":
+    if row.name not in PLANE:
         return
     assert rec["friction_excess"] <= 1e-9, rec
     # with no slipping node (4.3) reads 0 = 0 and the ratio is rounding over a "tiny"
@@ -83,14 +86,14 @@ def test_extreme_row(row):
 
 def test_thresholds_are_physical_checks():
     """g = 1e6 σ_ref ties every node; g = 0 lets every node slip."""
-    by = {r.name: r for r in ROWS if r.plugin == "piezo_contact"}
+    by = {r.name: r for r in ROWS if r.name in PLANE}
     tied, free = run_row(by["g = 1e6 σ_ref"]), run_row(by["g = 0 (frictionless)"])
     assert tied["slip"] == 0 and tied["stick"] > 0
     assert free["stick"] == 0 and free["slip"] > 0
 
 
 def test_command_writes_json(tmp_path, capsys):
-    rc = extremes_main(["--plugins", "piezo_contact", "--only", "PZT", "--out", str(tmp_path)])
+    rc = extremes_main(["--plugins", "contact", "--only", "PZT", "--out", str(tmp_path)])
     assert rc == 0
     assert "PZT-5H" in capsys.readouterr().out
     assert (tmp_path / "extremes.json").read_text().count('"row"') == 1
@@ -209,7 +212,7 @@ def test_a_displacement_off_is_caught_beside_large_potentials(monkeypatch):
 def test_mutation_one_mixed_field_misses_the_displacement(monkeypatch):
     """Mutation: displacement and potential measured as one vector (the former measure): the
     same 1e-4 in the displacements passes as agreement."""
-    from problems.plugins.contact_model import BodiesModel
+    from problems.plugins.contact.model import BodiesModel
 
     def one_field(self):
         return {"u": np.ones(self.values.size, dtype=bool)}

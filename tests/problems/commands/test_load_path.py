@@ -136,7 +136,7 @@ def test_a_load_path_with_a_patch_defect_exits_1_unless_allowed(tmp_path, monkey
     """Mutation: a dropped master entry (as for a single solve, test_crosspoints): the path
     converges, and the exit status follows the last step's mortar patch defect."""
     from problems.scene import SCENES_DIR
-    from tests.problems.plugins.test_fault_table import mortar_dropped_entry
+    from tests.problems.plugins.contact.test_fault_table import mortar_dropped_entry
 
     mortar_dropped_entry(monkeypatch)
     scene = tmp_path / "two_body_path.toml"

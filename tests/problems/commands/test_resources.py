@@ -13,11 +13,12 @@ from problems.commands import resources
 from problems.commands.resources import Sizes, check_levels
 from problems.errors import SceneError
 from problems.plugins import registry
+from problems.plugins.contact import solid
 from problems.scene import SCENES_DIR, load_scene
 
 SHIPPED = sorted(p.stem for p in SCENES_DIR.glob("*.toml"))  # every shipped scene
-PLANAR = [n for n in SHIPPED if load_scene(n).data["scene"]["plugin"] != "contact3d"]
-# the 3D scenes: tests/problems/plugins/test_contact3d.py (count = the built sizes, ×8 a level)
+PLANAR = [n for n in SHIPPED if registry.for_scene(load_scene(n)) is not solid]
+# the 3D scenes: tests/problems/plugins/contact/test_solid.py (count = the built sizes, ×8 a level)
 
 
 @pytest.mark.parametrize("name", PLANAR)

@@ -64,16 +64,19 @@ def test_a_scene_with_an_unknown_key_or_a_wrong_value_does_not(validator, where,
 
 def test_each_plugin_contributes_its_section(validator):
     defs = validator.schema["$defs"]
-    for name in ("PiezoScene", "ObstacleScene", "AntiplaneScene", "SignoriniScene"):
+    for name in ("ContactScene", "ObstacleScene", "AntiplaneScene", "SignoriniScene"):
         assert {"$ref": f"#/$defs/{name}"} in validator.schema["oneOf"]
+    for name in ("PlaneScene", "SolidScene", "ObstacleScene", "AntiplaneScene", "SignoriniScene"):
         assert defs[name]["additionalProperties"] is False
-    kinds = defs["PiezoScene"]  # the geometry union is told apart by kind
+    fronts = [{"$ref": "#/$defs/PlaneScene"}, {"$ref": "#/$defs/SolidScene"}]
+    assert defs["ContactScene"]["anyOf"] == fronts  # contact: its 2D and 3D scene models
+    kinds = defs["PlaneScene"]  # the geometry union is told apart by kind
     assert "bodies" in kinds["properties"]
 
 
 def test_validate_checks_without_solving(tmp_path):
     rc, out, err = _run("validate", "rigid_foundation")
-    assert rc == 0 and "valid piezo_contact scene" in out and err == ""
+    assert rc == 0 and "valid contact scene" in out and err == ""
     rc, out, err = _run("validate", "rigid_foundation", "--set", "contact.g='sin(x, y)'")
     assert rc == 2 and "contact.g" in err and "--set contact.g=" in err and out == ""
     assert list(tmp_path.iterdir()) == []

@@ -7,7 +7,7 @@ import pytest
 
 from problems.commands import study
 from problems.commands.main import main
-from problems.plugins import piezo_contact as pc
+from problems.plugins.contact import plane as pc
 from problems.scene import load_scene
 
 from .electrical import SCENE, drop_electrical, matches

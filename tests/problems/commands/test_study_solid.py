@@ -16,7 +16,7 @@ import pytest
 
 import vi_core
 from problems.commands import study
-from problems.plugins import contact3d
+from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
 from problems.scene.exact import Exact, ExactSection3
 

@@ -192,7 +192,7 @@ def test_mutation_validate_without_the_build_misses_a_misspelt_group(tmp_path, c
     """The scene model alone cannot see into the file: skipping the build lets it through."""
     from types import SimpleNamespace
 
-    from problems.plugins import piezo_contact
+    from problems.plugins.contact import plane as piezo_contact
     from vi_core import Free, product
 
     unchecked = SimpleNamespace(

@@ -37,7 +37,7 @@ def _by_label(fig):
 
 
 CASES = [
-    ("piezo_contact", "rigid_foundation", "contact.g", (2e7, 9e6, 3e6)),
+    ("contact.plane", "rigid_foundation", "contact.g", (2e7, 9e6, 3e6)),
     ("antiplane", "antiplane", "friction.g", (1.2e6, 8e5, 4.8e5)),
     ("signorini", "signorini", "contact.g", (1e6, 5e5)),
 ]

@@ -10,8 +10,8 @@ import pytest
 
 from problems.commands.main import main
 from problems.output.results import STATES, symmetric_tensor, von_mises
-from problems.plugins import piezo_contact as pc
-from problems.plugins.body_output import body_fields
+from problems.plugins.contact import plane as pc
+from problems.plugins.contact.body_output import body_fields
 from problems.scene import load_scene
 from vi_core import solve
 

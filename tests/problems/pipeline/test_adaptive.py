@@ -8,8 +8,8 @@ import pytest
 
 from problems.commands.main import main
 from problems.pipeline import adaptive
-from problems.plugins import contact_estimate as ce
-from problems.plugins import piezo_contact as pc
+from problems.plugins.contact import error_estimate as ce
+from problems.plugins.contact import plane as pc
 from problems.scene import load_scene
 
 SCENES = Path(__file__).resolve().parents[3] / "problems" / "scenes"

@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 import problems.pipeline as pipeline
 import vi_core
 from problems.pipeline.load_path import solve_path
-from problems.plugins import piezo_contact
+from problems.plugins.contact import plane as piezo_contact
 from problems.scene import Scene
 from problems.scene.fields import load_parameter
 

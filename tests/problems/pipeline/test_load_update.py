@@ -1,5 +1,5 @@
 """The load-step update of the contact plug-ins (`update(model, scene, t)`, contract;
-`problems.plugins.contact_model.update`) against the full rebuild of every step
+`problems.plugins.contact.model.update`) against the full rebuild of every step
 (`solve_path(..., rebuild=True)`): every step's displacement, potential and multiplier must be
 the same to rounding, on every shipped load-path scene and on drawn load paths of a
 piezoelectric block (displacement, potential, traction and charge all depending on t).
@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 
 import problems.pipeline as pipeline
 from problems.pipeline.load_path import solve_path
-from problems.plugins import bodies, contact_model
+from problems.plugins.contact import bodies
+from problems.plugins.contact import model as contact_model
 from problems.scene import SCENES_DIR, Scene
 from problems.scene.fields import load_parameter
 

@@ -15,8 +15,8 @@ import pytest
 
 import vi_core
 from problems.plugins import hertz
-from problems.plugins import piezo_contact as pc
 from problems.plugins import signorini as sg
+from problems.plugins.contact import plane as pc
 from problems.scene import contact_references as cr
 from problems.scene import load_scene
 

@@ -21,15 +21,16 @@ import scipy.sparse.linalg as spla
 import vi_core
 from problems.commands import main as cli
 from problems.commands.check import CONIC_RAW_ACCEPT
-from problems.plugins import piezo_balance, registry
-from problems.plugins import piezo_contact as pc
+from problems.plugins import registry
+from problems.plugins.contact import balance as piezo_balance
+from problems.plugins.contact import plane as pc
 from problems.plugins.contract import conforms
 from problems.scene import load_scene
 from problems.scene.exact import split_exact
 from problems.scene.materials import NAMED
 from vi_core.kkt import Checker
 
-from . import checks
+from .contact import checks
 
 SCENES = [  # (scene, level)
     ("obstacle", 1),

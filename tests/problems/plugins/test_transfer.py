@@ -8,8 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from problems.plugins import contact3d, transfer
-from problems.plugins import piezo_contact as pc
+from problems.plugins import transfer
+from problems.plugins.contact import plane as pc
+from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
 
 

@@ -45,7 +45,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import vi_core
-from problems.plugins import piezo_contact as pc
+from problems.plugins.contact import plane as pc
 from problems.scene import Scene, load_scene
 from problems.scene.materials import NAMED
 from vi_core.ssn import Condensation

@@ -14,8 +14,8 @@ from fem.mesh_import import write_msh
 from fem.meshing import box, rectangle
 from problems.commands.main import main
 from problems.errors import SceneError
-from problems.plugins import contact3d
-from problems.plugins import piezo_contact as pc
+from problems.plugins.contact import plane as pc
+from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
 from vi_core import solve
 
@@ -126,7 +126,7 @@ def test_a_misspelt_body_boundary_is_named_by_its_field_after_meshing(tmp_path):
 def test_mutation_without_the_check_after_meshing_the_name_reaches_the_assembly(
     tmp_path, monkeypatch
 ):
-    from problems.plugins import bodies
+    from problems.plugins.contact import bodies
 
     monkeypatch.setattr(bodies, "check_meshed", lambda mesh, refs: None)
     block = rectangle((0.0, 2.0), (0.0, 1.0), (4, 2), "quad")

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from problems.errors import SceneError
-from problems.plugins import contact3d
-from problems.plugins import piezo_contact as pc
+from problems.plugins.contact import plane as pc
+from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
 from problems.scene import materials as mt
 from vi_core import solve

@@ -9,8 +9,8 @@ import pytest
 
 import vi_core
 from problems.errors import SceneError
-from problems.plugins import piezo_contact as pc
 from problems.plugins import registry
+from problems.plugins.contact import plane as pc
 from problems.scene import SCENES_DIR, Scene, load_scene
 from problems.scene.fields import Number
 from problems.scene.materials import Isotropic
@@ -166,14 +166,14 @@ def test_validation_is_cached_until_the_data_change():
 def test_format_1_is_migrated_with_one_notice(tmp_path):
     text = (SCENES_DIR / "rigid_foundation.toml").read_text()
     old = text.replace("format = 2  # the scene format (mixvi schema)\n", "").replace(
-        'plugin = "piezo_contact"\n', ""
+        'plugin = "contact"\n', ""
     )
     assert "format" not in tomllib.loads(old) and "plugin" not in tomllib.loads(old)["scene"]
     p = tmp_path / "old.toml"
     p.write_text(old)
     scene = load_scene(str(p))
     assert len(scene.notices) == 1 and "format-1" in scene.notices[0]
-    assert scene.data["format"] == 2 and scene.data["scene"]["plugin"] == "piezo_contact"
+    assert scene.data["format"] == 2 and scene.data["scene"]["plugin"] == "contact"
     new = load_scene("rigid_foundation")
     assert scene.validated(pc.SCENE_MODEL) == new.validated(pc.SCENE_MODEL)
 

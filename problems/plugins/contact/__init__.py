@@ -1,0 +1,81 @@
+"""Plug-in `contact`: elastic or piezoelectric bodies in bilateral Tresca or unilateral
+Tresca/Coulomb contact with dual mortar multipliers, in 2D and in 3D (issue 30).
+
+One plug-in, one registered name, one scene language: `[scene] plugin = "contact"`, the
+dimension taken from the bodies' geometries (`dimension.scene_dimension`). Its two fronts are
+the modules `plane` (2D: a contact node carries a normal and one tangential multiplier, the
+friction interval [−g, g]) and `solid` (3D: a normal and up to two tangential ones, the
+friction disc |λ_t| ≤ g); they share the bodies and their assembly (`bodies`, `fields`,
+`body_output`), the model and its mixed VI (`model`), the contact law's scene keys and sets
+(`law`), the electrical contact (`electrical`), the load-path and warm-start transfers
+(`problems.plugins.transfer`) and the manufactured balance (`balance`). Each front declares
+the whole contract v2 with NAME = "contact"; `registry.for_scene` hands a scene the front of
+its dimension (`front`), and this module answers for the plug-in as a whole where no scene is
+at hand (`mixvi schema`, `mixvi extremes`, listings).
+
+The former names `piezo_contact` (2D) and `contact3d` (3D) stay accepted in scenes
+(`registry.ALIASES`, with a one-line notice on stderr) and fix the dimension.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import ValidationInfo, model_validator
+
+from problems.scene import Scene, SceneModel
+
+from . import plane, solid
+from .dimension import scene_dimension
+
+NAME = "contact"
+CONTRACT = 2
+DESCRIPTION = (
+    "elastic/piezoelectric bodies in 2D or 3D, bilateral Tresca or unilateral Tresca/Coulomb "
+    "contact (dual mortar multipliers; friction intervals in 2D, discs in 3D)"
+)
+FRONTS = {2: plane, 3: solid}
+
+
+def front(scene: Scene) -> Any:
+    """The front (`plane` or `solid`) of `scene`'s dimension (SceneError if its bodies mix
+    2D and 3D geometries)."""
+    return FRONTS[scene_dimension(scene.data, scene.path)]
+
+
+class ContactScene(SceneModel):
+    """A contact scene: validated by the scene model of its dimension's front
+    (`plane.SCENE_MODEL` or `solid.SCENE_MODEL`), whose instance it returns."""
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _by_dimension(cls, data: Any, handler: Any, info: ValidationInfo) -> Any:
+        file = (info.context or {}).get("file")
+        model = FRONTS[scene_dimension(data, file)].SCENE_MODEL
+        return model.model_validate(data, context=info.context)
+
+    @classmethod
+    def __get_pydantic_json_schema__(cls, core_schema: Any, handler: Any) -> dict:
+        return {
+            "anyOf": [
+                handler(m.__pydantic_core_schema__) for m in (plane.SCENE_MODEL, solid.SCENE_MODEL)
+            ]
+        }
+
+
+SCENE_MODEL = ContactScene
+
+
+def build(scene: Scene, level: int | None = None) -> Any:
+    """Scene → Model of its dimension's front."""
+    return front(scene).build(scene, level)
+
+
+def postprocess(model: Any, sol: Any, outdir: Any) -> dict:
+    """The front's post-processing of a model it built."""
+    return FRONTS[model.dimension].postprocess(model, sol, outdir)
+
+
+def extremes() -> list:
+    """The extreme rows of both fronts (`mixvi extremes`)."""
+    return [*plane.extremes(), *solid.extremes()]

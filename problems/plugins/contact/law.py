@@ -1,0 +1,108 @@
+"""The contact law of a [contact] table, shared by piezo_contact (2D, signorini's preset) and
+contact3d (3D): the keys, their validation and the multiplier set they make.
+
+    law = "bilateral"    the bodies stay in contact, λ_n of any sign (the paper's model)
+          "unilateral"   λ_n ≥ 0, gap ≥ 0, λ_n·gap = 0
+    friction = "tresca"  bound g (a field ≥ 0, Pa); with law = "unilateral" it acts only where
+                         the bodies touch
+               "coulomb" bound F·λ_n (F a field ≥ 0); unilateral only
+    gap                  the initial normal distance to a rigid foundation (m, a field ≥ 0);
+                         unilateral only; two bodies take theirs from the geometry
+
+Exactly the key of the chosen friction (g or F) is given. The tables differ between 2D and 3D
+only in the variables of their fields (x, y or x, y, z): `friction_law(expr)` and
+`contact_law(expr)` make the table classes for a field type; `pair_set` the vi_core set of the
+nodes that carry [λ_n, λ_t] (docs/coulomb.md, "Contact laws of the plug-ins").
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import model_validator
+
+from problems.scene import Section
+from problems.scene.model import refuse
+from vi_core import Coulomb, UnilateralTresca
+from vi_core.coulomb import ContactSet
+
+LAWS = ("bilateral", "unilateral")  # [contact] law
+FRICTIONS = ("tresca", "coulomb")  # [contact] friction
+
+
+def _check_friction(section: Any) -> Any:
+    """Exactly the bound key of the chosen friction: g (tresca) or F (coulomb)."""
+    need, other = ("g", "F") if section.friction == "tresca" else ("F", "g")
+    if getattr(section, need) is None:
+        raise refuse([need], None, f"required with friction = {section.friction!r}")
+    if getattr(section, other) is not None:
+        raise refuse(
+            [other], getattr(section, other).source, f"absent with friction = {section.friction!r}"
+        )
+    return section
+
+
+def _check_law(section: Any) -> Any:
+    """Coulomb and an initial gap need law = "unilateral"; two bodies take their gap from the
+    geometry (a `master` other than "rigid")."""
+    if section.law == "bilateral":
+        if section.friction == "coulomb":
+            raise refuse(["friction"], "coulomb", "'tresca' with law = 'bilateral'")
+        if section.gap is not None:
+            raise refuse(["gap"], section.gap.source, "absent with law = 'bilateral'")
+    if section.gap is not None and getattr(section, "master", "rigid") != "rigid":
+        raise refuse(
+            ["gap"], section.gap.source, "absent for two bodies (their gap is the geometry's)"
+        )
+    return section
+
+
+@cache
+def friction_law(expr: Any) -> type[Section]:
+    """The table with the friction keys (friction, g, F) for fields of type `expr` (one class
+    per field type)."""
+
+    class FrictionLaw(Section):
+        """The friction of a contact table: friction = "tresca" (bound g, a field ≥ 0 in Pa) or
+        "coulomb" (bound F·λ_n, F a field ≥ 0); exactly the key of the chosen friction is
+        given."""
+
+        friction: Literal[FRICTIONS] = FRICTIONS[0]
+        g: expr | None = None
+        F: expr | None = None
+
+        @model_validator(mode="after")
+        def _friction(self) -> FrictionLaw:
+            return _check_friction(self)
+
+    return FrictionLaw
+
+
+@cache
+def contact_law(expr: Any) -> type[Section]:
+    """The table with the contact-law keys (law, friction, g, F, gap) for fields of type
+    `expr`; the plug-in's [contact] table subclasses it with its slave and master keys."""
+
+    class ContactLaw(friction_law(expr)):
+        """The contact law (module docstring of problems.plugins.contact.law): law =
+        "bilateral" or "unilateral"; friction = "tresca" (g) or "coulomb" (F, unilateral only);
+        gap = the initial normal distance to a rigid foundation (unilateral only)."""
+
+        law: Literal[LAWS] = LAWS[0]
+        gap: expr | None = None
+
+        @model_validator(mode="after")
+        def _law(self) -> ContactLaw:
+            return _check_law(self)
+
+    return ContactLaw
+
+
+def pair_set(friction: str, bound: np.ndarray, dim: int) -> ContactSet:
+    """The vi_core set of unilateral contact nodes [λ_n, λ_t] in R^dim (dim = 2: one tangent,
+    dim = 3: a friction disc): Coulomb(F = bound) or contact-only UnilateralTresca(g = bound)."""
+    if friction == "coulomb":
+        return Coulomb(bound, dim=dim)
+    return UnilateralTresca(bound, dim=dim, contact_only=True)

@@ -1,0 +1,1103 @@
+"""Plug-in: elasto-piezoelectric bodies in bilateral contact with Tresca friction (Problem 4.1).
+
+Dual (biorthogonal) multipliers on the slave side Γ3: λ_h = Σ_k γ_k ψ̃_k n_k + Σ_k α_k ψ̃_k τ_k,
+and Λ_h = product(Free(N_n), Box(−g_k, g_k)) with g_k = ∫g φ̃_k / ∫φ̃_k (docs/design.md §3; φ̃_k = φ_k
+unless an end treatment merged a neighbour in). With a rigid foundation the constraint rows are
+Σ_j Ds_kj n_kᵀu_j (normal) and the same with τ_k (tangential); with a master body they act on
+the mortar jump Ds u_s − M u_m (`fem.mortar`).
+
+Contact rules (README "Contact interfaces"):
+
+- crosspoints: a slave node whose displacement is fully prescribed carries no multiplier; at a
+  node where one component is prescribed and that direction is the contact tangent (normal),
+  only the tangential (normal) multiplier is dropped; any other partially prescribed node is
+  refused, per node. `[contact] ends` = "merge" (default, Wohlmuth's end-node modification of
+  the dual basis) or "keep" (`fem.facets.multiplier_basis`).
+- coverage: a slave node carries a multiplier only if the master lies behind its whole support;
+  the others are left free and listed (warning, summary `contact.uncovered_nodes`); if no node
+  is covered the scene is refused.
+- patch test: `contact.mortar_patch_defect` = max_k |Σ_j Ds_kj − Σ_j M_kj| / Σ_j Ds_kj over the
+  multiplier rows (0 by construction for the rigid foundation, which has no master side).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+import scipy.sparse as sp
+from pydantic import Field, model_validator
+
+import vi_core
+from fem.facets import ENDS, Trace, dual_mass, facet_integrals, multiplier_basis, trace
+from fem.mesh import Mesh
+from problems.errors import SceneError
+from problems.output import plots, results
+from problems.output.results import ContactTable
+from problems.scene import Scene, SceneModel, Section
+from problems.scene.exact import ExactSection, split_exact
+from problems.scene.fields import NonNegativeExpr, Text
+from problems.scene.imported import require_curve
+from problems.scene.model import head, refuse
+from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
+from vi_core import states as node_states
+
+from .. import transfer
+from ..contract import Sweep, check_meshed
+from . import balance as piezo_balance
+from . import electrical as electrical_contact
+from . import law as contact_law
+from . import model as contact_model
+from . import plane_errors as piezo_errors
+from . import plane_extremes as piezo_extremes
+from .bodies import Body, BodySection, build_body
+from .body_output import body_fields
+from .fields import field_data
+from .law import FRICTIONS, LAWS
+from .model import BodiesModel, reference
+from .sizes import sizes
+
+NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
+DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
+ALIAS = "piezo_contact"  # its former name, still accepted (registry.ALIASES)
+LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
+# Two-body interfaces must coincide in the reference configuration (bilateral contact has no
+# initial gap). A slave node may sit off the master polyline (distance along its normal) by at
+# most SEPARATION_TOL × h, h the longest of its adjacent slave segments and the master segment
+# it faces, measured on the level-0 mesh (h · 2^level: uniform refinement does not change the
+# geometry of a mesh read from a file, whose new boundary nodes stay on its polylines): this
+# admits the chord-versus-arc discrepancy of a discretised curved interface (the sagitta
+# h²/(8r), i.e. h/(8r) relative to h: 0.02 for the paper's mesh, < 0.1 while h < 0.8 r), e.g.
+# two bodies meshed separately in gmsh along one curve, and refuses bodies that overlap or
+# stand apart by more (docs/design.md, "Meshes from files").
+SEPARATION_TOL = 0.1
+DESCRIPTION = (
+    "elasto-piezoelectric bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
+    "(dual mortar multipliers)"
+)
+# A prescribed displacement component at a contact node counts as along the contact normal or
+# tangent if the sine of the angle between them is at most ALIGN_TOL (a roller on a side
+# perpendicular to a flat contact: exactly 0).
+ALIGN_TOL = 1e-10
+PATCH_DEFECT_LIMIT = 1e-8  # above it `mixvi solve` warns and exits 1 (unless --allow-defect)
+
+
+@dataclass
+class Contact:
+    """The contact interface Γ3: slave trace, master (None = rigid), multiplier rows, bounds.
+
+    Multipliers: λ = (γ, α), γ on the normal rows `rows_n`, α on the tangential rows `rows_t`
+    (trace indices of the nodes carrying them; all nodes unless crosspoints or uncovered nodes
+    dropped some), with bases Q_n, Q_t in the segment-local dual functions.
+    """
+
+    slave: Body
+    slave_part: str
+    tr: Trace  # slave trace
+    master: Body | None
+    master_part: str | None
+    ends: str  # "merge" or "keep" (fem.facets.multiplier_basis)
+    rows_n: np.ndarray  # (N_n,) trace indices carrying a normal multiplier
+    rows_t: np.ndarray  # (N_t,) trace indices carrying a tangential multiplier
+    Q_n: sp.csr_matrix  # (N_n, 2·n_seg) normal multiplier basis
+    Q_t: sp.csr_matrix  # (N_t, 2·n_seg) tangential multiplier basis
+    W_n: np.ndarray  # (N_n,) row weights Σ_j Ds_kj = ∫φ̃_k of the normal rows
+    W_t: np.ndarray  # (N_t,) the same for the tangential rows
+    g: np.ndarray  # (N_t,) g_k = ∫gφ̃_k / ∫φ̃_k
+    B_full: sp.csr_matrix  # (N_n + N_t, n_full): normal rows then tangential rows
+    g_weights: np.ndarray  # (N_t,) ∫ g φ̃_k  (= g_k W_k)
+    patch_defect: float  # max_k |Σ_j Ds_kj − Σ_j M_kj| / Σ_j Ds_kj (0 for a rigid master)
+    uncovered: np.ndarray  # trace indices left without multiplier: no master behind them
+    master_proj: sp.csr_matrix | None = None  # (N_t, n_full): u ↦ mortar-mean u_m·τ_k
+    # (N_n, n_full): x ↦ mortar mean Σ_j M_kj φ_m,j / W_k of a piezoelectric master's potential
+    master_phi: sp.csr_matrix | None = None
+    law: str = LAWS[0]  # "bilateral" or "unilateral"
+    friction: str = FRICTIONS[0]  # "tresca" or "coulomb"
+    F: np.ndarray | None = None  # (N_t,) Coulomb F_k = ∫Fφ̃_k / ∫φ̃_k (friction = "coulomb")
+    gap0: np.ndarray | None = None  # (N_n,) initial gap rows Σ_j Ds_kj gap(x_j) (unilateral)
+    idx_n: np.ndarray | None = None  # (N_n,) row of B_full (and λ) holding each normal row
+    idx_t: np.ndarray | None = None  # (N_t,) the same for the tangential rows
+    pairs: int = 0  # unilateral: rows 0 … 2·pairs − 1 of B_full are nodes [n, τ] interleaved
+
+    @property
+    def sizes(self) -> tuple[int, int]:
+        """(N_n, N_t): numbers of normal and tangential multipliers."""
+        return self.rows_n.size, self.rows_t.size
+
+    def normal(self, v: np.ndarray) -> np.ndarray:
+        """The normal rows (N_n,) of a vector in the row order of B_full (λ, B u)."""
+        return v[self.idx_n]
+
+    def tangential(self, v: np.ndarray) -> np.ndarray:
+        """The tangential rows (N_t,) of a vector in the row order of B_full (λ, B u)."""
+        return v[self.idx_t]
+
+    def bound(self, lam: np.ndarray) -> np.ndarray:
+        """(N_t,) the friction radius at the multiplier λ (B_full's row order): g (bilateral),
+        g where λ_n > 0 and 0 elsewhere (unilateral Tresca), F·max(λ_n, 0) (Coulomb)."""
+        if self.law == "bilateral":
+            return self.g
+        lam_n = np.zeros(self.tr.size)
+        lam_n[self.rows_n] = self.normal(lam)
+        lam_n = lam_n[self.rows_t]  # (N_t,) every tangential row has a normal one (unilateral)
+        if self.friction == "coulomb":
+            return self.F * np.maximum(lam_n, 0.0)
+        return self.g * (lam_n > 0)
+
+
+@dataclass
+class Model(BodiesModel):
+    """A built scene: the mixed VI plus what post-processing needs."""
+
+    dimension: int = DIMENSION
+    electrical: electrical_contact.Coupling | None = None  # [contact.electrical], if given
+    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
+    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
+    slip_origin: np.ndarray | None = None
+
+    def contact_state(self, sol: Solution) -> dict:
+        """`contact_state(self, sol)` (for modules that this one imports)."""
+        return contact_state(self, sol)
+
+
+FrictionLaw = contact_law.friction_law(NonNegativeExpr)  # signorini's [contact] keys
+
+
+class ContactSection(contact_law.contact_law(NonNegativeExpr)):
+    """[contact]: slave and master boundaries (BODY.BOUNDARY, master "rigid" for a rigid
+    foundation), the contact law (docs/coulomb.md, "Contact laws of the plug-ins"), and the
+    multiplier end rule.
+
+    law = "bilateral" (the paper's: the bodies stay in contact, λ_n of any sign) or
+    "unilateral" (λ_n ≥ 0, gap ≥ 0, λ_n·gap = 0); friction = "tresca" (bound g, a field ≥ 0
+    in Pa; with law = "unilateral" it acts only where the bodies touch) or "coulomb" (bound
+    F·λ_n, F a field ≥ 0; unilateral only); gap = the initial normal distance to a rigid
+    foundation (m, a field ≥ 0; unilateral only; two bodies take theirs from the geometry).
+    """
+
+    slave: Text
+    master: Text = "rigid"
+    ends: Literal[ENDS] = ENDS[0]
+    electrical: electrical_contact.ElectricalSection | None = None
+
+
+class OutputSection(Section):
+    """[output]: potential_along = BODY.BOUNDARY (a plot of φ along it)."""
+
+    potential_along: Text | None = None
+
+
+Head = head(NAME, 1, ALIAS)
+
+
+class PlaneScene(SceneModel):
+    """A piezo_contact scene: bodies, optional contact interface, output and exact solution."""
+
+    scene: Head
+    bodies: Annotated[dict[str, BodySection], Field(min_length=1)]
+    contact: ContactSection | None = None
+    output: OutputSection | None = None
+    exact: ExactSection | None = None  # read by `mixvi study`
+
+    @model_validator(mode="after")
+    def _references(self) -> PlaneScene:
+        c = self.contact
+        if c is not None:
+            slave = reference(self.bodies, ["contact", "slave"], c.slave)
+            if c.master != "rigid":
+                master = reference(self.bodies, ["contact", "master"], c.master)
+                if master[0] == slave[0]:
+                    raise refuse(["contact", "master"], c.master, "a body other than the slave")
+            e = c.electrical
+            if e is not None:
+                if not self.bodies[slave[0]].material.material().piezoelectric:
+                    raise refuse(
+                        ["contact", "electrical"], e.kind, "only with a piezoelectric slave body"
+                    )
+                piezo_master = c.master != "rigid" and (
+                    self.bodies[c.master.split(".")[0]].material.material().piezoelectric
+                )
+                if piezo_master and e.kind != "insulating" and e.phi_F != 0.0:
+                    raise refuse(
+                        ["contact", "electrical", "phi_F"],
+                        e.phi_F,
+                        "0 (absent) with a piezoelectric master body: the charge flows into "
+                        "the master, whose potential takes the foundation's place",
+                    )
+        if self.output is not None and self.output.potential_along is not None:
+            field = ["output", "potential_along"]
+            body, _ = reference(self.bodies, field, self.output.potential_along)
+            if not self.bodies[body].material.material().piezoelectric:
+                raise refuse(
+                    field, self.output.potential_along, "a boundary of a piezoelectric body"
+                )
+        return self
+
+
+SCENE_MODEL = PlaneScene
+
+
+def build(scene: Scene, level: int | None = None) -> Model:
+    """Scene → Model (mesh, assembly, Dirichlet reduction, contact, MixedVI).
+
+    Any SceneError raised while building names the scene file.
+    """
+    return contact_model.built(_build, scene, level)
+
+
+def _build(scene: Scene, level: int | None) -> Model:
+    return build_model(scene.validated(SCENE_MODEL), scene, level)
+
+
+def build_model(
+    spec: PlaneScene, scene: Scene, level: int | None, model_class: type[Model] = Model
+) -> Model:
+    """The Model (of `model_class`, a subclass of Model) of a validated scene model `spec`
+    (of `scene`); signorini builds its scenes through it."""
+    level = spec.scene.level if level is None else level
+    bodies: dict[str, Body] = {}
+    offset = 0
+    for name, tb in spec.bodies.items():
+        body = build_body(name, tb, level, offset)
+        bodies[name] = body
+        offset += body.size
+    n_full = offset
+    contact = None
+    ct = spec.contact
+    if ct is not None:
+        sname, slave_part = ct.slave.split(".", 1)
+        slave, master, mpart = bodies[sname], None, None
+        refs = [(ct.key("slave"), slave, slave_part)]
+        if ct.master != "rigid":
+            mname, mpart = ct.master.split(".", 1)
+            master = bodies[mname]
+            refs.append((ct.key("master"), master, mpart))
+        for key, b, part in refs:
+            check_meshed(b.mesh, [(key, part)])
+            require_curve(b.mesh, part, key, f"{b.name}.{part}")
+        contact = _contact(slave, slave_part, master, mpart, ct, n_full, level)
+    options = {"potential_along": None, **spec.options()}
+    if spec.output is not None and spec.output.potential_along is not None:
+        bname, part = spec.output.potential_along.split(".", 1)
+        key = spec.output.key("potential_along")
+        check_meshed(bodies[bname].mesh, [(key, part)])
+        require_curve(bodies[bname].mesh, part, key, spec.output.potential_along)
+        options["potential_along"] = (bname, part)
+
+    vi, free, values, rhs = contact_model.mixed_vi(
+        list(bodies.values()),
+        None if contact is None else partial(_contact_rows, contact),
+        field_data,
+        {"scene": scene.name, "level": level},
+        check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
+    )
+    model = model_class(
+        scene, level, list(bodies.values()), contact, vi, free, values, options, rhs=rhs
+    )
+    if ct is not None and ct.electrical is not None:
+        model.electrical = _electrical(ct.electrical, contact, vi, free, values)
+    if contact is not None:
+        model.warnings += interface_warnings(contact)
+    for b in model.bodies:
+        ev = np.linalg.eigvalsh(b.material.C)
+        if ev[-1] / ev[0] > LOCKING_RATIO:
+            model.warnings.append(
+                f"body {b.name!r}: nearly incompressible material (eigenvalue ratio of C "
+                f"{ev[-1] / ev[0]:.3g} > {LOCKING_RATIO:g}); lowest-order elements lock — "
+                "displacements are underestimated on coarse meshes"
+            )
+    return model
+
+
+def _electrical(
+    e: electrical_contact.ElectricalSection,
+    contact: Contact,
+    vi: MixedVI,
+    free: np.ndarray,
+    values: np.ndarray | None = None,
+) -> electrical_contact.Coupling:
+    """The fixed point's data: φ unknowns and normal multipliers of the slave trace nodes, and
+    with a piezoelectric master body its mortar mean Π φ_m (on the unknowns, and the part of
+    the jump from prescribed potentials); a master without potential is a conductor at φ_F."""
+    tr, slave = contact.tr, contact.slave
+    nodes = contact.rows_n  # trace indices carrying λ_n (index j of λ)
+    full = slave.phi_dofs(tr.nodes[nodes])  # (N,)
+    pos = np.searchsorted(free, full)
+    found = (pos < free.size) & (free[np.minimum(pos, free.size - 1)] == full)
+    kappa_max = float(np.linalg.eigvalsh(slave.material.kappa)[-1])
+    master, fixed, phi_F = None, None, float(e.phi_F)
+    if contact.master_phi is not None:
+        P = contact.master_phi  # (N, n_full)
+        is_free = np.zeros(P.shape[1], dtype=bool)
+        is_free[free] = True
+        known = np.where(is_free, 0.0, values)  # (n_full,) prescribed values only
+        master = P[:, free].tocsr()
+        fixed = np.where(found, 0.0, values[full]) - P @ known  # (N,)
+        phi_F = 0.0  # the master's potential replaces the foundation's
+    return electrical_contact.Coupling(
+        master=master,
+        fixed=fixed,
+        vi0=vi,
+        phi=np.where(found, pos, -1),
+        normal=contact.idx_n,
+        weights=tr.weights[nodes],
+        law=e.law_of(kappa_max, float(tr.measures.max())),
+        phi_F=phi_F,
+        max_iter=int(e.max_iter),
+        tol=float(e.tol),
+    )
+
+
+def solve(model: Model, **options) -> Solution:
+    """`vi_core.solve(model.vi, **options)`, or with a conductive or grounded
+    [contact.electrical] the outer fixed point on k (`electrical_contact.solve_coupled`);
+    model.vi becomes the last frozen problem."""
+    c = model.electrical
+    if c is None or c.law.kind == "none":
+        return vi_core.solve(model.vi, **options)
+    sol, model.vi = electrical_contact.solve_coupled(c, **options)
+    return sol
+
+
+def problem_at(model: Model, sol: Solution) -> MixedVI:
+    """The mixed VI `sol` must solve (`problems.pipeline.problem_at`): with a conductive or
+    grounded [contact.electrical] the insulating VI plus the Robin term frozen at the
+    conductances k(λ_n) of `sol` itself — a fixed point of the outer iteration solves it —
+    else `model.vi`."""
+    c = model.electrical
+    if c is None or c.law.kind == "none":
+        return model.vi
+    return c.frozen(c.conductances(sol.lam))
+
+
+def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None) -> None:
+    """Refuse data that overflow in assembly (each number finite, their products not)."""
+    parts = {"stiffness (materials)": A_full.data, "loads": f_full, "Dirichlet values": values}
+    if contact is not None:
+        parts["friction bound g" if contact.F is None else "friction coefficient F"] = (
+            contact.g_weights if contact.F is None else contact.F
+        )
+        if contact.gap0 is not None:
+            parts["gap"] = contact.gap0
+    for what, arr in parts.items():
+        if not np.isfinite(arr).all():
+            raise SceneError(
+                "(scene)", what, "data whose assembled system is finite (magnitudes overflow)"
+            )
+
+
+def _contact_rows(contact: Contact):
+    """B_full, the gap rows not from Dirichlet data (the initial gap), Λ_h and the Y Gram
+    matrix (`contact_model.mixed_vi`)."""
+    gap = np.zeros(contact.B_full.shape[0])  # (N_n + N_t,)
+    tr = contact.tr
+    n_n, n_t = contact.sizes
+    if contact.law == "bilateral":
+        Lam = product(Free(n_n), Box(-contact.g, contact.g))
+    else:
+        gap[contact.idx_n] += contact.gap0
+        p = contact.pairs  # every tangential row is paired with its node's normal row
+        bound = contact.F if contact.friction == "coulomb" else contact.g
+        pairs = contact_law.pair_set(contact.friction, bound, dim=2)
+        Lam = product(pairs, NonNegative(n_n - p)) if n_n > p else product(pairs)
+    h_i = np.zeros(tr.size)
+    np.maximum.at(h_i, tr.facets[:, 0], tr.measures)
+    np.maximum.at(h_i, tr.facets[:, 1], tr.measures)
+    rows = np.empty(n_n + n_t, dtype=int)  # trace index of each row of B_full
+    rows[contact.idx_n], rows[contact.idx_t] = contact.rows_n, contact.rows_t
+    Y = sp.diags(h_i[rows] * tr.weights[rows])  # mesh-dependent H^{-1/2} stand-in
+    return contact.B_full, gap, Lam, Y
+
+
+def _where(body: Body, tr: Trace, i: int) -> str:
+    """'node 12 at [0.0, 1.0]' for trace index i."""
+    node = int(tr.nodes[i])
+    return f"node {node} at {body.mesh.points[node].tolist()}"
+
+
+def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray]:
+    """(carry_n, carry_t) per slave trace node: which multiplier components it carries.
+
+    Crosspoint rules (module docstring); SceneError listing every unsupported node.
+    """
+    fixed = slave.fixed[slave.u_dofs(tr.nodes) - slave.offset]  # (N, 2); body-local dofs
+    carry_n, carry_t = ~fixed.all(axis=1), ~fixed.all(axis=1)  # (N,) each
+    bad = []
+    for i in np.flatnonzero(fixed.any(axis=1) & ~fixed.all(axis=1)):
+        c = int(np.flatnonzero(fixed[i])[0])
+        n = tr.normals[i]
+        if abs(n[c]) <= ALIGN_TOL:  # the prescribed direction e_c is the tangent
+            carry_t[i] = False
+        elif abs(n[1 - c]) <= ALIGN_TOL:  # e_c is the normal
+            carry_n[i] = False
+        else:
+            angle = np.degrees(np.arccos(min(abs(n[c]), 1.0)))
+            bad.append(
+                f"{_where(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
+                f"{angle:.3g}° off the contact normal n = [{n[0]:.6g}, {n[1]:.6g}]"
+            )
+    if bad:
+        raise SceneError(
+            "contact.slave",
+            f"{slave.name}.{part}",
+            "contact nodes whose prescribed displacement is complete (clamped) or one component "
+            "along the contact normal or tangent (a roller across or along Γ3); unsupported: "
+            + "; ".join(bad)
+            + ". A prescribed component at an angle to Γ3 would fight the contact multipliers:"
+            " clamp these nodes (prescribe both components), free them, or move the side's "
+            "roller so that its direction is the contact normal or tangent there",
+        )
+    return carry_n, carry_t
+
+
+def _contact(
+    slave: Body,
+    part: str,
+    master: Body | None,
+    mpart: str | None,
+    ct: ContactSection,
+    n_full: int,
+    level: int = 0,
+) -> Contact:
+    """The contact rows: normal Σ_j Ds_kj n_kᵀu_s,j − Σ_j M_kj n_kᵀu_m,j (M = 0 for a rigid
+    foundation), then the same with τ_k, for the multiplier rows of each component; with
+    law = "unilateral" the rows of a node are put side by side [n, τ] (vi_core.coulomb) and the
+    initial gap rows Σ_j Ds_kj gap(x_j) are built (gap: the scene's field for a rigid
+    foundation, the distance along n_j to the master polyline for two bodies)."""
+    from fem.mortar import COVER_TOL, mortar_coupling, patch_defect
+
+    unilateral = ct.law == "unilateral"
+    tr = trace(slave.mesh, part)
+    carry = _carrying(slave, part, tr)
+    if unilateral and (carry[1] & ~carry[0]).any():
+        i = int(np.flatnonzero(carry[1] & ~carry[0])[0])
+        raise SceneError(
+            "contact.law",
+            "unilateral",
+            f"contact nodes free to separate; {_where(slave, tr, i)} has its normal "
+            "displacement prescribed (a roller across Γ3): with unilateral contact prescribe "
+            "both components there or none (or use law = 'bilateral')",
+        )
+    if not (carry[0] | carry[1]).any():
+        raise SceneError(
+            "contact.slave",
+            f"{slave.name}.{part}",
+            "a contact boundary with nodes whose displacement is not fully prescribed: every "
+            "node of this one is clamped by a [[displacement]] part, so no contact remains; "
+            "remove the Dirichlet condition on it or the [contact] table",
+        )
+    n_seg = tr.facets.shape[0]
+    uncovered_local = np.zeros(2 * n_seg, dtype=bool)
+    gap_nodes = np.zeros(tr.size)  # (N,) initial normal gap at the slave nodes
+    if master is not None:
+        if unilateral:
+            gap_nodes = _initial_gap(slave, part, tr, tr.normals, master, mpart, level)
+        else:
+            _check_separation(slave, part, tr, tr.normals, master, mpart, level)
+        reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.measures.min())
+        mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, reach=reach)
+        assert np.array_equal(tr.nodes, mort.slave_nodes)
+        uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,) (fem.mortar)
+        mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
+    elif ct.gap is not None:
+        x, y = slave.mesh.points[tr.nodes].T  # (N,) each
+        gap_nodes = np.broadcast_to(np.asarray(ct.gap(x, y), float), x.shape).copy()
+        if (gap_nodes < 0).any():
+            raise SceneError(ct.gap.path, ct.gap.source, "a distance ≥ 0 at every node of Γ3")
+    Dloc = dual_mass(tr)  # (2 n_seg, N)
+    bfun = ct.g if ct.friction == "tresca" else ct.F
+    gloc = _friction_local(slave.mesh, tr, bfun, bfun.path).ravel()  # (2 n_seg,)
+    sdofs = slave.u_dofs(tr.nodes)  # (N, 2)
+    uncovered = np.zeros(tr.size, dtype=bool)
+    blocks, rows_c, Q_c, defects, offset = [], [], [], [0.0], 0
+    for comp, vec in ((0, tr.normals), (1, tr.tangents)):
+        Q = multiplier_basis(tr, carry[comp], ct.ends)
+        rows = np.flatnonzero(carry[comp])
+        bad = (Q @ uncovered_local) > 0  # some of the row's support has no master behind it
+        uncovered[rows[bad]] = True
+        Q, rows = Q[~bad], rows[~bad]
+        Ds = (Q @ Dloc).tocoo()
+        parts = [(Ds, sdofs, 1.0)]
+        if master is not None:
+            M = (Q @ mort.M).tocoo()
+            parts.append((M, mdofs, -1.0))
+            if rows.size:
+                defects.append(float(patch_defect(Q @ Dloc, Q @ mort.M).max()))
+        for mat, dofs, sign in parts:
+            for c in range(2):
+                r = offset + mat.row
+                blocks.append((r, dofs[mat.col, c], sign * mat.data * vec[rows[mat.row], c]))
+        rows_c.append(rows)
+        Q_c.append(Q)
+        offset += rows.size
+    if offset == 0:
+        raise SceneError(
+            "contact.master",
+            f"{master.name}.{mpart}" if master is not None else "rigid",
+            f"a master boundary behind the slave boundary {slave.name}.{part}: no slave node "
+            f"has the master behind its support (nodes {tr.nodes.tolist()}); make the two "
+            "boundaries face each other and overlap",
+        )
+    r, c, v = (np.concatenate(x) for x in zip(*blocks, strict=True))
+    B = sp.csr_matrix((v, (r, c)), shape=(offset, n_full))
+    Q_t, rows_n, rows_t = Q_c[1], rows_c[0], rows_c[1]
+    if unilateral and not np.isin(rows_t, rows_n).all():
+        i = int(rows_t[~np.isin(rows_t, rows_n)][0])
+        raise SceneError(
+            "contact.master",
+            f"{master.name}.{mpart}" if master is not None else "rigid",
+            f"a master behind the normal multiplier of every slave node with a tangential one "
+            f"(unilateral contact); {_where(slave, tr, i)} has none",
+        )
+    W_n, W_t = (np.asarray((Q @ Dloc).sum(axis=1)).ravel() for Q in Q_c)  # ∫φ̃_k per row
+    gw = Q_t @ gloc  # (N_t,) ∫gφ̃_k (Coulomb: ∫Fφ̃_k)
+    n_n, n_t = rows_n.size, rows_t.size
+    idx_n, idx_t, pairs = np.arange(n_n), n_n + np.arange(n_t), 0
+    if unilateral:  # nodes [n, τ] side by side, then the nodes with a normal row only
+        paired = np.isin(rows_n, rows_t)  # (N_n,); every tangential row is paired (above)
+        pairs = n_t
+        idx_n = np.empty(n_n, dtype=int)
+        idx_n[paired] = 2 * np.arange(pairs)
+        idx_n[~paired] = 2 * pairs + np.arange(n_n - pairs)
+        idx_t = 2 * np.arange(pairs) + 1
+        order = np.empty(n_n + n_t, dtype=int)  # B_full row → row of B built above
+        order[idx_n], order[idx_t] = np.arange(n_n), n_n + np.arange(n_t)
+        B = B[order]
+    gap0 = (Q_c[0] @ Dloc) @ gap_nodes if unilateral else None  # (N_n,)
+    proj = None
+    if master is not None:  # mortar mean of u_m·τ_k over the row's support
+        M = (Q_t @ mort.M).tocoo()
+        pv = [M.data * tr.tangents[rows_t[M.row], c] / W_t[M.row] for c in range(2)]
+        proj = sp.csr_matrix(
+            (
+                np.concatenate(pv),
+                (np.tile(M.row, 2), np.concatenate([mdofs[M.col, c] for c in range(2)])),
+            ),
+            shape=(rows_t.size, n_full),
+        )
+    master_phi = None
+    if master is not None and master.has_potential:  # normal rows: Σ_j M_kj φ_m,j / W_k
+        M = (Q_c[0] @ mort.M).tocoo()
+        master_phi = sp.csr_matrix(
+            (M.data / W_n[M.row], (M.row, master.phi_dofs(mort.master_nodes)[M.col])),
+            shape=(rows_n.size, n_full),
+        )
+    return Contact(
+        slave=slave,
+        slave_part=part,
+        tr=tr,
+        master=master,
+        master_part=mpart,
+        ends=ct.ends,
+        rows_n=rows_n,
+        rows_t=rows_t,
+        Q_n=Q_c[0],
+        Q_t=Q_t,
+        W_n=W_n,
+        W_t=W_t,
+        g=gw / W_t if ct.friction == "tresca" else np.zeros(n_t),
+        B_full=B,
+        g_weights=gw if ct.friction == "tresca" else np.zeros(n_t),
+        patch_defect=max(defects),
+        uncovered=np.flatnonzero(uncovered),
+        master_proj=proj,
+        master_phi=master_phi,
+        law=ct.law,
+        friction=ct.friction,
+        F=gw / W_t if ct.friction == "coulomb" else None,
+        gap0=gap0,
+        idx_n=idx_n,
+        idx_t=idx_t,
+        pairs=pairs,
+    )
+
+
+def _friction_local(mesh: Mesh, tr: Trace, gfun, key: str) -> np.ndarray:
+    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point; g is the
+    Tresca bound or the Coulomb coefficient F, named by `key`)."""
+    what = "a friction bound g" if key.endswith(".g") else "a friction coefficient F"
+
+    def g_checked(x, y):
+        gv = gfun(x, y)
+        if (gv < 0).any():
+            raise SceneError(key, float(gv.min()), f"{what} ≥ 0 everywhere on Γ3")
+        return gv
+
+    return facet_integrals(mesh, tr, g_checked)
+
+
+def _normal_distances(
+    x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance t from each point x_i along n_i to the polyline of segments [a_k, b_k],
+    and the index of the segment hit.
+
+    t > 0: the polyline lies outside (a gap), t < 0: behind (an overlap); the hit of smallest
+    |t|, NaN where the line x_i + t n_i misses every segment. Chunked to bound memory.
+    """
+    out = np.full(len(x), np.nan)
+    seg = np.zeros(len(x), dtype=int)
+    d = b - a  # (M, 2)
+    for lo in range(0, len(x), 256):
+        xi, ni = x[lo : lo + 256, None, :], n[lo : lo + 256, None, :]  # (c, 1, 2)
+        det = ni[..., 0] * -d[None, :, 1] + ni[..., 1] * d[None, :, 0]  # (c, M)
+        r = a[None] - xi  # (c, M, 2)
+        with np.errstate(all="ignore"):
+            t = (r[..., 0] * -d[None, :, 1] + r[..., 1] * d[None, :, 0]) / det
+            s = (ni[..., 0] * r[..., 1] - ni[..., 1] * r[..., 0]) / det
+        hit = (np.abs(det) > 0) & (s >= -1e-12) & (s <= 1 + 1e-12)
+        t = np.where(hit, t, np.inf)
+        k = np.argmin(np.abs(t), axis=1)
+        best = t[np.arange(len(k)), k]
+        out[lo : lo + 256] = np.where(np.isfinite(best), best, np.nan)
+        seg[lo : lo + 256] = k
+    return out, seg
+
+
+def _separation(slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int):
+    """(t, h): the signed distance (N,) of each slave node along its normal to the master
+    polyline (NaN where it misses) and h (N,), the longer of the node's adjacent segments and
+    the master segment hit, times 2^level (the level-0 mesh size)."""
+    mtr = trace(master.mesh, mpart)
+    P = master.mesh.points[mtr.nodes]
+    t, k = _normal_distances(
+        slave.mesh.points[tr.nodes], normals, P[mtr.facets[:, 0]], P[mtr.facets[:, 1]]
+    )
+    h = mtr.measures[k]
+    np.maximum.at(h, tr.facets[:, 0], tr.measures)
+    np.maximum.at(h, tr.facets[:, 1], tr.measures)
+    return t, h * 2.0**level  # the size at level 0, where the interface geometry was given
+
+
+def _refuse_separation(slave, part, master, mpart, tr, t, h, bad, where) -> None:
+    rel = np.nan_to_num(t / h)
+    i = bad[np.argmax(np.abs(rel[bad]))]
+    what = "overlap the slave body" if rel[i] < 0 else "stand apart from it"
+    raise SceneError(
+        "contact.master",
+        f"{master.name}.{mpart}",
+        f"a master boundary {where} {slave.name}.{part} in the "
+        f"reference configuration: it would {what} by {abs(t[i]):.3g} "
+        f"({abs(rel[i]):.2f} × the local level-0 mesh size {h[i]:.3g}; allowed "
+        f"{SEPARATION_TOL:g}) at slave node {slave.mesh.points[tr.nodes[i]].tolist()}",
+    )
+
+
+def _check_separation(
+    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
+) -> None:
+    """SceneError if the interfaces overlap or stand apart by more than SEPARATION_TOL·h
+    (`_separation`): bilateral contact needs coincident interfaces."""
+    t, h = _separation(slave, part, tr, normals, master, mpart, level)
+    bad = np.flatnonzero(np.abs(np.nan_to_num(t / h)) > SEPARATION_TOL)
+    if bad.size:
+        _refuse_separation(slave, part, master, mpart, tr, t, h, bad, "that coincides with")
+
+
+def _initial_gap(
+    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
+) -> np.ndarray:
+    """The initial normal gap (N,) of unilateral contact between two bodies: the distance
+    along each slave normal to the master (0 where the normal misses it). The bodies may
+    start apart; an overlap beyond SEPARATION_TOL·h (`_separation`) is refused."""
+    t, h = _separation(slave, part, tr, normals, master, mpart, level)
+    bad = np.flatnonzero(-np.nan_to_num(t / h) > SEPARATION_TOL)
+    if bad.size:
+        _refuse_separation(slave, part, master, mpart, tr, t, h, bad, "facing")
+    return np.nan_to_num(t)
+
+
+def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
+    """Initial guess for `fine` from the solution on the coarser level (nested iteration).
+
+    Along Γ3 (the same curve on every level, parametrised by normalised arc length) the normal
+    coefficients are interpolated, and the tangential ones through their ratio r = α/ρ to the
+    friction radius ρ (g; Coulomb: F·λ_n): a fine node between two coarse slip nodes gets
+    |r| = 1, i.e. it starts on the bound even where g varies, and the first Newton step starts
+    from the coarse stick/slip partition instead of rediscovering it. A fine node between a
+    coarse stick and a coarse slip node starts on the bound where |r| extrapolated from the
+    stick side reaches 1 (`_slip_ahead`).
+
+    u0, the displacement and potential, is the coarse solution interpolated at the fine nodes
+    (`transfer.prolongate`: the Q1/P1 prolongation of nested meshes; the new nodes of a curved
+    boundary lie outside the coarse mesh and are extrapolated, counted in
+    start["outside_nodes"]), then tied where λ0 predicts a tied row (`vi_core.ssn.tied_start`):
+    the first Newton step's GMRES starts from it (paper scene, levels 2–5: 12, 13, 15, 16
+    iterations instead of 14, 15, 18, 19 from u = 0).
+    """
+    if coarse.contact is None or fine.contact is None:
+        return {}
+    cc, fc = coarse.contact, fine.contact
+    sc, sf = cc.tr.s / cc.tr.s[-1], fc.tr.s / fc.tr.s[-1]
+    lam_c = coarse_sol.lam
+    lam_n = np.interp(sf[fc.rows_n], sc[cc.rows_n], cc.normal(lam_c))
+    rc = cc.bound(lam_c)
+    ratio_c = np.divide(cc.tangential(lam_c), rc, out=np.zeros(rc.size), where=rc > 0)
+    ratio = np.clip(np.interp(sf[fc.rows_t], sc[cc.rows_t], ratio_c), -1.0, 1.0)
+    on_bound = (np.abs(ratio) >= 1.0 - transfer.ON_BOUND) | _slip_ahead(
+        sc[cc.rows_t], ratio_c, sf[fc.rows_t]
+    )
+    ratio[on_bound] = np.sign(ratio[on_bound])
+    lam0 = np.zeros(fc.B_full.shape[0])
+    lam0[fc.idx_n] = lam_n
+    lam0[fc.idx_t] = ratio * fc.bound(lam0)
+    return transfer.carried_start(coarse, coarse_sol, fine, lam0)
+
+
+def _slip_ahead(xc: np.ndarray, ratio_c: np.ndarray, xf: np.ndarray) -> np.ndarray:
+    """(M,) fine positions xf (M,) lying between a coarse stick node a and a coarse slip node
+    (coarse positions xc (K,) increasing, ratios α/ρ `ratio_c` (K,)) where |r| extrapolated
+    linearly from a and its other neighbour b (also stick) reaches 1.
+
+    Why: the ratio rises steeply towards a stick/slip transition, so interpolating it between a
+    and the slip node leaves the new node between them below 1 (stick) where the fine solution
+    slips. Paper scene, nested iteration: levels 4 and 5 found the new nodes next to both
+    transitions slipping (|r_a| = 0.937, |r_b| = 0.709 at level 3: extrapolated 1.05 at the
+    midpoint; 0.934, 0.784 at level 4: 1.009), which took the fine level a second Newton step
+    with its own linear solve; at levels 2 and 3 extrapolation gives 0.84 and 0.61: stick, as
+    the fine solutions have it."""
+    slip = np.abs(ratio_c) >= 1.0 - transfer.ON_BOUND  # (K,)
+    out = np.zeros(xf.size, dtype=bool)
+    if xc.size < 3:
+        return out
+    k = np.clip(np.searchsorted(xc, xf, side="right") - 1, 0, xc.size - 2)  # (M,) interval
+    edge = slip[k] != slip[k + 1]  # (M,) between a stick and a slip node
+    a = np.where(slip[k], k + 1, k)  # (M,) its stick end
+    b = np.where(slip[k], k + 2, k - 1)  # (M,) the stick end's other neighbour
+    ok = edge & (b >= 0) & (b < xc.size) & (xf > xc[k]) & (xf < xc[k + 1])
+    a, b = a[ok], b[ok]
+    ok_b = ~slip[b]
+    ra, rb = np.abs(ratio_c[a]), np.abs(ratio_c[b])
+    r = ra + (ra - rb) * (xf[ok] - xc[a]) / (xc[a] - xc[b])  # linear through b and a
+    out[np.flatnonzero(ok)[ok_b & (r >= 1.0)]] = True
+    return out
+
+
+# ------------------------------------------------------------------ post-processing
+def contact_state(model: Model, sol: Solution) -> dict:
+    """Per-node contact quantities along Γ3 and the Lemma 4.2 check.
+
+    The arrays "s", "points", "lam_t", "g", "jump_t", "ut_slave", "slip", "touch_t" (and
+    "ut_master") are per tangential multiplier row (`Contact.rows_t`), "s_n", "lam_n",
+    "touch", "u_n", "gap" per normal row. "g" is the friction radius of the solution (g; unilateral
+    Tresca: g where the node is not open, 0 elsewhere; Coulomb: F·λ_n). States follow from the
+    answer by one rule (`vi_core.states`: multiplier margin and gap/slip, thresholds scaled by
+    the achieved residual): "state" per tangential row (stick, slip, open or ambiguous),
+    "normal_state" per normal row (touch, open or ambiguous); "slip" marks the slip nodes,
+    "touch" ("touch_t") the nodes with touch evidence (every node for bilateral contact);
+    "u_n" and "gap" (unilateral
+    only) are the normal jump [u]_n and the initial gap gap₀ (the remaining gap is their
+    difference), "pressure" the pressure scale (largest λ_n or elastic stress). Lemma 4.2
+    reads λᵀ(B u − gap₀) = Σ_k ρ_k W_k|[u]_τ,k| (normal complementarity makes the normal part
+    0).
+    """
+    c = model.contact
+    x_full = model.full(sol.u)
+    lam_n, lam_t = c.normal(sol.lam), c.tangential(sol.lam)
+    Bu = c.B_full @ x_full  # W_k·[u]_n, W_k·[u]_τ in B_full's row order
+    jump_t = c.tangential(Bu) / c.W_t  # nodal tangential (mortar) jump
+    nodes = c.tr.nodes[c.rows_t]
+    u_s = x_full[c.slave.u_dofs(nodes)]  # (N_t, 2)
+    ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents[c.rows_t])
+    gap_rows = np.zeros(Bu.size)
+    force = 0.0
+    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
+    if c.law == "unilateral":
+        gap_rows[c.idx_n] = c.gap0
+        # the elastic nodal forces per length: the pressure scale when the bodies are apart
+        # (all of λ is rounding then)
+        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / c.W_n.min()
+    radius = c.bound(sol.lam)  # (N_t,) the friction radius at λ
+    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    th = node_states.solution_thresholds(
+        sol,
+        max(float(np.abs(sol.lam).max(initial=0.0)), float(radius.max(initial=0.0)), force),
+        float(np.abs(sol.u[disp]).max(initial=0.0)),
+    )
+    normal = np.full(c.tr.size, "touch", dtype=object)  # bilateral: every node touches
+    if c.law == "unilateral":
+        normal[c.rows_n] = node_states.normal_states(lam_n, (c.gap0 - c.normal(Bu)) / c.W_n, th)
+    touch = normal[c.rows_n] == "touch"  # (N_n,)
+    touch_t = normal[c.rows_t] == "touch"  # (N_t,)
+    rho = radius * (normal[c.rows_t] != "open")  # (N_t,); an open node has no friction
+    tang = node_states.tangential_states(lam_t, rho, c.tangential(Bi) / c.W_t, th)
+    labels = node_states.node_states(normal[c.rows_t], tang)  # (N_t,)
+    slip = labels == "slip"
+    b_uh_lam = float(sol.lam @ (Bi - gap_rows))
+    weights = rho * c.W_t  # (N_t,) ∫ρφ̃_k (bilateral: g_weights)
+    g_abs = float(np.sum(weights * np.abs(c.tangential(Bi) / c.W_t)))
+    tiny = np.finfo(float).eps * float(np.sum(weights)) * max(np.abs(x_full).max(), 1e-300)
+    scale = g_abs
+    if c.law == "unilateral":  # the pressure scale P times the slack: rounding when apart
+        pressure = max(float(lam_n.max(initial=0.0)), force)
+        scale = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))
+    lemma = abs(b_uh_lam - g_abs) / max(scale, tiny, 1e-300)
+    state = {
+        "s": c.tr.s[c.rows_t],
+        "points": c.slave.mesh.points[nodes],
+        "s_n": c.tr.s[c.rows_n],
+        "lam_n": lam_n,
+        "lam_t": lam_t,
+        "g": rho,
+        "jump_t": jump_t,
+        "ut_slave": ut_s,
+        "slip": slip,
+        "state": labels,
+        "touch": touch,
+        "touch_t": touch_t,
+        "normal_state": normal[c.rows_n],
+        "b_uh_lam": b_uh_lam,
+        "int_g_abs_u": g_abs,
+        "lemma_4_2": float(lemma),
+    }
+    if c.law == "unilateral":
+        state["pressure"] = max(float(lam_n.max(initial=0.0)), force)  # the pressure scale
+        state["u_n"] = c.normal(Bu) / c.W_n  # (N_n,) normal (mortar) jump [u]_n
+        state["gap"] = c.gap0 / c.W_n  # (N_n,) initial gap
+    if c.master_proj is not None:
+        state["ut_master"] = c.master_proj @ x_full
+    return state
+
+
+def interface_summary(contact: Contact) -> dict:
+    """The interface entries of summary.json["contact"]: patch defect, crosspoints, coverage."""
+    tr = contact.tr
+    dropped = np.setdiff1d(np.arange(tr.size), np.intersect1d(contact.rows_n, contact.rows_t))
+    dropped = np.setdiff1d(dropped, contact.uncovered)
+    return {
+        "master": "rigid" if contact.master is None else contact.master.name,
+        "mortar_patch_defect": contact.patch_defect,
+        "ends": contact.ends,
+        "multipliers": {"normal": int(contact.rows_n.size), "tangential": int(contact.rows_t.size)},
+        "crosspoint_nodes": tr.nodes[dropped].tolist(),
+        "uncovered_nodes": tr.nodes[contact.uncovered].tolist(),
+    }
+
+
+def interface_warnings(contact: Contact) -> list[str]:
+    """Console warnings about the interface: uncovered slave nodes and the patch defect."""
+    out = []
+    tr = contact.tr
+    if contact.uncovered.size:
+        where = ", ".join(_where(contact.slave, tr, int(i)) for i in contact.uncovered[:6])
+        more = f" and {contact.uncovered.size - 6} more" if contact.uncovered.size > 6 else ""
+        out.append(
+            f"contact: {contact.uncovered.size} slave node(s) of {contact.slave.name}."
+            f"{contact.slave_part} have no master behind their whole support and carry no "
+            f"multiplier (left free): {where}{more}"
+        )
+    if contact.patch_defect > PATCH_DEFECT_LIMIT:
+        out.append(
+            f"contact: mortar patch defect {contact.patch_defect:.3g} > {PATCH_DEFECT_LIMIT:g}: "
+            "a rigid translation of both bodies is not transferred across the interface — the "
+            "mortar projection is wrong for this geometry; results are not trustworthy"
+        )
+    return out
+
+
+def contact_warnings(state: dict) -> list[str]:
+    """What a user must know about the friction bound of this solution."""
+    g, lam_t = state["g"], state["lam_t"]
+    if not state["touch"].any():
+        return ["no node of Γ3 touches: the bodies are apart (λ = 0)"]
+    if not g.any():
+        return ["zero friction on Γ3: frictionless sliding"]
+    out = node_states.warnings(state["state"])
+    if not state["slip"].any():
+        used = float(np.max(np.abs(lam_t) / np.where(g > 0, g, np.inf)))
+        out.append(
+            f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
+            "bound, so the problem is tied (g above every tangential stress)"
+        )
+    return out
+
+
+def _unilateral_summary(contact: Contact, state: dict) -> dict:
+    """The summary entries only unilateral contact has: open nodes, the law and friction."""
+    return {
+        "open": int(np.sum(state["normal_state"] == "open")),
+        "law": contact.law,
+        "friction": contact.friction,
+        "min_gap": float((state["gap"] - state["u_n"]).min(initial=np.inf)),
+    }
+
+
+def contact_table(model: Model, sol: Solution) -> ContactTable:
+    """One row per slave node of Γ3 (problems.output.results): λ_n, λ_t, the tangential
+    mortar jump and stick/slip; NaN and state 'no_multiplier' where a node carries none."""
+    c = model.contact
+    tr = c.tr
+    st = contact_state(model, sol)
+    k = tr.size
+    lam_n, lam_t, jump_t = np.full(k, np.nan), np.full(k, np.nan), np.full(k, np.nan)
+    lam_n[c.rows_n] = st["lam_n"]
+    lam_t[c.rows_t] = st["lam_t"]
+    jump_t[c.rows_t] = st["jump_t"]
+    state = np.full(k, "no_multiplier", dtype=object)
+    state[c.rows_t] = st["state"]
+    gap = None
+    if c.law == "unilateral":
+        gap = np.full(k, np.nan)
+        gap[c.rows_n] = np.maximum(st["gap"] - st["u_n"], 0.0)
+    return ContactTable(
+        points=c.slave.mesh.points[tr.nodes],
+        normals=tr.normals,
+        weights=tr.weights,
+        segments=tr.facets,
+        lambda_n=lam_n,
+        lambda_t=lam_t,
+        jump_t=jump_t,
+        state=state.astype(str),
+        gap=gap,
+    )
+
+
+def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
+    """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
+    into `outdir`; return the summary entries."""
+    from fem.io import write_vtu
+
+    x_full = model.full(sol.u)
+    files, notes = [], []
+    for b in model.bodies:
+        point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
+        fn = f"{b.name}.vtu"
+        write_vtu(outdir / fn, b.mesh, point, cell)
+        files.append(fn)
+        if note:
+            notes.append(note)
+    summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
+    if model.contact is not None:
+        quad = piezo_balance.lemma_4_2(model, sol) if model.slip_origin is None else None
+        if quad is not None:
+            summary["lemma_4_2_quadrature"] = quad
+        state = contact_state(model, sol)
+        files += plots.contact_plots(state, outdir, title=model.scene.name)
+        table = contact_table(model, sol)
+        files += results.write_contact(outdir, table)[0]
+        labels = state["state"]
+        summary["contact"] = {
+            "nodes": int(labels.size),
+            "stick": int(np.sum(labels == "stick")),
+            "slip": int(np.sum(labels == "slip")),
+            "ambiguous": int(np.sum(labels == "ambiguous")),
+            **(
+                _unilateral_summary(model.contact, state)
+                if model.contact.law != "bilateral"
+                else {}
+            ),
+            **table.totals(),
+            **interface_summary(model.contact),
+            "table": table.records(),
+        }
+        summary["lemma_4_2"] = state["lemma_4_2"]
+        if model.electrical is not None:
+            summary["electrical"] = {
+                **electrical_contact.report(model.electrical, sol),
+                **electrical_contact.touching(model.electrical, sol, state["touch"]),
+            }
+        summary["warnings"] = contact_warnings(state)
+    if notes:
+        summary["notes"] = notes
+    along = model.options.get("potential_along")
+    if along is not None:
+        b = next(bb for bb in model.bodies if bb.name == along[0])
+        tr = trace(b.mesh, along[1])
+        _, phi = b.split(x_full[b.offset : b.offset + b.size])
+        files.append(
+            plots.potential_plot(
+                b.mesh.points[tr.nodes], tr.s, phi[tr.nodes], outdir, f"{along[0]}.{along[1]}"
+            )
+        )
+    summary["files"] = sorted(files)
+    return summary
+
+
+# ------------------------------------------------------------------ contract v2 declarations
+fields = contact_model.fields  # nodal fields by name
+mesh_size = contact_model.mesh_size  # h of the built level
+CONTRACT = 2
+SWEEP = Sweep(
+    "contact.g",
+    "friction bound g [Pa]",
+    factors=(1.5, 1.0, 0.6),
+    file="fig_5_4.png",
+    otherwise=Sweep(
+        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep.png"
+    ),
+)
+NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
+extremes = piezo_extremes.rows
+
+
+def draw(ax, model: Model, sol: Solution) -> str:
+    """A panel of `mixvi figures`: λ·τ with ±g, slip zones and the tangential jump along Γ3."""
+    if model.contact is None:
+        return "no contact interface"
+    return plots.friction_panel(ax, contact_state(model, sol))
+
+
+def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
+    """The NORMS against the scene's [exact] table (None without one)."""
+    _, exact = split_exact(model.scene)
+    return None if exact is None else piezo_errors.exact_errors(model, sol.u, sol.lam, exact)
+
+
+def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
+    """One load step's files (no plots): a VTU per body, contact.vtu and contact.csv; the
+    summary entries "files" and "contact" (the counts per state)."""
+    from fem.io import write_vtu
+
+    x_full = model.full(sol.u)
+    files = []
+    for b in model.bodies:
+        point, cell, _ = body_fields(b, x_full[b.offset : b.offset + b.size])
+        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
+        files.append(f"{b.name}.vtu")
+    out: dict = {"files": files}
+    if model.contact is not None:
+        table = contact_table(model, sol)
+        written, contact = results.write_contact(outdir, table)
+        files += written
+        out["contact"] = contact["counts"]
+    return out
+
+
+def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
+    """(unknowns n + m, stored entries of A, n) of each of `levels`, counted on the level-0
+    meshes without building them (`sizes.sizes`)."""
+    return sizes(scene.validated(SCENE_MODEL), levels)
+
+
+def update(model: Model, scene: Scene, t: float) -> Model | None:
+    """Load paths: the step t of `model` with only its loads and prescribed values re-read
+    (`contact_model.update`; None: rebuild the step, e.g. with [contact.electrical])."""
+    return contact_model.update(model, scene.validated(SCENE_MODEL), t)
+
+
+def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
+    """Load paths: the friction law of the next step `model` acts on the slip since the
+    previous step, [u]_τ − [u_prev]_τ: the tangential rows of the gap are shifted by
+    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
+    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
+    c = model.contact
+    if c is None:
+        return
+    origin = c.B_full @ previous.full(previous_sol.u)  # (N_n + N_t,) in B_full's row order
+    origin[c.idx_n] = 0.0
+    model.slip_origin = origin
+    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
+
+
+def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
+    """The NORMS against the solution of the finer level `ref` of the same scene."""
+    return piezo_errors.reference_errors(model, sol.u, sol.lam, ref, ref_sol.u, ref_sol.lam)
+
+
+from .error_estimate import estimate as _estimate  # noqa: E402 (issue 32)
+
+estimate = partial(_estimate, SCENE_MODEL)  # a posteriori error indicators per cell

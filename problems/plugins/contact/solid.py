@@ -1,0 +1,970 @@
+"""Plug-in: elastic or piezoelectric 3D bodies in bilateral contact with Tresca friction, or in
+unilateral contact with Tresca (where touching) or Coulomb friction discs.
+
+Per contact node k of the slave surface Γ3 (a boundary part of a 3D body): a normal multiplier
+λ_n,k (free: bilateral contact) and a tangential one λ_t,k in the tangent plane with the
+friction disc |λ_t,k| ≤ g_k (`vi_core.Ball(g, 2)`); λ_h = Σ_k (λ_n,k n_k + λ_t1,k t1_k +
+λ_t2,k t2_k) ψ̃_k with the dual basis ψ̃_k of the contact faces (Q1 quadrilaterals or P1
+triangles, `fem.facets`), so that ∫ψ̃_k φ_j = δ_kj W_k with W_k = ∫_Γ3 φ_k and the slave
+block D = diag(W) is diagonal. g_k = ∫g φ_k / W_k. Frames (t1, t2, n) are right-handed and
+continuous on curved surfaces (`fem.facets.frames`). With a rigid foundation (the slave
+surface itself, flat or curved: bilateral contact has no initial gap) the rows are
+W_k n_kᵀu_k and W_k t_kᵀu_k; a master body adds −Σ_j M_kj (·)ᵀu_m,j (a `Coupling`: the 3D dual
+mortar of `fem.mortar`, `mortar_coupling`; docs/fem3d.md "Two bodies in contact3d").
+
+Multiplier order: the normal rows, then the disc nodes (t1, t2 per node), then the nodes that
+keep one tangent only. Crosspoint rules (per node, from its prescribed displacement
+components, which must span a sub-frame of (n, t1, t2) after turning the tangents): nothing
+prescribed → n, t1, t2; all prescribed → no multiplier; one component e_c with e_c ⟂ n → n and
+the tangent n × e_c (a line |λ_t| ≤ g); e_c ∥ n → the two tangents only (a disc); two
+components with the free one e_f ∥ n → n only; with e_f ⟂ n → the tangent e_f only; anything
+else is refused (SceneError naming the nodes).
+
+Crosspoint basis (`[contact] ends`, `class_blocks`), per class (normal; tangential): "keep"
+drops the dual functions of the nodes the rules give no row of the class; "merge" (default;
+Wohlmuth's modification, the 2D default too) gives them to the class's carrying neighbours in each
+face (`fem.facets.multiplier_basis`), so that Σ_k ψ̃_k = 1 on every face with a carrier. A
+line node keeps its tangential class (it cannot give away one tangent's function: the
+neighbours' rows would re-impose the tangent it keeps); its other tangent's function is dropped.
+The rows of node k in class c are then Σ_j S_c,kj d_kᵀu_s,j − Σ_j M_c,kj d_kᵀu_m,j with
+S_c = Q_c D_loc (S_c,kk = W_k; entries at the dropped nodes, whose displacement is prescribed,
+go into the gap) and M_c = Q_c M_loc; the class weights W_n,k, W_t,k = ∫ψ̃_k dA (row sums; = W_k
+under "keep") scale the jumps (B u)/W_c, the Lemma 4.2 sum, the force, the areas and Y, and
+g_k = ∫gφ̃_k / W_t,k (φ̃ = Q_t φ, as 2D).
+
+Unilateral contact (`[contact] law = "unilateral"`, the keys of `contact_law`): λ_n ≥ 0,
+gap ≥ 0, λ_n·gap = 0 and |λ_t| ≤ ρ with ρ = F_k λ_n (Coulomb, F_k = ∫Fφ̃_k / W_t,k) or g_k where
+the node touches (Tresca). The rows of a node are then side by side (`SolidContact.rows`):
+[n, t1, t2] per disc node (vi_core's contact set with dim 3), [n, t] per line node (dim 2),
+then the normal-only nodes (NonNegative); a node whose normal displacement is prescribed is
+refused. The initial gap is Σ_j S_n,kj gap(x_j) for a rigid foundation (the scene's field) and
+the weighted mortar gap −n_k·(Σ_j S_n,kj x_s,j − Σ_j M_n,kj x_m,j) for two bodies, which may
+start apart (an overlap beyond OVERLAP_TOL × the level-0 node size is refused).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+import scipy.sparse as sp
+from pydantic import Field, model_validator
+from scipy.spatial import cKDTree
+
+from fem import mortar as dual_mortar
+from fem.facets import Trace, dual_mass, facet_integrals, frames, multiplier_basis, trace
+from problems.errors import SceneError
+from problems.scene import Scene, SceneModel
+from problems.scene.exact import ExactSection3
+from problems.scene.fields import NonNegativeExpr3
+from problems.scene.model import head, refuse
+from vi_core import Ball, Box, Free, NonNegative, Solution, product
+from vi_core import states as node_states
+
+from .. import transfer
+from ..contract import Sweep, check_meshed
+from . import law as contact_law
+from . import model as contact_model
+from . import solid_checks as contact3d_checks
+from . import solid_errors as contact3d_errors
+from . import solid_extremes as contact3d_extremes
+from . import solid_output as contact3d_output
+from .bodies import Body, build_body
+from .model import BodiesModel, reference
+from .sizes import sizes
+from .solid_bodies import SURFACE_ORDER, BodySection3, field_data
+
+NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
+ALIAS = "contact3d"  # its former name, still accepted (registry.ALIASES)
+DIMENSION = 3  # the models' `dimension` (`count` needs no model to tell it)
+DESCRIPTION = (
+    "elastic/piezoelectric 3D bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
+    "(friction discs)"
+)
+CONTRACT = 2
+ALIGN_TOL = 1e-10  # sine of the angle under which a prescribed direction counts as n or ⟂ n
+# Unilateral contact of two bodies: the master may stand apart from the slave (an initial gap)
+# but overlap it by at most OVERLAP_TOL × the level-0 node size (the chord-versus-surface
+# discrepancy of two curved surfaces meshed apart, as 2D's SEPARATION_TOL).
+OVERLAP_TOL = 0.1
+
+
+@dataclass
+class Coupling:
+    """The master side of a two-body interface (`None` in `SolidContact` = rigid foundation).
+
+    M_loc (m·n_f, n_master_nodes): the face-local mortar matrix ∫_e ψ_{e,a} φ_j^m dA of
+    `fem.mortar` (a class's rows are Q_c M_loc, `class_blocks`); dofs (n_master_nodes, 3) the
+    master's full displacement dofs; `patch_defect` max over the rows of
+    |W_c,k − Σ_j M_c,kj| / W_c,k.
+    """
+
+    body: Body
+    part: str
+    M_loc: sp.csr_matrix
+    dofs: np.ndarray
+    patch_defect: float
+    covered: np.ndarray | None = None  # (k_slave,) the master is behind the node's support
+    n_cells: int = 0  # integration cells of the mortar
+
+
+@dataclass
+class SolidContact:
+    """The contact interface Γ3 of a 3D scene: slave surface, frames, multiplier rows, bounds.
+
+    Trace arrays are per slave surface node (k); rows_n (N_n,), disc (N_b,) and line (N_l,)
+    index the nodes carrying a normal multiplier, two tangential ones, one tangential one.
+    A `line` node keeps the tangent t1 (line_slot 0) or t2 (line_slot 1): `line_dir`.
+    """
+
+    slave: Body
+    slave_part: str
+    surf: Trace
+    normals: np.ndarray  # (k, 3)
+    t1: np.ndarray  # (k, 3)
+    t2: np.ndarray  # (k, 3)
+    rows_n: np.ndarray  # (N_n,)
+    disc: np.ndarray  # (N_b,)
+    line: np.ndarray  # (N_l,)
+    line_slot: np.ndarray  # (N_l,) 0: the kept tangent is t1, 1: it is t2
+    g: np.ndarray  # (k,) g_k = ∫gφ̃_k / W_t,k (Coulomb: 0)
+    B_full: sp.csr_matrix  # (N_n + 2 N_b + N_l, n_full)
+    W_n: np.ndarray  # (k,) ∫ψ̃_k dA of the normal class (W where the node carries no λ_n)
+    W_t: np.ndarray  # (k,) ∫ψ̃_k dA of the tangential class (W where no tangential row)
+    ends: str = "merge"  # the crosspoint basis: "keep" or "merge" (`class_blocks`)
+    master: Coupling | None = None
+    law: str = contact_law.LAWS[0]  # "bilateral" or "unilateral"
+    friction: str = contact_law.FRICTIONS[0]  # "tresca" or "coulomb"
+    F: np.ndarray | None = None  # (k,) Coulomb F_k = ∫Fφ̃_k / W_t,k (friction = "coulomb")
+    gap0: np.ndarray | None = None  # (N_n,) initial gap rows Σ_j S_n,kj gap_j (unilateral)
+    order: np.ndarray | None = None  # (m,) row of the bilateral order at each row of B_full
+    gap_field: Callable | None = None  # the scene's gap(x, y, z) to a rigid foundation
+    bound_field: Callable | None = None  # the scene's g(x, y, z) (tresca) or F(x, y, z)
+
+    def rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(idx_n (N_n,), idx_disc (N_b, 2), idx_line (N_l,)): the row of B_full (and λ) of
+        each normal row, disc pair (t1, t2) and line row. Bilateral: normals, discs, lines in
+        turn; unilateral: the nodes [n, t1, t2] (discs), then [n, t] (lines) side by side, then
+        the normal-only nodes (vi_core.coulomb's node-by-node order)."""
+        N_n, N_b, N_l = self.sizes
+        at = np.arange(N_n + 2 * N_b + N_l)
+        if self.order is not None:
+            at = np.argsort(self.order)  # bilateral row → row of B_full
+        return at[:N_n], at[N_n : N_n + 2 * N_b].reshape(N_b, 2), at[N_n + 2 * N_b :]
+
+    def bound(self, lam: np.ndarray) -> np.ndarray:
+        """(k,) the friction radius per surface node at the multiplier λ (B_full's row order):
+        g (bilateral), g where λ_n > 0 and 0 elsewhere (unilateral Tresca), F·max(λ_n, 0)
+        (Coulomb); λ_n = 0 where a node carries no normal row."""
+        if self.law == "bilateral":
+            return self.g
+        lam_n = np.zeros(self.surf.size)
+        lam_n[self.rows_n] = lam[self.rows()[0]]
+        if self.friction == "coulomb":
+            return self.F * np.maximum(lam_n, 0.0)
+        return self.g * (lam_n > 0)
+
+    @property
+    def W(self) -> np.ndarray:
+        """(k,) W_k = ∫_Γ3 φ_k dA, the nodal quadrature weights (the diagonal of each class's
+        slave block; its row sums are W_n, W_t)."""
+        return self.surf.weights
+
+    def row_weights(self) -> np.ndarray:
+        """(m,) the weight ∫ψ̃_k dA of every row of B_full (W_n on the normal rows, W_t on the
+        tangential ones): (B u)_r / w_r is the row's mean jump."""
+        idx_n, idx_b, idx_l = self.rows()
+        w = np.empty(self.B_full.shape[0])
+        w[idx_n] = self.W_n[self.rows_n]
+        w[idx_b] = self.W_t[self.disc, None]
+        w[idx_l] = self.W_t[self.line]
+        return w
+
+    @property
+    def line_dir(self) -> np.ndarray:
+        """(N_l, 3) the tangent each line node keeps."""
+        return np.where(self.line_slot[:, None] == 0, self.t1[self.line], self.t2[self.line])
+
+    @property
+    def sizes(self) -> tuple[int, int, int]:
+        """(N_n, N_b, N_l)."""
+        return self.rows_n.size, self.disc.size, self.line.size
+
+    def Lambda(self):
+        """Bilateral: Λ_h = Free(N_n) × Ball(g, 2) over the disc nodes × Box(−g, g) over the
+        line nodes. Unilateral: the contact set of the disc nodes in R³ (a friction disc), that
+        of the line nodes in R² (one tangent), NonNegative over the normal-only nodes
+        (`contact_law.pair_set`: Coulomb(F) or contact-only UnilateralTresca(g))."""
+        if self.law == "bilateral":
+            gb, gl = self.g[self.disc], self.g[self.line]
+            return product(Free(self.rows_n.size), Ball(gb, 2), Box(-gl, gl))
+        bound = self.F if self.friction == "coulomb" else self.g
+        sets = [contact_law.pair_set(self.friction, bound[self.disc], 3)]
+        sets.append(contact_law.pair_set(self.friction, bound[self.line], 2))
+        sets.append(NonNegative(self.rows_n.size - self.disc.size - self.line.size))
+        return product(*sets)
+
+
+@dataclass
+class Model(BodiesModel):
+    """A built 3D scene: the mixed VI plus what post-processing needs."""
+
+    dimension: int = DIMENSION
+    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
+    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
+    slip_origin: np.ndarray | None = None
+
+
+class ContactSection(contact_law.contact_law(NonNegativeExpr3)):
+    """[contact]: the slave boundary (BODY.BOUNDARY), the master ("rigid": a rigid foundation
+    along the slave surface, or at the distance `gap` from it; or BODY.BOUNDARY of another body:
+    the 3D dual mortar) and the contact law (fields of x, y, z): law = "bilateral" (λ_n of any
+    sign, the bodies stay in contact) or "unilateral" (λ_n ≥ 0, gap ≥ 0, λ_n·gap = 0; two
+    bodies may start apart, the gap is the geometry's); friction = "tresca" (the disc
+    |λ_t| ≤ g, g in Pa; unilateral: only where the bodies touch) or "coulomb" (|λ_t| ≤ F·λ_n;
+    unilateral only); gap = the initial normal distance to a rigid foundation (m, unilateral);
+    ends = the crosspoint basis, "keep" (a dropped direction's dual functions are dropped) or
+    "merge" (they go to the neighbours, class by class: `class_blocks`)."""
+
+    slave: str
+    master: str = "rigid"
+    ends: Literal["keep", "merge"] = "merge"
+
+
+Head = head(NAME, 1, ALIAS)
+
+
+class SolidScene(SceneModel):
+    """A contact3d scene: 3D bodies and an optional contact interface."""
+
+    scene: Head
+    bodies: Annotated[dict[str, BodySection3], Field(min_length=1)]
+    contact: ContactSection | None = None
+    exact: ExactSection3 | None = None  # a manufactured solution (contact3d_errors)
+
+    @model_validator(mode="after")
+    def _references(self) -> SolidScene:
+        c = self.contact
+        if c is not None:
+            sbody, _ = reference(self.bodies, ["contact", "slave"], c.slave)
+            if c.master != "rigid":
+                mbody, _ = reference(self.bodies, ["contact", "master"], c.master)
+                if mbody == sbody:
+                    raise refuse(
+                        ["contact", "master"],
+                        c.master,
+                        '"rigid" or BODY.BOUNDARY of another body than the slave',
+                    )
+        return self
+
+
+SCENE_MODEL = SolidScene
+
+
+def build(scene: Scene, level: int | None = None) -> Model:
+    """Scene → Model (meshes, assembly, Dirichlet reduction, contact rows, MixedVI); a
+    SceneError raised while building names the scene file."""
+    return contact_model.built(_build, scene, level)
+
+
+def _build(scene: Scene, level: int | None) -> Model:
+    spec = scene.validated(SCENE_MODEL)
+    level = spec.scene.level if level is None else level
+    bodies: dict[str, Body] = {}
+    offset = 0
+    for name, tb in spec.bodies.items():
+        bodies[name] = build_body(name, tb, level, offset)
+        offset += bodies[name].size
+    n_full = offset
+    contact = None
+    if spec.contact is not None:
+        ct = spec.contact
+        sname, part = ct.slave.split(".", 1)
+        check_meshed(bodies[sname].mesh, [("contact.slave", part)])
+        master = None
+        if ct.master != "rigid":
+            mname, mpart = ct.master.split(".", 1)
+            check_meshed(bodies[mname].mesh, [("contact.master", mpart)])
+            master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
+        contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
+    vi, free, values, rhs = contact_model.mixed_vi(
+        list(bodies.values()),
+        None if contact is None else partial(_rows, contact),
+        field_data,
+        {"scene": scene.name, "level": level},
+    )
+    bodies_ = list(bodies.values())
+    return Model(scene, level, bodies_, contact, vi, free, values, spec.options(), rhs=rhs)
+
+
+def update(model: Model, scene: Scene, t: float) -> Model | None:
+    """Load paths: the step t of `model` with only its loads and prescribed values re-read
+    (`contact_model.update`; None: rebuild the step)."""
+    return contact_model.update(model, scene.validated(SCENE_MODEL), t)
+
+
+def _rows(contact: SolidContact):
+    """B_full, the gap rows not from Dirichlet data (the initial gap rows), Λ_h and the Y Gram
+    matrix of the contact rows (`contact_model.mixed_vi`)."""
+    gap = np.zeros(contact.B_full.shape[0])  # (m,)
+    if contact.gap0 is not None:
+        gap[contact.rows()[0]] += contact.gap0
+    return contact.B_full, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
+
+
+def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
+    """(unknowns n + m, stored entries of A, n) of each of `levels`, counted on the level-0
+    meshes without building them (`sizes.sizes`)."""
+    return sizes(scene.validated(SCENE_MODEL), levels)
+
+
+def row_nodes(c: SolidContact) -> np.ndarray:
+    """(m,) the surface node of every row of B_full, in its row order."""
+    idx_n, idx_b, idx_l = c.rows()
+    k = np.empty(c.B_full.shape[0], dtype=int)
+    k[idx_n], k[idx_b], k[idx_l] = c.rows_n, c.disc[:, None], c.line
+    return k
+
+
+def row_nodes_weights(c: SolidContact) -> np.ndarray:
+    """(m,) h_k W_c,k per row of B_full (W_c the row's class weight, `SolidContact.row_weights`):
+    the mesh-dependent H^{-1/2} Gram stand-in (Y)."""
+    return c.surf.node_sizes()[row_nodes(c)] * c.row_weights()
+
+
+def _where(body: Body, surf: Trace, i: int) -> str:
+    node = int(surf.nodes[i])
+    return f"node {node} at {body.mesh.points[node].tolist()}"
+
+
+def carrying(
+    fixed: np.ndarray, normals: np.ndarray, t1: np.ndarray, t2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[int]]:
+    """The crosspoint rules (module docstring) per surface node.
+
+    fixed (k, 3) which displacement components are prescribed; normals, t1, t2 (k, 3) the
+    surface frames. Returns carry_n (k,) bool, n_tan (k,) 0/1/2, the frames (t1, t2) turned
+    about n where one tangent is kept so that the kept one is the frame vector nearest to it,
+    slot (k,) (0/1: the kept tangent is t1/t2; −1 elsewhere) and the refused nodes.
+    """
+    k = fixed.shape[0]
+    t1, t2 = t1.copy(), t2.copy()
+    n_pres = fixed.sum(axis=1)  # (k,)
+    carry_n = n_pres == 0
+    n_tan = np.where(n_pres == 0, 2, 0)
+    slot = np.full(k, -1)
+    bad = []
+    eye = np.eye(3)
+    for i in np.flatnonzero((n_pres > 0) & (n_pres < 3)):
+        n = normals[i]
+        if n_pres[i] == 1:
+            d = eye[int(np.flatnonzero(fixed[i])[0])]
+            if abs(n @ d) >= 1 - ALIGN_TOL:  # the prescribed direction is the normal
+                n_tan[i] = 2
+                continue
+            if abs(n @ d) > ALIGN_TOL:
+                bad.append(i)
+                continue
+            keep, carry_n[i] = np.cross(n, d), True
+        else:
+            f = eye[int(np.flatnonzero(~fixed[i])[0])]
+            if abs(n @ f) >= 1 - ALIGN_TOL:  # only the normal is free
+                carry_n[i] = True
+                continue
+            if abs(n @ f) > ALIGN_TOL:
+                bad.append(i)
+                continue
+            keep = f
+        keep = keep / np.linalg.norm(keep)
+        n_tan[i] = 1
+        if abs(keep @ t1[i]) >= abs(keep @ t2[i]):
+            t1[i] = keep * np.sign(keep @ t1[i])
+            t2[i] = np.cross(n, t1[i])
+            slot[i] = 0
+        else:
+            t2[i] = keep * np.sign(keep @ t2[i])
+            t1[i] = np.cross(t2[i], n)  # (t1, t2, n) stays right-handed
+            slot[i] = 1
+    return carry_n, n_tan, t1, t2, slot, bad
+
+
+def class_blocks(
+    surf: Trace,
+    carry: np.ndarray,
+    covered: np.ndarray,
+    ends: str,
+    M_loc: sp.csr_matrix | None = None,
+) -> tuple[sp.csr_matrix, sp.csr_matrix | None, np.ndarray, sp.csr_matrix]:
+    """The rows of one multiplier class (normal, or tangential) in the basis ψ̃ = Q ψ of
+    `fem.facets.multiplier_basis(surf, carry, ends)`: carry (k,) the nodes the crosspoint
+    rules give a row of the class ("merge": the others give their dual functions to their
+    neighbours in each face; "keep": they are dropped). Rows of nodes whose support the master
+    does not cover (covered (k,) False) are then dropped as they are (never merged).
+
+    Returns S (k, k) the slave block Q_c D_loc (row k zero where node k has no row of the
+    class; S_kk = W_k by biorthogonality, S_kj ≠ 0 for j ≠ k only at nodes j that gave their
+    function away), Mc (k, k_m) = Q_c M_loc (None without a master), Wc (k,) the row sums
+    ∫ψ̃_k dA = W_k + what node k received (W_k where it has no row or received nothing) and
+    Qk (k, m·n_f) the basis in node rows.
+    """
+    idx = np.flatnonzero(carry)  # (n_c,) the node of each row of Q
+    Q = multiplier_basis(surf, carry, ends)  # (n_c, m n_f)
+    sel = covered[idx]
+    P = sp.csr_matrix(
+        (np.ones(int(sel.sum())), (idx[sel], np.flatnonzero(sel))), shape=(surf.size, idx.size)
+    )
+    Qk = (P @ Q).tocsr()  # (k, m n_f)
+    S = (Qk @ dual_mass(surf)).tocsr()  # (k, k)
+    C = Qk.tocoo()
+    given = surf.facets.ravel()[C.col] != C.row  # (nnz,) entries of another node's function
+    fw = surf.facet_weights.ravel()  # (m n_f,) ∫_e φ_a = ∫_e ψ_{e,a}
+    received = np.bincount(C.row[given], C.data[given] * fw[C.col[given]], surf.size)  # (k,)
+    Wc = surf.weights + received  # (k,) = W exactly where nothing was merged in
+    Mc = None if M_loc is None else (Qk @ M_loc).tocsr()
+    return S, Mc, Wc, Qk
+
+
+def contact_rows(
+    dirs: list[tuple[np.ndarray, np.ndarray, sp.csr_matrix, sp.csr_matrix | None]],
+    slave_dofs: np.ndarray,
+    n_full: int,
+    master_dofs: np.ndarray | None = None,
+) -> sp.csr_matrix:
+    """Rows Σ_j S_kj d_rᵀu_s,j − Σ_j M_kj d_rᵀu_m,j for each (nodes (r,), directions (r, 3),
+    S (k, k), M (k, k_m) or None) of `dirs`, in order (S, M a class's blocks, `class_blocks`).
+    slave_dofs (k, 3) full dofs of the surface nodes, master_dofs (k_m, 3) the master's."""
+    rows, cols, vals, offset = [], [], [], 0
+    for nodes, d, S, M in dirs:
+        for mat, dofs, sign in ((S, slave_dofs, 1.0), (M, master_dofs, -1.0)):
+            if mat is None:
+                continue
+            C = mat[nodes].tocoo()  # (r, ·)
+            for c in range(3):
+                rows.append(offset + C.row)
+                cols.append(dofs[C.col, c])
+                vals.append(sign * C.data * d[C.row, c])
+        offset += nodes.size
+    B = sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(offset, n_full)
+    )
+    B.eliminate_zeros()
+    return B
+
+
+def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Coupling:
+    """The master side of a two-body interface: the 3D dual mortar (`fem.mortar`), face-local
+    (a class's rows are Q_c M_loc); nodes without the master behind their whole support carry
+    no multiplier (`covered`); patch_defect is set by `slave_contact`."""
+    try:
+        order = SURFACE_ORDER[slave.mesh.cell_type]  # that of the slave block in slave_contact
+        reach = 1.0 + _distance(slave, part, master, mpart)
+        mo = dual_mortar.mortar_coupling(
+            slave.mesh, part, master.mesh, mpart, face_order=order, reach=reach
+        )
+    except ValueError as err:
+        raise SceneError(
+            "contact.master", f"{master.name}.{mpart}", f"a master surface facing the slave ({err})"
+        ) from None
+    dofs = master.u_dofs(mo.master.nodes)  # (k_m, 3)
+    return Coupling(master, mpart, mo.M, dofs, np.nan, dual_mortar.covered_nodes(mo), mo.n_cells)
+
+
+def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
+    """How far the master surface stands from the slave one, in slave face sizes: the largest
+    distance of a slave surface node to the nearest master surface node over the smallest
+    slave face diameter (0 for coincident surfaces); it widens the mortar's candidate search
+    for bodies that start apart."""
+    faces = slave.mesh.boundaries[part]  # (n_f, k)
+    P = slave.mesh.points
+    xs = P[np.unique(faces)]
+    xm = master.mesh.points[np.unique(master.mesh.boundaries[mpart])]
+    d, _ = cKDTree(xm).query(xs)
+    size = np.linalg.norm(P[faces[:, 0]] - P[faces[:, 2]], axis=1).min()  # a diagonal
+    return float(d.max() / size)
+
+
+def _not_facing(surf: Trace, master: Coupling) -> str:
+    """What is wrong with a master surface that lies behind no slave node's support (what a
+    master must be, and which of the three ways it is not: it faces the same way as the slave,
+    it lies behind the slave, or the two do not overlap seen along the slave's normal)."""
+    mesh = master.body.mesh
+    msurf = trace(mesh, master.part, SURFACE_ORDER[mesh.cell_type])
+    n_s, n_m = surf.normals.mean(axis=0), msurf.normals.mean(axis=0)  # (3,) mean outward normals
+    ahead = float((msurf.points.mean(axis=0) - surf.points.mean(axis=0)) @ n_s)
+    if float(n_s @ n_m) > 0:
+        why = "the two surfaces face the same way (their outward normals agree)"
+    elif ahead < 0:
+        why = "the two surfaces face away from each other (the master lies behind the slave)"
+    else:
+        why = "the two surfaces do not overlap seen along the slave's normal"
+    return (
+        "a master surface facing the slave one and overlapping it: no slave node has this master "
+        f"behind its faces, so no contact multiplier can be placed; {why}"
+    )
+
+
+def _rigid_gap(gap, points: np.ndarray) -> np.ndarray:
+    """(n,) the scene's initial gap to a rigid foundation at the points (n, 3); 0 without a
+    `gap` field; SceneError where it is negative."""
+    x, y, z = points.T  # (n,) each
+    if gap is None:
+        return np.zeros(x.size)
+    gap_k = np.broadcast_to(np.asarray(gap(x, y, z), float), x.shape)
+    if (gap_k < 0).any():
+        raise SceneError("contact.gap", float(gap_k.min()), "a distance ≥ 0 on Γ3")
+    return gap_k
+
+
+def _positions(bodies: list[Body], n_full: int) -> np.ndarray:
+    """(n_full,) the nodal coordinates in the displacement dofs of every body, 0 elsewhere."""
+    X = np.zeros(n_full)
+    for b in bodies:
+        X[b.u_dofs(np.arange(b.n_nodes))] = b.mesh.points
+    return X
+
+
+def slave_contact(
+    slave: Body, part: str, law, n_full: int, master: Coupling | None = None, level: int = 0
+) -> SolidContact:
+    """The contact of `slave`'s boundary `part` (a rigid foundation along it, or `master`):
+    surface, frames, crosspoint rules, g_k (or F_k) and the rows; `law` is the [contact]
+    table (`ContactSection`: law, friction, g or F, gap). Unilateral contact puts the rows of a
+    node side by side (`SolidContact.rows`) and builds the initial gap rows: Σ_j S_n,kj gap(x_j)
+    for a rigid foundation, the weighted mortar gap −(D x_s − M x_m)·n_k of the geometry for two
+    bodies (an overlap of more than OVERLAP_TOL × the level-0 node size is refused)."""
+    unilateral = law.law == "unilateral"
+    gfun = law.g if law.friction == "tresca" else law.F
+    key = "contact.slave"
+    try:
+        surf = trace(slave.mesh, part, SURFACE_ORDER[slave.mesh.cell_type])
+        t1, t2 = frames(surf.normals)
+    except ValueError as err:
+        raise SceneError(
+            key, f"{slave.name}.{part}", f"a contact surface with valid faces ({err})"
+        ) from None
+    fixed = slave.fixed[slave.u_dofs(surf.nodes) - slave.offset]  # (k, 3) body-local dofs
+    carry_n, n_tan, t1, t2, slot, bad = carrying(fixed, surf.normals, t1, t2)
+    # the two classes' bases from the crosspoint rules (a line node keeps its tangential class:
+    # it cannot give away one tangent's function), then the rows the master covers
+    covered = np.ones(surf.size, dtype=bool) if master is None else master.covered
+    if master is not None and not covered.any():  # no multiplier at all: say why
+        raise SceneError(
+            "contact.master", f"{master.body.name}.{master.part}", _not_facing(surf, master)
+        )
+    M_loc = None if master is None else master.M_loc
+    S_n, M_n, W_n, _ = class_blocks(surf, carry_n, covered, law.ends, M_loc)
+    S_t, M_t, W_t, Q_t = class_blocks(surf, n_tan > 0, covered, law.ends, M_loc)
+    carry_n &= covered
+    n_tan = np.where(covered, n_tan, 0)
+    if master is not None:  # the rigid-body rows: Σ_j M_c,kj = W_c,k where covered
+        rel = [
+            np.abs(Wc - np.asarray(Mc.sum(axis=1)).ravel())[has] / Wc[has]
+            for Wc, Mc, has in ((W_n, M_n, carry_n), (W_t, M_t, n_tan > 0))
+        ]
+        master.patch_defect = float(np.concatenate(rel).max(initial=0.0))
+    if bad:
+        where = "; ".join(_where(slave, surf, i) for i in bad[:6])
+        raise SceneError(
+            key,
+            f"{slave.name}.{part}",
+            "contact nodes whose prescribed displacement components span the contact normal, "
+            "the tangent plane, or a normal–tangent pair (a roller across or along Γ3); "
+            f"{len(bad)} node(s) have a prescribed direction at an angle to the surface: {where}",
+        )
+    if not (carry_n | (n_tan > 0)).any():
+        raise SceneError(
+            key,
+            f"{slave.name}.{part}",
+            "a contact boundary with nodes whose displacement is not fully prescribed",
+        )
+
+    if unilateral and (n_tan > carry_n * 2).any():
+        i = int(np.flatnonzero(n_tan > carry_n * 2)[0])
+        raise SceneError(
+            "contact.law",
+            "unilateral",
+            f"contact nodes free to separate; {_where(slave, surf, i)} has its normal "
+            "displacement prescribed (a roller across Γ3): with unilateral contact prescribe "
+            "all its components, or only tangential ones (or use law = 'bilateral')",
+        )
+    what = "a friction bound g" if law.friction == "tresca" else "a friction coefficient F"
+    key_b = "contact.g" if law.friction == "tresca" else "contact.F"
+
+    def g_checked(x, y, z):
+        gv = gfun(x, y, z)
+        if (gv < 0).any():
+            raise SceneError(key_b, float(gv.min()), f"{what} ≥ 0 everywhere on Γ3")
+        return gv
+
+    order = SURFACE_ORDER[slave.mesh.cell_type]
+    gloc = facet_integrals(slave.mesh, surf, g_checked, order)  # (n_f, m) ∫_e g φ_{e,a}
+    g = np.where(  # ∫gφ̃_k / W_t,k; the plain nodal mean ∫gφ_k / W_k at the other nodes
+        n_tan > 0,
+        (Q_t @ gloc.ravel()) / W_t,
+        np.bincount(surf.facets.ravel(), gloc.ravel(), surf.size) / surf.weights,
+    )
+    rows_n = np.flatnonzero(carry_n)
+    disc = np.flatnonzero(n_tan == 2)
+    line = np.flatnonzero(n_tan == 1)
+    # disc rows interleaved (t1, t2) per node: rows 2j, 2j+1 of the disc block
+    disc_nodes = np.repeat(disc, 2)
+    disc_dirs = np.stack([t1[disc], t2[disc]], axis=1).reshape(-1, 3)
+    dirs = [
+        (rows_n, surf.normals[rows_n], S_n, M_n),
+        (disc_nodes, disc_dirs, S_t, M_t),
+        (line, np.where(slot[line, None] == 0, t1[line], t2[line]), S_t, M_t),
+    ]
+    sdofs, mdofs = slave.u_dofs(surf.nodes), None if master is None else master.dofs
+    B = contact_rows(dirs, sdofs, n_full, mdofs)
+    perm = gap0 = None
+    if unilateral:
+        N_n, N_b = rows_n.size, disc.size
+        at_n = np.full(surf.size, -1)
+        at_n[rows_n] = np.arange(N_n)  # normal row of each surface node
+        t_disc = N_n + 2 * np.arange(N_b)
+        t_line = N_n + 2 * N_b + np.arange(line.size)
+        alone = np.setdiff1d(rows_n, np.concatenate([disc, line]))  # normal-only nodes
+        perm = np.concatenate(
+            [
+                np.stack([at_n[disc], t_disc, t_disc + 1], axis=1).ravel(),
+                np.stack([at_n[line], t_line], axis=1).ravel(),
+                at_n[alone],
+            ]
+        )  # (m,) the bilateral row of each row of B_full
+        B = B[perm]
+        if master is None:  # Σ_j S_n,kj gap(x_j)
+            gap0 = S_n[rows_n] @ _rigid_gap(law.gap, slave.mesh.points[surf.nodes])
+        else:
+            B_n = contact_rows(dirs[:1], sdofs, n_full, mdofs)
+            gap0 = -(B_n @ _positions([slave, master.body], n_full))  # (N_n,)
+            h0 = surf.node_sizes()[rows_n] * 2.0**level  # the level-0 node size
+            rel = gap0 / W_n[rows_n] / h0
+            if (rel < -OVERLAP_TOL).any():
+                i = int(np.argmin(rel))
+                raise SceneError(
+                    "contact.master",
+                    f"{master.body.name}.{master.part}",
+                    f"a master surface that does not overlap the slave {slave.name}.{part} in "
+                    f"the reference configuration by more than {OVERLAP_TOL:g} × the level-0 "
+                    f"node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
+                    f"{h0[i]:.3g}) at {_where(slave, surf, int(rows_n[i]))}",
+                )
+    return SolidContact(
+        slave=slave,
+        slave_part=part,
+        surf=surf,
+        normals=surf.normals,
+        t1=t1,
+        t2=t2,
+        rows_n=rows_n,
+        disc=disc,
+        line=line,
+        line_slot=slot[line],
+        g=g if law.friction == "tresca" else np.zeros(surf.size),
+        B_full=B,
+        W_n=W_n,
+        W_t=W_t,
+        ends=law.ends,
+        master=master,
+        law=law.law,
+        friction=law.friction,
+        F=g if law.friction == "coulomb" else None,
+        gap0=gap0,
+        order=perm,
+        gap_field=law.gap if unilateral and master is None else None,
+        bound_field=gfun,
+    )
+
+
+# ------------------------------------------------------------------ nested iteration
+def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
+    """Initial guess for `fine` from the coarser level's solution (nested iteration).
+
+    λ0: λ_n and the friction ratio r = λ_t/ρ (ρ the friction radius) interpolated linearly
+    over the contact surface, |r| and the direction of r separately (then in the fine frames,
+    clipped to |r| ≤ 1 and put on the bound where it reaches it), so a fine node between
+    coarse slip nodes starts slipping: interpolating the vector r shortens it wherever the
+    slip direction turns (bracket3d level 1: 25 of the 71 slip nodes predicted, 78 with 67
+    right this way).
+
+    u0: the coarse displacement (and potential) at the fine nodes
+    (`transfer.prolongate`; fine nodes outside the coarse mesh, extrapolated, are
+    counted in start["outside_nodes"]), then moved on the slave dofs so that B u0 = gap on
+    the rows λ0 predicts tied (normal rows that touch, stick nodes; `vi_core.ssn.tied_start`),
+    every other row of B u0 kept. Why: the first Newton step decides stick or slip from
+    y = λ0 + B u0 − gap, and with u0 = 0 a predicted slip node has |y_t| = ρ to rounding —
+    the disc's boundary, counted as stick (`vi_core.Ball`): bracket3d level 2 took its first
+    step with 73 of the 201 slip nodes free, then 8 Newton steps; the carried slip puts y
+    outside the disc. The tied rows are given to `tied_start` for the same reason.
+    """
+    if coarse.contact is None or fine.contact is None:
+        return {}
+    from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
+    from scipy.spatial import QhullError
+
+    cc, fc = coarse.contact, fine.contact
+    st = contact_state(coarse, coarse_sol)
+    n_mean = cc.normals.sum(axis=0)
+    a, b = frames(n_mean[None, :] / np.linalg.norm(n_mean))
+    P = cc.slave.mesh.points[cc.surf.nodes]
+    Q = fc.slave.mesh.points[fc.surf.nodes]
+    uv_c = np.stack([P @ a[0], P @ b[0]], axis=1)  # (k_c, 2) chart coordinates
+    uv_f = np.stack([Q @ a[0], Q @ b[0]], axis=1)  # (k_f, 2)
+
+    def interp(vals: np.ndarray, known: np.ndarray) -> np.ndarray:
+        pts, v = uv_c[known], vals[known]
+        try:
+            out = LinearNDInterpolator(pts, v)(uv_f)
+        except QhullError:  # fewer than 3 known points, or all on one line: nearest only
+            return NearestNDInterpolator(pts, v)(uv_f)
+        miss = np.isnan(out).any(axis=-1) if out.ndim > 1 else np.isnan(out)
+        if miss.any():
+            out[miss] = NearestNDInterpolator(pts, v)(uv_f[miss])
+        return out
+
+    lam_n_c = np.zeros(cc.surf.size)
+    lam_n_c[cc.rows_n] = st["lam_n"][cc.rows_n]
+    lam_n = interp(lam_n_c, np.isin(np.arange(cc.surf.size), cc.rows_n))[fc.rows_n]
+    has_t = np.isin(np.arange(cc.surf.size), np.concatenate([cc.disc, cc.line]))
+    rho = st["g"]  # (k_c,) the friction radius of the coarse solution
+    ratio_c = np.divide(
+        st["lam_t_vec"], rho[:, None], out=np.zeros((cc.surf.size, 3)), where=rho[:, None] > 0
+    )
+    mag = interp(np.linalg.norm(ratio_c, axis=1), has_t)  # (k_f,) |r|
+    r = interp(ratio_c, has_t)  # (k_f, 3) its direction
+    length = np.linalg.norm(r, axis=1)  # (k_f,)
+    r *= np.divide(mag, length, out=np.zeros_like(mag), where=length > 0)[:, None]
+    r1 = np.einsum("ij,ij->i", r, fc.t1)
+    r2 = np.einsum("ij,ij->i", r, fc.t2)
+    rd = np.stack([r1[fc.disc], r2[fc.disc]], axis=1)  # (N_b, 2)
+    norm = np.linalg.norm(rd, axis=1)
+    slip_b = norm >= 1.0 - transfer.ON_BOUND  # (N_b,)
+    rd = np.where(slip_b[:, None], rd / np.maximum(norm, 1e-300)[:, None], rd)
+    rl = np.clip(np.einsum("ij,ij->i", r[fc.line], fc.line_dir), -1.0, 1.0)
+    slip_l = np.abs(rl) >= 1.0 - transfer.ON_BOUND  # (N_l,)
+    rl = np.where(slip_l, np.sign(rl), rl)
+    idx_n, idx_b, idx_l = fc.rows()
+    lam0 = np.zeros(fc.B_full.shape[0])
+    lam0[idx_n] = lam_n
+    bound = fc.bound(lam0)  # (k_f,) the fine radius at the interpolated λ_n
+    lam0[idx_b] = rd * bound[fc.disc, None]
+    lam0[idx_l] = rl * bound[fc.line]
+    tied = np.zeros(lam0.size, dtype=bool)  # (m,) the rows λ0 predicts tied
+    tied[idx_n] = True if fc.law == "bilateral" else lam_n > 0
+    tied[idx_b] = ((bound[fc.disc] > 0) & ~slip_b)[:, None]
+    tied[idx_l] = (bound[fc.line] > 0) & ~slip_l
+    return transfer.carried_start(coarse, coarse_sol, fine, lam0, tied)
+
+
+def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
+    """Load paths: the friction law of the next step `model` acts on the slip since the
+    previous step, [u]_t − [u_prev]_t: the tangential rows of the gap are shifted by
+    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
+    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
+    c = model.contact
+    if c is None:
+        return
+    origin = c.B_full @ previous.full(previous_sol.u)  # (m,) in B_full's row order
+    origin[c.rows()[0]] = 0.0
+    model.slip_origin = origin
+    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
+
+
+# ------------------------------------------------------------------ post-processing
+def contact_state(model: Model, sol: Solution) -> dict:
+    """Per surface node (k): lam_n, lam_t1, lam_t2 (NaN where not carried), lam_t_vec (k, 3),
+    jump_n, jump_t1, jump_t2 ((Bu)/W in the frame: the slave displacement for a rigid
+    foundation, the mortar jump with a master), g (the friction radius of the solution: g;
+    unilateral Tresca g where the node is not open, 0 elsewhere; Coulomb F·λ_n), gap (the
+    remaining normal gap (gap₀ − [u]_n), unilateral; NaN elsewhere), and the states, which
+    follow from the answer by one rule (`vi_core.states`: multiplier margin and gap/slip,
+    thresholds scaled by the achieved residual): state (stick, slip, normal_only, open,
+    ambiguous, no_multiplier), touch (k,) bool (touch evidence: every node with rows for
+    bilateral contact), slip (k,) bool; `pressure` the pressure scale; the Lemma 4.2
+    identity λᵀ(B u − gap₀) = Σ_k ρ_k W_t,k |[u]_t,k| ([u]_t since the previous load step on a
+    load path: `incremental`) and its relative defect (unilateral: relative
+    to the larger of Σρ W|[u]_t| and the pressure scale times Σ|B u − gap₀|)."""
+    c = model.contact
+    k = c.surf.size
+    idx_n, idx_b, idx_l = c.rows()
+    x_full = model.full(sol.u)
+    Bu = c.B_full @ x_full  # (m,)
+    lam = sol.lam
+    out = {
+        key: np.full(k, np.nan)
+        for key in ("lam_n", "lam_t1", "lam_t2", "jump_n", "jump_t1", "jump_t2")
+    }
+    W, Wt = c.W, c.W_t  # W: the nodal weights (areas); Wt: the tangential rows' ∫ψ̃_k
+    out["lam_n"][c.rows_n] = lam[idx_n]
+    out["jump_n"][c.rows_n] = Bu[idx_n] / c.W_n[c.rows_n]
+    lb = lam[idx_b]  # (N_b, 2)
+    jb = Bu[idx_b] / Wt[c.disc, None]  # (N_b, 2)
+    out["lam_t1"][c.disc], out["lam_t2"][c.disc] = lb[:, 0], lb[:, 1]
+    out["jump_t1"][c.disc], out["jump_t2"][c.disc] = jb[:, 0], jb[:, 1]
+    ll, jl = lam[idx_l], Bu[idx_l] / Wt[c.line]
+    for slot, (lk, jk) in enumerate((("lam_t1", "jump_t1"), ("lam_t2", "jump_t2"))):
+        sel = c.line_slot == slot
+        out[lk][c.line[sel]] = ll[sel]
+        out[jk][c.line[sel]] = jl[sel]
+    # the tangential multiplier as a vector: disc nodes t1, t2; line nodes their kept tangent
+    vec = np.zeros((k, 3))
+    vec[c.disc] = lb[:, :1] * c.t1[c.disc] + lb[:, 1:] * c.t2[c.disc]
+    vec[c.line] = ll[:, None] * c.line_dir
+    jvec = np.zeros((k, 3))
+    jvec[c.disc] = jb[:, :1] * c.t1[c.disc] + jb[:, 1:] * c.t2[c.disc]
+    jvec[c.line] = jl[:, None] * c.line_dir
+    has_t = np.zeros(k, dtype=bool)
+    has_t[c.disc] = has_t[c.line] = True
+    gap_rows = np.zeros(Bu.size)  # the initial gap in B_full's rows (unilateral)
+    has_n = np.isin(np.arange(k), c.rows_n)  # (k,) nodes carrying a normal row
+    pressure = 0.0
+    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
+    gap = np.full(k, np.nan)
+    if c.law == "unilateral":
+        gap_rows[idx_n] = c.gap0
+        # the pressure scale: the largest λ_n or the elastic nodal forces per area (all of λ is
+        # rounding when the bodies are apart)
+        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / W.min()
+        pressure = max(float(lam[idx_n].max(initial=0.0)), force)
+        gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / c.W_n[c.rows_n]  # the remaining normal gap
+    radius = c.bound(lam)  # (k,) the friction radius at λ
+    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    ji = np.zeros((k, 2))  # the tangential jump (since the origin) in the node's frame
+    ji[c.disc] = Bi[idx_b] / Wt[c.disc, None]
+    ji[c.line, 0] = Bi[idx_l] / Wt[c.line]
+    jt = np.linalg.norm(ji, axis=1)  # (k,)
+    # states from the answer (vi_core.states): multiplier margin and gap/slip, thresholds
+    # scaled by the achieved residual, the stress scale (the whole λ: with ρ ≪ λ_n a rounding
+    # shortfall of |λ_t| relative to λ is no stick evidence) and the displacement scale
+    th = node_states.solution_thresholds(
+        sol,
+        max(float(np.abs(lam).max(initial=0.0)), float(radius.max(initial=0.0)), pressure),
+        float(np.abs(sol.u[disp]).max(initial=0.0)),
+    )
+    normal = np.full(k, "touch", dtype=object)  # bilateral: every node with rows touches
+    if c.law == "unilateral":
+        normal[c.rows_n] = node_states.normal_states(lam[idx_n], gap[c.rows_n], th)
+    rows = has_n | has_t  # (k,) nodes carrying rows
+    touch = (normal == "touch") & rows  # (k,)
+    rho = radius * ((normal != "open") & rows)  # (k,) the friction radius; none where open
+    mag = np.linalg.norm(vec, axis=1)  # (k,) |λ_t|
+    tang = node_states.tangential_states(mag, rho, jt, th)
+    state = np.full(k, "no_multiplier", dtype=object)
+    state[rows] = node_states.node_states(normal, tang, has_t)[rows]
+    slip = state == "slip"
+    b_uh_lam = float(lam @ (Bi - gap_rows))
+    g_abs = float(np.sum((rho * Wt * jt)[has_t]))
+    tiny = np.finfo(float).eps * float(np.sum(rho * Wt)) * max(np.abs(x_full).max(), 1e-300)
+    ref = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))  # unilateral: P × slack
+    return {
+        **out,
+        "lam_t_vec": vec,
+        "jump_t_vec": jvec,
+        "g": rho,
+        "has_t": has_t,
+        "touch": touch,
+        "gap": gap,
+        "pressure": pressure,
+        "slip": slip,
+        "state": state.astype(str),
+        "b_uh_lam": b_uh_lam,
+        "int_g_abs_u": g_abs,
+        "lemma_4_2": abs(b_uh_lam - g_abs) / max(ref, tiny, 1e-300),
+    }
+
+
+def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
+    """Write the body VTUs, the contact surface (contact.vtu), contact.csv, results.pvd and
+    the stick/slip map into `outdir`; return the summary entries."""
+    summary = contact3d_output.write(model, sol, outdir, contact_state)
+    summary["checks"] = contact3d_checks.solution_checks(model, sol)
+    c = model.contact
+    if c is not None and c.law == "unilateral":
+        st = contact_state(model, sol)
+        summary["contact"].update(
+            law=c.law,
+            friction=c.friction,
+            open=int((st["state"] == "open").sum()),
+            min_gap=float(np.nanmin(st["gap"], initial=np.inf)),
+        )
+    return summary
+
+
+# ------------------------------------------------------------------ contract v2 declarations
+fields = contact_model.fields  # nodal fields by name
+mesh_size = contact_model.mesh_size  # h of the built level
+SWEEP = Sweep(
+    "contact.g",
+    "friction bound g [Pa]",
+    factors=(1.5, 1.0, 0.6),
+    file="g_sweep3d.png",
+    otherwise=Sweep(
+        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep3d.png"
+    ),
+)
+NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
+# against the scene's [exact] table: exact_errors (contact3d_errors)
+EXACT_NORMS = contact3d_errors.NORMS
+extremes = contact3d_extremes.rows
+
+
+def draw(ax, model: Model, sol: Solution) -> str:
+    """A panel of `mixvi figures`: the stick/slip map of the contact surface."""
+    if model.contact is None:
+        return "no contact interface"
+    st = contact_state(model, sol)
+    uv, _, _ = contact3d_output.chart(model)
+    for s, col in (("stick", "tab:blue"), ("slip", "tab:red")):
+        sel = st["state"] == s
+        ax.scatter(uv[sel, 0], uv[sel, 1], s=8, color=col, label=f"{s} ({int(sel.sum())})")
+    ax.set_aspect("equal")
+    ax.legend(fontsize=7)
+    return f"slip {int(st['slip'].sum())} of {int(st['has_t'].sum())} nodes"
+
+
+def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
+    """The EXACT_NORMS against the scene's [exact] table (None without one):
+    `contact3d_errors.exact_errors`."""
+    section = model.scene.validated(SCENE_MODEL).exact
+    if section is None:
+        return None
+    state = None if model.contact is None else contact_state(model, sol)
+    return contact3d_errors.exact_errors(model, sol, section.compiled(), state)
+
+
+def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
+    """The NORMS against a finer level `ref` of the same scene, at the coarse level's nodes
+    (nested: every coarse node is a fine node): relative RMS of u and φ over the nodes and of
+    λ (all its components) over the coarse contact nodes, weighted by W_k."""
+    out = {}
+
+    def matched(points_c: np.ndarray, points_f: np.ndarray) -> np.ndarray:
+        at = {tuple(np.round(p, 10)): i for i, p in enumerate(points_f)}
+        return np.array([at[tuple(np.round(p, 10))] for p in points_c])
+
+    fc, ff = fields(model, sol), fields(ref, ref_sol)
+    for b, bf in zip(model.bodies, ref.bodies, strict=True):
+        idx = matched(b.mesh.points, bf.mesh.points)
+        for key, norm in (("displacement", "u_nodes"), ("potential", "phi_nodes")):
+            name = f"{b.name}.{key}"
+            if name in fc:
+                d, r = fc[name] - ff[name][idx], ff[name][idx]
+                out[norm] = float(np.sqrt(np.sum(d**2) / max(np.sum(r**2), 1e-300)))
+    if model.contact is not None:
+        c, cf = model.contact, ref.contact
+        idx = matched(c.slave.mesh.points[c.surf.nodes], cf.slave.mesh.points[cf.surf.nodes])
+        s, sf = contact_state(model, sol), contact_state(ref, ref_sol)
+
+        def lam(st: dict, normals: np.ndarray) -> np.ndarray:
+            return np.nan_to_num(st["lam_n"])[:, None] * normals + st["lam_t_vec"]
+
+        d = lam(s, c.normals) - lam(sf, cf.normals)[idx]
+        r = lam(sf, cf.normals)[idx]
+        out["lam_nodes"] = float(
+            np.sqrt(np.sum(c.W[:, None] * d**2) / max(np.sum(c.W[:, None] * r**2), 1e-300))
+        )
+    return out

@@ -1,0 +1,77 @@
+"""The one contact plug-in: `[scene] plugin = "contact"` picks the front of the geometry's
+dimension, the former names stay accepted with a notice, and `count` is the built size in 2D
+as in 3D."""
+
+from __future__ import annotations
+
+import pytest
+
+from problems.errors import SceneError
+from problems.plugins import contact, registry
+from problems.plugins.contact import dimension, plane, solid
+from problems.scene import SCENES_DIR, load_scene
+from problems.scene.model import validate
+
+BOX = {"kind": "box", "x": [0.0, 1.0], "y": [0.0, 1.0], "z": [0.0, 1.0], "cells": [1, 1, 1]}
+RECTANGLE = {"kind": "rectangle", "x": [0.0, 1.0], "y": [0.0, 1.0], "cells": [1, 1]}
+
+
+@pytest.mark.parametrize(
+    "name,front", [("shear_strip", plane), ("plate_with_hole", plane), ("block3d", solid)]
+)
+def test_the_scene_gets_the_front_of_its_dimension(name, front):
+    """A kind, a 2D mesh file (plate_with_hole) and a 3D kind; mutation: `front` returning
+    plane always fails on block3d."""
+    scene = load_scene(name)
+    assert scene.data["scene"]["plugin"] == "contact"
+    assert registry.for_scene(scene) is front and front.NAME == "contact"
+    assert isinstance(validate(contact.SCENE_MODEL, scene.data), front.SCENE_MODEL)
+
+
+def test_a_3d_mesh_file_is_told_by_its_cells():
+    data = load_scene("bracket3d").data
+    assert "mesh" in next(iter(data["bodies"].values()))["geometry"]
+    assert dimension.scene_dimension(data, str(SCENES_DIR / "bracket3d.toml")) == 3
+
+
+def test_bodies_of_two_dimensions_are_refused():
+    data = {
+        "scene": {"plugin": "contact"},
+        "bodies": {"a": {"geometry": RECTANGLE}, "b": {"geometry": BOX}},
+    }
+    with pytest.raises(SceneError, match="bodies.b.geometry.*body 'a' is 2D"):
+        dimension.scene_dimension(data)
+
+
+@pytest.mark.parametrize("old,front", [("piezo_contact", plane), ("contact3d", solid)])
+def test_the_former_names_still_work_with_a_notice(old, front, tmp_path, capsys):
+    """A user's scene with the old plug-in name solves as before (same plug-in, same front,
+    the dimension fixed by the name) and stderr says what to write instead, in one line."""
+    name = "rigid_foundation" if front is plane else "block3d"
+    text = (SCENES_DIR / f"{name}.toml").read_text()
+    assert 'plugin = "contact"' in text
+    path = tmp_path / "old.toml"
+    path.write_text(text.replace('plugin = "contact"', f'plugin = "{old}"'))
+    scene = load_scene(str(path))
+    assert registry.for_scene(scene) is front
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and old in err[0] and "'contact'" in err[0]
+    assert scene.validated(front.SCENE_MODEL).scene.plugin == old
+    assert registry.names().count("contact") == 1 and old not in registry.names()
+
+
+def test_the_new_name_prints_no_notice(capsys):
+    registry.for_scene(load_scene("rigid_foundation"))
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("name", ["rigid_foundation", "paper_two_body", "piezo_liftoff"])
+def test_count_in_2d_is_the_built_size(name):
+    """`count` of the 2D front (level-0 meshes only) equals the built model's sizes at levels
+    0 and 1 (mutation: d − p rows replaced by one row per contact node fails)."""
+    scene = load_scene(name)
+    assert plane.DIMENSION == 2
+    counted = plane.count(scene, [0, 1])
+    for level, c in zip((0, 1), counted, strict=True):
+        vi = plane.build(scene, level).vi
+        assert c == (vi.n + vi.m, vi.A.nnz, vi.n)
