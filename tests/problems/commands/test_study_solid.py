@@ -20,7 +20,7 @@ from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
 from problems.scene.exact import Exact, ExactSection3
 
-from ..plugins.test_manufactured import slope_failures
+from ..plugins.contact.test_manufactured import slope_failures
 
 ARGS = ["manufactured3d", "--levels", "0..2", "--solvers", "ssn", "--tols", "1e-10"]
 
