@@ -16,7 +16,7 @@ from problems.plugins.contact.bodies import vector
 from problems.scene import load_scene
 from vi_core import Solution
 
-SCENES = Path(__file__).resolve().parents[3] / "problems" / "scenes"
+SCENES = Path(__file__).resolve().parents[4] / "problems" / "scenes"
 LOW, HIGH = 0.5, 5.0  # the window of the efficiency index (issue 32)
 
 

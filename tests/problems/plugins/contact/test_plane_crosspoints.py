@@ -24,7 +24,7 @@ from problems.scene import load_scene
 from problems.scene.exact import split_exact
 from vi_core import solve
 
-SCENES = Path(pc.__file__).parents[1] / "scenes"
+SCENES = Path(pc.__file__).parents[2] / "scenes"
 G = 6.0e5  # the scenes' friction bound = the exact tangential multiplier
 
 
