@@ -163,7 +163,7 @@ format = 2
 
 [scene]
 title = "{title}"
-plugin = "piezo_contact"
+plugin = "contact"
 level = 0
 
 [bodies.actuator]
@@ -279,7 +279,7 @@ format = 2
 
 [scene]
 title = "Filleted BaTiO3 T-punch, graded triangles, on a rigid conductive foundation (Tresca)"
-plugin = "piezo_contact"
+plugin = "contact"
 level = 0
 
 [bodies.punch]
@@ -365,7 +365,7 @@ format = 2
 
 [scene]
 title = "Steel half cylinder on an aluminium block, graded triangles (Hertz-like, Coulomb)"
-plugin = "piezo_contact"
+plugin = "contact"
 level = 0
 
 [bodies.cylinder]
@@ -432,7 +432,7 @@ format = 2
 
 [scene]
 title = "Notched PZT-5H block (tetrahedra) on a rigid foundation (Tresca, 3D)"
-plugin = "contact3d"
+plugin = "contact"
 level = 0
 
 [bodies.block]
@@ -500,7 +500,7 @@ format = 2
 
 [scene]
 title = "Steel punch with a filleted edge on an aluminium block (tetrahedra, Coulomb, 3D)"
-plugin = "contact3d"
+plugin = "contact"
 level = 0
 
 [bodies.punch]

@@ -1069,8 +1069,9 @@ def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
 
 def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
     """(unknowns n + m, stored entries of A, n) of each of `levels`, counted on the level-0
-    meshes without building them (`sizes.sizes`)."""
-    return sizes(scene.validated(SCENE_MODEL), levels)
+    meshes without building them (`sizes.sizes`); its errors name the scene file, as the
+    build's do."""
+    return contact_model.built(lambda s, _: sizes(s.validated(SCENE_MODEL), levels), scene, None)
 
 
 def update(model: Model, scene: Scene, t: float) -> Model | None:

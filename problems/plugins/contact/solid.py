@@ -318,8 +318,9 @@ def _rows(contact: SolidContact):
 
 def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
     """(unknowns n + m, stored entries of A, n) of each of `levels`, counted on the level-0
-    meshes without building them (`sizes.sizes`)."""
-    return sizes(scene.validated(SCENE_MODEL), levels)
+    meshes without building them (`sizes.sizes`); its errors name the scene file, as the
+    build's do."""
+    return contact_model.built(lambda s, _: sizes(s.validated(SCENE_MODEL), levels), scene, None)
 
 
 def row_nodes(c: SolidContact) -> np.ndarray:

@@ -77,7 +77,7 @@ def locked(d: Path) -> None:
 
 
 GOOD = (SCENES_DIR / "rigid_foundation.toml").read_text().replace("level = 1", "level = 0")
-HEAD = "[scene]\nplugin = 'piezo_contact'\nlevel = 0\n"
+HEAD = "[scene]\nplugin = 'contact'\nlevel = 0\n"
 GEOM = 'geometry = { kind = "rectangle", x = [0.0, 2.0], y = [0.0, 1.0], cells = [8, 4] }'
 
 CASES = [

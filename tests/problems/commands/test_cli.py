@@ -107,7 +107,7 @@ def test_bad_input_exits_2_with_one_message_and_no_output(tmp_path, capsys, extr
 
 def test_missing_required_key(tmp_path, capsys):
     scene = tmp_path / "s.toml"
-    scene.write_text("[scene]\nplugin = 'piezo_contact'\n[bodies.b]\nmaterial = 'BaTiO3'\n")
+    scene.write_text("[scene]\nplugin = 'contact'\n[bodies.b]\nmaterial = 'BaTiO3'\n")
     assert main(["solve", str(scene), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "bodies.b.geometry" in err and "required" in err

@@ -61,14 +61,14 @@ def test_extreme_row(row):
     assert agree and max(agree.values()) <= AGREE_OK, rec
     assert rec["admissibility"] <= ADMISSIBLE_OK, rec
     assert rec["ok"], rec
-    if row.name in SOLID:
+    if row.plugin == "contact" and row.name in SOLID:
         assert rec["friction_excess"] <= 1e-9, rec
         if rec["lemma_4_2"] is not None and rec["slip"] > 0:
             assert rec["lemma_4_2"] <= 1e-9, rec
         if "homogeneity" in rec:
             assert rec["homogeneity"] <= 1e-6, rec
         return
-    if row.name not in PLANE:
+    if row.plugin != "contact" or row.name not in PLANE:  # other plug-ins share row names
         return
     assert rec["friction_excess"] <= 1e-9, rec
     # with no slipping node (4.3) reads 0 = 0 and the ratio is rounding over a "tiny"
@@ -86,16 +86,16 @@ def test_extreme_row(row):
 
 def test_thresholds_are_physical_checks():
     """g = 1e6 σ_ref ties every node; g = 0 lets every node slip."""
-    by = {r.name: r for r in ROWS if r.name in PLANE}
+    by = {r.name: r for r in ROWS if r.plugin == "contact" and r.name in PLANE}
     tied, free = run_row(by["g = 1e6 σ_ref"]), run_row(by["g = 0 (frictionless)"])
     assert tied["slip"] == 0 and tied["stick"] > 0
     assert free["stick"] == 0 and free["slip"] > 0
 
 
 def test_command_writes_json(tmp_path, capsys):
-    rc = extremes_main(["--plugins", "contact", "--only", "PZT", "--out", str(tmp_path)])
+    rc = extremes_main(["--plugins", "contact", "--only", "gap = 0", "--out", str(tmp_path)])
     assert rc == 0
-    assert "PZT-5H" in capsys.readouterr().out
+    assert "gap = 0" in capsys.readouterr().out
     assert (tmp_path / "extremes.json").read_text().count('"row"') == 1
 
 

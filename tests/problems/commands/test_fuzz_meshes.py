@@ -38,7 +38,7 @@ MIXVI = str(Path(sys.executable).with_name("mixvi"))
 CHILD_MEMORY = 3 * 2**30  # RLIMIT_AS of a fuzz-tier child: a blow-up fails there, not here
 SCENE = """format = 2
 [scene]
-plugin = "piezo_contact"
+plugin = "contact"
 level = 0
 [bodies.part]
 material = "BaTiO3"

@@ -249,7 +249,7 @@ BOX3D = """
 format = 2
 [scene]
 title = "BaTiO3 box pressed on a rigid foundation (3D, Tresca): a long factorisation"
-plugin = "contact3d"
+plugin = "contact"
 level = 0
 [bodies.block]
 material = { name = "BaTiO3", poling = [0.0, 0.0, 1.0] }

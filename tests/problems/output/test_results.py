@@ -55,7 +55,7 @@ def test_every_written_file_reads_back(rigid):
         assert line.point_data[name].shape == (k,)
     root = ET.parse(rigid / "results.pvd").getroot()
     files = [d.get("file") for d in root.iter("DataSet")]
-    assert files == ["block.vtu", "contact.vtu"]
+    assert files == ["block.vtu", "estimate_block.vtu", "contact.vtu"]  # estimate: error per cell
     for f in files:
         meshio.read(rigid / f)
 
@@ -260,9 +260,11 @@ def test_write_levels_puts_every_level_in_the_collection(tmp_path):
         (1.0, "levels/1/block.vtu"),
         (1.0, "levels/1/contact.vtu"),
         (2.0, "block.vtu"),
+        (2.0, "estimate_block.vtu"),  # the solved level's error estimate per cell
         (2.0, "contact.vtu"),
     ]
-    sizes = [len(meshio.read(out / f).points) for _, f in steps[::2]]
+    sizes = [len(meshio.read(out / f).points) for _, f in steps if f.endswith("/block.vtu")]
+    sizes.append(len(meshio.read(out / "block.vtu").points))
     assert sizes[0] < sizes[1] < sizes[2]  # each level refines the one before
     # the coarse level written during the nested solve is the level-0 solve on its own
     alone = _solve_cli(tmp_path, "rigid_foundation")
@@ -279,4 +281,4 @@ def test_without_write_levels_the_collection_holds_the_solved_level(tmp_path):
     out = tmp_path / "plain"
     assert main(["solve", "rigid_foundation", "--level", "1", "--out", str(out)]) == 0
     steps = [d.get("timestep") for d in ET.parse(out / "results.pvd").getroot().iter("DataSet")]
-    assert steps == ["1.0", "1.0"] and not (out / "levels").exists()
+    assert steps == ["1.0", "1.0", "1.0"] and not (out / "levels").exists()

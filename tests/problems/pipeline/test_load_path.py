@@ -37,7 +37,7 @@ def strip(deltas: list[float], g: float, cells: tuple[int, int] = (4, 2)) -> pip
     text = f"""
 format = 2
 [scene]
-plugin = "piezo_contact"
+plugin = "contact"
 level = 0
 [solver]
 tol = {TOL}

@@ -119,7 +119,7 @@ def piezo_block(seed: int) -> pipeline.Loaded:
     text = f"""
 format = 2
 [scene]
-plugin = "piezo_contact"
+plugin = "contact"
 level = 0
 [load_path]
 t = {[float(k) for k in range(1, n + 1)]}

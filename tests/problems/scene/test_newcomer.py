@@ -22,7 +22,7 @@ format = 2
 
 [scene]
 title = "My bracket on a rigid floor"
-plugin = "piezo_contact"
+plugin = "contact"
 level = 1
 
 [bodies.bracket]

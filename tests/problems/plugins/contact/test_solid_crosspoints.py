@@ -201,7 +201,7 @@ def test_the_merged_separation_check_sees_a_dropped_row_and_an_unmerged_class(mo
 TWO_BOXES = """format = 2
 [scene]
 title = "two non-matching boxes, the slave's left side clamped (crosspoints)"
-plugin = "contact3d"
+plugin = "contact"
 level = 0
 [bodies.block]
 material = { kind = "isotropic", E = 1.0e9, nu = 0.3 }

@@ -194,7 +194,7 @@ GAP = 1.0e-4
 TWO = """format = 2
 [scene]
 title = "two blocks, 1e-4 m apart"
-plugin = "contact3d"
+plugin = "contact"
 level = 0
 [bodies.top]
 material = {{ kind = "isotropic", E = 2.6e9, nu = 0.3 }}
