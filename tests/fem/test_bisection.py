@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-from fem import bisection
+from fem import bisection, marking
 from fem.bisection import (
     longest_edge_labelled,
     onto_circle,
@@ -447,10 +447,24 @@ def test_dorfler_marks_the_smallest_bulk(seed, theta, n):
         assert k == 0
         return
     assert (eta[mask] ** 2).sum() >= theta * total * (1 - 1e-12)
-    largest = np.sort(eta**2)[::-1]
-    assert largest[: k - 1].sum() < theta * total
+    last = eta[mask].min()
+    above = eta > last * (1 + 1e-9)  # the set without the last value's ties
+    assert (eta[above] ** 2).sum() < theta * total  # one fewer value does not reach it
+    assert mask[eta >= last * (1 - 1e-9)].all()  # every tie of the last value is marked
     if k < n:
         assert eta[mask].min() >= eta[~mask].max()
+
+
+@pytest.mark.parametrize("tie", [marking.TIE, 0.0])
+def test_dorfler_marks_mirror_cells_together(monkeypatch, tie):
+    """Indicators in mirror pairs equal to rounding: the pairs are marked together (a symmetric
+    problem keeps a symmetric mesh); the mutation TIE = 0 splits a pair at the cut."""
+    monkeypatch.setattr(marking, "TIE", tie)
+    half = np.array([5.0, 4.0, 3.0, 3.0, 2.0, 1.0])
+    eta = np.concatenate([half, half * (1 + 1e-14)])  # (12,) cell i and i + 6 mirror cells
+    mask = dorfler_mark(eta, 0.1)  # 25 of 128: one cell of the first pair would do
+    together = (mask[:6] == mask[6:]).all()
+    assert together if tie else not together
 
 
 def test_dorfler_edge_cases_and_refusals():

@@ -150,8 +150,13 @@ def estimate(spec_model: Any, model: Any, sol: Solution) -> dict[str, Indicator]
     for b in model.bodies:
         S = energy_map(b.material.C, b.material.kappa)
         zero = np.zeros((U[b.name].shape[1], b.dim))
+        order = 1 if b.mesh.cells.shape[1] == b.dim + 1 else 2  # exact: ∇U_h const. / bilinear
         energy = energy_error(
-            b.mesh, U[b.name], S, lambda *p, z=zero: np.broadcast_to(z, (*np.shape(p[0]), *z.shape))
+            b.mesh,
+            U[b.name],
+            S,
+            lambda *p, z=zero: np.broadcast_to(z, (*np.shape(p[0]), *z.shape)),
+            order,
         )
         curves = spec.bodies[b.name].geometry.curves()
         out[b.name] = Indicator(b.mesh, eta[b.name], float(energy.sum()), curves)
