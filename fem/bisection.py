@@ -1,4 +1,5 @@
-"""Local refinement of triangle meshes by newest-vertex bisection (NVB), with the P1 prolongation.
+"""Local refinement of triangle meshes by newest-vertex bisection (NVB) with red refinement of
+fully marked cells, with the P1 prolongation.
 
 Labelling: the node order of a cell carries its bisection data. Cell (v0, v1, v2) (counter-
 clockwise, as every `Mesh` cell) has *newest vertex* v0 and *refinement edge* (v1, v2), the edge
@@ -14,11 +15,19 @@ finitely many similarity classes of triangles (4 per initial triangle: Sewell 19
 One call (`refine_marked`) works on edges: the three edges of every marked cell are marked,
 then the closure marks the refinement edge of every cell with a marked edge until no cell
 has a marked edge without its refinement edge marked (finitely many steps: marks only get
-added). Each cell is then split by its marked edges into 2 (refinement edge only), 3 (and one
-other edge) or 4 (all three, "bisec3"): a marked cell is always split into 4. Every new node
-is the midpoint of an edge of the old mesh, shared by both cells on it: the mesh stays
-conforming. Refining every cell once puts new nodes at exactly the edge midpoints of one
-uniform refinement (`fem.refine.refine`), so node counts follow `Mesh.refined_nodes`.
+added). Each cell is then split by its marked edges into 2 (refinement edge only: green), 3
+(and one other edge: blue, two bisections) or 4 (all three: red, the regular split into four
+similar triangles at the edge midpoints, as `fem.refine.refine`): a marked cell is always
+split into 4. Red children are labelled as images of their parent under the homothety that
+maps one onto the other (refinement edge parallel to the parent's), so red keeps a labelled
+similarity class and the bound on the angles holds as for NVB. Red rather than two
+bisections ("bisec3") because bisec3 turns a structured mesh into a criss-cross one, whose
+boundary nodes alternate between 2 and 4 cells: there a contact pressure oscillates node to
+node by O(h) (±4 % at the top centre of the Hertz block after 3 uniform steps, ±0.05 % with
+red; docs/benchmarks.md). Every new node is the midpoint of an edge of the old mesh, shared
+by both cells on it: the mesh stays conforming. Refining every cell once puts new nodes at
+exactly the edge midpoints of one uniform refinement (`fem.refine.refine`), so node counts
+follow `Mesh.refined_nodes`.
 
 Boundary parts: a bisected boundary edge (a, b) becomes (a, m), (m, b) at its place in the
 part, so parts keep their names, outward orientation (domain on the left) and order along
@@ -172,6 +181,22 @@ def _bisect(tri: np.ndarray, mid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([mid, tri[:, 0], tri[:, 1]], 1), np.stack([mid, tri[:, 2], tri[:, 0]], 1)
 
 
+def _red(tri: np.ndarray, mid: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The four children (k, 3) each of labelled triangles tri (k, 3) with the midpoints mid
+    (k, 3) of their edges (local edge i opposite v_i): the three corner children and the middle
+    one, each labelled as the image of its parent under the homothety that maps one to the
+    other (ratio ½ about a corner, −½ about the centroid), so it is similar to its parent with
+    its refinement edge parallel to the parent's."""
+    v0, v1, v2 = tri.T  # (k,) each
+    m0, m1, m2 = mid.T
+    return (
+        np.stack([v0, m2, m1], 1),
+        np.stack([m2, v1, m0], 1),
+        np.stack([m1, m0, v2], 1),
+        np.stack([m0, m1, m2], 1),
+    )
+
+
 def refine_marked(
     mesh: Mesh,
     marked: np.ndarray,
@@ -215,15 +240,19 @@ def refine_marked(
 
     # the children: split by the refinement edge, then each child by its own, where marked
     mid = node_of[cell_edges]  # (n_cells, 3) new node on each local edge, −1 if none
-    split = mid[:, 0] >= 0  # (n_cells,)
+    red = (mid >= 0).all(axis=1)  # (n_cells,) all three edges: the red split
+    split = (mid[:, 0] >= 0) & ~red  # (n_cells,) bisected (green, or blue with one more edge)
     c1, c2 = _bisect(cells[split], mid[split, 0])  # (k, 3) each
     m2, m1 = mid[split, 2], mid[split, 1]  # c1's refinement edge is (v0, v1), c2's (v2, v0)
     b1, b2 = m2 >= 0, m1 >= 0
     c11, c12 = _bisect(c1[b1], m2[b1])
     c21, c22 = _bisect(c2[b2], m1[b2])
     parent = np.flatnonzero(split)
+    keep = ~split & ~red
+    reds = np.flatnonzero(red)
     pieces = [
-        (np.flatnonzero(~split), cells[~split]),
+        (np.flatnonzero(keep), cells[keep]),
+        *((reds, c) for c in _red(cells[red], mid[red])),
         (parent[~b1], c1[~b1]),
         (parent[b1], c11),
         (parent[b1], c12),

@@ -111,7 +111,13 @@ def facet_fluxes(mesh: Mesh, U: np.ndarray, L: np.ndarray, order: int = 2) -> Fa
     lf = np.tile(np.arange(n_lf), mesh.n_cells)  # (n_i,)
     order_ = np.argsort(inst, axis=1)  # (n_i, k)
     nodes = np.take_along_axis(inst, order_, axis=1)  # (n_i, k) sorted
-    _, facet, count = np.unique(nodes, axis=0, return_inverse=True, return_counts=True)
+    if float(mesh.n_nodes) ** k < 2.0**62:  # one int64 code per facet: a faster unique
+        code = np.zeros(len(nodes), dtype=np.int64)  # (n_i,)
+        for j in range(k):
+            code = code * mesh.n_nodes + nodes[:, j]
+        _, facet, count = np.unique(code, return_inverse=True, return_counts=True)
+    else:
+        _, facet, count = np.unique(nodes, axis=0, return_inverse=True, return_counts=True)
     facet = facet.ravel()
     if fref.simplex:
         t, wq = fref.quadrature(order)  # (q, d − 1), (q,)
@@ -122,7 +128,12 @@ def facet_fluxes(mesh: Mesh, U: np.ndarray, L: np.ndarray, order: int = 2) -> Fa
     else:  # quadrilateral facets: the centroid
         t, wq = fref.centroid[None, :], np.ones(1)
         pts = ref.vertices[local[lf]].mean(axis=1)[:, None, :]  # (n_i, 1, d)
-    F = fluxes(mesh, U, L, cell, pts)  # (n_i, q, c, d)
+    if ref.simplex:  # ∇U_h is constant in a cell: one flux per cell, on each of its facets
+        mid = np.broadcast_to(ref.vertices.mean(axis=0), (mesh.n_cells, 1, ref.dim))
+        Fc = fluxes(mesh, U, L, np.arange(mesh.n_cells), mid)  # (n_cells, 1, c, d)
+        F = np.broadcast_to(Fc[cell], (len(cell), pts.shape[1], *Fc.shape[2:]))  # (n_i, q, c, d)
+    else:
+        F = fluxes(mesh, U, L, cell, pts)  # (n_i, q, c, d)
     X = mesh.points[mesh.cells[cell]]  # (n_i, n_loc, d)
     x = np.einsum(
         "nqa,nad->nqd", ref.values(pts.reshape(-1, ref.dim)).reshape(*pts.shape[:2], -1), X

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
+TIE = 1e-9  # relative: indicators this close to the last marked one count as equal
+
 
 def dorfler_mark(eta: np.ndarray, theta: float) -> np.ndarray:
-    """The smallest set M of cells with Σ_{T∈M} η_T² ≥ θ Σ_T η_T² (Dörfler 1996), as a bool
-    mask (n_cells,): the cells with the largest indicators, taken in decreasing order.
+    """The smallest set M of cells with Σ_{T∈M} η_T² ≥ θ Σ_T η_T² (Dörfler 1996), completed by
+    ties, as a bool mask (n_cells,): the cells with the largest indicators, taken in decreasing
+    order, then every cell whose η_T equals the last one taken to TIE (relative): cells that a
+    symmetry makes equal are marked together, so a symmetric problem keeps a symmetric mesh.
 
     eta : (n_cells,) the per-cell error indicators η_T ≥ 0 (not squared).
     theta : the bulk fraction, 0 < θ ≤ 1 (θ = 1 marks every cell with η_T > 0).
@@ -26,5 +30,6 @@ def dorfler_mark(eta: np.ndarray, theta: float) -> np.ndarray:
     if e.size == 0 or acc[-1] == 0.0:
         return mask
     k = int(np.searchsorted(acc, theta * acc[-1], side="left")) + 1  # cells needed
-    mask[order[: min(k, e.size)]] = True
+    last = e[order[min(k, e.size) - 1]]
+    mask[e >= last * (1.0 - TIE)] = True
     return mask

@@ -55,8 +55,8 @@ def adapt(
     previous solution carried to the new nodes), until the relative estimate is ≤ `accuracy`,
     the next mesh would pass `max_unknowns` (4× the current unknowns, the most one Dörfler step
     can make), or `max_cycles`. Level 0 of the scene is the first mesh (quadrilaterals split
-    into triangles: `fem.bisection.prepared`). New boundary nodes lie on the coarse boundary
-    segments (a curved boundary stays the level-0 polygon).
+    into triangles: `fem.bisection.prepared`). New boundary nodes of a curved part go onto its true
+    curve (the indicators' `curves`, from the geometry), others onto the coarse segments.
 
     Returns (model, solution, cycles, why it stopped); each cycle is {"cycle", "unknowns",
     "estimate", "relative", "contact_nodes", "time_s"} plus the plug-in's exact errors where
@@ -101,7 +101,10 @@ def adapt(
         marked = np.split(
             dorfler_mark(eta, theta), np.cumsum([indicators[n].eta.size for n in names])[:-1]
         )
-        meshes = {n: refine_marked(meshes[n], m)[0] for n, m in zip(names, marked, strict=True)}
+        meshes = {
+            n: refine_marked(meshes[n], m, project=indicators[n].curves or None)[0]
+            for n, m in zip(names, marked, strict=True)
+        }
         prev = (model, sol)
     return model, sol, cycles, f"{max_cycles} cycles"
 

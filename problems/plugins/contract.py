@@ -118,7 +118,7 @@ The helpers below are shared by the built-in scalar plug-ins and are free to use
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Protocol, runtime_checkable
@@ -183,6 +183,9 @@ class Indicator:
     mesh: Mesh
     eta: np.ndarray  # (n_cells,) η_T ≥ 0, the estimate is (Σ η_T²)^{1/2}
     energy: float  # ‖U_h‖² in the norm η estimates (relative estimate: η / √energy)
+    # boundary part → projection of points (k, 2) onto its true curve (the geometry's
+    # `curves`): where a refinement of `mesh` puts its new boundary nodes
+    curves: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

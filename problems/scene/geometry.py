@@ -81,6 +81,12 @@ class GeometryTable(Section):
         """The value of SIZE_KEY, shown in a refusal."""
         return getattr(self, self.SIZE_KEY)
 
+    def curves(self) -> dict[str, Callable[[np.ndarray], np.ndarray]]:
+        """Boundary part name → the projection of points (k, 2) onto the part's true curve, for
+        the parts that are curved (a refined mesh puts its new boundary nodes there:
+        `fem.bisection.refine_marked`'s `project`); none for straight parts and mesh files."""
+        return {}
+
     def check_size(self, level: int) -> None:
         """SceneError naming SIZE_KEY if the mesh at `level` would exceed MAX_NODES nodes."""
         n = self.nodes(level)
@@ -148,12 +154,20 @@ class _Arc(GeometryTable):
     center: Point = [0.0, 1.5]
     radius: Annotated[Number, Field(gt=0.0)] = 1.0
     angle: Annotated[Number, Field(gt=0.0, lt=np.pi)] = np.pi / 2
+    ARCS: ClassVar[tuple[str, ...]]  # the parts on the circle
+
+    def curves(self) -> dict[str, Callable[[np.ndarray], np.ndarray]]:
+        """The parts on the circle (center, radius) → the projection onto it."""
+        from fem.bisection import onto_circle
+
+        return {part: onto_circle(self.center, self.radius) for part in self.ARCS}
 
 
 class HalfDisc(_Arc):
     """The paper's half disc (mapped Q1 blocks, boundary nodes on the true arc)."""
 
     BOUNDARIES: ClassVar[tuple[str, ...]] = ("contact", "free_left", "free_right", "top")
+    ARCS: ClassVar[tuple[str, ...]] = ("contact", "free_left", "free_right")
     kind: Literal["half_disc"]
     n_contact: Annotated[Integer, Field(ge=1)] = 8
 
@@ -182,6 +196,7 @@ class Cradle(_Arc):
     """The paper's cradle under the half disc (mapped Q1 blocks)."""
 
     BOUNDARIES: ClassVar[tuple[str, ...]] = ("bottom", "contact", "left", "right")
+    ARCS: ClassVar[tuple[str, ...]] = ("contact",)
     kind: Literal["cradle"]
     n_contact: Annotated[Integer, Field(ge=1)] = 12
     p2: Point = [-1.0, 0.0]

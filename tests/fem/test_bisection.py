@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-from fem import bisection
+from fem import bisection, marking
 from fem.bisection import (
     longest_edge_labelled,
     onto_circle,
@@ -283,6 +283,33 @@ def test_refining_every_cell_is_uniform_refinement_in_nodes(which):
     assert np.array_equal(twice.points[: mesh.n_nodes], mesh.points)
 
 
+def _cell_set(mesh) -> np.ndarray:
+    """The cells as sorted rows of their sorted vertex coordinates (numbering-free)."""
+    P = np.round(mesh.points[mesh.cells], 12)  # (n_cells, 3, 2)
+    P = np.sort(P.view([("x", float), ("y", float)])[..., 0], axis=1)  # (n_cells, 3)
+    return np.sort(P.view(float).reshape(len(P), -1), axis=0)
+
+
+@pytest.mark.parametrize("red", [True, False])
+def test_fully_marked_cells_are_split_red(monkeypatch, red):
+    """A fully marked cell is split into its four similar triangles at the edge midpoints, as
+    uniform refinement does (`fem.refine`): refining every cell gives the same triangles, so a
+    structured mesh stays structured (no criss-cross). The mutation: two bisections (bisec3)."""
+    if not red:
+        bisec3 = lambda tri, mid: (  # noqa: E731 (NVB twice: the pre-red split)
+            np.stack([mid[:, 2], mid[:, 0], tri[:, 0]], 1),
+            np.stack([mid[:, 2], tri[:, 1], mid[:, 0]], 1),
+            np.stack([mid[:, 1], tri[:, 0], mid[:, 0]], 1),
+            np.stack([mid[:, 1], mid[:, 0], tri[:, 2]], 1),
+        )
+        monkeypatch.setattr(bisection, "_red", bisec3)
+    mesh = prepared(rectangle((0.0, 2.0), (0.0, 1.0), (6, 4), "triangle"))
+    once, P = refine_marked(mesh, np.ones(mesh.n_cells, bool))
+    check_all(once, P, mesh, np.ones(mesh.n_cells, bool), np.random.default_rng(0))
+    same = np.array_equal(_cell_set(once), _cell_set(refine(mesh)))
+    assert same if red else not same
+
+
 def test_nothing_marked_changes_nothing():
     mesh = prepared(structured("triangle"))
     fine, P = refine_marked(mesh, np.zeros(mesh.n_cells, bool))
@@ -447,10 +474,24 @@ def test_dorfler_marks_the_smallest_bulk(seed, theta, n):
         assert k == 0
         return
     assert (eta[mask] ** 2).sum() >= theta * total * (1 - 1e-12)
-    largest = np.sort(eta**2)[::-1]
-    assert largest[: k - 1].sum() < theta * total
+    last = eta[mask].min()
+    above = eta > last * (1 + 1e-9)  # the set without the last value's ties
+    assert (eta[above] ** 2).sum() < theta * total  # one fewer value does not reach it
+    assert mask[eta >= last * (1 - 1e-9)].all()  # every tie of the last value is marked
     if k < n:
         assert eta[mask].min() >= eta[~mask].max()
+
+
+@pytest.mark.parametrize("tie", [marking.TIE, 0.0])
+def test_dorfler_marks_mirror_cells_together(monkeypatch, tie):
+    """Indicators in mirror pairs equal to rounding: the pairs are marked together (a symmetric
+    problem keeps a symmetric mesh); the mutation TIE = 0 splits a pair at the cut."""
+    monkeypatch.setattr(marking, "TIE", tie)
+    half = np.array([5.0, 4.0, 3.0, 3.0, 2.0, 1.0])
+    eta = np.concatenate([half, half * (1 + 1e-14)])  # (12,) cell i and i + 6 mirror cells
+    mask = dorfler_mark(eta, 0.1)  # 25 of 128: one cell of the first pair would do
+    together = (mask[:6] == mask[6:]).all()
+    assert together if tie else not together
 
 
 def test_dorfler_edge_cases_and_refusals():

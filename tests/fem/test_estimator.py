@@ -33,6 +33,30 @@ def test_linear_field_has_no_residual(element):
     assert np.abs(div).max() < 1e-12
 
 
+def test_facet_flux_is_its_cell_s_flux_on_triangles():
+    """On P1 cells ∇U_h is constant: the flux on every facet instance is its own cell's F_h n
+    (computed here from the cell's nodes), a random field on a distorted mesh. Mutation: the
+    per-cell flux handed to the neighbouring instance (below)."""
+    m = _distorted("triangle", seed=3)
+    U = np.random.default_rng(3).normal(size=(m.n_nodes, 1))
+    ff = facet_fluxes(m, U, GRAD)
+    X = m.points[m.cells]  # (n_cells, 3, 2)
+    E = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]], axis=1)  # (n_cells, 2, 2) edge rows
+    dU = U[m.cells[:, 1:], 0] - U[m.cells[:, :1], 0]  # (n_cells, 2)
+    G = np.linalg.solve(E, dU[..., None])[..., 0]  # (n_cells, 2) ∇U per cell
+    expect = np.einsum("nd,nqd->nq", G[ff.cell], ff.normal)  # (n_i, q)
+    assert np.allclose(ff.flux[..., 0], expect, rtol=0, atol=1e-12 * np.abs(G).max())
+
+
+def test_mutation_facet_flux_from_the_wrong_cell(monkeypatch):
+    real = estimator.fluxes
+    monkeypatch.setattr(
+        estimator, "fluxes", lambda m, U, L, cells, pts: np.roll(real(m, U, L, cells, pts), 1, 0)
+    )
+    with pytest.raises(AssertionError):
+        test_facet_flux_is_its_cell_s_flux_on_triangles()
+
+
 def test_divergence_of_bilinear_field():
     """U = x y on a tensor grid of rectangles (exactly Q1): F = (∂_y U, 0) has div F = 1, and
     F = ∇U has div F = Δ(x y) = 0; h_T² ‖1‖²_T is the volume indicator of the first."""

@@ -144,16 +144,30 @@ def estimate(spec_model: Any, model: Any, sol: Solution) -> dict[str, Indicator]
     (`indicators`) and the energy ‖U_h‖² (`energy_map`); `spec_model` is the plug-in's
     SCENE_MODEL (piezo_contact: `estimate = partial(error_estimate.estimate, SCENE_MODEL)`)."""
     eta = indicators(spec_model, model, sol)
+    spec = _spec(spec_model, model)
     U = _nodal(model, sol)
     out = {}
     for b in model.bodies:
         S = energy_map(b.material.C, b.material.kappa)
         zero = np.zeros((U[b.name].shape[1], b.dim))
+        order = 1 if b.mesh.cells.shape[1] == b.dim + 1 else 2  # exact: ∇U_h const. / bilinear
         energy = energy_error(
-            b.mesh, U[b.name], S, lambda *p, z=zero: np.broadcast_to(z, (*np.shape(p[0]), *z.shape))
+            b.mesh,
+            U[b.name],
+            S,
+            lambda *p, z=zero: np.broadcast_to(z, (*np.shape(p[0]), *z.shape)),
+            order,
         )
-        out[b.name] = Indicator(b.mesh, eta[b.name], float(energy.sum()))
+        curves = spec.bodies[b.name].geometry.curves()
+        out[b.name] = Indicator(b.mesh, eta[b.name], float(energy.sum()), curves)
     return out
+
+
+def _spec(spec_model: Any, model: Any) -> Any:
+    """The validated scene model (`indicators`' `spec_model`)."""
+    if isinstance(spec_model, type):
+        return model.scene.validated(spec_model)
+    return spec_model(model.scene)
 
 
 def indicators(
@@ -164,10 +178,7 @@ def indicators(
     its piezo_contact scene model (signorini: `signorini.piezo_spec`)."""
     if drop is not None and drop not in TERMS:
         raise ValueError(f"drop must be one of {TERMS}, got {drop!r}")
-    if isinstance(spec_model, type):
-        spec = model.scene.validated(spec_model)
-    else:
-        spec = spec_model(model.scene)
+    spec = _spec(spec_model, model)
     U = _nodal(model, sol)
     eta2 = {}
     for b in model.bodies:
