@@ -1,6 +1,6 @@
 """Which Newton loop ``method="ssn"`` runs: the serial one (`vi_core.ssn.solve_ssn`), or one that
 an engine package installs for a block of code (`using`), e.g. the distributed loop of
-`vi_petsc` under ``mixvi solve --engine petsc``.
+`vi_core.petsc` under ``mixvi solve --engine petsc``.
 
 Why a process-wide setting and not an argument: the Newton loop is reached through the plug-ins'
 outer iterations (nested iteration, load paths, Coulomb fixed points), which pass their options
