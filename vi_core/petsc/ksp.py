@@ -109,9 +109,14 @@ class LinearSolve:
         return out
 
     def info(self) -> dict:
-        """What the solves did, for Solution.info."""
-        return {
-            "linear_solver": f"petsc-{self.kind}",
-            "krylov_iterations": self.iterations if self.kind == "gamg" else None,
-            "petsc_solves": self.steps,
-        }
+        """What the solves did, for Solution.info (the serial amg path's keys where they mean
+        the same: krylov_iterations per step and the steps that fell back to a direct solve)."""
+        out = {"linear_solver": f"petsc-{self.kind}", "petsc_solves": self.steps}
+        if self.kind == "gamg":
+            out["krylov_iterations"] = [s["iterations"] for s in self.steps]
+            out["fallback"] = [
+                {"step": i + 1, "reason": f"KSP reason {s['reason']}: MUMPS"}
+                for i, s in enumerate(self.steps)
+                if "fallback" in s
+            ]
+        return out

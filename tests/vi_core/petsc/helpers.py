@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 # as root, Open MPI refuses to start without these; --oversubscribe: 4 ranks on 2 cores
 MPI_ENV = {
     "OMPI_ALLOW_RUN_AS_ROOT": "1",

@@ -1,5 +1,6 @@
 """Run under mpiexec by the tests: solve a scene with the petsc engine on every rank; rank 0
-saves u, λ, the contact states and the residual to an .npz.
+saves each field of u (displacement, potential), λ, the contact states and the residual to an
+.npz.
 
     mpiexec -n P python -m tests.vi_core.petsc.mpi_scene SCENE LEVEL LINEAR OUT.npz [MUTATION]
 """
@@ -15,15 +16,17 @@ from problems.commands import engine
 
 
 def solved(scene: str, level: int, linear_solver: str, name: str = "serial") -> dict:
-    """u, λ, states and residual of `scene` at `level` solved on engine `name`."""
+    """Each field of u ("u:displacement", "u:potential", ...), λ ("lam"), the contact states,
+    the residual and the engine's record of `scene` at `level` solved on engine `name`."""
     eng = engine.start(name)
     loaded = pipeline.load(scene)
     with engine.running(eng):
         run = pipeline.solve(loaded, level, linear_solver=linear_solver)
     sol = run.solution
     state = pipeline.results(loaded, run).contact or {}
+    fields = run.model.vi.fields or {"all": np.ones(sol.u.shape, bool)}
     return {
-        "u": sol.u,
+        **{f"u:{name}": sol.u[mask] for name, mask in fields.items()},
         "lam": sol.lam,
         "state": np.asarray(state.get("state", []), dtype=str),
         "residual": sol.residual,
