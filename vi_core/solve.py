@@ -41,9 +41,9 @@ CONTACT_METHODS = ("auto", "ssn", "fixed_point")  # for Λ with contact blocks (
 
 def _run(vi: MixedVI, method: str, tol: float, options: dict[str, Any]) -> Solution:
     if method == "ssn":
-        from .ssn import solve_ssn
+        from .engine import ssn_loop
 
-        return solve_ssn(vi, tol=tol, **options)
+        return ssn_loop()(vi, tol=tol, **options)
     if method == "conic":
         from .conic import solve_conic
 

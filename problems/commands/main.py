@@ -101,6 +101,7 @@ def parser(full: bool = True) -> argparse.ArgumentParser:
         return p
     from vi_core.linear_solvers import LINEAR_SOLVERS
 
+    from .engine import ENGINES
     from .options import ACCURACY
 
     s = sub.add_parser(
@@ -125,6 +126,13 @@ def parser(full: bool = True) -> argparse.ArgumentParser:
         help="Newton steps: direct (auto = PARDISO if installed and the system is large, else "
         "splu; splu; pardiso) or amg = GMRES with algebraic multigrid, inexact early steps, "
         "direct fallback where it stagnates (default auto)",
+    )
+    s.add_argument(
+        "--engine",
+        choices=ENGINES,
+        default="serial",
+        help="serial (default) or petsc: the Newton loop on PETSc over the ranks of "
+        "`mpiexec -n P mixvi solve ... --engine petsc` (petsc4py, mpi4py: the [petsc] extra)",
     )
     s.add_argument(
         "--tol", type=options.tol, default=None, help="relative residual (default 1e-10)"
@@ -208,7 +216,7 @@ def parser(full: bool = True) -> argparse.ArgumentParser:
 # reaches the option's own check, which names the option and what is allowed
 VALUE_OPTIONS = {"--level", "--levels", "--tol", "--tols", "--timeout", "--only", "--scenes"}
 VALUE_OPTIONS |= {"--solvers", "--solver", "--json", "--out", "--accuracy", "--linear-solver"}
-VALUE_OPTIONS |= {"--linear-solvers"}
+VALUE_OPTIONS |= {"--linear-solvers", "--engine"}
 
 
 def _glue_values(argv: list[str]) -> list[str]:

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import time
+from contextlib import ExitStack
 from pathlib import Path
 
 import problems.pipeline as pipeline
@@ -16,7 +18,7 @@ from problems.output.files import jsonable, output_folder
 from problems.pipeline import adaptive
 from problems.plugins.contact.plane import PATCH_DEFECT_LIMIT
 
-from . import load_path, resources
+from . import engine, load_path, resources
 from .options import ACCURACY, DEFAULT_SCENE, solver_options
 from .progress import bar as progress_bar
 from .progress import newton_status
@@ -26,6 +28,9 @@ def cmd_solve(args: argparse.Namespace) -> int:
     """Solve one scene; exit status 0 converged, 1 not converged or (without --allow-defect) a
     contact interface whose mortar patch defect exceeds PATCH_DEFECT_LIMIT."""
     t0 = time.perf_counter()
+    eng = engine.start(args.engine)
+    if isinstance(args.accuracy, float) and eng.name != "serial":
+        raise SceneError("--accuracy", str(args.accuracy), "a preset name with --engine petsc")
     if isinstance(args.accuracy, float):  # adaptive refinement to that estimate (issue 32)
         from .adapt import run
 
@@ -46,8 +51,34 @@ def cmd_solve(args: argparse.Namespace) -> int:
     )
     out = Path(args.out) if args.out else Path("out") / scene.name
     inputs = loaded.scene.files()
-    with output_folder(out, "--out", overwrite=args.overwrite, inputs=inputs) as folder:
-        return _solve(args, t0, loaded, level, folder)
+    with engine.running(eng):
+        if not eng.writes:  # ranks above 0 of --engine petsc: the same solve, no output
+            if not eng.agree(None):
+                print(f"mixvi: rank {eng.rank}: output folder refused on rank 0", file=sys.stderr)
+                return 2
+            return eng.guarded(_solve_unwritten, args, loaded, level)
+        with ExitStack() as stack:
+            try:
+                folder = stack.enter_context(
+                    output_folder(out, "--out", overwrite=args.overwrite, inputs=inputs)
+                )
+            except BaseException:
+                eng.agree(False)  # every rank ends, none waits on rank 0
+                raise
+            eng.agree(True)
+            return eng.guarded(_solve, args, t0, loaded, level, folder)
+
+
+def _solve_unwritten(args, loaded: pipeline.Loaded, level: int) -> int:
+    """What a rank above 0 of `--engine petsc` runs: the solve rank 0 runs in `_solve` (the
+    same collective calls in the same order), nothing written but a load path's steps in a
+    temporary folder; exit status 0 converged, else 1 (rank 0 adds the patch defect's)."""
+    if loaded.spec.load_path is not None:
+        with tempfile.TemporaryDirectory() as tmp:
+            path, _ = load_path.solve_steps(args, loaded, level, Path(tmp))
+        return 0 if path.converged and not load_path.stopped(loaded, path) else 1
+    run = pipeline.solve(loaded, level, **solver_options(args))
+    return 0 if run.solution.converged else 1
 
 
 def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:

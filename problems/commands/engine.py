@@ -1,0 +1,102 @@
+"""`mixvi solve --engine petsc`: the Newton loop on PETSc over the ranks of an `mpiexec` run
+(`vi_core.petsc`), output written once, by rank 0.
+
+Under `mpiexec -n P mixvi solve SCENE --engine petsc` every rank reads and validates the scene
+and builds the model (bad input is refused on every rank alike, exit status 2, before any
+collective call: no rank waits on another); rank 0 alone opens the output folder and tells the
+others whether it could (`Engine.agree`): a refused folder ends every rank with status 2. Then
+every rank runs the same solve (nested iteration included: each level's Newton loop is
+`vi_core.petsc.solve_ssn_petsc`); rank 0 writes the results as the serial command does (same files,
+same summary.json fields, plus solver_info["engine"] and ["ranks"]), the other ranks write
+nothing and exit with the same status. An exception on one rank mid-solve aborts the whole run
+(MPI_Abort) with a line naming the rank; a rank killed by a signal ends the run through mpiexec,
+and rank 0's staging folder is removed by its SIGTERM handling (the output folder is written
+only once the solve is done).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+from problems.errors import SceneError
+
+ENGINES = ("serial", "petsc")
+
+
+@dataclass
+class Engine:
+    """The engine a `mixvi solve` runs on: its rank and size (0 and 1 for serial)."""
+
+    name: str
+    rank: int = 0
+    size: int = 1
+    comm: Any = None  # mpi4py communicator (petsc only)
+
+    @property
+    def writes(self) -> bool:
+        """Whether this process writes the output (rank 0)."""
+        return self.rank == 0
+
+    def agree(self, ok: bool | None) -> bool:
+        """Rank 0's verdict on the output folder (`ok`), told to every rank."""
+        if self.comm is None:
+            return bool(ok)
+        return bool(self.comm.bcast(ok, root=0))
+
+    def guarded(self, solve: Callable[..., Any], *args: Any, **kw: Any) -> Any:
+        """`solve(*args, **kw)`; an exception on this rank aborts every rank (MPI_Abort), so no
+        rank waits forever on one that has stopped. SceneError and interruptions pass on."""
+        if self.comm is None or self.size == 1:
+            return solve(*args, **kw)
+        try:
+            return solve(*args, **kw)
+        except (SceneError, KeyboardInterrupt):
+            raise
+        except BaseException as err:
+            print(
+                f"mixvi: rank {self.rank} of {self.size} failed: {type(err).__name__}: {err}; "
+                "aborting every rank (nothing was written)",
+                file=sys.stderr,
+                flush=True,
+            )
+            self.comm.Abort(1)
+            raise
+
+
+def start(name: str) -> Engine:
+    """The engine `name` (ENGINES), its rank and size; SceneError on --engine if unknown or
+    if petsc4py/mpi4py are missing (on every rank alike)."""
+    if name not in ENGINES:
+        raise SceneError("--engine", name, "one of " + ", ".join(ENGINES))
+    if name == "serial":
+        return Engine(name)
+    from vi_core import petsc as vi_petsc
+
+    if not vi_petsc.available():
+        raise SceneError(
+            "--engine",
+            name,
+            "needs petsc4py and mpi4py (pip install -e '.[petsc]' against Debian's PETSc: "
+            ".ci/install_petsc)",
+        )
+    rank, size = vi_petsc.comm_rank_size()
+    from mpi4py import MPI
+
+    return Engine(name, rank, size, MPI.COMM_WORLD)
+
+
+@contextmanager
+def running(eng: Engine) -> Iterator[None]:
+    """Within the block, method="ssn" runs on the engine's Newton loop."""
+    if eng.name == "serial":
+        yield
+        return
+    from vi_core import engine as vi_engine
+    from vi_core.petsc import solve_ssn_petsc
+
+    with vi_engine.using(solve_ssn_petsc):
+        yield

@@ -1,0 +1,158 @@
+"""`mpiexec -n P mixvi solve SCENE --engine petsc`: output written once (rank 0), the serial
+command's summary.json fields and exit statuses, bad input refused on every rank without a
+hang, a rank killed mid-solve ending the run with nothing written."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.vi_core.petsc.helpers import mixvi, mpiexec, need_petsc
+
+pytestmark = pytest.mark.mpi  # .ci/run runs these after .ci/install_petsc
+
+SCENE = "manufactured"
+
+
+def summary(folder: Path) -> dict:
+    return json.loads((folder / "summary.json").read_text())
+
+
+@pytest.mark.slow
+def test_same_files_and_summary_fields_as_serial(tmp_path):
+    need_petsc()
+    serial = subprocess.run(
+        [mixvi(), "solve", SCENE, "--level", "1", "--out", str(tmp_path / "serial")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert serial.returncode == 0, serial.stderr
+    par = mpiexec(
+        2,
+        [
+            mixvi(),
+            "solve",
+            SCENE,
+            "--level",
+            "1",
+            "--engine",
+            "petsc",
+            "--out",
+            str(tmp_path / "petsc"),
+        ],
+    )
+    assert par.returncode == 0, par.stderr[-3000:]
+    assert par.stdout.count("wrote ") == 1  # rank 0 alone reports (and writes)
+    a, b = summary(tmp_path / "serial"), summary(tmp_path / "petsc")
+    assert set(a) == set(b)
+    assert sorted(p.name for p in (tmp_path / "serial").iterdir()) == sorted(
+        p.name for p in (tmp_path / "petsc").iterdir()
+    )
+    assert b["solver_info"]["engine"] == "petsc" and b["solver_info"]["ranks"] == 2
+    assert abs(a["residual"] - b["residual"]) <= 1e-8 or b["residual"] <= 1e-10
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["--level", "99"], "--level"),  # argparse, on every rank
+        pytest.param(
+            ["--set", "contact.g=-1"], "contact.g", marks=pytest.mark.slow
+        ),  # the scene's validation, on every rank
+    ],
+)
+def test_bad_input_refused_on_every_rank(tmp_path, argv, says):
+    need_petsc()
+    done = mpiexec(
+        2,
+        [mixvi(), "solve", SCENE, "--engine", "petsc", "--out", str(tmp_path / "o"), *argv],
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert done.stderr.count(says) >= 2, done.stderr  # each rank says why
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_output_refused_on_rank_0_ends_every_rank(tmp_path):
+    """--out is a user's file: rank 0 refuses it, the others end too (no hang), nothing
+    written, the file untouched."""
+    need_petsc()
+    mine = tmp_path / "notes.txt"
+    mine.write_text("mine")
+    done = mpiexec(
+        2, [mixvi(), "solve", SCENE, "--engine", "petsc", "--out", str(mine)], timeout=120
+    )
+    assert done.returncode == 2, done.stderr
+    assert "refused on rank 0" in done.stderr
+    assert mine.read_text() == "mine"
+
+
+def _rank_pid(launcher: int, rank: int) -> int | None:
+    """The pid of MPI rank `rank` among the descendants of `launcher` (its environment)."""
+    for p in Path("/proc").iterdir():
+        if not p.name.isdigit():
+            continue
+        try:
+            env = (p / "environ").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if (
+            f"OMPI_COMM_WORLD_RANK={rank}".encode() in env
+            and b"MIXVI_KILL_TEST=" + str(launcher).encode() in env
+        ):
+            return int(p.name)
+    return None
+
+
+@pytest.mark.slow
+def test_rank_killed_mid_solve_ends_the_run(tmp_path):
+    """SIGKILL to rank 1 while the ranks solve: mpiexec ends every rank, says which one died,
+    and the output folder holds no half-written results."""
+    need_petsc()
+    out = tmp_path / "o"
+    tag = str(os.getpid())
+    run = mpiexec(
+        2,
+        [
+            mixvi(),
+            "solve",
+            "paper_two_body",
+            "--level",
+            "4",
+            "--engine",
+            "petsc",
+            "--out",
+            str(out),
+        ],
+        popen=True,
+        env={"MIXVI_KILL_TEST": tag},
+    )
+    try:
+        pid, t0 = None, time.monotonic()
+        while pid is None and time.monotonic() - t0 < 60:
+            pid = _rank_pid(int(tag), 1)
+            time.sleep(0.2)
+        assert pid is not None
+        while not out.exists() and run.poll() is None and time.monotonic() - t0 < 120:
+            time.sleep(0.2)  # rank 0 has claimed the folder: the solve runs
+        time.sleep(1.0)
+        os.kill(pid, signal.SIGKILL)
+        stdout, stderr = run.communicate(timeout=120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode != 0
+    # mpiexec names the rank and the signal; rank 0 (SIGTERM from mpiexec) says it stopped
+    assert "rank 1" in stderr and "signal 9" in stderr, stderr[-2000:]
+    assert not (out / "summary.json").exists()
+    assert not any(p.name.startswith(".mixvi-tmp-") for p in tmp_path.rglob("*")), list(
+        tmp_path.rglob("*")
+    )

@@ -1,0 +1,38 @@
+"""Which Newton loop ``method="ssn"`` runs: the serial one (`vi_core.ssn.solve_ssn`), or one that
+an engine package installs for a block of code (`using`), e.g. the distributed loop of
+`vi_core.petsc` under ``mixvi solve --engine petsc``.
+
+Why a process-wide setting and not an argument: the Newton loop is reached through the plug-ins'
+outer iterations (nested iteration, load paths, Coulomb fixed points), which pass their options
+on unchanged; vi_core does not import an engine package (the layout), the engine registers
+itself here. A plain module global, not a ContextVar: `mixvi solve` runs the solve in a worker
+thread, which a ContextVar would not reach.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+_ssn: Callable | None = None  # the installed Newton loop; None: vi_core.ssn.solve_ssn
+
+
+@contextmanager
+def using(ssn: Callable) -> Iterator[None]:
+    """Within the block, ``solve(vi, "ssn", ...)`` calls ``ssn(vi, tol=..., **options)`` (the
+    signature of `vi_core.ssn.solve_ssn`) instead of the serial loop."""
+    global _ssn
+    before, _ssn = _ssn, ssn
+    try:
+        yield
+    finally:
+        _ssn = before
+
+
+def ssn_loop() -> Callable:
+    """The Newton loop ``method="ssn"`` runs now."""
+    if _ssn is not None:
+        return _ssn
+    from .ssn import solve_ssn
+
+    return solve_ssn

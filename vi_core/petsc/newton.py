@@ -1,0 +1,205 @@
+"""The semismooth Newton loop of `vi_core.ssn` with its condensed steps solved by PETSc over
+the ranks of COMM_WORLD.
+
+What is distributed and what is not (issue 33, docs/distributed.md):
+
+* **Rows.** PETSc's default layout gives each rank a contiguous range [lo, hi) of the n
+  primal unknowns; the rank assembles the rows of the condensed Newton matrix K it owns into an
+  ``mpiaij`` matrix: the fixed rows R (A_R − B_Rᵀ D^{-T} A_S) once, the slave rows S
+  (Dᵀ(W D^{-T} A_S + J B)) of its owned multipliers at every step.
+* **Multipliers follow their slave dof.** Multiplier row i is owned by the rank owning dof
+  S[i] (the condensation's slave column): its condensed row, its recovery
+  λ_i = (D^{-T}(f_S − A_S u))_i and its part of the complementarity residual are computed
+  there, with no communication but the gather of the new iterate.
+* **Reductions.** The residual norms (damping line search included) are sums of squares over
+  owned parts, summed over the ranks (`runtime.Reductions`): every rank takes the same
+  decisions.
+* **Linear solves.** KSP: MUMPS LU (``preonly``) by default, GMRES with GAMG and the
+  plug-in's near-null space (`MixedVI.near_null`, rigid-body modes) for
+  ``linear_solver="amg"``, MUMPS again for a step GMRES does not solve. PETSc options
+  (``-mixvi_ksp_*``, ``-mixvi_pc_*``) override through PETSC_OPTIONS.
+
+Not yet distributed (what remains, stated in docs/distributed.md): the model is built on
+every rank (the plug-in assembles A and B whole, then each rank keeps its rows), u and λ are
+replicated after each step (an allgather), and the active-set map of Λ is evaluated on the
+replicated y (O(m), the interface) with each rank using its owned rows. Memory per rank
+therefore does not fall with the ranks yet; the Newton matrix and its factors do.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from vi_core.problem import MixedVI
+from vi_core.sets import Free
+from vi_core.solution import Solution
+from vi_core.ssn import Condensation
+
+from .ksp import LinearSolve
+from .runtime import Reductions, petsc
+
+
+class _Owned:
+    """The rows a rank owns and the fixed parts of the condensed system on them."""
+
+    def __init__(self, e: MixedVI, cond: Condensation, comm: Any, PETSc: Any):
+        n = e.n
+        probe = PETSc.Vec().createMPI((PETSc.DECIDE, n), comm=comm)
+        self.lo, self.hi = probe.getOwnershipRange()
+        probe.destroy()
+        lo, hi = self.lo, self.hi
+        R, S = cond.R, cond.S
+        self.dofs = np.arange(lo, hi)  # (k,) owned primal rows
+        self.R_pos = np.flatnonzero((R >= lo) & (R < hi))  # positions in R of owned R rows
+        self.mult = np.flatnonzero((S >= lo) & (S < hi))  # (k_m,) owned multiplier rows
+        A = e.A.tocsr()
+        self.A_S = A[S]  # (m, n)
+        self.f_S = e.f[S]  # (m,)
+        self.X = (cond.Dt_inv @ self.A_S).tocsr()  # (m, n) D^{-T} A_S
+        BR_t = sp.csr_matrix(e.B[:, R].T)[self.R_pos]  # (k_R, m) owned rows of B_Rᵀ
+        self.K_R = (A[R[self.R_pos]] - BR_t @ self.X).tocsr()  # (k_R, n)
+        self.rhs_R = e.f[R[self.R_pos]] - BR_t @ (cond.Dt_inv @ self.f_S)  # (k_R,)
+        self.Dt = cond.D.T.tocsr()[self.mult]  # (k_m, m) owned rows of Dᵀ
+        self.Dt_inv = cond.Dt_inv[self.mult]  # (k_m, m) owned rows of D^{-T}
+        # local row of each stacked row [owned R; owned S]
+        self.local_rows = np.concatenate([R[self.R_pos], S[self.mult]]) - lo  # (k,)
+        self.A_own = A[lo:hi]  # (k, n) for the equilibrium residual
+        self.Bt_own = sp.csr_matrix(e.B.T)[lo:hi]  # (k, m)
+
+
+def _residual(e: MixedVI, own: _Owned, red: Reductions, u, lam, scale: float) -> float:
+    """The relative natural-map residual (`vi_core.natural_residual`) from owned parts."""
+    r1 = own.A_own @ u + own.Bt_own @ lam - e.f[own.lo : own.hi]  # (k,)
+    p = e.Lambda.project(lam + e.B @ u - e.gap)  # (m,) replicated (the interface)
+    r2 = lam[own.mult] - p[own.mult]  # (k_m,)
+    return float(np.hypot(red.norm(r1), red.norm(r2)) / scale)
+
+
+def solve_ssn_petsc(
+    vi: MixedVI,
+    tol: float = 1e-10,
+    max_iter: int = 60,
+    u0: np.ndarray | None = None,
+    lam0: np.ndarray | None = None,
+    linear_solver: str = "auto",
+    condense: bool = True,
+    damping: bool = True,
+    estimate_condition: bool = False,
+    on_step: Callable[[dict], None] | None = None,
+) -> Solution:
+    """`vi_core.ssn.solve_ssn` on the ranks of PETSc's COMM_WORLD (module docstring): the same
+    iterates, the same damping and stopping rule; every rank returns the same Solution.
+
+    linear_solver : "amg" GMRES + GAMG (MUMPS where it fails), anything else MUMPS LU.
+    condense must hold (the engine solves condensed steps only); estimate_condition is not
+    available here and is recorded as skipped."""
+    if not condense:
+        raise ValueError("the petsc engine solves condensed Newton steps only (condense=True)")
+    PETSc = petsc()
+    comm = PETSc.COMM_WORLD
+    red = Reductions(comm)
+    t0 = time.perf_counter()
+    e, sc = vi.equilibrated, vi.scaling
+    cond = Condensation.detect(e.B)
+    if cond is None:
+        raise ValueError(
+            "the petsc engine condenses the multipliers: B has no block-diagonal slave part "
+            "(dual mortar multipliers)"
+        )
+    own = _Owned(e, cond, comm, PETSc)
+    solver = LinearSolve(PETSc, comm, "gamg" if linear_solver == "amg" else "mumps", e, own.lo)
+    u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
+    lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
+    Lam = e.Lambda
+    scale = max(red.norm(e.f[own.lo : own.hi]), red.norm(e.gap[own.mult])) or 1.0
+    res = _residual(e, own, red, u, lam, scale)
+    history, damped, k = [res], 0, 0
+    converged = res <= tol
+    linear = all(isinstance(b, Free) for b in Lam.blocks())
+    nloc = own.hi - own.lo
+    while not converged and k < max_iter:
+        k += 1
+        y = lam + e.B @ u - e.gap  # (m,)
+        p = Lam.project(y)
+        J = sp.csr_matrix(Lam.jacobian(y))  # (m, m) block diagonal
+        W = sp.identity(e.m, format="csr") - J
+        rhs_c = p - J @ y - J @ e.gap
+        # owned slave rows: Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)
+        K_S = (own.Dt @ (W @ own.X) + own.Dt @ (J @ e.B)).tocsr()  # (k_m, n)
+        rhs_S = own.Dt @ (W @ (cond.Dt_inv @ own.f_S) - rhs_c)  # (k_m,)
+        stacked = sp.vstack([own.K_R, K_S], format="csr")  # (k, n) rows [owned R; owned S]
+        order = np.argsort(own.local_rows)
+        K_local = stacked[order].tocsr()  # (k, n) in local row order
+        K_local.sort_indices()
+        rhs = np.concatenate([own.rhs_R, rhs_S])[order]  # (k,)
+        x = solver.solve(K_local, rhs, u[own.lo : own.hi], tol if linear else None)
+        u_new = red.gather(own.dofs, x, e.n)
+        lam_own = own.Dt_inv @ (own.f_S - own.A_S @ u_new)  # (k_m,)
+        lam_new = red.gather(own.mult, lam_own, e.m)
+        du, dl = u_new - u, lam_new - lam
+        t, best = 1.0, None
+        while True:
+            cand = _residual(e, own, red, u + t * du, lam + t * dl, scale)
+            if best is None or cand < best[1]:
+                best = (t, cand)
+            if not damping or cand <= (1.0 - 1e-4 * t) * res or t < 1.0 / 64:
+                break
+            t *= 0.5
+        t, res = best
+        damped += t < 1.0
+        u, lam = u + t * du, lam + t * dl
+        history.append(res)
+        converged = res <= tol
+        if on_step is not None:
+            active = int((p == y).sum())
+            slip = int(((p != y) & (p != 0.0)).sum())
+            on_step(
+                dict(
+                    step=k,
+                    residual=res,
+                    active=active,
+                    slip=slip,
+                    done=True,
+                    krylov_iterations=solver.iterations if solver.kind == "gamg" else None,
+                )
+            )
+    lam_feasible = Lam.project(lam)
+    res_feasible = _residual(e, own, red, u, lam_feasible, scale)
+    if res_feasible <= max(res, tol):
+        lam, res = lam_feasible, res_feasible
+        history[-1] = res
+        converged = res <= tol
+    y = lam + e.B @ u - e.gap
+    inner = int((np.abs(y - Lam.project(y)) == 0).sum())
+    u_phys, lam_phys = sc.to_physical(u, lam)
+    sol = Solution(
+        u=u_phys,
+        lam=lam_phys,
+        converged=bool(converged),
+        iterations=k,
+        residual=float(res),
+        history=history,
+        time=time.perf_counter() - t0,
+        method="ssn",
+        info={
+            "engine": "petsc",
+            "ranks": comm.getSize(),
+            "owned_rows": red.comm.allgather(int(nloc)),
+            "condensed": True,
+            "damped_steps": int(damped),
+            "inside": inner,
+            **solver.info(),
+        },
+    )
+    if estimate_condition:
+        sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
+    if not converged:
+        sol.warnings.append(
+            f"ssn (petsc): residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"
+        )
+    return sol

@@ -1,0 +1,71 @@
+"""petsc4py and mpi4py, imported on demand: whether they are there, the communicator's rank and
+size, and the global reductions the Newton loop needs (sums over the ranks' owned parts)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def available() -> bool:
+    """Whether petsc4py and mpi4py import (the ``petsc`` extra, ``.ci/install_petsc``)."""
+    try:
+        import mpi4py  # noqa: F401
+        import petsc4py  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def petsc() -> Any:
+    """The initialised petsc4py.PETSc module (ImportError naming the install path if absent)."""
+    try:
+        import petsc4py
+        from mpi4py import MPI  # noqa: F401  MPI_Init_thread(MULTIPLE) before petsc4py.init:
+        # the solve runs in mixvi solve's worker thread (PETSc's own MPI_Init asks for less)
+    except ImportError as err:
+        raise ImportError(
+            "the petsc engine needs petsc4py and mpi4py: pip install -e '.[petsc]' against "
+            "Debian's PETSc (.ci/install_petsc does both)"
+        ) from err
+    petsc4py.init()
+    from petsc4py import PETSc
+
+    return PETSc
+
+
+def comm_rank_size() -> tuple[int, int]:
+    """(rank, size) of PETSc's world communicator."""
+    comm = petsc().COMM_WORLD
+    return comm.getRank(), comm.getSize()
+
+
+class Reductions:
+    """Global sums over the ranks of values each rank computes on what it owns (the reduction
+    protocol of docs/distributed.md): sum of squares → a 2-norm, concatenation of owned parts
+    → the replicated vector."""
+
+    def __init__(self, comm: Any):
+        self.comm = comm.tompi4py()  # mpi4py communicator of the PETSc one
+
+    def norm(self, local: np.ndarray) -> float:
+        """‖x‖₂ of the vector whose owned parts the ranks hold (`local`, (k,))."""
+        return float(np.sqrt(self.comm.allreduce(float(local @ local))))
+
+    def gather(self, index: np.ndarray, local: np.ndarray, size: int) -> np.ndarray:
+        """The replicated (size,) vector whose entries `index` (k,) this rank owns (`local`)."""
+        out = np.zeros(size)
+        for idx, val in self.comm.allgather((index, local)):
+            out[idx] = val
+        return out
+
+    def all_true(self, flag: bool) -> bool:
+        """Whether `flag` holds on every rank."""
+        return bool(self.comm.allreduce(int(bool(flag)), op=_min()) == 1)
+
+
+def _min() -> Any:
+    from mpi4py import MPI
+
+    return MPI.MIN
