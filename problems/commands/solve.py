@@ -12,7 +12,8 @@ import problems.pipeline as pipeline
 from problems.errors import SceneError
 from problems.output import signals
 from problems.output.collection import vtu_datasets, write_pvd
-from problems.output.files import jsonable, output_folder
+from problems.output.files import output_folder
+from problems.output.jsonable import jsonable
 from problems.pipeline import adaptive
 from problems.plugins.contact.plane import PATCH_DEFECT_LIMIT
 

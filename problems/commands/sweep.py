@@ -177,7 +177,7 @@ def case_summary(loaded: Any, run: Any, case: dict, name: str, tmp: Path) -> dic
     """The case's summary.json (written into tmp/name/ with the plug-in's files): what
     `mixvi solve` records of a run, and the case's parameter values."""
     import problems.pipeline as pipeline
-    from problems.output.files import jsonable
+    from problems.output.jsonable import jsonable
 
     folder = tmp / name
     folder.mkdir()
