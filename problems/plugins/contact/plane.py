@@ -853,6 +853,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "b_uh_lam": b_uh_lam,
         "int_g_abs_u": g_abs,
         "lemma_4_2": float(lemma),
+        "friction": c.friction,  # the bound's name in plots and tables (tresca: g, coulomb: Fλ_n)
     }
     if c.law == "unilateral":
         state["pressure"] = max(float(lam_n.max(initial=0.0)), force)  # the pressure scale
@@ -953,6 +954,7 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
         jump_t=jump_t,
         state=state.astype(str),
         gap=gap,
+        friction=c.friction,
     )
 
 
