@@ -4,6 +4,7 @@
     spec = problems.load_scene("rigid_foundation")        # the validated scene model
     res = problems.solve_scene(spec, level=1, contact__g=5e6)
     res.fields["block.displacement"], res.contact["slip"], res.info["converged"]
+    res.write("out/rf")        # the files mixvi solve writes (VTU, CSV, PNG, summary.json)
 
 Overrides are keyword arguments with `__` for the dots of `--set` (contact__g=5e6 is
 `--set contact.g=5e6`); every value is validated with the scene (SceneError naming the field).

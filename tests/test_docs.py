@@ -37,6 +37,8 @@ def test_the_manual_builds_without_a_warning(tmp_path):
     r = _build(ROOT / "mkdocs.yml", tmp_path / "site")
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "site" / "reference" / "vi_core" / "index.html").exists()
+    cli = (tmp_path / "site" / "reference" / "cli" / "index.html").read_text()
+    assert "usage: mixvi sweep" in cli and "generated: mixvi" not in cli  # the hook ran
 
 
 @pytest.mark.slow  # four builds (~4 s each): the mutation tier

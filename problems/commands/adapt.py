@@ -11,7 +11,8 @@ import time
 from pathlib import Path
 
 from problems.errors import SceneError
-from problems.output.files import jsonable, output_folder
+from problems.output.files import output_folder
+from problems.output.jsonable import jsonable
 from problems.pipeline import adaptive
 from problems.plugins.contract import solve_model
 

@@ -38,7 +38,8 @@ import problems.pipeline as pipeline
 import vi_core
 from problems.errors import SceneError
 from problems.output import signals
-from problems.output.files import Output, claim, jsonable
+from problems.output.files import Output, claim
+from problems.output.jsonable import jsonable
 from vi_core import states as node_states
 from vi_core.kkt import Checker
 

@@ -340,7 +340,7 @@ def check_levels(
             linear_option,
             "pardiso",
             "an installed linear solver: 'pardiso' needs the optional package pypardiso "
-            "(pip install mixvi[fast]); or auto, splu, amg",
+            "(pip install -e '.[fast]'); or auto, splu, amg",
         )
     a, b = levels
     total, available = memory()

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
+from typing import Any
 
 from problems.plugins import registry
 from problems.scene.model import json_schema
@@ -68,9 +70,112 @@ def _cell(text: str) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
 
+BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def toml_literal(v: Any) -> str:
+    """A value of a scene as a TOML literal (inline tables and arrays)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_key(k)} = {toml_literal(x)}" for k, x in v.items()) + " }"
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_literal(x) for x in v) + "]"
+    if isinstance(v, float | int):
+        return repr(v)
+    return json.dumps(v, ensure_ascii=False)
+
+
+def _key(k: str) -> str:
+    return k if BARE_KEY.fullmatch(k) else json.dumps(k, ensure_ascii=False)
+
+
+def _fits(spec: dict, data: Any, defs: dict) -> bool:
+    """Whether `data` (a table) can be an instance of the model `spec`: its required keys
+    present, no key it does not know, its constant keys (a `kind`) equal (a union: one of
+    its models)."""
+    if "anyOf" in spec or "oneOf" in spec:
+        subs = spec.get("anyOf", spec.get("oneOf"))
+        return any(_fits(defs.get(x["$ref"].rsplit("/", 1)[-1], {}), data, defs) for x in subs)
+    props = spec.get("properties")
+    if not isinstance(data, dict) or not props:
+        return False
+    if not set(spec.get("required", [])) <= set(data) or not set(data) <= set(props):
+        return False
+    return all(
+        data[k] == sub["const"] or data[k] in sub.get("enum", [data[k]])
+        for k, sub in props.items()
+        if k in data and "const" in sub
+    )
+
+
+def collect_examples(schema: dict, data: Any, path: tuple, found: dict, spec: dict) -> None:
+    """Walk a scene's `data` along the schema node `spec`; the first table met for each model
+    of $defs goes into `found` as (its TOML path, the table; path parts are keys, and "[]"
+    after a key marks an array of tables)."""
+    defs = schema.get("$defs", {})
+    if "$ref" in spec:
+        name = spec["$ref"].rsplit("/", 1)[-1]
+        target = defs.get(name, {})
+        if isinstance(data, dict) and target.get("properties") and name not in found:
+            found[name] = (path, data)
+        collect_examples(schema, data, path, found, target)
+        return
+    for key in ("anyOf", "oneOf"):
+        if key in spec:
+            subs = spec[key]
+            refs = [x for x in subs if "$ref" in x]
+            fit = [x for x in refs if _fits(defs.get(x["$ref"].rsplit("/", 1)[-1], {}), data, defs)]
+            for sub in fit[:1] or [x for x in subs if "$ref" not in x]:
+                collect_examples(schema, data, path, found, sub)
+            return
+    if isinstance(data, dict) and spec.get("properties"):
+        for k, v in data.items():
+            if k in spec["properties"]:
+                collect_examples(schema, v, (*path, k), found, spec["properties"][k])
+    elif isinstance(data, dict) and isinstance(spec.get("additionalProperties"), dict):
+        for k, v in data.items():
+            collect_examples(schema, v, (*path, k), found, spec["additionalProperties"])
+    elif isinstance(data, list) and isinstance(spec.get("items"), dict):
+        for v in data:
+            collect_examples(schema, v, (*path, "[]"), found, spec["items"])
+
+
+def shipped_examples(schema: dict) -> dict[str, tuple[str, tuple, dict]]:
+    """Per model of $defs, its first table in the shipped scenes (in name order): (scene
+    name, TOML path, table)."""
+    import tomllib
+
+    from problems.scene import SCENES_DIR, load_scene
+
+    found: dict[str, tuple[str, tuple, dict]] = {}
+    for f in sorted(SCENES_DIR.glob("*.toml")):
+        data = tomllib.loads(f.read_text())
+        model = registry.for_scene(load_scene(str(f))).SCENE_MODEL.__name__
+        mine: dict = {}
+        collect_examples(schema, data, (), mine, {"$ref": f"#/$defs/{model}"})
+        for name, (path, table) in mine.items():
+            found.setdefault(name, (f.stem, path, table))
+    return found
+
+
+def example_block(scene: str, path: tuple, table: dict) -> list[str]:
+    """A model's example as Markdown: the table under its TOML header, from which scene."""
+    if not path:
+        return []
+    array = path[-1] == "[]"
+    parts = [p for p in path if p != "[]"]
+    header = ".".join(_key(p) for p in parts)
+    head = f"[[{header}]]" if array else f"[{header}]"
+    body = [f"{_key(k)} = {toml_literal(v)}" for k, v in table.items()]
+    return [f"Example (from the shipped scene `{scene}`):", "", "```toml", head, *body, "```", ""]
+
+
 def scene_reference(schema: dict) -> str:
     """The scene reference (Markdown) generated from the JSON Schema: one section per model,
-    one row per key with its type, default, allowed range and description."""
+    one row per key with its type, default, allowed range and description, and an example
+    from a shipped scene where one uses the model (`shipped_examples`)."""
+    examples = shipped_examples(schema)
     lines = [
         "# Scene reference",
         "",
@@ -107,4 +212,6 @@ def scene_reference(schema: dict) -> str:
                 f"| {_cell(sub.get('description', ''))} |"
             )
         lines.append("")
+        if name in examples:
+            lines += example_block(*examples[name])
     return "\n".join(lines)

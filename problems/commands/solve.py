@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -14,8 +13,8 @@ import problems.pipeline as pipeline
 from problems.errors import SceneError
 from problems.output import signals
 from problems.output.collection import vtu_datasets, write_pvd
-from problems.output.files import jsonable, output_folder
-from problems.pipeline import adaptive
+from problems.output.files import output_folder
+from problems.pipeline import written
 from problems.plugins.contact.plane import PATCH_DEFECT_LIMIT
 
 from . import engine, load_path, resources
@@ -87,7 +86,6 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     last state's files, the collection (.pvd), summary.json and the console lines. Exit
     status 0 converged, 1 not (a load path: any step) or a mortar patch defect above the
     limit without --allow-defect."""
-    plugin = loaded.plugin
     out = folder.path
     path = None  # the load path's steps, if the scene has one
     with folder.staging() as tmp:
@@ -97,42 +95,22 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
         else:
             run, coarse = _solve_levels(args, loaded, level, tmp)
         model, sol, nested = run.model, run.solution, run.nested
-        extras = plugin.postprocess(model, sol, tmp)
-        est = adaptive.estimate_output(plugin, model, sol, tmp)  # {} without `estimate`
-        extras = {**extras, **est, "files": [*extras.get("files", []), *est.get("files", [])]}
-        files = [*extras.get("files", [])]
-        warnings = model.warnings + sol.warnings + extras.get("warnings", [])
+        extras, files, warnings = written.state_files(loaded, run, tmp)
         if path is None:
             per_level = [*sorted(coarse.items()), (model.level, files)]
             datasets = [d for lev, fs in per_level for d in vtu_datasets(lev, fs)]
-            if datasets:
-                write_pvd(tmp / "results.pvd", datasets)
-                files.append("results.pvd")
+            files += written.collection(tmp, datasets, "results.pvd")
             before, after = {}, {"condition_estimate": sol.info.get("condition_estimate")}
         else:
             write_pvd(tmp / "steps.pvd", datasets)
             files = sorted([*files, "steps.pvd"])
             warnings += load_path.path_warnings(loaded, path)
             before, after = load_path.entries(args, loaded, path), {}
-        summary = {
-            **pipeline.info(loaded, run),
-            **extras,
-            "files": files,
-            **before,
-            "scaling": pipeline.scaling_summary(model),
-            **after,
-            "solver_info": sol.info,
-            "warnings": warnings,
-            "nested": nested,
-            "time_s": {
-                "build": run.time_build,
-                "solve": run.time_solve,
-                "total": time.perf_counter() - t0,
-            },
-        }
+        total = time.perf_counter() - t0
+        summary = written.summary_of(loaded, run, extras, files, warnings, before, after, total)
         if coarse:
             summary["levels_written"] = {str(lev): fs for lev, fs in sorted(coarse.items())}
-        (tmp / "summary.json").write_text(json.dumps(jsonable(summary), indent=2) + "\n")
+        written.write_summary(tmp, summary)
     last = [pipeline.level_record(model.level, model, sol, run.tol)]
     for line in console_summary(summary, last if path is not None else nested or last):
         print(line)

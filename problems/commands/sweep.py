@@ -48,7 +48,16 @@ from problems.errors import SceneError
 from . import options
 
 OUTPUT_NAME = re.compile(r"[^A-Za-z0-9_.-]+")  # characters of an output key kept in a file name
-LEFT_OUT = ("files", "residual_history", "solver_info", "nested", "scene_file", "warnings", "sweep")
+LEFT_OUT = (
+    "files",
+    "residual_history",
+    "solver_info",
+    "nested",
+    "scene_file",
+    "warnings",
+    "sweep",
+    "scaling",
+)
 VECTOR = 3  # lists of at most this many numbers are flattened into components
 
 
@@ -174,27 +183,22 @@ def solve_case(scene: Any, level: int, solver: dict, keep_model: bool = True) ->
 
 
 def case_summary(loaded: Any, run: Any, case: dict, name: str, tmp: Path) -> dict:
-    """The case's summary.json (written into tmp/name/ with the plug-in's files): what
-    `mixvi solve` records of a run, and the case's parameter values."""
-    import problems.pipeline as pipeline
-    from problems.output.files import jsonable
+    """The case's summary.json, written into tmp/name/ with the files `mixvi solve` writes for
+    the state (`problems.pipeline.written`): what `mixvi solve` records of a run, and the
+    case's parameter values ("sweep")."""
+    from problems.output.collection import vtu_datasets
+    from problems.output.jsonable import jsonable
+    from problems.pipeline import written
 
     folder = tmp / name
     folder.mkdir()
-    extras = loaded.plugin.postprocess(run.model, run.solution, folder)
-    summary = {
-        **pipeline.info(loaded, run),
-        **extras,
-        "sweep": {"case": name, "set": case},
-        "files": list(extras.get("files", [])),
-        "solver_info": run.solution.info,
-        "warnings": run.model.warnings + run.solution.warnings + extras.get("warnings", []),
-        "nested": run.nested,
-        "time_s": {"build": run.time_build, "solve": run.time_solve},
-    }
-    summary = jsonable(summary)
-    (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    return summary
+    extras, files, warnings = written.state_files(loaded, run, folder)
+    files += written.collection(folder, vtu_datasets(run.model.level, files), "results.pvd")
+    before = {"sweep": {"case": name, "set": case}}
+    after = {"condition_estimate": run.solution.info.get("condition_estimate")}
+    summary = written.summary_of(loaded, run, extras, files, warnings, before, after)
+    written.write_summary(folder, summary)
+    return jsonable(summary)
 
 
 def flatten(summary: dict, prefix: str = "") -> dict[str, Any]:

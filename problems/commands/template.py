@@ -18,7 +18,7 @@ from contextlib import suppress
 from pathlib import Path
 
 from problems.errors import SceneError
-from problems.output.files import STAGING
+from problems.output.paths import STAGING
 from problems.output.signals import deferred
 
 # a mesh or geometry file named in a scene: key = "path" or key = 'path' (TOML basic or literal

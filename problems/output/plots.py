@@ -32,8 +32,51 @@ LABELS = {
 }
 
 
+# the friction bound's legend entry per friction law (a contact state's "friction")
+BOUNDS = {
+    "tresca": r"friction bound $\pm g$",
+    "coulomb": r"friction bound $\pm F\lambda_n$",
+}
+
+
 def _label(state: dict, key: str) -> str:
     return state.get(key, LABELS[key])
+
+
+def bound_label(state: dict) -> str:
+    """The legend entry of the friction bound: ±g (Tresca, the default), ±F·λ_n (Coulomb)."""
+    return BOUNDS[state.get("friction", "tresca")]
+
+
+def state_counts(state: dict) -> str:
+    """ "stick N, slip M" and, where there are any, the open and ambiguous nodes, counted from
+    the per-node labels "state" (without them: every node not slipping counts as stick)."""
+    labels = state.get("state")
+    if labels is None:
+        n_slip = int(state["slip"].sum())
+        return f"stick {state['slip'].size - n_slip}, slip {n_slip}"
+    labels = np.asarray(labels)
+    parts = [f"{s} {int((labels == s).sum())}" for s in ("stick", "slip")]
+    parts += [f"{s} {n}" for s in ("open", "ambiguous") if (n := int((labels == s).sum()))]
+    return ", ".join(parts)
+
+
+def direction_label(v, unit: str = "m") -> str:
+    """An axis label for the coordinate along the unit vector `v` (3,): "x [m]" for e_x (to
+    two decimals: [1, 0, 0.0033] is x), else its combination of x, y, z, e.g.
+    "0.71 x + 0.71 z [m]"."""
+    terms = []
+    for c, name in zip(np.round(np.asarray(v, dtype=float), 2), "xyz", strict=True):
+        if c == 0:
+            continue
+        mag = "" if abs(c) == 1 else f"{abs(c):.2g} "
+        sign = "−" if c < 0 else "+"
+        terms.append((sign, mag + name))
+    if not terms:
+        return f"[{unit}]"
+    text = ("−" if terms[0][0] == "−" else "") + terms[0][1]
+    text += "".join(f" {sign} {t}" for sign, t in terms[1:])
+    return f"{text} [{unit}]"
 
 
 def add_note(fig, text: str) -> None:
@@ -111,12 +154,14 @@ def _shade_slip(ax, s: np.ndarray, slip: np.ndarray) -> None:
 
 
 def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
-    """λ·τ with ±g and the tangential jump along Γ3 (one PNG), and u·τ (another)."""
+    """λ·τ with the friction bound (±g; Coulomb, `state["friction"]`: ±F·λ_n) and the
+    tangential jump along Γ3 (one PNG), and u·τ (another); the title counts the nodes by their
+    labels (`state_counts`)."""
     s, slip = state["s"], state["slip"]
     fig, ax = plt.subplots(figsize=(7, 4))
     _shade_slip(ax, s, slip)
     ax.plot(s, state["lam_t"], "o-", ms=3, color="tab:blue", label="multiplier")
-    ax.plot(s, state["g"], "k--", lw=1, label=r"friction bound $\pm g$")
+    ax.plot(s, state["g"], "k--", lw=1, label=bound_label(state))
     ax.plot(s, -state["g"], "k--", lw=1)
     ax.set_xlabel(_label(state, "s_label"))
     ax.set_ylabel(_label(state, "lam_label"))
@@ -126,8 +171,7 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=8)
-    n_slip = int(slip.sum())
-    ax.set_title(f"{title}: stick {slip.size - n_slip}, slip {n_slip} nodes")
+    ax.set_title(f"{title}: {state_counts(state)} nodes")
     add_note(fig, state.get("tangent_note", TAU_NOTE))
     _finish(fig)
     fig.savefig(outdir / "contact_multiplier.png", dpi=120)
@@ -152,12 +196,16 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
 def potential_plot(
     points: np.ndarray, s: np.ndarray, phi: np.ndarray, outdir: Path, where: str
 ) -> str:
-    """φ along a boundary part, against x (and arc length if the part is not straight)."""
+    """φ along a boundary part against its arc length `s` (a vertical side is a curve, not a
+    vertical line); the ends' coordinates in the title. points (k, 2), s and phi (k,)."""
     fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(points[:, 0], phi, "o-", ms=3)
-    ax.set_xlabel("x [m]")
+    ax.plot(s, phi, "o-", ms=3)
+    ax.set_xlabel(f"arc length along {where} [m]")
     ax.set_ylabel(r"electric potential $\varphi$ [V]")
-    ax.set_title(f"potential along {where}")
+    a, b = points[0], points[-1]
+    ax.set_title(
+        f"potential along {where}, from ({a[0]:.4g}, {a[1]:.4g}) to ({b[0]:.4g}, {b[1]:.4g}) m"
+    )
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(outdir / "potential.png", dpi=120)
@@ -166,12 +214,12 @@ def potential_plot(
 
 
 def friction_panel(ax, st: dict) -> str:
-    """One panel of a friction sweep: the tangential multiplier with ±g and the slip zones,
+    """One panel of a friction sweep: the tangential multiplier with its bound and the slip zones,
     and the tangential jump on a twin axis (`st` in the layout of `contact_plots`); puts the
     tangent's sign convention under the figure; returns "stick N, slip M"."""
     _shade_slip(ax, st["s"], st["slip"])
     ax.plot(st["s"], st["lam_t"], "o-", ms=2, label="multiplier")
-    ax.plot(st["s"], st["g"], "k--", lw=1, label=r"$\pm g$")
+    ax.plot(st["s"], st["g"], "k--", lw=1, label=bound_label(st))
     ax.plot(st["s"], -st["g"], "k--", lw=1)
     ax.set_xlabel(_label(st, "s_label"))
     ax.set_ylabel(_label(st, "lam_label"))
@@ -182,8 +230,7 @@ def friction_panel(ax, st: dict) -> str:
     h2, l2 = ax2.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=7)
     add_note(ax.figure, st.get("tangent_note", TAU_NOTE))
-    n_slip = int(st["slip"].sum())
-    return f"stick {st['slip'].size - n_slip}, slip {n_slip}"
+    return state_counts(st)
 
 
 def sweep_figure(panels: list, draw, path: Path, title: str = "") -> list[str]:

@@ -27,17 +27,19 @@ MEANING = {
     "tangent2_x": "second unit tangent t2 of the multiplier lambda_t2 (t2 = n x t)",
     "lambda_n": "normal multiplier (contact traction on the slave is -lambda; "
     "lambda_n > 0: compression); empty where the node carries none",
-    "lambda_t": "tangential multiplier along tau = (-n_y, n_x); |lambda_t| <= g",
+    "lambda_t": "tangential multiplier along tau = (-n_y, n_x); |lambda_t| <= {bound}",
     "jump_t": "tangential jump [u].tau (slave minus master; slave displacement for a rigid "
     "foundation)",
     "gap": "remaining normal gap to the obstacle, gap0 - u.n (0 in contact)",
-    "state": "stick (|lambda_t| < g), slip (|lambda_t| = g), open (not touching; unilateral "
-    "only), no_multiplier (crosspoint or uncovered node), ambiguous (not settled at the "
+    "state": "stick (|lambda_t| < {bound}), slip (|lambda_t| = {bound}), open (not touching; "
+    "unilateral only), no_multiplier (crosspoint or uncovered node), ambiguous (not settled at the "
     "achieved residual: vi_core.states)",
 }
+# the friction bound of each friction law, as the meanings write it ({bound})
+BOUNDS = {"tresca": "g", "coulomb": "F lambda_n"}
 # with explicit tangent columns the tangential quantities are along them, not along τ
 MEANING_WITH_TANGENTS = {
-    "lambda_t": "tangential multiplier along t (the tangent_* columns); |lambda_t| <= g",
+    "lambda_t": "tangential multiplier along t (the tangent_* columns); |lambda_t| <= {bound}",
     "lambda_t2": "tangential multiplier along t2 (the tangent2_* columns)",
     "jump_t": "tangential jump [u].t (slave minus master; slave displacement for a rigid "
     "foundation)",
@@ -59,6 +61,7 @@ class ContactTable:
         (D = 3 with d = 2: antiplane, whose tangent is e_z), written as tangent_*, tangent2_*.
     state : (k,) one of STATES.  gap : (k,) or None (bilateral contact has none).
     meanings : column name → meaning, replacing MEANING's line for a plug-in's own law.
+    friction : "tresca" (bound g) or "coulomb" (bound F λ_n): the bound the meanings name.
     """
 
     points: np.ndarray
@@ -72,6 +75,7 @@ class ContactTable:
     gap: np.ndarray | None = None
     tangents: np.ndarray | None = None
     meanings: dict[str, str] = field(default_factory=dict)
+    friction: str = "tresca"
 
     @property
     def tangent_frame(self) -> np.ndarray:
@@ -127,8 +131,10 @@ class ContactTable:
         if column in self.meanings:
             return self.meanings[column]
         if self.tangents is not None and column in MEANING_WITH_TANGENTS:
-            return MEANING_WITH_TANGENTS[column]
-        return MEANING.get(column, "")
+            text = MEANING_WITH_TANGENTS[column]
+        else:
+            text = MEANING.get(column, "")
+        return text.replace("{bound}", BOUNDS[self.friction])
 
     def totals(self) -> dict:
         """Contact force on the slave body −∫λ ds (N/m; 3D: N), with the components of the

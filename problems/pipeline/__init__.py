@@ -21,6 +21,7 @@ from collections.abc import Callable
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 from functools import partial
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -322,6 +323,30 @@ class Results:
     info: dict  # converged, iterations, residual, dofs, level, solver, warnings, ...
     model: Any  # the built model (vi, meshes, ...)
     solution: vi_core.Solution
+    loaded: Loaded | None = field(default=None, repr=False)  # what was solved
+    run: Run | None = field(default=None, repr=False)  # how (method, tolerance, times)
+
+    def write(self, folder: str | Path, overwrite: bool = False) -> list[str]:
+        """Write the files `mixvi solve` writes for this state into `folder` (the same names
+        and contents: a VTU per body, contact.csv and contact.vtu, the plots, the estimate's
+        VTU files, results.pvd, summary.json), under the same rules: a folder holding files
+        no mixvi run wrote is refused (SceneError) unless `overwrite`, and then only mixvi's
+        names are replaced; nothing else is ever deleted; an error leaves the folder as it
+        was. A load path's answer writes its last step's state (summary.json's `steps` holds
+        every step's record; `mixvi solve` writes each step's files under steps/). Returns
+        the names written, summary.json first."""
+        from problems.output.files import output_folder
+
+        from .written import write_state
+
+        if self.loaded is None or self.run is None:
+            raise ValueError("Results.write needs the results of problems.solve_scene")
+        inputs = self.loaded.scene.files()
+        command = f"python: Results.write of {self.loaded.scene.name}"
+        with output_folder(Path(folder), "folder", command, overwrite, inputs) as out:
+            with out.staging() as tmp:
+                summary = write_state(self.loaded, self.run, tmp, self.info.get("steps"))
+        return ["summary.json", *summary["files"]]
 
 
 def results(loaded: Loaded, run: Run) -> Results:
@@ -337,4 +362,4 @@ def results(loaded: Loaded, run: Run) -> Results:
     out["warnings"] = list(model.warnings) + list(sol.warnings)
     out["time_s"] = {"build": run.time_build, "solve": run.time_solve}
     out["nested"] = run.nested
-    return Results(fields, contact, out, model, sol)
+    return Results(fields, contact, out, model, sol, loaded, run)

@@ -119,6 +119,7 @@ class Contact:
     friction: str = FRICTIONS[0]  # "tresca" or "coulomb"
     F: np.ndarray | None = None  # (N_t,) Coulomb F_k = ∫Fφ̃_k / ∫φ̃_k (friction = "coulomb")
     gap0: np.ndarray | None = None  # (N_n,) initial gap rows Σ_j Ds_kj gap(x_j) (unilateral)
+    closed_gap: float = 0.0  # bilateral, two bodies: the largest initial gap it closes (m)
     idx_n: np.ndarray | None = None  # (N_n,) row of B_full (and λ) holding each normal row
     idx_t: np.ndarray | None = None  # (N_t,) the same for the tangential rows
     pairs: int = 0  # unilateral: rows 0 … 2·pairs − 1 of B_full are nodes [n, τ] interleaved
@@ -493,11 +494,12 @@ def _contact(
     n_seg = tr.facets.shape[0]
     uncovered_local = np.zeros(2 * n_seg, dtype=bool)
     gap_nodes = np.zeros(tr.size)  # (N,) initial normal gap at the slave nodes
+    closed = 0.0  # the initial gap bilateral contact closes
     if master is not None:
         if unilateral:
             gap_nodes = _initial_gap(slave, part, tr, tr.normals, master, mpart, level)
         else:
-            _check_separation(slave, part, tr, tr.normals, master, mpart, level)
+            closed = _check_separation(slave, part, tr, tr.normals, master, mpart, level)
         reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.measures.min())
         mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, reach=reach)
         assert np.array_equal(tr.nodes, mort.slave_nodes)
@@ -610,6 +612,7 @@ def _contact(
         friction=ct.friction,
         F=gw / W_t if ct.friction == "coulomb" else None,
         gap0=gap0,
+        closed_gap=closed,
         idx_n=idx_n,
         idx_t=idx_t,
         pairs=pairs,
@@ -689,13 +692,15 @@ def _refuse_separation(slave, part, master, mpart, tr, t, h, bad, where) -> None
 
 def _check_separation(
     slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
-) -> None:
+) -> float:
     """SceneError if the interfaces overlap or stand apart by more than SEPARATION_TOL·h
-    (`_separation`): bilateral contact needs coincident interfaces."""
+    (`_separation`): bilateral contact needs coincident interfaces. Returns the largest gap
+    (m, ≥ 0) between them that bilateral contact closes (`closed_gap_warning`)."""
     t, h = _separation(slave, part, tr, normals, master, mpart, level)
     bad = np.flatnonzero(np.abs(np.nan_to_num(t / h)) > SEPARATION_TOL)
     if bad.size:
         _refuse_separation(slave, part, master, mpart, tr, t, h, bad, "that coincides with")
+    return float(np.maximum(np.nan_to_num(t), 0.0).max(initial=0.0))
 
 
 def _initial_gap(
@@ -853,6 +858,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "b_uh_lam": b_uh_lam,
         "int_g_abs_u": g_abs,
         "lemma_4_2": float(lemma),
+        "friction": c.friction,  # the bound's name in plots and tables (tresca: g, coulomb: Fλ_n)
     }
     if c.law == "unilateral":
         state["pressure"] = max(float(lam_n.max(initial=0.0)), force)  # the pressure scale
@@ -916,6 +922,38 @@ def contact_warnings(state: dict) -> list[str]:
     return out
 
 
+# a bilateral interface of two bodies that stands apart by more than this fraction of the
+# largest displacement of the slave's contact nodes is warned of: closing it changes the answer
+CLOSED_GAP_TOL = 0.1
+
+
+def closed_gap_summary(model: Model, sol: Solution) -> dict:
+    """summary.json's contact.initial_gap_closed (bilateral contact of two bodies): the largest
+    initial gap (m) the law closes, and that gap over the largest displacement of the slave's
+    contact nodes; {} for unilateral contact and a rigid foundation."""
+    c = model.contact
+    if c.law != "bilateral" or c.master is None:
+        return {}
+    u = model.full(sol.u)[c.slave.u_dofs(c.tr.nodes)]  # (N, 2)
+    scale = float(np.linalg.norm(u, axis=1).max(initial=0.0))
+    ratio = c.closed_gap / scale if scale > 0 else (0.0 if c.closed_gap == 0 else np.inf)
+    return {"initial_gap_closed": {"max": c.closed_gap, "relative_to_displacement": ratio}}
+
+
+def closed_gap_warning(model: Model, sol: Solution) -> list[str]:
+    """A warning when bilateral contact closes an initial gap above CLOSED_GAP_TOL × the
+    largest contact displacement (a real gap, not rounding: use law = "unilateral")."""
+    entry = closed_gap_summary(model, sol).get("initial_gap_closed")
+    if entry is None or entry["relative_to_displacement"] <= CLOSED_GAP_TOL:
+        return []
+    return [
+        f"contact: the bodies start apart by up to {entry['max']:.3g} m "
+        f"({entry['relative_to_displacement']:.3g} × the largest contact displacement) and "
+        "the bilateral law closes that gap; if the gap is real, set contact.law = "
+        "'unilateral' (contact.initial_gap_closed)"
+    ]
+
+
 def _unilateral_summary(contact: Contact, state: dict) -> dict:
     """The summary entries only unilateral contact has: open nodes, the law and friction."""
     return {
@@ -953,6 +991,7 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
         jump_t=jump_t,
         state=state.astype(str),
         gap=gap,
+        friction=c.friction,
     )
 
 
@@ -992,6 +1031,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
             ),
             **table.totals(),
             **interface_summary(model.contact),
+            **closed_gap_summary(model, sol),
             "table": table.records(),
         }
         summary["lemma_4_2"] = state["lemma_4_2"]
@@ -1000,7 +1040,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
                 **electrical_contact.report(model.electrical, sol),
                 **electrical_contact.touching(model.electrical, sol, state["touch"]),
             }
-        summary["warnings"] = contact_warnings(state)
+        summary["warnings"] = contact_warnings(state) + closed_gap_warning(model, sol)
     if notes:
         summary["notes"] = notes
     along = model.options.get("potential_along")

@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -21,7 +22,7 @@ import numpy as np
 
 from fem import assembly
 from fem.facets import frames
-from problems.output.results import write_csv
+from problems.output.results import BOUNDS, write_csv
 from vi_core import states as node_states
 
 # "ambiguous" (vi_core.states: not settled at the achieved residual) is the last code, so the
@@ -145,6 +146,8 @@ def contact_map(path: Path, model, st: dict, title: str = "") -> None:
     import matplotlib.pyplot as plt
     from matplotlib.tri import Triangulation
 
+    from problems.output.plots import direction_label
+
     c = model.contact
     uv, a, b = chart(model)
     faces = c.surf.facets
@@ -183,8 +186,8 @@ def contact_map(path: Path, model, st: dict, title: str = "") -> None:
     ax2.set_title("$|\\lambda_t|/g$")
     for axx in axes:
         axx.set_aspect("equal")
-        axx.set_xlabel(f"[{a[0]:.2g}, {a[1]:.2g}, {a[2]:.2g}]·x [m]")
-        axx.set_ylabel(f"[{b[0]:.2g}, {b[1]:.2g}, {b[2]:.2g}]·x [m]")
+        axx.set_xlabel(direction_label(a))
+        axx.set_ylabel(direction_label(b))
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -219,7 +222,9 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
         c = model.contact
         st = contact_state(model, sol)
         cols = table(model, st)
-        write_csv(outdir / "contact.csv", [CSV_TITLE, *CSV_NOTES], cols)
+        bound = BOUNDS[c.friction]  # g, or Coulomb's F lambda_n
+        notes = [re.sub(r"(<=|<|=) g\b(?! phi)", rf"\1 {bound}", n) for n in CSV_NOTES]
+        write_csv(outdir / "contact.csv", [CSV_TITLE, *notes], cols)
         write_surface_vtu(outdir / "contact.vtu", model, st)
         contact_map(outdir / "contact_map.png", model, st, title=model.scene.name)
         files += ["contact.csv", "contact.vtu", "contact_map.png"]

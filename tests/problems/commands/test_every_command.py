@@ -28,6 +28,13 @@ SHIPPED = {  # plug-in → its cheapest shipped scene
     "signorini": "signorini",
 }
 PLUGINS = [*SHIPPED, "sticky_floor"]
+# sweep also runs the contact plug-in's 3D front and Coulomb scenes (their F, not g, is swept;
+# slow tier: ~10 s each under load)
+SWEPT = [
+    *PLUGINS,
+    pytest.param("coulomb_strip3d", marks=pytest.mark.slow),
+    pytest.param("coulomb_strip", marks=pytest.mark.slow),
+]
 ONLY = {"contact": "gap = 0"}  # extremes: one level-0 row (time)
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -58,7 +65,7 @@ def scene(request, installed) -> str:
     name = request.param
     if name == "sticky_floor":
         return registry.get("sticky_floor").SCENE
-    return SHIPPED[name]
+    return SHIPPED.get(name, name)
 
 
 def _finite(x, where: str = "") -> None:
@@ -163,14 +170,14 @@ def test_study(scene, tmp_path, capsys):
         _png(out / f)
 
 
-TIMES = ("time_s.build", "time_s.solve")
+TIMES = ("time_s.build", "time_s.solve", "time_s.total")
 
 
-@pytest.mark.parametrize("scene", PLUGINS, indirect=True)
+@pytest.mark.parametrize("scene", SWEPT, indirect=True)
 def test_sweep(scene, tmp_path, capsys):
     """Two values of the plug-in's own SWEEP parameter (`mixvi figures`'): a case folder with
-    summary.json and the plug-in's files each, sweep.json, sweep.csv and a plot; the two cases
-    differ in some output (the swept value reached the solve)."""
+    summary.json and the files of `mixvi solve` each, sweep.json, sweep.csv and a plot; the
+    two cases differ in some output (the swept value reached the solve)."""
     from problems.commands.figures import sweep_values
     from problems.commands.sweep import sweep_main
 
@@ -191,7 +198,11 @@ def test_sweep(scene, tmp_path, capsys):
         assert s["sweep"]["set"] == c["set"] and s["level"] == 0
         for f in s["files"]:
             assert (out / c["case"] / f).stat().st_size > 0, f
+        if any(f.endswith(".vtu") for f in s["files"]):  # as mixvi solve: the collection
+            assert "results.pvd" in s["files"], s["files"]
         _finite(s)
+    if scene.startswith("coulomb_strip"):
+        assert sweep.path == "contact.F"
     a, b = (c["outputs"] for c in res["cases"])
     assert any(a[k] != b.get(k) for k in a if k not in TIMES and isinstance(a[k], float)), a
     rows = (out / "sweep.csv").read_text().splitlines()

@@ -98,3 +98,18 @@ def test_the_console_shows_the_electrical_fixed_point(tmp_path, capsys):
     assert f"{el['fixed_point']['iterations']} fixed-point steps" in line
     assert "converged" in line and "NOT" not in line
     assert f"{el['potential_gap_touching']:.6g} V" in line
+
+
+def test_no_text_tells_to_install_mixvi_from_a_registry():
+    """mixvi is not published: an extra is installed from the clone (pip install -e
+    ".[dask]"), never `pip install mixvi[...]`."""
+    from pathlib import Path
+
+    root = Path(main_mod.__file__).resolve().parents[1]
+    hits = [
+        f"{p.relative_to(root)}: {ln.strip()}"
+        for p in root.rglob("*.py")
+        for ln in p.read_text().splitlines()
+        if re.search(r"pip install mixvi\b", ln)
+    ]
+    assert not hits, hits

@@ -167,7 +167,7 @@ class TestContradictions:
 
 SLOW_WRITE = """
 import os, sys, time
-from problems.output import files
+from problems.output import single
 class SlowOs:
     def __getattr__(self, name):
         return getattr(os, name)
@@ -184,7 +184,7 @@ class SlowOs:
                 time.sleep(120)
                 fh.write(text[len(text) // 2 :])
         return Half()
-files.os = SlowOs()
+single.os = SlowOs()
 from problems.commands.entry import run
 sys.argv[0] = "mixvi"
 sys.exit(run())

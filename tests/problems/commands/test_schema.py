@@ -142,3 +142,32 @@ def test_mutation_a_dropped_row_is_caught(monkeypatch):
     monkeypatch.setattr(schema, "scene_reference", without_n_contact)
     with pytest.raises(AssertionError, match="n_contact"):
         test_the_reference_lists_every_key_of_the_shipped_scenes()
+
+
+def test_each_example_is_toml_of_the_shipped_scenes_table():
+    """Each section's example parses as TOML and holds the table of the shipped scene it
+    names, at its path (mutation: a literal TOML cannot read, a table put at another path)."""
+    import re
+    import tomllib
+
+    from problems.commands.schema import example_block, scene_schema, shipped_examples
+
+    examples = shipped_examples(scene_schema())
+    assert {"Isotropic", "DisplacementPart", "Rectangle"} <= set(examples)
+    for name, (scene, path, table) in examples.items():
+        block = "\n".join(example_block(scene, path, table))
+        if not block:
+            continue  # a whole scene's model: the scene file is its example
+        toml = re.search(r"```toml\n(.*)\n```", block, re.S).group(1)
+        data = tomllib.loads(toml)
+        keys = [p for p in path if p != "[]"]
+        for k in keys:
+            data = data[k]
+        if path[-1] == "[]":
+            data = data[0]
+        assert data == table, name
+        scene_data = tomllib.loads((SCENES_DIR / f"{scene}.toml").read_text())
+        for k in keys:
+            scene_data = scene_data[k]
+        tables = scene_data if path[-1] == "[]" else [scene_data]
+        assert table in tables, name

@@ -138,4 +138,4 @@ def test_contact3d(tmp_path, capsys):
     argv = ["block3d", "--level", "0", "--set-range", "contact.g=1e6:2e6:2", "--plot", "iterations"]
     assert sweep.sweep_main([*argv, "--no-progress", "--out", str(out)]) == 0
     res = json.loads((out / "sweep.json").read_text())
-    assert res["plugin"] == "contact3d" and all(c["converged"] for c in res["cases"])
+    assert res["plugin"] == "contact" and all(c["converged"] for c in res["cases"])

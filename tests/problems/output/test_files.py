@@ -18,8 +18,9 @@ from pathlib import Path
 import pytest
 
 from problems.errors import SceneError
-from problems.output import files, signals
-from problems.output.files import MARKER, Output, claim, output_folder
+from problems.output import files, folder, paths, signals, single
+from problems.output.files import Output, claim, output_folder
+from problems.output.paths import MARKER
 
 
 def tree(root) -> dict:
@@ -92,7 +93,7 @@ def test_second_run_removes_only_its_predecessors_files(tmp_path):
     out = tmp_path / "o"
     run(out, {"summary.json": "1", "old.vtu": "v", "sub/deep.png": "d"})
     run(out, {"summary.json": "2", "new.vtu": "w"})
-    assert sorted(files._files(out)) == ["new.vtu", "summary.json"]
+    assert sorted(paths.files_under(out)) == ["new.vtu", "summary.json"]
     assert json.loads((out / MARKER).read_text())["files"] == ["new.vtu", "summary.json"]
 
 
@@ -139,7 +140,7 @@ def test_a_second_run_into_a_locked_folder_is_refused(tmp_path):
 def test_a_lock_held_by_another_process_is_respected(tmp_path):
     out = tmp_path / "o"
     out.mkdir()
-    fd = os.open(out / files.LOCK, os.O_RDWR | os.O_CREAT)
+    fd = os.open(out / paths.LOCK, os.O_RDWR | os.O_CREAT)
     fcntl.flock(fd, fcntl.LOCK_EX)
     try:
         with pytest.raises(SceneError, match="locked"), output_folder(out):
@@ -204,7 +205,7 @@ def test_single_file_is_signed_replaced_atomically_and_checked_first(tmp_path):
     write_one(f, {"a": 1})
     data = json.loads(f.read_text())
     assert list(data) == ["written_by", "a"] and data["written_by"].startswith("mixvi ")
-    assert files.written_by_mixvi(f)
+    assert single.written_by_mixvi(f)
     with claim([Output(f, "--json", "json")]) as run:  # mixvi's: replaced without --overwrite
         run.file("--json").write({"a": 2})
         assert json.loads(f.read_text())["a"] == 1  # staged until the commit
@@ -224,7 +225,7 @@ def test_svg_is_signed_after_its_xml_declaration(tmp_path):
     write_one(f, '<?xml version="1.0"?>\n<svg/>\n', "--figure", kind="svg")
     text = f.read_text()
     assert text.startswith('<?xml version="1.0"?>\n<!-- written_by: mixvi ')
-    assert text.endswith("<svg/>\n") and files.written_by_mixvi(f)
+    assert text.endswith("<svg/>\n") and single.written_by_mixvi(f)
 
 
 @pytest.mark.parametrize("content", [b"mine", b'{"written_by": "someone else"}', b"", b"<svg/>"])
@@ -330,9 +331,9 @@ def test_signal_during_the_commit_is_deferred_until_it_is_complete(tmp_path, mon
         run(out, {"summary.json": "2", "a.png": "A", "c.png": "C"})
     marker = json.loads((out / MARKER).read_text())
     assert marker["complete"] and marker["files"] == ["a.png", "c.png", "summary.json"]
-    assert sorted(files._files(out)) == marker["files"]
+    assert sorted(paths.files_under(out)) == marker["files"]
     assert (out / "summary.json").read_text() == "2"
-    assert not [p for p in os.listdir(out) if p.startswith(files.STAGING)]
+    assert not [p for p in os.listdir(out) if p.startswith(paths.STAGING)]
 
 
 def timeless(root) -> dict:
@@ -393,7 +394,7 @@ CAUGHT = (AssertionError, pytest.fail.Exception)
 
 
 def test_mutation_no_ownership_check_is_caught(tmp_path, monkeypatch):
-    monkeypatch.setattr(files, "first_foreign", lambda folder: None)
+    monkeypatch.setattr(folder, "first_foreign", lambda folder: None)
     with pytest.raises(CAUGHT):
         test_folder_with_foreign_files_is_refused_before_work(tmp_path, "notes.txt")
 
@@ -401,7 +402,7 @@ def test_mutation_no_ownership_check_is_caught(tmp_path, monkeypatch):
 def test_mutation_commit_without_signal_deferral_is_caught(tmp_path, monkeypatch):
     import contextlib
 
-    monkeypatch.setattr(files, "deferred", contextlib.nullcontext)
+    monkeypatch.setattr(folder, "deferred", contextlib.nullcontext)
     with pytest.raises(CAUGHT):
         test_signal_during_the_commit_is_deferred_until_it_is_complete(tmp_path, monkeypatch)
 
@@ -425,13 +426,13 @@ def test_mutation_staging_mkdir_outside_the_cleanup_is_caught(tmp_path, monkeypa
 
     @contextlib.contextmanager
     def leaky_staging(self):
-        tmp = self.path / f"{files.STAGING}leak"
+        tmp = self.path / f"{paths.STAGING}leak"
         tmp.mkdir()
         try:
             yield tmp
             self._commit(tmp)
         finally:
-            files.shutil.rmtree(tmp, ignore_errors=True)
+            shutil.rmtree(tmp, ignore_errors=True)
 
     monkeypatch.setattr(files.OutputFolder, "staging", leaky_staging)
     with pytest.raises(CAUGHT):
@@ -449,7 +450,7 @@ def test_a_later_run_removes_the_subfolders_it_emptied_and_keeps_the_rest(tmp_pa
 
 
 def test_mutation_without_pruning_empty_subfolders_stay(tmp_path, monkeypatch):
-    monkeypatch.setattr(files, "_prune", lambda root, rel: None)
+    monkeypatch.setattr(folder, "prune", lambda root, rel: None)
     out = tmp_path / "out"
     run(out, {"summary.json": "{}", "levels/0/a.vtu": ""})
     run(out, {"summary.json": "{}"})
@@ -485,7 +486,7 @@ def test_a_rerun_after_a_sigkill_clears_the_stale_lock_and_staging_and_says_so(t
     (out / "notes.txt").write_text("the user's")
     killed_run(out, "folder")
     left = sorted(os.listdir(out))
-    assert files.LOCK in left and any(p.startswith(files.STAGING) for p in left)  # the state
+    assert paths.LOCK in left and any(p.startswith(paths.STAGING) for p in left)  # the state
     capsys.readouterr()
     run(out, {"summary.json": "2"}, overwrite=True)
     err = capsys.readouterr().err.strip().splitlines()
@@ -514,30 +515,31 @@ def test_a_rerun_after_a_sigkill_clears_a_single_files_temporary(tmp_path, capsy
 
 def test_a_live_runs_staging_is_never_cleared(tmp_path):
     """A staging entry of a process that runs (here: this one) stays; only dead ones go."""
-    (tmp_path / f"{files.STAGING}{os.getpid()}-0123abcd").mkdir()
-    (tmp_path / f"{files.STAGING}999999999-0123abcd").mkdir()  # no such process
+    (tmp_path / f"{paths.STAGING}{os.getpid()}-0123abcd").mkdir()
+    (tmp_path / f"{paths.STAGING}999999999-0123abcd").mkdir()  # no such process
     (tmp_path / ".mixvi-tmp-notes").write_text("not a name mixvi gives")
-    assert files._clear_stale(tmp_path) == [999999999]
+    assert paths.clear_stale(tmp_path) == [999999999]
     assert set(os.listdir(tmp_path)) == {
         ".mixvi-tmp-notes",
-        f"{files.STAGING}{os.getpid()}-0123abcd",
+        f"{paths.STAGING}{os.getpid()}-0123abcd",
     }
 
 
 def test_mutation_no_stale_recognition_is_caught(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(files, "_clear_stale", lambda folder, name=None: [])
+    monkeypatch.setattr(folder, "clear_stale", lambda where, name=None: [])
+    monkeypatch.setattr(single, "clear_stale", lambda where, name=None: [])
     with pytest.raises(CAUGHT):
         test_a_rerun_after_a_sigkill_clears_the_stale_lock_and_staging_and_says_so(tmp_path, capsys)
 
 
 def test_mutation_no_input_check_is_caught(tmp_path, monkeypatch):
-    monkeypatch.setattr(files, "_identity", lambda path: None)
+    monkeypatch.setattr(files, "identity", lambda path: None)
     monkeypatch.setattr(files, "_real", lambda path: Path(os.path.abspath(path)) / "x")
     with pytest.raises(CAUGHT):
         test_an_input_is_never_an_output_even_with_overwrite(tmp_path, "s.toml", "json")
 
 
 def test_mutation_stale_lock_not_reported_is_caught(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(files, "_stale_note", lambda *a: None)
+    monkeypatch.setattr(folder, "_stale_note", lambda *a: None)
     with pytest.raises(CAUGHT):
         test_a_rerun_after_a_sigkill_clears_the_stale_lock_and_staging_and_says_so(tmp_path, capsys)
