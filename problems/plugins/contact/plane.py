@@ -50,10 +50,10 @@ from .. import transfer
 from ..contract import Sweep, check_meshed
 from . import balance as piezo_balance
 from . import electrical as electrical_contact
+from . import extremes as contact_extremes
 from . import law as contact_law
 from . import model as contact_model
 from . import plane_errors as piezo_errors
-from . import plane_extremes as piezo_extremes
 from .bodies import Body, BodySection, build_body
 from .body_output import body_fields
 from .fields import field_data
@@ -1031,7 +1031,7 @@ SWEEP = Sweep(
     ),
 )
 NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
-extremes = piezo_extremes.rows
+extremes = contact_extremes.rows_2d
 
 
 def draw(ax, model: Model, sol: Solution) -> str:

@@ -67,11 +67,11 @@ from vi_core import states as node_states
 
 from .. import transfer
 from ..contract import Sweep, check_meshed
+from . import extremes as contact_extremes
 from . import law as contact_law
 from . import model as contact_model
 from . import solid_checks as contact3d_checks
 from . import solid_errors as contact3d_errors
-from . import solid_extremes as contact3d_extremes
 from . import solid_output as contact3d_output
 from .bodies import Body, build_body
 from .model import BodiesModel, reference
@@ -909,7 +909,7 @@ SWEEP = Sweep(
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
 # against the scene's [exact] table: exact_errors (contact3d_errors)
 EXACT_NORMS = contact3d_errors.NORMS
-extremes = contact3d_extremes.rows
+extremes = contact_extremes.rows_3d
 
 
 def draw(ax, model: Model, sol: Solution) -> str:
