@@ -22,7 +22,6 @@ Contact rules (README "Contact interfaces"):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -59,7 +58,6 @@ from .body_output import body_fields
 from .fields import field_data
 from .law import FRICTIONS, LAWS
 from .model import BodiesModel, reference
-from .sizes import sizes
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
 DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
@@ -1067,30 +1065,9 @@ def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
     return out
 
 
-def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
-    """(unknowns n + m, stored entries of A, n) of each of `levels`, counted on the level-0
-    meshes without building them (`sizes.sizes`)."""
-    return sizes(scene.validated(SCENE_MODEL), levels)
-
-
-def update(model: Model, scene: Scene, t: float) -> Model | None:
-    """Load paths: the step t of `model` with only its loads and prescribed values re-read
-    (`contact_model.update`; None: rebuild the step, e.g. with [contact.electrical])."""
-    return contact_model.update(model, scene.validated(SCENE_MODEL), t)
-
-
-def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
-    """Load paths: the friction law of the next step `model` acts on the slip since the
-    previous step, [u]_τ − [u_prev]_τ: the tangential rows of the gap are shifted by
-    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
-    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
-    c = model.contact
-    if c is None:
-        return
-    origin = c.B_full @ previous.full(previous_sol.u)  # (N_n + N_t,) in B_full's row order
-    origin[c.idx_n] = 0.0
-    model.slip_origin = origin
-    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
+count = partial(contact_model.count, SCENE_MODEL)
+update = partial(contact_model.update_scene, SCENE_MODEL)
+incremental = contact_model.incremental
 
 
 def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
