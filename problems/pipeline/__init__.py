@@ -28,6 +28,7 @@ import numpy as np
 
 import vi_core
 from problems.errors import SceneError
+from problems.pipeline.contact_results import ContactResults
 from problems.plugins import registry
 
 # the commands' one entry point to solve a scene's model, and the problem its answer solves
@@ -319,7 +320,7 @@ class Results:
     """A solved scene as objects (the Python API's answer)."""
 
     fields: dict[str, np.ndarray]  # nodal fields by name (the plug-in's `fields`)
-    contact: dict | None  # per-node contact state along Γ3 (the plug-in's `contact_state`)
+    contact: ContactResults | None  # per-node contact state along Γ3, csv/vtu names
     info: dict  # converged, iterations, residual, dofs, level, solver, warnings, ...
     model: Any  # the built model (vi, meshes, ...)
     solution: vi_core.Solution
@@ -355,7 +356,7 @@ def results(loaded: Loaded, run: Run) -> Results:
     fields = plugin.fields(model, sol) if hasattr(plugin, "fields") else {}
     contact = None
     if hasattr(plugin, "contact_state") and getattr(model, "contact", True) is not None:
-        contact = plugin.contact_state(model, sol)
+        contact = ContactResults(plugin.contact_state(model, sol))
     out = info(loaded, run)
     if hasattr(model, "complementarity"):
         out["complementarity"] = model.complementarity(sol)

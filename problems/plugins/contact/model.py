@@ -12,7 +12,7 @@ of a full vector into displacement (N, d) and potential (N,) or None.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import Any
@@ -223,3 +223,34 @@ def reference(bodies: dict[str, Any], field_: list[str], ref: str) -> tuple[str,
     if names is not None and part not in names:
         raise refuse(field_, ref, f"BODY.BOUNDARY with a boundary of {bname!r}: {', '.join(names)}")
     return bname, part
+
+
+def update_scene(scene_model: type, model: BodiesModel, scene: Scene, t: float) -> Any:
+    """Load paths (contract `update`, with the front's `scene_model` bound): the step t of
+    `model` with only its loads and prescribed values re-read (`update`; None: rebuild the
+    step, e.g. with [contact.electrical])."""
+    return update(model, scene.validated(scene_model), t)
+
+
+def count(scene_model: type, scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
+    """(unknowns n + m, stored entries of A, n) of each of `levels` (contract `count`, with the
+    front's `scene_model` bound), counted on the level-0 meshes without building them
+    (`sizes.sizes`); its errors name the scene file, as the build's do."""
+    from .sizes import sizes
+
+    return built(lambda s, _: sizes(s.validated(scene_model), levels), scene, None)
+
+
+def incremental(model: Any, previous: Any, previous_sol: Solution) -> None:
+    """Load paths: the friction law of the next step `model` acts on the slip since the
+    previous step, [u]_t − [u_prev]_t: the tangential rows of the gap are shifted by
+    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
+    B_t u − gap_t = B_t (x − x_prev). The normal rows (`contact.idx_n`) keep the total
+    displacement. 2D and 3D alike."""
+    c = model.contact
+    if c is None:
+        return
+    origin = c.B_full @ previous.full(previous_sol.u)  # (m,) in B_full's row order
+    origin[c.idx_n] = 0.0
+    model.slip_origin = origin
+    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)

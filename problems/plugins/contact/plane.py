@@ -22,7 +22,6 @@ Contact rules (README "Contact interfaces"):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -50,16 +49,15 @@ from .. import transfer
 from ..contract import Sweep, check_meshed
 from . import balance as piezo_balance
 from . import electrical as electrical_contact
+from . import extremes as contact_extremes
 from . import law as contact_law
 from . import model as contact_model
 from . import plane_errors as piezo_errors
-from . import plane_extremes as piezo_extremes
 from .bodies import Body, BodySection, build_body
 from .body_output import body_fields
 from .fields import field_data
 from .law import FRICTIONS, LAWS
 from .model import BodiesModel, reference
-from .sizes import sizes
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
 DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
@@ -1071,7 +1069,7 @@ SWEEP = Sweep(
     ),
 )
 NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
-extremes = piezo_extremes.rows
+extremes = contact_extremes.rows_2d
 
 
 def draw(ax, model: Model, sol: Solution) -> str:
@@ -1107,31 +1105,9 @@ def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
     return out
 
 
-def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
-    """(unknowns n + m, stored entries of A, n) of each of `levels`, counted on the level-0
-    meshes without building them (`sizes.sizes`); its errors name the scene file, as the
-    build's do."""
-    return contact_model.built(lambda s, _: sizes(s.validated(SCENE_MODEL), levels), scene, None)
-
-
-def update(model: Model, scene: Scene, t: float) -> Model | None:
-    """Load paths: the step t of `model` with only its loads and prescribed values re-read
-    (`contact_model.update`; None: rebuild the step, e.g. with [contact.electrical])."""
-    return contact_model.update(model, scene.validated(SCENE_MODEL), t)
-
-
-def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
-    """Load paths: the friction law of the next step `model` acts on the slip since the
-    previous step, [u]_τ − [u_prev]_τ: the tangential rows of the gap are shifted by
-    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
-    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
-    c = model.contact
-    if c is None:
-        return
-    origin = c.B_full @ previous.full(previous_sol.u)  # (N_n + N_t,) in B_full's row order
-    origin[c.idx_n] = 0.0
-    model.slip_origin = origin
-    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
+count = partial(contact_model.count, SCENE_MODEL)
+update = partial(contact_model.update_scene, SCENE_MODEL)
+incremental = contact_model.incremental
 
 
 def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:

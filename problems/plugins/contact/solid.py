@@ -44,7 +44,7 @@ start apart (an overlap beyond OVERLAP_TOL × the level-0 node size is refused).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -67,15 +67,14 @@ from vi_core import states as node_states
 
 from .. import transfer
 from ..contract import Sweep, check_meshed
+from . import extremes as contact_extremes
 from . import law as contact_law
 from . import model as contact_model
 from . import solid_checks as contact3d_checks
 from . import solid_errors as contact3d_errors
-from . import solid_extremes as contact3d_extremes
 from . import solid_output as contact3d_output
 from .bodies import Body, build_body
 from .model import BodiesModel, reference
-from .sizes import sizes
 from .solid_bodies import SURFACE_ORDER, BodySection3, field_data
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
@@ -167,6 +166,11 @@ class SolidContact:
         if self.friction == "coulomb":
             return self.F * np.maximum(lam_n, 0.0)
         return self.g * (lam_n > 0)
+
+    @property
+    def idx_n(self) -> np.ndarray:
+        """(N_n,) the row of B_full (and λ) of each normal row (`rows`)."""
+        return self.rows()[0]
 
     @property
     def W(self) -> np.ndarray:
@@ -301,10 +305,7 @@ def _build(scene: Scene, level: int | None) -> Model:
     return Model(scene, level, bodies_, contact, vi, free, values, spec.options(), rhs=rhs)
 
 
-def update(model: Model, scene: Scene, t: float) -> Model | None:
-    """Load paths: the step t of `model` with only its loads and prescribed values re-read
-    (`contact_model.update`; None: rebuild the step)."""
-    return contact_model.update(model, scene.validated(SCENE_MODEL), t)
+update = partial(contact_model.update_scene, SCENE_MODEL)
 
 
 def _rows(contact: SolidContact):
@@ -316,11 +317,7 @@ def _rows(contact: SolidContact):
     return contact.B_full, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
 
 
-def count(scene: Scene, levels: Sequence[int]) -> list[tuple[int, int, int]]:
-    """(unknowns n + m, stored entries of A, n) of each of `levels`, counted on the level-0
-    meshes without building them (`sizes.sizes`); its errors name the scene file, as the
-    build's do."""
-    return contact_model.built(lambda s, _: sizes(s.validated(SCENE_MODEL), levels), scene, None)
+count = partial(contact_model.count, SCENE_MODEL)
 
 
 def row_nodes(c: SolidContact) -> np.ndarray:
@@ -761,18 +758,7 @@ def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
     return transfer.carried_start(coarse, coarse_sol, fine, lam0, tied)
 
 
-def incremental(model: Model, previous: Model, previous_sol: Solution) -> None:
-    """Load paths: the friction law of the next step `model` acts on the slip since the
-    previous step, [u]_t − [u_prev]_t: the tangential rows of the gap are shifted by
-    B_t x_prev (x_prev the previous step's full solution, Dirichlet values included), so that
-    B_t u − gap_t = B_t (x − x_prev). The normal rows keep the total displacement."""
-    c = model.contact
-    if c is None:
-        return
-    origin = c.B_full @ previous.full(previous_sol.u)  # (m,) in B_full's row order
-    origin[c.rows()[0]] = 0.0
-    model.slip_origin = origin
-    model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
+incremental = contact_model.incremental
 
 
 # ------------------------------------------------------------------ post-processing
@@ -910,7 +896,7 @@ SWEEP = Sweep(
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
 # against the scene's [exact] table: exact_errors (contact3d_errors)
 EXACT_NORMS = contact3d_errors.NORMS
-extremes = contact3d_extremes.rows
+extremes = contact_extremes.rows_3d
 
 
 def draw(ax, model: Model, sol: Solution) -> str:

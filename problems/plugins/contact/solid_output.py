@@ -4,8 +4,9 @@
   the centroids: stress (Pa, symmetric tensor in VTK order XX, YY, ZZ, XY, YZ, XZ), von_mises
   (Pa), electric_field = −∇φ (V/m), electric_displacement (C/m²).
 - `contact.vtu`: the slave contact surface (its quadrilaterals or triangles) with point data
-  normal, tangent1, tangent2, lambda_n, lambda_t (the tangential multiplier as a 3-vector),
-  lambda_t1, lambda_t2, jump_t (3-vector), g, state (index into STATES) and is_STATE (0/1).
+  normal, tangent1, tangent2, lambda_n, lambda_t (along t1), lambda_t2, jump_t, jump_t2 (the
+  names of contact.csv and of the 2D contact.vtu), lambda_t_vec and jump_t_vec (the tangential
+  multiplier and jump as 3-vectors), g, state (index into STATES) and is_STATE (0/1).
 - `contact.csv`: one row per surface node, `#` lines with units; columns x, y, z, normal_*,
   tangent1_*, tangent2_*, lambda_n, lambda_t (along t1), lambda_t2, jump_t, jump_t2, g, state.
 - `contact_map.png`: the stick/slip map on the contact surface and |λ_t|/g.
@@ -114,10 +115,12 @@ def write_surface_vtu(path: Path, model, st: dict) -> None:
         "tangent1": c.t1,
         "tangent2": c.t2,
         "lambda_n": st["lam_n"],
-        "lambda_t": st["lam_t_vec"],
-        "lambda_t1": st["lam_t1"],
+        "lambda_t": st["lam_t1"],
         "lambda_t2": st["lam_t2"],
-        "jump_t": st["jump_t_vec"],
+        "jump_t": st["jump_t1"],
+        "jump_t2": st["jump_t2"],
+        "lambda_t_vec": st["lam_t_vec"],
+        "jump_t_vec": st["jump_t_vec"],
         "g": st["g"],
         "state": code,
         **{f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)},

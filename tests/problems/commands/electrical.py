@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import problems.pipeline as pipeline
 import vi_core
-from problems.plugins.contact.plane_extremes import ELECTRICAL_MATCH, uniaxial_electrical_defect
+from problems.plugins.contact.extremes import ELECTRICAL_MATCH, uniaxial_electrical_defect
 
 SCENE = "electrical_block"
 

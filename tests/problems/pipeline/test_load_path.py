@@ -234,7 +234,7 @@ def test_the_python_api_solves_the_path():
     res = problems.solve_scene("shear_strip_path", level=0, load_path__steps=3)
     assert [s["t"] for s in res.info["steps"]] == [1.0, 2.0, 3.0] and res.info["converged"]
     assert np.allclose(res.contact["ut_slave"], 4e-4, rtol=1e-8)
-    assert np.allclose(res.contact["lam_t"], -4e5, rtol=1e-8)
+    assert np.allclose(res.contact["lambda_t"], -4e5, rtol=1e-8)
 
 
 def coulomb_path(ts: list[float]) -> list[dict]:

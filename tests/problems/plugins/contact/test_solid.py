@@ -431,7 +431,7 @@ def test_mixvi_solve_writes_the_3d_results(tmp_path):
     assert {"stress", "von_mises", "electric_field", "electric_displacement"} <= set(body.cell_data)
     assert body.cell_data["stress"][0].shape[1] == 6
     surf = meshio.read(out / "contact.vtu")
-    assert surf.point_data["lambda_t"].shape[1] == 3 and "state" in surf.point_data
+    assert surf.point_data["lambda_t_vec"].shape[1] == 3 and "state" in surf.point_data
     rows = list(
         csv.reader(
             line

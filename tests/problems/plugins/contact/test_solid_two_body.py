@@ -44,13 +44,13 @@ def _extruded_against_2d(level: int, layers: int) -> dict[str, float]:
     slave2 = r2.model.contact.tr.nodes  # 2D trace nodes (global ids of the disc)
     k = np.searchsorted(np.sort(slave2), c3.surf.nodes % n2d)
     where = np.argsort(slave2)[k]  # 3D surface node → 2D trace index
-    lam_n2, lam_t2 = r2.contact["lam_n"][where], r2.contact["lam_t"][where]
+    lam_n2, lam_t2 = r2.contact["lambda_n"][where], r2.contact["lambda_t"][where]
     tau = r2.model.contact.tr.tangents[where]  # (k, 2) the 2D tangent of each 3D node
-    lam_t3 = np.einsum("ki,ki->k", c2["lam_t_vec"][:, :2], tau)
+    lam_t3 = np.einsum("ki,ki->k", c2["lambda_t_vec"][:, :2], tau)
     scale = np.abs(lam_n2).max()
-    out["lam_n"] = float(np.abs(c2["lam_n"] - lam_n2).max() / scale)
+    out["lam_n"] = float(np.abs(c2["lambda_n"] - lam_n2).max() / scale)
     out["lam_t"] = float(np.abs(lam_t3 - lam_t2).max() / scale)
-    out["slip"] = float((c2["slip"] != r2.contact["slip"][where]).sum())
+    out["slip"] = float(((c2["state"] == "slip") != (r2.contact["state"][where] == "slip")).sum())
     out["patch_defect"] = c3.master.patch_defect
     return out
 

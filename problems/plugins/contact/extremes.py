@@ -1,14 +1,19 @@
-"""The `mixvi extremes` rows of piezo_contact (contract v2 `extremes()`): the shipped contact
-scenes pushed to extreme friction bounds, data scales, materials, near-incompressibility and
-mesh ratios.
+"""The `mixvi extremes` rows of the contact plug-in (contract v2 `extremes()`), 2D and 3D: the
+shipped contact scenes pushed to extreme friction bounds, data scales, materials, poling
+directions, curved contact surfaces, near-incompressibility, mesh ratios, and for unilateral
+contact (coulomb_slip, piezo_liftoff, block3d_liftoff, coulomb_strip3d: F from 0 to 1e3, gaps
+from 0 to far apart) the open, stick and slip zones.
 
-Each row's checks, on top of the generic ones of `mixvi extremes`:
-- `contact_checks`: the Lemma 4.2 gap |b(u, λ) − ∫g|[u_τ]|| / ∫g|[u_τ]|, the friction bound
-  (max(|λ_τ| − g) / max g ≤ 0 up to rounding) and the stick/slip counts;
+Each row's checks, on top of the generic ones of `mixvi extremes` (ssn's residual, agreement
+with the conic and homotopy answers, λ ∈ Λ):
+- `contact_checks`: the Lemma 4.2 gap |b(u, λ) − Σ ρ_k W_k |[u]_t,k|| / Σ ρ_k W_k |[u]_t,k|, the
+  friction bound (max(|λ_t| − ρ) relative to the stress scale ≤ 0 up to rounding) and the
+  stick/slip counts, for a 2D node (one tangent) and a 3D one (a disc or a line) alike;
 - `homogeneity`: data scaled by s (loads and g) scale (u, λ) by s;
-- `locking`: the resultant normal contact force on this and two finer levels.
+- `locking`: the resultant normal contact force on this and two finer levels (2D);
+- `expect` counts, `slip_count`, `zone_count`: the zones where the data force them.
 
-σ_ref of a scene is the friction bound it ships with (9e6 Pa rigid_foundation, 1e8 Pa
+σ_ref of a 2D scene is the friction bound it ships with (9e6 Pa rigid_foundation, 1e8 Pa
 paper_two_body), which is of the order of its contact stresses.
 """
 
@@ -26,11 +31,11 @@ from problems.scene.contact_references import (
     uniaxial_electrical_contact,
 )
 
-from ..contract import ExtremeRow, expect
+from ..contract import ExtremeRow, expect, solve_model
 
 SIGMA_REF = {"rigid_foundation": 9.0e6, "paper_two_body": 1.0e8}
 HOMOGENEOUS = 1e-6  # relative deviation from degree-1 homogeneity that fails a row
-FRICTION_EXCESS = 1e-9  # relative excess of |λ_τ| over g that fails a row
+FRICTION_EXCESS = 1e-9  # relative excess of |λ_t| over g that fails a row
 
 
 def _rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -38,37 +43,46 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def contact_checks(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
-    """Lemma 4.2 gap, friction-bound violation and stick/slip counts of a solution."""
+    """Lemma 4.2 gap, friction-bound violation and stick/slip counts of a solution (2D: per
+    tangential row; 3D: per surface node with a tangential row, |λ_t| the disc's radius)."""
     if model.contact is None:
         return {}, ["no contact interface"]
     st = plugin.contact_state(model, sol)
     g = st["g"]
     gmax = float(g.max(initial=0.0))
-    excess = float(np.max(np.abs(st["lam_t"]) - g))
+    if "lam_t_vec" in st:  # 3D
+        mag, g_t = np.linalg.norm(st["lam_t_vec"], axis=1)[st["has_t"]], g[st["has_t"]]
+    else:
+        mag, g_t = np.abs(st["lam_t"]), g
+    excess = float(np.max(mag - g_t, initial=-np.inf))
     # the pressure scale: with unilateral contact also the elastic stress (when every node is
     # apart λ is rounding of that size)
     scale = max(gmax, float(np.abs(sol.lam).max(initial=0)), st.get("pressure", 0.0), 1e-300)
     rec = {
         "lemma_4_2": st["lemma_4_2"] if gmax > 0 else None,
         "friction_excess": excess / scale,
-        "stick": int(np.sum(st["state"] == "stick")),
+        "stick": int(np.sum(st["state"] == "stick")),  # open nodes (unilateral) are neither
         "slip": int(st["slip"].sum()),
     }
     notes = [f"stick {rec['stick']}, slip {rec['slip']}"]
     if rec["friction_excess"] > FRICTION_EXCESS:
-        notes.append(f"FAIL: |λ_τ| exceeds g by {rec['friction_excess']:.1e} (relative)")
-    if rec["lemma_4_2"] is not None and rec["lemma_4_2"] > 1e-10:
+        notes.append(f"FAIL: |λ_t| exceeds g by {rec['friction_excess']:.1e} (relative)")
+    if rec["lemma_4_2"] is not None and rec["lemma_4_2"] > 1e-10:  # a note (tiny g makes
+        # Σ g W |u_t| tiny and the gap rounding over it; the tests hold it to 1e-9)
         notes.append(f"Lemma 4.2 gap {rec['lemma_4_2']:.1e}")
     return rec, notes
 
 
-def homogeneity(factor: float) -> Callable:
-    """Check: data scaled by `factor` (loads and g) must scale (u, λ) by `factor`."""
+def homogeneity(factor: float, scaled_by_edit: bool = False) -> Callable:
+    """Check: data scaled by `factor` (loads and g) must scale (u, λ) by `factor`; the
+    unscaled scene is the row's without its overrides (and without its edit if
+    `scaled_by_edit`: the edit is the scaling)."""
 
     def check(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
-        base = ExtremeRow(row.name, row.scene, (), row.level, row.edit).load()
+        edit = None if scaled_by_edit else row.edit
+        base = ExtremeRow(row.name, row.scene, (), row.level, edit).load()
         m0 = plugin.build(base, row.level)
-        s0 = plugin.solve(m0, method="ssn")
+        s0 = solve_model(plugin, m0, method="ssn")
         du = _rel(model.full(sol.u) / factor, m0.full(s0.u))
         h = max(du, _rel(sol.lam / factor, s0.lam))
         verdict = "FAIL: not homogeneous" if h > HOMOGENEOUS else "homogeneous of degree 1"
@@ -278,7 +292,7 @@ def electrical_rows() -> list[ExtremeRow]:
     ]  # fmt: skip
 
 
-def rows() -> list[ExtremeRow]:
+def rows_2d() -> list[ExtremeRow]:
     """The extreme cases, cheapest first within each group."""
     C = (contact_checks,)
     return [
@@ -330,4 +344,169 @@ def rows() -> list[ExtremeRow]:
             checks=C,
         ),
         ExtremeRow("paper scene, level 6 (~1.6M unknowns)", PT, level=6, huge=True, checks=C),
+    ]
+
+
+# ------------------------------------------------------------------ 3D rows
+BLOCK, EXT = "block3d", "rigid_foundation_extruded"
+LIFT, STRIP = "block3d_liftoff", "coulomb_strip3d"  # unilateral contact, Coulomb friction
+G_BLOCK = "1.8e7*(1 + 0.3*x)"  # block3d's friction bound
+
+
+def slip_count(want: str) -> Callable:
+    """Check: every tangential node slips ("all") or none does ("none")."""
+
+    def check(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
+        st = plugin.contact_state(model, sol)
+        n, s = int(st["has_t"].sum()), int(st["slip"].sum())
+        ok = s == n if want == "all" else s == 0
+        return {}, [] if ok else [f"FAIL: {s} of {n} nodes slip, expected {want}"]
+
+    return check
+
+
+def zone_count(zone: str, want: str) -> Callable:
+    """Check: the nodes in state `zone` ("open", "stick", "slip") are all the nodes carrying
+    a normal multiplier (want "all"), none ("none") or some ("some")."""
+
+    def check(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
+        st = plugin.contact_state(model, sol)
+        n, s = int(model.contact.rows_n.size), int((st["state"] == zone).sum())
+        ok = {"all": s == n, "none": s == 0, "some": 0 < s < n}[want]
+        return {zone: s}, [] if ok else [f"FAIL: {s} of {n} nodes {zone}, expected {want}"]
+
+    return check
+
+
+def _scaled_block(f: float) -> Callable[[dict], None]:
+    """The edit scaling block3d's top displacement and g by f."""
+
+    def edit(data: dict) -> None:
+        part = data["bodies"]["block"]["displacement"][0]
+        part["value"] = [f"({f!r})*({v})" for v in part["value"]]
+        data["contact"]["g"] = f"({f!r})*({G_BLOCK})"
+
+    return edit
+
+
+def _isotropic(data: dict) -> None:
+    b = data["bodies"]["block"]
+    b["material"] = {"kind": "isotropic", "E": 1e10, "nu": 0.49}
+    b.pop("potential", None)
+
+
+def rows_3d() -> list[ExtremeRow]:
+    """The 3D extreme cases (levels 0 and 1: small enough for conic and homotopy)."""
+    C = (contact_checks,)
+    return [
+        ExtremeRow("3D: g = 0 (frictionless)", BLOCK, ["contact.g=0.0"], level=0, checks=C),
+        ExtremeRow(
+            "3D: g = 1e-6 σ_ref (all slip)",
+            BLOCK,
+            ["contact.g=18.0"],
+            level=0,
+            checks=(*C, slip_count("all")),
+        ),
+        ExtremeRow(
+            "3D: g = 1e6 σ_ref (tied)",
+            BLOCK,
+            ["contact.g=1.8e13"],
+            level=0,
+            checks=(*C, slip_count("none")),
+        ),
+        ExtremeRow(
+            "3D: g varies 1e8 over Γ3",
+            BLOCK,
+            ["contact.g='1.8e7*exp(log(1e8)*(x + y)/2 - log(1e4))'"],
+            level=0,
+            checks=C,
+        ),
+        ExtremeRow(
+            "3D: loads, g × 1e-9",
+            BLOCK,
+            level=0,
+            edit=_scaled_block(1e-9),
+            checks=(*C, homogeneity(1e-9, scaled_by_edit=True)),
+        ),
+        ExtremeRow(
+            "3D: loads, g × 1e3",
+            BLOCK,
+            level=0,
+            edit=_scaled_block(1e3),
+            checks=(*C, homogeneity(1e3, scaled_by_edit=True)),
+        ),
+        ExtremeRow("3D: block, level 1", BLOCK, level=1, checks=C),
+        ExtremeRow(
+            "3D: PZT-5H poled along (1, 1, 1)",
+            BLOCK,
+            ["bodies.block.material={name='PZT-5H', poling=[1.0, 1.0, 1.0]}"],
+            level=0,
+            checks=C,
+        ),
+        ExtremeRow(
+            "3D: curved contact surface",
+            BLOCK,
+            ["bodies.block.geometry.bottom_lift='0.06*sin(3*x)*cos(2*y)'"],
+            level=1,
+            checks=C,
+        ),
+        ExtremeRow(
+            "3D: tetrahedra", BLOCK, ["bodies.block.geometry.element='tetra'"], level=1, checks=C
+        ),
+        ExtremeRow("3D: ν = 0.49 (elastic)", BLOCK, level=0, edit=_isotropic, checks=C),
+        ExtremeRow("3D: extruded 2D scene (discs + lines)", EXT, level=0, checks=C),
+        ExtremeRow(
+            "3D unilateral: Coulomb F = 0 (frictionless)",
+            LIFT,
+            ["contact.F=0.0"],
+            level=0,
+            checks=(*C, zone_count("stick", "none"), zone_count("open", "some")),
+        ),
+        ExtremeRow(
+            "3D unilateral: Coulomb F = 0.6",
+            LIFT,
+            level=1,
+            checks=(*C, zone_count("stick", "some"), zone_count("slip", "some")),
+        ),
+        ExtremeRow(
+            "3D unilateral: Coulomb F = 1e3 (stick where touching)",
+            LIFT,
+            ["contact.F=1e3"],
+            level=0,
+            checks=(*C, zone_count("slip", "none")),
+        ),
+        ExtremeRow(
+            "3D unilateral: F varies 1e4 over Γ3",
+            LIFT,
+            ["contact.F='0.01*exp(log(1e4)*(x + y)/2)'"],
+            level=0,
+            checks=C,
+        ),
+        ExtremeRow(
+            "3D unilateral: gap 2e-7..4e-7 (partly closed)",
+            LIFT,
+            ["contact.gap='2e-7*(1 + y)'"],
+            level=0,
+            checks=(*C, zone_count("open", "some")),
+        ),
+        ExtremeRow(
+            "3D unilateral: gap 1e-3 (apart, λ = 0)",
+            STRIP,
+            ["contact.gap=1e-3"],
+            level=0,
+            checks=(*C, zone_count("open", "all")),
+        ),
+        ExtremeRow(
+            "3D unilateral: Coulomb strip (closed form)",
+            STRIP,
+            level=0,
+            checks=(*C, zone_count("slip", "all")),
+        ),
+        ExtremeRow(
+            "3D: extruded, aspect ratio 1e3",
+            EXT,
+            ["bodies.block.geometry.z=[0.0, 1e-3]"],
+            level=0,
+            checks=C,
+        ),
     ]
