@@ -15,7 +15,7 @@ from vi_core.testing import manufactured_strategy, vi_strategy
 
 from .helpers import ACCEPT, AGREE, FAST, TOL, agree, applicable, record
 
-N_SSN, N_CONIC, N_HOMOTOPY, N_PAIRS, N_UNIQUE, N_STABLE = 150, 40, 30, 40, 25, 60
+N_SSN, N_CONIC, N_HOMOTOPY, N_PAIRS, N_UNIQUE, N_STABLE = 150, 40, 12, 40, 25, 60
 
 
 def _check_exact(mf, method, **options):

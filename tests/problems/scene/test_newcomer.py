@@ -130,7 +130,7 @@ def test_the_result_and_the_contact_line_read_back(solved):
     lam_n = line.point_data["lambda_n"]
     assert np.nanmax(lam_n) > 0  # pressed onto the floor
     files = [ds.get("file") for ds in ET.parse(out / "results.pvd").getroot().iter("DataSet")]
-    assert files == ["bracket.vtu", "contact.vtu"]
+    assert files == ["bracket.vtu", "estimate_bracket.vtu", "contact.vtu"]  # estimate: per cell
 
 
 def test_the_committed_bracket_is_what_make_bracket_makes(tmp_path):
