@@ -13,7 +13,7 @@ import pytest
 from .helpers import mpiexec, need_petsc
 from .mpi_scene import solved
 
-pytestmark = pytest.mark.mpi  # .ci/run runs these after .ci/install_petsc
+pytestmark = pytest.mark.mpi  # these run where .ci/install_petsc has installed the engine
 
 TOL = 1e-8
 MPI_SCENE = "tests.vi_core.petsc.mpi_scene"
