@@ -94,3 +94,39 @@ def names(text: str, option: str, allowed: list[str] | tuple[str, ...]) -> list[
     if bad:
         raise SceneError(option, bad[0], what)
     return items
+
+
+def workers(text: str) -> int:
+    """argparse type: a number of Dask worker processes, 1 … 256."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if not 1 <= n <= 256:
+        raise SceneError("--workers", text, "a whole number of worker processes, 1 … 256")
+    return n
+
+
+def add_run_options(p: argparse.ArgumentParser) -> None:
+    """The options `mixvi study` and `mixvi sweep` share: where the cases run (--workers N on
+    a local Dask cluster, or --scheduler ADDRESS), --overwrite and --force."""
+    where = p.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=workers,
+        default=None,
+        help="run the cases as Dask tasks on a local cluster of N single-threaded worker "
+        'processes (optional extra: pip install -e ".[dask]")',
+    )
+    where.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run the cases on a running dask.distributed cluster, e.g. tcp://host:8786",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="write into a folder that holds other files (nothing is deleted)",
+    )
+    p.add_argument("--force", action="store_true", help="try levels above the scene's memory cap")

@@ -396,37 +396,8 @@ def parser() -> argparse.ArgumentParser:
         help="also write each level's results at the tightest tolerance into SOLVER/level_L/ "
         "and per solver a ParaView collection SOLVER.pvd over the levels",
     )
-    where = p.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=_workers,
-        default=None,
-        help="run the cases as Dask tasks on a local cluster of N single-threaded worker "
-        'processes (optional extra: pip install -e ".[dask]")',
-    )
-    where.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDRESS",
-        help="run the cases on a running dask.distributed cluster, e.g. tcp://host:8786",
-    )
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="write into a folder that holds other files (nothing is deleted)",
-    )
-    p.add_argument("--force", action="store_true", help="try levels above the scene's memory cap")
+    options.add_run_options(p)
     return p
-
-
-def _workers(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if not 1 <= n <= 256:
-        raise SceneError("--workers", text, "a whole number of worker processes, 1 … 256")
-    return n
 
 
 # a Dask worker process beyond the memory model's own base (`resources.MEMORY_MODEL`, 115 MB):

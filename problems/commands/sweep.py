@@ -391,33 +391,8 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", default=None, help="output directory (default out/SCENE_sweep)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=_workers,
-        default=None,
-        help="run the cases as Dask tasks on a local cluster of N single-threaded worker "
-        'processes (optional extra: pip install -e ".[dask]")',
-    )
-    where.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDRESS",
-        help="run the cases on a running dask.distributed cluster, e.g. tcp://host:8786",
-    )
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="write into a folder that holds other files (nothing is deleted)",
-    )
-    p.add_argument("--force", action="store_true", help="try levels above the scene's memory cap")
+    options.add_run_options(p)
     return p
-
-
-def _workers(text: str) -> int:
-    from .study import _workers as workers
-
-    return workers(text)
 
 
 def sweep_main(argv: list[str] | None = None) -> int:
