@@ -69,13 +69,28 @@ _pending: list[int] = []
 _installed = False
 _calls: queue.SimpleQueue | None = None  # the running worker's requests to the main thread
 _abandoned: list[threading.Thread] = []  # workers still inside their work after a signal
+_raised: list[int] = []  # the signals the handler has raised as Interrupted
 
 
 def _handler(signum: int, frame) -> None:
     if _depth > 0:
         _pending.append(signum)
         return
+    _raised.append(signum)
     raise Interrupted(signum)
+
+
+def masked(err: BaseException) -> Interrupted | None:
+    """The interruption behind `err`, an ordinary exception, if a signal caused it: a signal
+    raised inside the initialisation of a compiled module is turned into an ImportError by the
+    import machinery (NumPy's `PyCapsule_Import could not import module "datetime"`), so
+    `err` after a raised `Interrupted` is that interruption, not a failure of its own."""
+    seen: BaseException | None = err
+    while seen is not None:
+        if isinstance(seen, Interrupted):
+            return seen
+        seen = seen.__cause__ or seen.__context__
+    return Interrupted(_raised[0]) if _raised else None
 
 
 def install() -> None:
@@ -86,6 +101,7 @@ def install() -> None:
     for s in SIGNALS:
         signal.signal(s, _handler)
     _installed = True
+    _raised.clear()  # a run's own signals only (the API and tests call main more than once)
 
 
 def ignore_in_child() -> None:

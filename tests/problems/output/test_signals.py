@@ -1,0 +1,62 @@
+"""`signals.masked`: an interruption the import machinery turned into an ordinary exception
+is still reported as the interruption (exit 130), and nothing else is."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import pytest
+
+from problems.commands import main as cli
+from problems.output import signals
+
+
+@pytest.fixture
+def handlers():
+    """The mixvi handlers installed for one test, the previous ones restored after it."""
+    before = {s: signal.getsignal(s) for s in signals.SIGNALS}
+    signals.install()
+    yield
+    for s, h in before.items():
+        signal.signal(s, h)
+    signals._installed = False
+
+
+def interrupted_then(error: Exception, keep_context: bool) -> Exception:
+    """SIGINT delivered and caught (as compiled module initialisation does), then `error`."""
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(5)
+    except signals.Interrupted as sig:
+        if keep_context:
+            error.__context__ = sig
+    return error
+
+
+@pytest.mark.parametrize("keep_context", [True, False])
+def test_an_import_error_after_a_signal_is_the_interruption(handlers, keep_context):
+    err = interrupted_then(
+        ImportError('PyCapsule_Import could not import module "datetime"'), keep_context
+    )
+    sig = signals.masked(err)
+    assert sig is not None and sig.exit_status == 130
+
+
+def test_an_error_without_a_signal_is_not_masked(handlers):
+    assert signals.masked(ImportError("no module named x")) is None
+    interrupted_then(ImportError(""), keep_context=False)
+    signals.install()  # a new run: the previous run's signal does not count
+    assert signals.masked(ImportError("")) is None
+
+
+def test_main_reports_the_masked_interruption(handlers, monkeypatch, capsys):
+    """`mixvi` ends with 130 and one line, not 'internal error' (exit 3)."""
+
+    def failing_import(argv):
+        raise interrupted_then(ImportError(""), keep_context=False)
+
+    monkeypatch.setattr(cli, "_dispatch", failing_import)
+    assert cli.main(["scenes"]) == 130
+    assert capsys.readouterr().err.strip() == "mixvi: interrupted by SIGINT"
