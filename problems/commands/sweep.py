@@ -6,7 +6,7 @@
                       [--workers N | --scheduler ADDRESS] [--overwrite] [--force]
 
 `--set-range contact.F=0.1:1:10` gives N values evenly spaced from START to STOP (both
-included; N = 1: START alone), `--set-list electric.V=700,784` the values listed (numbers or
+included; N = 1: START alone), `--set-list contact.g=1e7,1e8` the values listed (numbers or
 TOML literals, as `--set` reads them). With several options the cases are every combination
 (the first option varies slowest). Every case is validated by the scene's plug-in before
 anything is solved: a value the scene refuses is named with its option (exit 2).
@@ -87,7 +87,7 @@ def parse_range(text: str) -> tuple[str, list[float]]:
 
 
 def parse_list(text: str) -> tuple[str, list[Any]]:
-    """'electric.V=700,784' → ('electric.V', [700, 784]): each value a TOML literal (a number,
+    """'contact.g=1e7,1e8' → ('contact.g', [1e7, 1e8]): each value a TOML literal (a number,
     true/false, a quoted string) or else a bare word; SceneError naming --set-list otherwise."""
     from problems.scene import parse_override
 
@@ -96,7 +96,7 @@ def parse_list(text: str) -> tuple[str, list[Any]]:
     items = [s.strip() for s in spec.split(",")]
     if not sep or not key or not all(items):
         raise SceneError(
-            "--set-list", text, "KEY=V1,V2,... with at least one value, e.g. electric.V=700,784"
+            "--set-list", text, "KEY=V1,V2,... with at least one value, e.g. contact.g=1e7,1e8"
         )
     return key, [parse_override(f"{key}={v}")[1] for v in items]
 
@@ -366,7 +366,7 @@ def parser() -> argparse.ArgumentParser:
         action=_Swept,
         metavar="KEY=V1,V2,...",
         dest="swept",
-        help="sweep a scene value over the values listed, e.g. electric.V=700,784 (repeatable)",
+        help="sweep a scene value over the values listed, e.g. contact.g=1e7,1e8 (repeatable)",
     )
     p.add_argument(
         "--plot",

@@ -5,11 +5,13 @@ contact3d plug-in (the other plug-ins: test_every_command.py)."""
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
 from problems.commands import sweep
 from problems.commands.main import main
+from problems.scene.reader import SCENES_DIR
 
 
 def test_ranges_lists_and_the_grid():
@@ -139,3 +141,22 @@ def test_contact3d(tmp_path, capsys):
     assert sweep.sweep_main([*argv, "--no-progress", "--out", str(out)]) == 0
     res = json.loads((out / "sweep.json").read_text())
     assert res["plugin"] == "contact" and all(c["converged"] for c in res["cases"])
+
+
+@pytest.mark.parametrize("option", ["--set-range", "--set-list"])
+def test_the_help_examples_are_accepted_by_a_shipped_scene(option, capsys):
+    """Each example of the two options' help, with its values, validates on a shipped scene
+    (an example no scene accepts, such as the former electric.V=700,784, fails here)."""
+    action = next(a for a in sweep.parser()._actions if option in a.option_strings)
+    example = re.search(r"e\.g\. (\S+)", action.help).group(1)
+    key, values = (sweep.parse_range if option == "--set-range" else sweep.parse_list)(example)
+    accepted = next(
+        (
+            name
+            for name in sorted(p.stem for p in SCENES_DIR.glob("*.toml"))
+            if all(main(["validate", name, "--set", f"{key}={v!r}"]) == 0 for v in values)
+        ),
+        None,
+    )
+    capsys.readouterr()
+    assert accepted, f"no shipped scene accepts the example {example}"
