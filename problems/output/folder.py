@@ -23,6 +23,7 @@ from .paths import (
     files_under,
     identity,
     iter_files,
+    overwrite_hint,
     prune,
     reason,
     refuse,
@@ -116,8 +117,9 @@ class OutputFolder:
                 option,
                 path,
                 f"a new or empty folder, or one written by mixvi; it holds {foreign!r}, "
-                "which no mixvi run wrote (choose another folder, or pass --overwrite to "
-                "write mixvi's files beside it: mixvi never deletes a file it did not write)",
+                f"which no mixvi run wrote (choose another folder, or pass "
+                f"{overwrite_hint(option)} to write mixvi's files beside it: mixvi never "
+                "deletes a file it did not write)",
             )
         self.created: list[Path] = []
         self._lock_fd: int | None = None

@@ -41,6 +41,12 @@ def refuse(option: str, path: Path, allowed: str) -> SceneError:
     return SceneError(option, str(path), allowed)
 
 
+def overwrite_hint(option: str) -> str:
+    """How the caller that named its output `option` asks to overwrite: the command line's
+    flag for an option (`--out`), the keyword for the Python API (`folder`)."""
+    return "--overwrite" if option.startswith("-") else "overwrite=True"
+
+
 def create_dirs(path: Path, option: str) -> list[Path]:
     """mkdir -p `path` (user's umask); the folders created, outermost first. SceneError if a
     parent is a file or a folder cannot be created."""

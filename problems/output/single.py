@@ -11,7 +11,16 @@ import sys
 from contextlib import suppress
 from pathlib import Path
 
-from .paths import STAGING, clear_stale, create_dirs, reason, refuse, remove_empty, version
+from .paths import (
+    STAGING,
+    clear_stale,
+    create_dirs,
+    overwrite_hint,
+    reason,
+    refuse,
+    remove_empty,
+    version,
+)
 from .signals import deferred
 
 # the start of every single file mixvi writes (`_signed`): JSON's first key, or SVG's comment
@@ -70,7 +79,7 @@ class OutputFile:
                 option,
                 path,
                 "a new file or one mixvi wrote; this file exists and mixvi did not write it "
-                "(choose another name, or pass --overwrite to replace it)",
+                f"(choose another name, or pass {overwrite_hint(option)} to replace it)",
             )
         self.created = create_dirs(path.parent, option)
         self.written = False

@@ -85,7 +85,7 @@ def test_results_write_never_replaces_a_users_file(tmp_path):
     out = tmp_path / "o"
     out.mkdir()
     (out / "notes.txt").write_text("mine")
-    with pytest.raises(SceneError, match="notes.txt"):
+    with pytest.raises(SceneError, match=r"notes.txt.*pass overwrite=True to"):  # the API's word
         res.write(out)
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]  # nothing written
     (out / "summary.json").write_text("my own summary")
