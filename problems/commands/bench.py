@@ -23,7 +23,8 @@ peak, the bytes per unknown and the estimate with its ratio estimate / measured.
 A case whose child raises, is killed (e.g. by the out-of-memory killer) or exceeds `--timeout`
 seconds becomes a failed row with its cause; the parent polls the child's liveness and never
 waits without a time limit. The table (failed rows included) is written in every case; exit
-status 1 if any case failed or did not converge.
+status 1 if any case failed or did not converge. `--baseline OLD.json` compares every case
+with an earlier run's (`bench_compare`) and exits 1 if one regressed.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ from vi_core import Free, MixedVI
 from vi_core.linalg import resolve_backend
 from vi_core.linear_solvers import LINEAR_SOLVERS, thread_settings
 
-from . import bench_scaling, options, resources
+from . import bench_compare, bench_scaling, options, resources
 
 DEFAULT = {"paper_two_body": (2, 5), "rigid_foundation": (3, 6)}
 DEFAULT_TIMEOUT = 3600.0  # seconds per (scene, level): the paper scene at level 5 takes ~5 min
@@ -372,6 +373,13 @@ def bench_main(argv: list[str] | None = None) -> int:
         help="scaling figure, SVG: time and memory against unknowns, log-log with the fitted "
         "exponents (default: --out with the suffix .svg)",
     )
+    p.add_argument(
+        "--baseline",
+        default=None,
+        metavar="OLD.json",
+        help="an earlier run's JSON: each case's CPU times, peak memory and iterations against "
+        "it; exit 1 if a case regressed (`bench_compare`)",
+    )
     p.add_argument("--force", action="store_true", help="skip the memory estimate's refusal")
     p.add_argument(
         "--overwrite",
@@ -384,7 +392,8 @@ def bench_main(argv: list[str] | None = None) -> int:
     from problems.plugins import registry
     from problems.scene import load_scene
 
-    jobs, inputs = [], []
+    baseline = None if args.baseline is None else bench_compare.read_baseline(args.baseline)
+    jobs, inputs = [], [] if args.baseline is None else [("the --baseline file", args.baseline)]
     for name in _scenes(args.scenes):
         scene = load_scene(name)
         inputs += scene.files()
@@ -436,11 +445,19 @@ def bench_main(argv: list[str] | None = None) -> int:
                     f"  linear {ex['time_linear']:.2f}  peak memory {ex['peak_mem']:.2f}"
                 )
         data = {"machine": machine, "records": records, "memory": memory, "fits": fitted}
+        regressed = 0
+        if baseline is not None:
+            rows = bench_compare.compare(baseline, data)
+            print("\n".join(bench_compare.table(rows, bench_compare.same_machine(baseline, data))))
+            data["baseline"] = {"file": args.baseline, "cases": rows}
+            regressed = sum(r["regressed"] for r in rows)
         run.file("--out").write(data)
         run.file("--figure").write(bench_scaling.figure_svg(records))
     print(f"wrote {args.out} and {figure}")
+    if regressed:
+        print(f"mixvi bench: {regressed} case(s) regressed against {args.baseline}")
     ok = all(not r.get("error") and r.get("converged") for r in records)
-    return 0 if ok else 1
+    return 0 if ok and not regressed else 1
 
 
 def _run(jobs, solvers: list[str], args) -> list[dict]:
