@@ -17,7 +17,7 @@ optional [solver] and [exact] (u = w, grad = [∂x w, ∂y w]: errors in summary
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -27,7 +27,6 @@ from pydantic import BeforeValidator, Field, model_validator
 
 from fem import assembly
 from fem.facets import Trace, trace
-from fem.mesh import Mesh
 from problems.errors import SceneError
 from problems.output import plots, results
 from problems.output.results import ContactTable
@@ -39,6 +38,7 @@ from problems.scene.model import head, one_or_many
 from vi_core import Box, MixedVI, Solution
 from vi_core import states as node_states
 
+from . import scalar
 from .contract import (
     Boundaries,
     DirichletPart,
@@ -52,7 +52,7 @@ from .contract import (
     expect,
     prescribed_once,
 )
-from .transfer import scalar_exact_errors, scalar_mesh_size, scalar_reference_errors
+from .scalar import ScalarModel
 
 NAME = "antiplane"
 DESCRIPTION = "antiplane shear −μΔw = f with Tresca friction on a rigid foundation (scalar)"
@@ -60,43 +60,12 @@ Head = head(NAME, 1)
 
 
 @dataclass
-class Model:
+class Model(ScalarModel):
     """The assembled antiplane problem."""
 
-    scene: Scene
-    level: int
-    mesh: Mesh
-    vi: MixedVI
-    free: np.ndarray  # (n_free,) node ids of the unknowns
-    values: np.ndarray  # (n_nodes,) Dirichlet values (fixed nodes)
     tr: Trace  # the friction boundary Γ3
     rows: np.ndarray  # (m,) indices into tr.nodes that carry a multiplier
     g_weights: np.ndarray  # (m,) ∫gφ_i
-    exact: tuple | None = None  # (w, grad) fields of the exact solution, if the scene has one
-    options: dict = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
-
-    @property
-    def dofs(self) -> dict[str, int]:
-        return {"displacement": int(self.free.size), "multiplier": self.vi.m}
-
-    def full(self, w: np.ndarray) -> np.ndarray:
-        """(n_nodes,) nodal values including the Dirichlet data."""
-        x = self.values.copy()
-        x[self.free] = w
-        return x
-
-    def errors(self, sol: Solution) -> dict[str, float]:
-        """|w − w_h|_H1 and ‖w − w_h‖_L2 against the scene's [exact] solution, and h."""
-        if self.exact is None:
-            raise ValueError(f"scene {self.scene.name!r} has no [exact] table")
-        w, grad = self.exact
-        x = self.full(sol.u)
-        return {
-            "h1": assembly.h1_seminorm_error(self.mesh, x, grad, 1),
-            "l2": assembly.l2_error(self.mesh, x, w, 1),
-            "h": self.mesh.h,
-        }
 
     def complementarity(self, sol: Solution) -> float:
         """Relative defect of Lemma 4.2: λᵀBw = ∫g|w_h|_h."""
@@ -200,7 +169,9 @@ def build(scene: Scene, level: int | None = None) -> Model:
         X=(assembly.mass_matrix(mesh) + assembly.stiffness_matrix(mesh))[free][:, free],
         info={"scene": scene.name, "level": level},
     )
-    return Model(scene, level, mesh, vi, free, values, tr, rows, gw[rows], exact, options)
+    return Model(
+        scene, level, mesh, vi, free, values, tr, rows, gw[rows], exact=exact, options=options
+    )
 
 
 def contact_state(model: Model, sol: Solution) -> dict:
@@ -308,9 +279,9 @@ def draw(ax, model: Model, sol: Solution) -> str:
     return plots.friction_panel(ax, contact_state(model, sol))
 
 
-mesh_size = scalar_mesh_size
-exact_errors = scalar_exact_errors  # h1, l2 against the scene's [exact] table
-reference_errors = scalar_reference_errors
+mesh_size = scalar.mesh_size
+exact_errors = scalar.exact_errors  # h1, l2 against the scene's [exact] table
+reference_errors = scalar.reference_errors
 
 
 def _counts(model: Model, sol: Solution) -> dict[str, int]:

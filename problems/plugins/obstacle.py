@@ -14,7 +14,7 @@ u, grad, source; optional [solver] method, tol.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -23,7 +23,6 @@ import scipy.sparse as sp
 from pydantic import BeforeValidator, Field, model_validator
 
 from fem import assembly
-from fem.mesh import Mesh
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import Expression
 from problems.scene.geometry import Geometry
@@ -31,6 +30,7 @@ from problems.scene.model import head, one_or_many
 from vi_core import MixedVI, NonNegative, Solution
 from vi_core import states as node_states
 
+from . import scalar
 from .contract import (
     DirichletPart,
     ExtremeRow,
@@ -44,7 +44,7 @@ from .contract import (
     prescribed_once,
     triangles,
 )
-from .transfer import scalar_exact_errors, scalar_mesh_size, scalar_reference_errors
+from .scalar import ScalarModel
 
 NAME = "obstacle"
 DESCRIPTION = "membrane above an obstacle: −Δu = f, u ≥ ψ (nodal contact forces λ ≥ 0)"
@@ -52,41 +52,10 @@ Head = head(NAME, 2)
 
 
 @dataclass
-class Model:
+class Model(ScalarModel):
     """The assembled obstacle problem."""
 
-    scene: Scene
-    level: int
-    mesh: Mesh
-    vi: MixedVI
-    free: np.ndarray  # (n_free,) node ids of the unknowns
-    values: np.ndarray  # (n_nodes,) Dirichlet values (fixed nodes)
     psi: np.ndarray  # (n_nodes,) nodal obstacle
-    exact: tuple | None = None  # (u, grad) fields of the exact solution, if the scene has one
-    options: dict = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
-
-    @property
-    def dofs(self) -> dict[str, int]:
-        return {"displacement": int(self.free.size), "multiplier": self.vi.m}
-
-    def full(self, u: np.ndarray) -> np.ndarray:
-        """(n_nodes,) nodal values including the Dirichlet data."""
-        x = self.values.copy()
-        x[self.free] = u
-        return x
-
-    def errors(self, sol: Solution) -> dict[str, float]:
-        """|u − u_h|_H1 and ‖u − u_h‖_L2 against the scene's [exact] solution, and h."""
-        if self.exact is None:
-            raise ValueError(f"scene {self.scene.name!r} has no [exact] table")
-        u, grad = self.exact
-        x = self.full(sol.u)
-        return {
-            "h1": assembly.h1_seminorm_error(self.mesh, x, grad, 1),
-            "l2": assembly.l2_error(self.mesh, x, u, 1),
-            "h": self.mesh.h,
-        }
 
     def complementarity(self, sol: Solution) -> float:
         """Relative defect of λᵀ(ψ − u) = 0 (exact for any solution of the VI)."""
@@ -158,7 +127,9 @@ def build(scene: Scene, level: int | None = None) -> Model:
             f"Dirichlet data lie below the obstacle at {below.size} boundary node(s), e.g. "
             f"{mesh.points[below[0]].tolist()}: u ≥ ψ cannot hold there"
         )
-    return Model(scene, level, mesh, vi, free, values, psi, exact, options, warnings)
+    return Model(
+        scene, level, mesh, vi, free, values, psi, exact=exact, options=options, warnings=warnings
+    )
 
 
 def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
@@ -268,9 +239,9 @@ def draw(ax, model: Model, sol: Solution) -> str:
     return f"{int(touch.sum())} nodes in contact"
 
 
-mesh_size = scalar_mesh_size
-exact_errors = scalar_exact_errors  # h1, l2 against the scene's [exact] table
-reference_errors = scalar_reference_errors
+mesh_size = scalar.mesh_size
+exact_errors = scalar.exact_errors  # h1, l2 against the scene's [exact] table
+reference_errors = scalar.reference_errors
 
 
 def _counts(model: Model, sol: Solution) -> dict[str, int]:

@@ -36,27 +36,6 @@ def nodal_reference_errors(
     return {"h1": float(np.sqrt(h1)), "l2": float(np.sqrt(l2))}
 
 
-# ------------------------------------------------------- the scalar plug-ins' study hooks
-def scalar_mesh_size(model: Any) -> float:
-    """h of the built level (contract: `mesh_size`) of a plug-in with one `model.mesh`."""
-    return model.mesh.h
-
-
-def scalar_exact_errors(model: Any, sol: Any) -> dict[str, float] | None:
-    """H¹ and L² errors (keys "h1", "l2") against the scene's [exact] table (contract:
-    `exact_errors`); None without one."""
-    if model.exact is None:
-        return None
-    err = model.errors(sol)
-    return {k: err[k] for k in ("h1", "l2")}
-
-
-def scalar_reference_errors(model: Any, sol: Any, ref: Any, ref_sol: Any) -> dict:
-    """‖u_h − u_ref‖ in H¹ and L² against the finer level `ref` (contract: `reference_errors`)
-    for a plug-in whose model maps its unknowns to nodal values with `model.full`."""
-    return nodal_reference_errors(model.mesh, model.full(sol.u), ref.mesh, ref.full(ref_sol.u))
-
-
 def prolongate(coarse: Any, x: np.ndarray, fine: Any) -> tuple[np.ndarray, int]:
     """The full vector x (n_full,) of a coarse level of a 2D or 3D bodies model carried to the
     finer level `fine` of the same scene: each body's displacement and potential, P1/Q1 nodal
