@@ -21,8 +21,11 @@ from typing import Any
 
 from problems.errors import SceneError
 
-LIMITS = {"cpu_nonlinear_s": 1.5, "cpu_linear_s": 1.5, "cpu_ratio": 1.5, "peak_mem_mb": 1.25}
-FLOOR = 0.5  # CPU seconds: shorter times are compared by their iterations only
+# The same code run twice on this machine under other jobs' load: CPU times of 0.5-1.5 s moved
+# by up to x1.6, of 2-5 s by up to x1.36, the ratio nonlinear / linear by up to x1.19, the peak
+# memory not at all (docs/benchmarks.md, "Benchmark baselines"). The limits sit above that.
+LIMITS = {"cpu_nonlinear_s": 2.0, "cpu_linear_s": 2.0, "cpu_ratio": 1.5, "peak_mem_mb": 1.25}
+FLOOR = 1.0  # CPU seconds: shorter times are compared by their iterations only
 
 
 def read_baseline(path: str) -> dict:

@@ -49,7 +49,7 @@ def test_an_equal_run_passes():
     "change, reason",
     [
         ({"cpu_linear_s": 19.0, "cpu_nonlinear_s": 76.0}, "cpu_linear_s x19.00"),  # the 19x
-        ({"cpu_nonlinear_s": 8.0, "cpu_ratio": 8.0}, "cpu_nonlinear_s x2.00"),
+        ({"cpu_nonlinear_s": 10.0, "cpu_ratio": 10.0}, "cpu_nonlinear_s x2.50"),
         ({"peak_mem_mb": 300.0}, "peak_mem_mb x1.50"),
         ({"iterations": 6}, "iterations 5 -> 6"),
         ({"unknowns": 6001}, "unknowns 6000 -> 6001"),
@@ -62,6 +62,7 @@ def test_a_regression_is_named(change, reason):
 
 def test_within_the_limits_and_faster_pass():
     assert verdict(run(), run(cpu_nonlinear_s=5.6, cpu_ratio=5.6, peak_mem_mb=240.0)) == []
+    assert verdict(run(), run(cpu_nonlinear_s=7.6, cpu_linear_s=1.9, peak_mem_mb=240.0)) == []
     assert verdict(run(), run(cpu_nonlinear_s=1.0, cpu_linear_s=0.5, cpu_ratio=2.0)) == []
 
 
