@@ -218,6 +218,14 @@ def mesh_geo(path: str | PathLike, level: int = 0) -> MeshFile:
             "the optional gmsh package (pip install gmsh) to mesh it; or a mesh file made from "
             "it (gmsh -2 FILE.geo), whose refinement keeps new boundary nodes on its polyline",
         ) from None
+    except OSError as err:  # installed, but its library misses the system's OpenGL/X11 ones
+        raise MeshImportError(
+            path,
+            "a .geo geometry",
+            f"a gmsh package that loads ({err}; on Debian/Ubuntu: apt-get install libgl1 "
+            "libglu1-mesa libxrender1 libxcursor1 libxft2 libxinerama1); or a mesh file made "
+            "from it (gmsh -2 FILE.geo)",
+        ) from None
     own = not gmsh.isInitialized()
     if own:
         gmsh.initialize(["-noenv"], readConfigFiles=False, interruptible=False)

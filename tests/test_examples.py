@@ -3,16 +3,15 @@
 import importlib.util
 from pathlib import Path
 
-import pytest
-
 from fem.mesh_import import body_mesh, read_mesh
+from tests import optional
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "problems" / "scenes" / "meshes"
 
 
 def test_the_mesh_script_makes_the_shipped_meshes(tmp_path):
-    pytest.importorskip("gmsh")
+    optional.gmsh()
     spec = importlib.util.spec_from_file_location(
         "make_meshes", ROOT / "examples" / "make_meshes.py"
     )

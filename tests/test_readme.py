@@ -11,7 +11,6 @@ validated and solved."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import re
@@ -23,6 +22,7 @@ from pathlib import Path
 import pytest
 
 from problems.commands.main import main
+from tests import optional
 
 ROOT = Path(__file__).resolve().parents[1]
 FOUR_STEPS = "## Your own problem in four steps"
@@ -95,7 +95,7 @@ def run_four_steps(readme: str, cwd: Path, gmsh: bool) -> list[str]:
 
 
 def _gmsh() -> bool:
-    return importlib.util.find_spec("gmsh") is not None
+    return optional.has_gmsh()
 
 
 def test_the_four_steps_run_as_written(tmp_path, monkeypatch):

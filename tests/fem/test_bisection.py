@@ -29,6 +29,7 @@ from fem.mesh import Mesh
 from fem.mesh_import import body_mesh, mesh_geo, read_mesh
 from fem.meshing import rectangle
 from fem.refine import refine
+from tests import optional
 
 from .mesh_checks import signed_areas
 
@@ -72,7 +73,7 @@ def user_mesh(file: str, body: str) -> Mesh:
 
 @pytest.fixture(scope="module")
 def notched(tmp_path_factory) -> Mesh:
-    pytest.importorskip("gmsh")
+    optional.gmsh()
     path = tmp_path_factory.mktemp("notch") / "notch.geo"
     path.write_text(NOTCH_GEO)
     return body_mesh(mesh_geo(path, 0), "plate")

@@ -20,6 +20,7 @@ from fem.mesh_import import MeshImportError, body_mesh, read_mesh, require_curve
 from fem.meshing import box, rectangle, transform
 from fem.refine import refine
 from problems.scene import SCENES_DIR
+from tests import optional
 
 FORMATS = ("gmsh22", "gmsh")  # meshio's names of gmsh v2.2 and v4.1
 
@@ -386,7 +387,7 @@ def test_the_shipped_bracket_reads_with_meshio_alone():
 
 @pytest.mark.parametrize("element", ["hexahedron", "tetra"])
 def test_a_gmsh_box_imports_with_its_volume_and_faces(tmp_path, element):
-    gmsh = pytest.importorskip("gmsh")
+    gmsh = optional.gmsh()
     gmsh.initialize(["-noenv"])
     gmsh.option.setNumber("General.Terminal", 0)
     try:

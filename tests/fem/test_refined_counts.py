@@ -22,6 +22,7 @@ from fem.mesh_import import body_mesh, read_mesh
 from fem.meshing import box, rectangle
 from fem.refine import refine
 from fem.refined_counts import Skeleton
+from tests import optional
 
 DIM = 3  # unknowns a node may have (before its parts fix some): the weights are 0 … DIM
 
@@ -60,7 +61,7 @@ def _built(mesh: Mesh, w: np.ndarray) -> tuple[int, int]:
 def _gmsh_2d(element: str) -> Mesh:
     """A plate with a hole and a V notch, gmsh-meshed in triangles or quadrilaterals; parts
     left, right, notch, hole, rest."""
-    gmsh = pytest.importorskip("gmsh")
+    gmsh = optional.gmsh()
     gmsh.initialize(["-noenv"])
     gmsh.option.setNumber("General.Terminal", 0)
     with TemporaryDirectory() as tmp:
@@ -107,7 +108,7 @@ def _gmsh_2d(element: str) -> Mesh:
 def _gmsh_3d() -> Mesh:
     """A block with a cylindrical hole and a notch, gmsh-meshed in tetrahedra; parts by the
     faces' positions."""
-    gmsh = pytest.importorskip("gmsh")
+    gmsh = optional.gmsh()
     gmsh.initialize(["-noenv"])
     gmsh.option.setNumber("General.Terminal", 0)
     with TemporaryDirectory() as tmp:

@@ -22,6 +22,7 @@ import pytest
 from fem.mesh_import import body_mesh, read_mesh
 from problems.api import solve_scene
 from problems.commands.main import main
+from tests import optional
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data" / "user_meshes"
@@ -78,7 +79,7 @@ def differences(made: Path, committed: Path, name: str) -> list[str]:
 
 @pytest.fixture(scope="module")
 def regenerated(tmp_path_factory):
-    pytest.importorskip("gmsh")
+    optional.gmsh()
     out = tmp_path_factory.mktemp("user_meshes")
     GEN.generate(out)
     return out

@@ -17,6 +17,7 @@ from problems.errors import SceneError
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
+from tests import optional
 from vi_core import solve
 
 
@@ -196,7 +197,7 @@ def _plate_geometry(kind: str, level: int):
 def test_a_geo_file_refined_by_gmsh_keeps_the_hole_round():
     """From the .geo the area error falls ~4× per level and the hole's nodes stay on the
     circle; from the .msh the error stalls at the level-0 polygon's (the README's caveat)."""
-    pytest.importorskip("gmsh")
+    optional.gmsh()
     geo = [_plate_geometry("geo", lv) for lv in range(3)]
     msh = [_plate_geometry("msh", lv) for lv in range(3)]
     assert geo[0][0] == pytest.approx(msh[0][0], rel=1e-12)  # the same level-0 mesh
@@ -222,13 +223,38 @@ def test_a_geo_file_without_gmsh_is_refused_with_what_to_do(tmp_path, monkeypatc
         pc.build(scene, 0)
 
 
+def test_a_gmsh_that_cannot_load_its_libraries_is_refused_with_what_to_do(tmp_path, monkeypatch):
+    """gmsh installed but libGLU missing: ctypes raises OSError inside `import gmsh`."""
+    import builtins
+    import sys
+
+    from problems.scene import imported
+
+    real = builtins.__import__
+
+    def no_glu(name, *args, **kwargs):
+        if name == "gmsh":
+            raise OSError("libGLU.so.1: cannot open shared object file")
+        return real(name, *args, **kwargs)
+
+    monkeypatch.delitem(sys.modules, "gmsh", raising=False)
+    monkeypatch.setattr(builtins, "__import__", no_glu)
+    imported._geo.cache_clear()
+    block = rectangle((0.0, 2.0), (0.0, 1.0), (4, 2), "quad")
+    scene = _imported("rigid_foundation", {"block": block}, tmp_path)
+    (tmp_path / "block.geo").write_text("// a geometry\n")
+    scene.data["bodies"]["block"]["geometry"] = {"geo": "block.geo", "body": "block"}
+    with pytest.raises(SceneError, match="geometry.geo.*libGLU.so.1.*apt-get install"):
+        pc.build(scene, 0)
+
+
 def test_mesh_and_geo_together_are_refused(tmp_path):
     msg = _bad(tmp_path, geo="block.geo")
     assert "either mesh" in msg and "not both" in msg
 
 
 def test_mutation_gmsh_not_refining_is_caught(monkeypatch):
-    gmsh = pytest.importorskip("gmsh")
+    gmsh = optional.gmsh()
     from problems.scene import imported
 
     imported._geo.cache_clear()

@@ -16,6 +16,8 @@ import meshio
 import numpy as np
 import pytest
 
+from tests import optional
+
 DATA = Path(__file__).resolve().parent / "data"
 SCENE = """\
 format = 2
@@ -134,7 +136,7 @@ def test_the_result_and_the_contact_line_read_back(solved):
 
 
 def test_the_committed_bracket_is_what_make_bracket_makes(tmp_path):
-    pytest.importorskip("gmsh")
+    optional.gmsh()
     make_bracket(tmp_path / "bracket.msh")
     a, b = meshio.read(tmp_path / "bracket.msh"), meshio.read(DATA / "bracket.msh")
     assert sorted(a.field_data) == sorted(b.field_data)
