@@ -430,38 +430,23 @@ def _solve_ssn(
                 progress["krylov_iterations"] = done_before[0]
             on_step(dict(progress, residual=res, done=True))
 
-    # return a feasible multiplier: λ ∈ Λ exactly (moves λ by rounding only once converged)
-    lam_feasible = Lam.project(lam)
-    res_feasible = natural_residual(e, u, lam_feasible).relative
-    if res_feasible <= max(res, tol):
-        lam, res = lam_feasible, res_feasible
-        history[-1] = res
-        converged = res <= tol
-    y = lam + e.B @ u - e.gap
-    inner = int((np.abs(y - Lam.project(y)) == 0).sum())
-    u_phys, lam_phys = sc.to_physical(u, lam)
-    sol = Solution(
-        u=u_phys,
-        lam=lam_phys,
-        converged=bool(converged),
-        iterations=k,
-        residual=float(res),
-        history=history,
-        time=time.perf_counter() - t0,
-        method="ssn",
-        info={
-            "condensed": stepper.cond is not None,
-            "damped_steps": damped,
-            "inside": inner,  # coordinates with λ + Bu − gap strictly inside Λ
-            "linear_solver": linear_solver
-            if stepper.krylov is not None
-            else resolve_backend("auto" if linear_solver == "amg" else linear_solver, e.n),
-            "threads": thread_settings(),
-            "newton_nnz": sorted(set(stepper.nnz)),  # one value: the pattern is fixed
-            "symbolic_analyses": stepper.factorize.analyses,
-            "factor_fill": [round(f, 2) for f in stepper.factorize.fills],
-        },
-    )
+    sol = finish(
+        e, Lam, sc, u, lam, (res, converged), tol, lambda lam: natural_residual(e, u, lam).relative,
+        history, k, t0,
+    )  # fmt: skip
+    res, converged = sol.residual, sol.converged
+    sol.info = {
+        "condensed": stepper.cond is not None,
+        "damped_steps": damped,
+        "inside": sol.info["inside"],
+        "linear_solver": linear_solver
+        if stepper.krylov is not None
+        else resolve_backend("auto" if linear_solver == "amg" else linear_solver, e.n),
+        "threads": thread_settings(),
+        "newton_nnz": sorted(set(stepper.nnz)),  # one value: the pattern is fixed
+        "symbolic_analyses": stepper.factorize.analyses,
+        "factor_fill": [round(f, 2) for f in stepper.factorize.fills],
+    }
     if stepper.krylov is not None:
         sol.info.update(stepper.krylov.info())
     elif linear_solver == "amg":
@@ -476,3 +461,44 @@ def _solve_ssn(
             f"ssn: residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"
         )
     return sol
+
+
+def finish(
+    e: MixedVI,
+    Lam,
+    sc,
+    u: np.ndarray,
+    lam: np.ndarray,
+    last: tuple[float, bool],
+    tol: float,
+    residual_at: Callable[[np.ndarray], float],
+    history: list[float],
+    k: int,
+    t0: float,
+) -> Solution:
+    """The end of a semismooth Newton run (serial or on PETSc): λ replaced by its projection
+    onto Λ where that keeps the residual (`residual_at(λ)`) within max(residual, tol) — once
+    converged it moves λ by rounding only, and the answer is then exactly feasible — and the
+    Solution in physical units (`sc.to_physical`) with info "inside": the coordinates where
+    λ + Bu − gap lies strictly inside Λ. `last` is (residual, converged) of the last step."""
+    res, converged = last
+    lam_feasible = Lam.project(lam)
+    res_feasible = residual_at(lam_feasible)
+    if res_feasible <= max(res, tol):
+        lam, res = lam_feasible, res_feasible
+        history[-1] = res
+        converged = res <= tol
+    y = lam + e.B @ u - e.gap
+    inner = int((np.abs(y - Lam.project(y)) == 0).sum())
+    u_phys, lam_phys = sc.to_physical(u, lam)
+    return Solution(
+        u=u_phys,
+        lam=lam_phys,
+        converged=bool(converged),
+        iterations=k,
+        residual=float(res),
+        history=history,
+        time=time.perf_counter() - t0,
+        method="ssn",
+        info={"inside": inner},  # coordinates with λ + Bu − gap strictly inside Λ
+    )

@@ -38,7 +38,7 @@ import scipy.sparse as sp
 from vi_core.problem import MixedVI
 from vi_core.sets import Free
 from vi_core.solution import Solution
-from vi_core.ssn import Condensation
+from vi_core.ssn import Condensation, finish
 
 from .ksp import LinearSolve
 from .runtime import Reductions, petsc
@@ -168,34 +168,20 @@ def solve_ssn_petsc(
                     krylov_iterations=solver.iterations if solver.kind == "gamg" else None,
                 )
             )
-    lam_feasible = Lam.project(lam)
-    res_feasible = _residual(e, own, red, u, lam_feasible, scale)
-    if res_feasible <= max(res, tol):
-        lam, res = lam_feasible, res_feasible
-        history[-1] = res
-        converged = res <= tol
-    y = lam + e.B @ u - e.gap
-    inner = int((np.abs(y - Lam.project(y)) == 0).sum())
-    u_phys, lam_phys = sc.to_physical(u, lam)
-    sol = Solution(
-        u=u_phys,
-        lam=lam_phys,
-        converged=bool(converged),
-        iterations=k,
-        residual=float(res),
-        history=history,
-        time=time.perf_counter() - t0,
-        method="ssn",
-        info={
-            "engine": "petsc",
-            "ranks": comm.getSize(),
-            "owned_rows": red.comm.allgather(int(nloc)),
-            "condensed": True,
-            "damped_steps": int(damped),
-            "inside": inner,
-            **solver.info(),
-        },
-    )
+    sol = finish(
+        e, Lam, sc, u, lam, (res, converged), tol,
+        lambda lam: _residual(e, own, red, u, lam, scale), history, k, t0,
+    )  # fmt: skip
+    res, converged = sol.residual, sol.converged
+    sol.info = {
+        "engine": "petsc",
+        "ranks": comm.getSize(),
+        "owned_rows": red.comm.allgather(int(nloc)),
+        "condensed": True,
+        "damped_steps": int(damped),
+        "inside": sol.info["inside"],
+        **solver.info(),
+    }
     if estimate_condition:
         sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
     if not converged:
