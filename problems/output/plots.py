@@ -9,6 +9,7 @@ its own labels and note in the contact state ("tangent_note", "lam_label", "jump
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -79,17 +80,27 @@ def direction_label(v, unit: str = "m") -> str:
     return f"{text} [{unit}]"
 
 
+NOTE_POINTS = 7  # font size of the note
+NOTE_CHAR = 0.5 * NOTE_POINTS  # mean width of one of its characters [pt] (DejaVu Sans)
+
+
 def add_note(fig, text: str) -> None:
-    """The sign convention `text` at the foot of `fig` (once, however many panels ask)."""
+    """The sign convention `text` at the foot of `fig` (once, however many panels ask), broken
+    into lines that fit the figure's width."""
     if not any(t.get_gid() == NOTE_GID for t in fig.texts):
-        fig.text(0.5, 0.01, text, ha="center", va="bottom", fontsize=7, color="0.3", gid=NOTE_GID)
+        width = int(0.95 * fig.get_figwidth() * 72 / NOTE_CHAR)  # characters a line
+        lines = textwrap.fill(text, width)
+        fig.text(0.5, 0.01, lines, ha="center", va="bottom", fontsize=NOTE_POINTS, color="0.3",
+                 gid=NOTE_GID)  # fmt: skip
 
 
 def _finish(fig) -> None:
-    """Shared scales, and room at the foot for the note if there is one."""
+    """Shared scales, and room at the foot for the note's lines if there is one."""
     share_scales(fig)
-    noted = any(t.get_gid() == NOTE_GID for t in fig.texts)
-    fig.tight_layout(rect=(0, 0.05 if noted else 0, 1, 1))
+    note = [t for t in fig.texts if t.get_gid() == NOTE_GID]
+    rows = len(note[0].get_text().splitlines()) if note else 0
+    foot = (0.01 + 1.3 * NOTE_POINTS * rows / 72 / fig.get_figheight()) if rows else 0
+    fig.tight_layout(rect=(0, foot, 1, 1))
 
 
 def _data_range(ax, which: str, log: bool = False) -> tuple[float, float] | None:

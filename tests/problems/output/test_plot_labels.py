@@ -120,3 +120,23 @@ def test_coulomb_scenes_csv_headers_and_legend_say_f_lambda_n(tmp_path, capsys, 
     header = [ln for ln in (out / "contact.csv").read_text().splitlines() if ln.startswith("#")]
     text = "\n".join(header)
     assert "F lambda_n" in text and "<= g" not in text and "< g)" not in text
+
+
+@pytest.mark.parametrize("words", [5, 40, 80])
+def test_the_foot_note_fits_the_figure_and_clears_the_axes(words):
+    """The note is broken into lines inside the figure's width, and the axes (their tick labels
+    and x label) end above it: before, a long convention ran off both sides of the PNG."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot([0, 1], [0, 1])
+    ax.set_xlabel("arc length along the contact boundary [m]")
+    plots.add_note(fig, " ".join(["convention"] * words))
+    plots._finish(fig)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    (note,) = [t for t in fig.texts if t.get_gid() == plots.NOTE_GID]
+    box, page = note.get_window_extent(renderer), fig.bbox
+    assert page.x0 <= box.x0 and box.x1 <= page.x1 and page.y0 <= box.y0, (box, page)
+    assert ax.get_tightbbox(renderer).y0 > box.y1  # nothing of the axes on the note
+    plt.close(fig)
