@@ -56,6 +56,7 @@ from . import plane_errors as piezo_errors
 from .bodies import Body, BodySection, build_body
 from .body_output import body_fields
 from .fields import field_data
+from .interface import checked_bound, jumps, lemma_4_2, node_at, rigid_gap
 from .law import FRICTIONS, LAWS
 from .model import BodiesModel, reference
 
@@ -412,12 +413,6 @@ def _contact_rows(contact: Contact):
     return contact.B_full, gap, Lam, Y
 
 
-def _where(body: Body, tr: Trace, i: int) -> str:
-    """'node 12 at [0.0, 1.0]' for trace index i."""
-    node = int(tr.nodes[i])
-    return f"node {node} at {body.mesh.points[node].tolist()}"
-
-
 def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray]:
     """(carry_n, carry_t) per slave trace node: which multiplier components it carries.
 
@@ -436,7 +431,7 @@ def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray
         else:
             angle = np.degrees(np.arccos(min(abs(n[c]), 1.0)))
             bad.append(
-                f"{_where(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
+                f"{node_at(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
                 f"{angle:.3g}° off the contact normal n = [{n[0]:.6g}, {n[1]:.6g}]"
             )
     if bad:
@@ -477,7 +472,7 @@ def _contact(
         raise SceneError(
             "contact.law",
             "unilateral",
-            f"contact nodes free to separate; {_where(slave, tr, i)} has its normal "
+            f"contact nodes free to separate; {node_at(slave, tr, i)} has its normal "
             "displacement prescribed (a roller across Γ3): with unilateral contact prescribe "
             "both components there or none (or use law = 'bilateral')",
         )
@@ -503,14 +498,11 @@ def _contact(
         assert np.array_equal(tr.nodes, mort.slave_nodes)
         uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,) (fem.mortar)
         mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
-    elif ct.gap is not None:
-        x, y = slave.mesh.points[tr.nodes].T  # (N,) each
-        gap_nodes = np.broadcast_to(np.asarray(ct.gap(x, y), float), x.shape).copy()
-        if (gap_nodes < 0).any():
-            raise SceneError(ct.gap.path, ct.gap.source, "a distance ≥ 0 at every node of Γ3")
+    else:
+        gap_nodes = rigid_gap(ct.gap, slave.mesh.points[tr.nodes])
     Dloc = dual_mass(tr)  # (2 n_seg, N)
     bfun = ct.g if ct.friction == "tresca" else ct.F
-    gloc = _friction_local(slave.mesh, tr, bfun, bfun.path).ravel()  # (2 n_seg,)
+    gloc = _friction_local(slave.mesh, tr, bfun).ravel()  # (2 n_seg,)
     sdofs = slave.u_dofs(tr.nodes)  # (N, 2)
     uncovered = np.zeros(tr.size, dtype=bool)
     blocks, rows_c, Q_c, defects, offset = [], [], [], [0.0], 0
@@ -551,7 +543,7 @@ def _contact(
             "contact.master",
             f"{master.name}.{mpart}" if master is not None else "rigid",
             f"a master behind the normal multiplier of every slave node with a tangential one "
-            f"(unilateral contact); {_where(slave, tr, i)} has none",
+            f"(unilateral contact); {node_at(slave, tr, i)} has none",
         )
     W_n, W_t = (np.asarray((Q @ Dloc).sum(axis=1)).ravel() for Q in Q_c)  # ∫φ̃_k per row
     gw = Q_t @ gloc  # (N_t,) ∫gφ̃_k (Coulomb: ∫Fφ̃_k)
@@ -617,18 +609,10 @@ def _contact(
     )
 
 
-def _friction_local(mesh: Mesh, tr: Trace, gfun, key: str) -> np.ndarray:
-    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point; g is the
-    Tresca bound or the Coulomb coefficient F, named by `key`)."""
-    what = "a friction bound g" if key.endswith(".g") else "a friction coefficient F"
-
-    def g_checked(x, y):
-        gv = gfun(x, y)
-        if (gv < 0).any():
-            raise SceneError(key, float(gv.min()), f"{what} ≥ 0 everywhere on Γ3")
-        return gv
-
-    return facet_integrals(mesh, tr, g_checked)
+def _friction_local(mesh: Mesh, tr: Trace, gfun) -> np.ndarray:
+    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point: `checked_bound`;
+    g is the Tresca bound or the Coulomb coefficient F)."""
+    return facet_integrals(mesh, tr, checked_bound(gfun))
 
 
 def _normal_distances(
@@ -799,46 +783,25 @@ def contact_state(model: Model, sol: Solution) -> dict:
     0).
     """
     c = model.contact
-    x_full = model.full(sol.u)
     lam_n, lam_t = c.normal(sol.lam), c.tangential(sol.lam)
-    Bu = c.B_full @ x_full  # W_k·[u]_n, W_k·[u]_τ in B_full's row order
+    radius = c.bound(sol.lam)  # (N_t,) the friction radius at λ
+    j = jumps(model, sol, radius, lambda: c.W_n.min())
+    Bu, th = j.Bu, j.th  # Bu: W_k·[u]_n, W_k·[u]_τ in B_full's row order
     jump_t = c.tangential(Bu) / c.W_t  # nodal tangential (mortar) jump
     nodes = c.tr.nodes[c.rows_t]
-    u_s = x_full[c.slave.u_dofs(nodes)]  # (N_t, 2)
+    u_s = j.x_full[c.slave.u_dofs(nodes)]  # (N_t, 2)
     ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents[c.rows_t])
-    gap_rows = np.zeros(Bu.size)
-    force = 0.0
-    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
-    if c.law == "unilateral":
-        gap_rows[c.idx_n] = c.gap0
-        # the elastic nodal forces per length: the pressure scale when the bodies are apart
-        # (all of λ is rounding then)
-        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / c.W_n.min()
-    radius = c.bound(sol.lam)  # (N_t,) the friction radius at λ
-    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
-    th = node_states.solution_thresholds(
-        sol,
-        max(float(np.abs(sol.lam).max(initial=0.0)), float(radius.max(initial=0.0)), force),
-        float(np.abs(sol.u[disp]).max(initial=0.0)),
-    )
     normal = np.full(c.tr.size, "touch", dtype=object)  # bilateral: every node touches
     if c.law == "unilateral":
         normal[c.rows_n] = node_states.normal_states(lam_n, (c.gap0 - c.normal(Bu)) / c.W_n, th)
     touch = normal[c.rows_n] == "touch"  # (N_n,)
     touch_t = normal[c.rows_t] == "touch"  # (N_t,)
     rho = radius * (normal[c.rows_t] != "open")  # (N_t,); an open node has no friction
-    tang = node_states.tangential_states(lam_t, rho, c.tangential(Bi) / c.W_t, th)
+    tang = node_states.tangential_states(lam_t, rho, c.tangential(j.Bi) / c.W_t, th)
     labels = node_states.node_states(normal[c.rows_t], tang)  # (N_t,)
     slip = labels == "slip"
-    b_uh_lam = float(sol.lam @ (Bi - gap_rows))
     weights = rho * c.W_t  # (N_t,) ∫ρφ̃_k (bilateral: g_weights)
-    g_abs = float(np.sum(weights * np.abs(c.tangential(Bi) / c.W_t)))
-    tiny = np.finfo(float).eps * float(np.sum(weights)) * max(np.abs(x_full).max(), 1e-300)
-    scale = g_abs
-    if c.law == "unilateral":  # the pressure scale P times the slack: rounding when apart
-        pressure = max(float(lam_n.max(initial=0.0)), force)
-        scale = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))
-    lemma = abs(b_uh_lam - g_abs) / max(scale, tiny, 1e-300)
+    g_abs = float(np.sum(weights * np.abs(c.tangential(j.Bi) / c.W_t)))
     state = {
         "s": c.tr.s[c.rows_t],
         "points": c.slave.mesh.points[nodes],
@@ -853,17 +816,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "touch": touch,
         "touch_t": touch_t,
         "normal_state": normal[c.rows_n],
-        "b_uh_lam": b_uh_lam,
-        "int_g_abs_u": g_abs,
-        "lemma_4_2": float(lemma),
+        **lemma_4_2(sol.lam, j, g_abs, float(np.sum(weights))),
         "friction": c.friction,  # the bound's name in plots and tables (tresca: g, coulomb: Fλ_n)
     }
     if c.law == "unilateral":
-        state["pressure"] = max(float(lam_n.max(initial=0.0)), force)  # the pressure scale
+        state["pressure"] = j.pressure  # the pressure scale
         state["u_n"] = c.normal(Bu) / c.W_n  # (N_n,) normal (mortar) jump [u]_n
         state["gap"] = c.gap0 / c.W_n  # (N_n,) initial gap
     if c.master_proj is not None:
-        state["ut_master"] = c.master_proj @ x_full
+        state["ut_master"] = c.master_proj @ j.x_full
     return state
 
 
@@ -887,7 +848,7 @@ def interface_warnings(contact: Contact) -> list[str]:
     out = []
     tr = contact.tr
     if contact.uncovered.size:
-        where = ", ".join(_where(contact.slave, tr, int(i)) for i in contact.uncovered[:6])
+        where = ", ".join(node_at(contact.slave, tr, int(i)) for i in contact.uncovered[:6])
         more = f" and {contact.uncovered.size - 6} more" if contact.uncovered.size > 6 else ""
         out.append(
             f"contact: {contact.uncovered.size} slave node(s) of {contact.slave.name}."

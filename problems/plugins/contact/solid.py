@@ -74,6 +74,7 @@ from . import solid_checks as contact3d_checks
 from . import solid_errors as contact3d_errors
 from . import solid_output as contact3d_output
 from .bodies import Body, build_body
+from .interface import checked_bound, jumps, lemma_4_2, node_at, rigid_gap
 from .model import BodiesModel, reference
 from .solid_bodies import SURFACE_ORDER, BodySection3, field_data
 
@@ -334,11 +335,6 @@ def row_nodes_weights(c: SolidContact) -> np.ndarray:
     return c.surf.node_sizes()[row_nodes(c)] * c.row_weights()
 
 
-def _where(body: Body, surf: Trace, i: int) -> str:
-    node = int(surf.nodes[i])
-    return f"node {node} at {body.mesh.points[node].tolist()}"
-
-
 def carrying(
     fixed: np.ndarray, normals: np.ndarray, t1: np.ndarray, t2: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[int]]:
@@ -505,18 +501,6 @@ def _not_facing(surf: Trace, master: Coupling) -> str:
     )
 
 
-def _rigid_gap(gap, points: np.ndarray) -> np.ndarray:
-    """(n,) the scene's initial gap to a rigid foundation at the points (n, 3); 0 without a
-    `gap` field; SceneError where it is negative."""
-    x, y, z = points.T  # (n,) each
-    if gap is None:
-        return np.zeros(x.size)
-    gap_k = np.broadcast_to(np.asarray(gap(x, y, z), float), x.shape)
-    if (gap_k < 0).any():
-        raise SceneError("contact.gap", float(gap_k.min()), "a distance ≥ 0 on Γ3")
-    return gap_k
-
-
 def _positions(bodies: list[Body], n_full: int) -> np.ndarray:
     """(n_full,) the nodal coordinates in the displacement dofs of every body, 0 elsewhere."""
     X = np.zeros(n_full)
@@ -565,7 +549,7 @@ def slave_contact(
         ]
         master.patch_defect = float(np.concatenate(rel).max(initial=0.0))
     if bad:
-        where = "; ".join(_where(slave, surf, i) for i in bad[:6])
+        where = "; ".join(node_at(slave, surf, i) for i in bad[:6])
         raise SceneError(
             key,
             f"{slave.name}.{part}",
@@ -585,21 +569,12 @@ def slave_contact(
         raise SceneError(
             "contact.law",
             "unilateral",
-            f"contact nodes free to separate; {_where(slave, surf, i)} has its normal "
+            f"contact nodes free to separate; {node_at(slave, surf, i)} has its normal "
             "displacement prescribed (a roller across Γ3): with unilateral contact prescribe "
             "all its components, or only tangential ones (or use law = 'bilateral')",
         )
-    what = "a friction bound g" if law.friction == "tresca" else "a friction coefficient F"
-    key_b = "contact.g" if law.friction == "tresca" else "contact.F"
-
-    def g_checked(x, y, z):
-        gv = gfun(x, y, z)
-        if (gv < 0).any():
-            raise SceneError(key_b, float(gv.min()), f"{what} ≥ 0 everywhere on Γ3")
-        return gv
-
     order = SURFACE_ORDER[slave.mesh.cell_type]
-    gloc = facet_integrals(slave.mesh, surf, g_checked, order)  # (n_f, m) ∫_e g φ_{e,a}
+    gloc = facet_integrals(slave.mesh, surf, checked_bound(gfun), order)  # (n_f, m) ∫_e g φ_e,a
     g = np.where(  # ∫gφ̃_k / W_t,k; the plain nodal mean ∫gφ_k / W_k at the other nodes
         n_tan > 0,
         (Q_t @ gloc.ravel()) / W_t,
@@ -635,7 +610,7 @@ def slave_contact(
         )  # (m,) the bilateral row of each row of B_full
         B = B[perm]
         if master is None:  # Σ_j S_n,kj gap(x_j)
-            gap0 = S_n[rows_n] @ _rigid_gap(law.gap, slave.mesh.points[surf.nodes])
+            gap0 = S_n[rows_n] @ rigid_gap(law.gap, slave.mesh.points[surf.nodes])
         else:
             B_n = contact_rows(dirs[:1], sdofs, n_full, mdofs)
             gap0 = -(B_n @ _positions([slave, master.body], n_full))  # (N_n,)
@@ -649,7 +624,7 @@ def slave_contact(
                     f"a master surface that does not overlap the slave {slave.name}.{part} in "
                     f"the reference configuration by more than {OVERLAP_TOL:g} × the level-0 "
                     f"node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
-                    f"{h0[i]:.3g}) at {_where(slave, surf, int(rows_n[i]))}",
+                    f"{h0[i]:.3g}) at {node_at(slave, surf, int(rows_n[i]))}",
                 )
     return SolidContact(
         slave=slave,
@@ -778,14 +753,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
     c = model.contact
     k = c.surf.size
     idx_n, idx_b, idx_l = c.rows()
-    x_full = model.full(sol.u)
-    Bu = c.B_full @ x_full  # (m,)
     lam = sol.lam
+    radius = c.bound(lam)  # (k,) the friction radius at λ
+    j = jumps(model, sol, radius, lambda: c.W.min())  # W: the nodal weights (areas)
+    Bu, Bi = j.Bu, j.Bi  # (m,) each
     out = {
         key: np.full(k, np.nan)
         for key in ("lam_n", "lam_t1", "lam_t2", "jump_n", "jump_t1", "jump_t2")
     }
-    W, Wt = c.W, c.W_t  # W: the nodal weights (areas); Wt: the tangential rows' ∫ψ̃_k
+    Wt = c.W_t  # the tangential rows' ∫ψ̃_k
     out["lam_n"][c.rows_n] = lam[idx_n]
     out["jump_n"][c.rows_n] = Bu[idx_n] / c.W_n[c.rows_n]
     lb = lam[idx_b]  # (N_b, 2)
@@ -806,32 +782,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
     jvec[c.line] = jl[:, None] * c.line_dir
     has_t = np.zeros(k, dtype=bool)
     has_t[c.disc] = has_t[c.line] = True
-    gap_rows = np.zeros(Bu.size)  # the initial gap in B_full's rows (unilateral)
     has_n = np.isin(np.arange(k), c.rows_n)  # (k,) nodes carrying a normal row
-    pressure = 0.0
-    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
     gap = np.full(k, np.nan)
     if c.law == "unilateral":
-        gap_rows[idx_n] = c.gap0
-        # the pressure scale: the largest λ_n or the elastic nodal forces per area (all of λ is
-        # rounding when the bodies are apart)
-        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / W.min()
-        pressure = max(float(lam[idx_n].max(initial=0.0)), force)
         gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / c.W_n[c.rows_n]  # the remaining normal gap
-    radius = c.bound(lam)  # (k,) the friction radius at λ
-    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
     ji = np.zeros((k, 2))  # the tangential jump (since the origin) in the node's frame
     ji[c.disc] = Bi[idx_b] / Wt[c.disc, None]
     ji[c.line, 0] = Bi[idx_l] / Wt[c.line]
     jt = np.linalg.norm(ji, axis=1)  # (k,)
-    # states from the answer (vi_core.states): multiplier margin and gap/slip, thresholds
-    # scaled by the achieved residual, the stress scale (the whole λ: with ρ ≪ λ_n a rounding
-    # shortfall of |λ_t| relative to λ is no stick evidence) and the displacement scale
-    th = node_states.solution_thresholds(
-        sol,
-        max(float(np.abs(lam).max(initial=0.0)), float(radius.max(initial=0.0)), pressure),
-        float(np.abs(sol.u[disp]).max(initial=0.0)),
-    )
+    th = j.th  # the states from the answer (vi_core.states)
     normal = np.full(k, "touch", dtype=object)  # bilateral: every node with rows touches
     if c.law == "unilateral":
         normal[c.rows_n] = node_states.normal_states(lam[idx_n], gap[c.rows_n], th)
@@ -843,10 +802,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     state = np.full(k, "no_multiplier", dtype=object)
     state[rows] = node_states.node_states(normal, tang, has_t)[rows]
     slip = state == "slip"
-    b_uh_lam = float(lam @ (Bi - gap_rows))
     g_abs = float(np.sum((rho * Wt * jt)[has_t]))
-    tiny = np.finfo(float).eps * float(np.sum(rho * Wt)) * max(np.abs(x_full).max(), 1e-300)
-    ref = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))  # unilateral: P × slack
     return {
         **out,
         "lam_t_vec": vec,
@@ -855,12 +811,10 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "has_t": has_t,
         "touch": touch,
         "gap": gap,
-        "pressure": pressure,
+        "pressure": j.pressure,
         "slip": slip,
         "state": state.astype(str),
-        "b_uh_lam": b_uh_lam,
-        "int_g_abs_u": g_abs,
-        "lemma_4_2": abs(b_uh_lam - g_abs) / max(ref, tiny, 1e-300),
+        **lemma_4_2(lam, j, g_abs, float(np.sum(rho * Wt))),
     }
 
 

@@ -1,0 +1,118 @@
+"""What the 2D (`plane`) and 3D (`solid`) contact interfaces share, written once: the node
+names in error texts, the checked friction-bound integrand, the initial gap to a rigid
+foundation, and the part of the contact state that does not depend on how a front lays out
+its rows (the jumps B u, the slip since a load path's origin, the initial gap rows, the
+pressure scale, the state thresholds and the Lemma 4.2 identity).
+
+What stays with each front: the multiplier rows (2D: a normal and one tangential row per
+node, the dual basis of segments; 3D: a normal row and a disc or a line per node, frames and
+the polygon-clipping mortar), the two-body gap (2D: the distance along the slave normal to
+the master polyline; 3D: the weighted mortar gap of the geometry) and the layout of the
+contact state (2D per multiplier row, 3D per surface node).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from fem.facets import Trace
+from problems.errors import SceneError
+from vi_core import Solution
+from vi_core import states as node_states
+
+
+def node_at(body: Any, tr: Trace, i: int) -> str:
+    """'node 12 at [0.0, 1.0]' for trace index i of `body`'s contact boundary `tr`."""
+    node = int(tr.nodes[i])
+    return f"node {node} at {body.mesh.points[node].tolist()}"
+
+
+def checked_bound(fun: Any) -> Callable[..., np.ndarray]:
+    """The friction bound g (Tresca) or coefficient F (Coulomb), an expression of the
+    coordinates whose `path` ends in .g or .F, as an integrand that refuses a negative value
+    at a quadrature point (SceneError naming the field)."""
+    what = "a friction bound g" if fun.path.endswith(".g") else "a friction coefficient F"
+
+    def checked(*x: np.ndarray) -> np.ndarray:
+        v = fun(*x)
+        if (v < 0).any():
+            raise SceneError(fun.path, float(v.min()), f"{what} ≥ 0 everywhere on Γ3")
+        return v
+
+    return checked
+
+
+def rigid_gap(gap: Any, points: np.ndarray) -> np.ndarray:
+    """(k,) the scene's initial gap to a rigid foundation at the points (k, d); 0 without a
+    `gap` field; SceneError where it is negative."""
+    if gap is None:
+        return np.zeros(points.shape[0])
+    out = np.broadcast_to(np.asarray(gap(*points.T), float), points.shape[:1]).copy()
+    if (out < 0).any():
+        raise SceneError(gap.path, float(out.min()), "a distance ≥ 0 at every node of Γ3")
+    return out
+
+
+@dataclass
+class Jumps:
+    """The dimension-free part of a contact state (`jumps`).
+
+    x_full (n_full,) the full solution; Bu (m,) B_full x, the weighted jumps in B_full's row
+    order; Bi (m,) the same since the load path's previous step (`model.incremental`; Bu
+    without one); gap_rows (m,) the initial gap on the normal rows (unilateral), 0 elsewhere;
+    pressure the pressure scale (unilateral: the largest λ_n or the elastic nodal forces per
+    `w_min`; 0 for bilateral contact); th the state thresholds of `vi_core.states`.
+    """
+
+    x_full: np.ndarray
+    Bu: np.ndarray
+    Bi: np.ndarray
+    gap_rows: np.ndarray
+    pressure: float
+    th: Any
+
+
+def jumps(model: Any, sol: Solution, radius: np.ndarray, w_min: Callable[[], float]) -> Jumps:
+    """The `Jumps` of `sol`; radius the friction radius at λ (`contact.bound`), w_min() the
+    area (length) by which the nodal forces become a pressure (asked for unilateral contact
+    only). The states' thresholds scale with the achieved residual, the stress scale (the
+    whole λ: with ρ ≪ λ_n a rounding shortfall of |λ_t| relative to λ is no stick evidence)
+    and the displacement scale."""
+    c = model.contact
+    x_full = model.full(sol.u)
+    Bu = c.B_full @ x_full  # (m,)
+    gap_rows = np.zeros(Bu.size)
+    pressure = 0.0
+    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
+    if c.law == "unilateral":
+        gap_rows[c.idx_n] = c.gap0
+        # the elastic nodal forces per area: the pressure scale when the bodies are apart (all
+        # of λ is rounding then)
+        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / w_min()
+        pressure = max(float(sol.lam[c.idx_n].max(initial=0.0)), force)
+    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
+    th = node_states.solution_thresholds(
+        sol,
+        max(float(np.abs(sol.lam).max(initial=0.0)), float(radius.max(initial=0.0)), pressure),
+        float(np.abs(sol.u[disp]).max(initial=0.0)),
+    )
+    return Jumps(x_full, Bu, Bi, gap_rows, pressure, th)
+
+
+def lemma_4_2(lam: np.ndarray, j: Jumps, g_abs: float, weight: float) -> dict:
+    """The Lemma 4.2 identity λᵀ(B u − gap₀) = Σ_k ρ_k W_k |[u]_t,k| of a solution: its two
+    sides and the relative defect, relative to the larger of Σ ρ W |[u]_t| (`g_abs`) and the
+    pressure scale times Σ|B u − gap₀| (unilateral), floored by rounding of Σ ρ W (`weight`)
+    times the largest |x|."""
+    b_uh_lam = float(lam @ (j.Bi - j.gap_rows))
+    tiny = np.finfo(float).eps * weight * max(np.abs(j.x_full).max(), 1e-300)
+    scale = max(g_abs, j.pressure * float(np.abs(j.Bi - j.gap_rows).sum()))
+    return {
+        "b_uh_lam": b_uh_lam,
+        "int_g_abs_u": g_abs,
+        "lemma_4_2": float(abs(b_uh_lam - g_abs) / max(scale, tiny, 1e-300)),
+    }
