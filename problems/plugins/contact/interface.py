@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from fem.facets import Trace
 from problems.errors import SceneError
@@ -116,3 +117,14 @@ def lemma_4_2(lam: np.ndarray, j: Jumps, g_abs: float, weight: float) -> dict:
         "int_g_abs_u": g_abs,
         "lemma_4_2": float(abs(b_uh_lam - g_abs) / max(scale, tiny, 1e-300)),
     }
+
+
+def multiplier_rows(contact: Any) -> tuple:
+    """(B_full (m, n_full), the gap rows not from Dirichlet data (m,): the initial gap on the
+    normal rows, Λ_h, the Y Gram matrix (m, m): diag h_k w_r, a mesh-dependent H^{-1/2}
+    stand-in) of a front's contact (`model.mixed_vi`); the front's contact tells its
+    `Lambda()` and `gram_weights()`."""
+    gap = np.zeros(contact.B_full.shape[0])  # (m,)
+    if contact.gap0 is not None:
+        gap[contact.idx_n] += contact.gap0
+    return contact.B_full, gap, contact.Lambda(), sp.diags(contact.gram_weights())

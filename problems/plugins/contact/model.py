@@ -27,7 +27,7 @@ from problems.scene.fields import load_parameter
 from problems.scene.model import expressions, refuse
 from vi_core import MixedVI, Solution, product
 
-from .bodies import dirichlet, gram, loads
+from .bodies import build_body, dirichlet, gram, loads
 
 
 @dataclass
@@ -45,6 +45,9 @@ class BodiesModel:
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     rhs: Rhs | None = None  # f and gap from loads and values (load steps: `update`)
+    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
+    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
+    slip_origin: np.ndarray | None = None
 
     def full_fields(self) -> dict[str, np.ndarray]:
         """Boolean masks over the full vector (prescribed entries included): which entries are
@@ -67,6 +70,32 @@ class BodiesModel:
     def full(self, u: np.ndarray) -> np.ndarray:
         """Unknowns → full vector including Dirichlet values."""
         return expand(u, self.free, self.values)
+
+
+def build_bodies(spec: Any, level: int) -> dict[str, Any]:
+    """The bodies of a validated scene model `spec` at `level` by name, their full dofs
+    numbered one after the other (`bodies.build_body`)."""
+    out: dict[str, Any] = {}
+    offset = 0
+    for name, section in spec.bodies.items():
+        out[name] = build_body(name, section, level, offset)
+        offset += out[name].size
+    return out
+
+
+def interface_references(bodies: dict[str, Any], contact: Any) -> str:
+    """The slave body of a [contact] table (`reference` checks slave and master), refusing a
+    master boundary on the slave body itself."""
+    slave, _ = reference(bodies, ["contact", "slave"], contact.slave)
+    if contact.master != "rigid":
+        master, _ = reference(bodies, ["contact", "master"], contact.master)
+        if master == slave:
+            raise refuse(
+                ["contact", "master"],
+                contact.master,
+                '"rigid" or BODY.BOUNDARY of a body other than the slave',
+            )
+    return slave
 
 
 def built(build: Callable[[Scene, int | None], Any], scene: Scene, level: int | None) -> Any:
@@ -186,10 +215,7 @@ def update(model: BodiesModel, spec: Any, t: float) -> BodiesModel | None:
         return None
     f, gap = rhs.at(f_full, values)
     vi = model.vi.with_rhs(f=f, gap=gap)
-    out = replace(model, vi=vi, values=values, warnings=list(model.warnings))
-    if hasattr(out, "slip_origin"):
-        out.slip_origin = None
-    return out
+    return replace(model, vi=vi, values=values, warnings=list(model.warnings), slip_origin=None)
 
 
 def fields(model: BodiesModel, sol: Solution) -> dict[str, np.ndarray]:

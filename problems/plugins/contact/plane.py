@@ -53,12 +53,12 @@ from . import extremes as contact_extremes
 from . import law as contact_law
 from . import model as contact_model
 from . import plane_errors as piezo_errors
-from .bodies import Body, BodySection, build_body
+from .bodies import Body, BodySection
 from .body_output import body_fields
 from .fields import field_data
-from .interface import checked_bound, jumps, lemma_4_2, node_at, rigid_gap
+from .interface import checked_bound, jumps, lemma_4_2, multiplier_rows, node_at, rigid_gap
 from .law import FRICTIONS, LAWS
-from .model import BodiesModel, reference
+from .model import BodiesModel, build_bodies, interface_references, reference
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
 DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
@@ -148,6 +148,24 @@ class Contact:
             return self.F * np.maximum(lam_n, 0.0)
         return self.g * (lam_n > 0)
 
+    def Lambda(self):
+        """Bilateral: Λ_h = Free(N_n) × Box(−g, g); unilateral: the contact set of the node
+        pairs [n, τ] (`contact_law.pair_set`), NonNegative over the normal-only nodes."""
+        n_n = self.rows_n.size
+        if self.law == "bilateral":
+            return product(Free(n_n), Box(-self.g, self.g))
+        p = self.pairs  # every tangential row is paired with its node's normal row
+        bound = self.F if self.friction == "coulomb" else self.g
+        pairs = contact_law.pair_set(self.friction, bound, dim=2)
+        return product(pairs, NonNegative(n_n - p)) if n_n > p else product(pairs)
+
+    def gram_weights(self) -> np.ndarray:
+        """(N_n + N_t,) h_k W_k per row of B_full (h_k the longer adjacent segment, W_k the
+        nodal weight ∫φ_k): the diagonal of Y (`interface.multiplier_rows`)."""
+        rows = np.empty(self.B_full.shape[0], dtype=int)  # trace index of each row of B_full
+        rows[self.idx_n], rows[self.idx_t] = self.rows_n, self.rows_t
+        return self.tr.node_sizes()[rows] * self.tr.weights[rows]
+
 
 @dataclass
 class Model(BodiesModel):
@@ -155,9 +173,6 @@ class Model(BodiesModel):
 
     dimension: int = DIMENSION
     electrical: electrical_contact.Coupling | None = None  # [contact.electrical], if given
-    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
-    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
-    slip_origin: np.ndarray | None = None
 
     def contact_state(self, sol: Solution) -> dict:
         """`contact_state(self, sol)` (for modules that this one imports)."""
@@ -207,14 +222,10 @@ class PlaneScene(SceneModel):
     def _references(self) -> PlaneScene:
         c = self.contact
         if c is not None:
-            slave = reference(self.bodies, ["contact", "slave"], c.slave)
-            if c.master != "rigid":
-                master = reference(self.bodies, ["contact", "master"], c.master)
-                if master[0] == slave[0]:
-                    raise refuse(["contact", "master"], c.master, "a body other than the slave")
+            slave = interface_references(self.bodies, c)
             e = c.electrical
             if e is not None:
-                if not self.bodies[slave[0]].material.material().piezoelectric:
+                if not self.bodies[slave].material.material().piezoelectric:
                     raise refuse(
                         ["contact", "electrical"], e.kind, "only with a piezoelectric slave body"
                     )
@@ -259,13 +270,8 @@ def build_model(
     """The Model (of `model_class`, a subclass of Model) of a validated scene model `spec`
     (of `scene`); signorini builds its scenes through it."""
     level = spec.scene.level if level is None else level
-    bodies: dict[str, Body] = {}
-    offset = 0
-    for name, tb in spec.bodies.items():
-        body = build_body(name, tb, level, offset)
-        bodies[name] = body
-        offset += body.size
-    n_full = offset
+    bodies: dict[str, Body] = build_bodies(spec, level)
+    n_full = sum(b.size for b in bodies.values())
     contact = None
     ct = spec.contact
     if ct is not None:
@@ -290,7 +296,7 @@ def build_model(
 
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
-        None if contact is None else partial(_contact_rows, contact),
+        None if contact is None else partial(multiplier_rows, contact),
         field_data,
         {"scene": scene.name, "level": level},
         check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
@@ -388,29 +394,6 @@ def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None
             raise SceneError(
                 "(scene)", what, "data whose assembled system is finite (magnitudes overflow)"
             )
-
-
-def _contact_rows(contact: Contact):
-    """B_full, the gap rows not from Dirichlet data (the initial gap), Λ_h and the Y Gram
-    matrix (`contact_model.mixed_vi`)."""
-    gap = np.zeros(contact.B_full.shape[0])  # (N_n + N_t,)
-    tr = contact.tr
-    n_n, n_t = contact.sizes
-    if contact.law == "bilateral":
-        Lam = product(Free(n_n), Box(-contact.g, contact.g))
-    else:
-        gap[contact.idx_n] += contact.gap0
-        p = contact.pairs  # every tangential row is paired with its node's normal row
-        bound = contact.F if contact.friction == "coulomb" else contact.g
-        pairs = contact_law.pair_set(contact.friction, bound, dim=2)
-        Lam = product(pairs, NonNegative(n_n - p)) if n_n > p else product(pairs)
-    h_i = np.zeros(tr.size)
-    np.maximum.at(h_i, tr.facets[:, 0], tr.measures)
-    np.maximum.at(h_i, tr.facets[:, 1], tr.measures)
-    rows = np.empty(n_n + n_t, dtype=int)  # trace index of each row of B_full
-    rows[contact.idx_n], rows[contact.idx_t] = contact.rows_n, contact.rows_t
-    Y = sp.diags(h_i[rows] * tr.weights[rows])  # mesh-dependent H^{-1/2} stand-in
-    return contact.B_full, gap, Lam, Y
 
 
 def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray]:

@@ -61,7 +61,7 @@ from problems.errors import SceneError
 from problems.scene import Scene, SceneModel
 from problems.scene.exact import ExactSection3
 from problems.scene.fields import NonNegativeExpr3
-from problems.scene.model import head, refuse
+from problems.scene.model import head
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
 from vi_core import states as node_states
 
@@ -73,9 +73,9 @@ from . import model as contact_model
 from . import solid_checks as contact3d_checks
 from . import solid_errors as contact3d_errors
 from . import solid_output as contact3d_output
-from .bodies import Body, build_body
-from .interface import checked_bound, jumps, lemma_4_2, node_at, rigid_gap
-from .model import BodiesModel, reference
+from .bodies import Body
+from .interface import checked_bound, jumps, lemma_4_2, multiplier_rows, node_at, rigid_gap
+from .model import BodiesModel, build_bodies, interface_references
 from .solid_bodies import SURFACE_ORDER, BodySection3, field_data
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
@@ -189,6 +189,11 @@ class SolidContact:
         w[idx_l] = self.W_t[self.line]
         return w
 
+    def gram_weights(self) -> np.ndarray:
+        """(m,) h_k W_c,k per row of B_full (W_c the row's class weight, `row_weights`): the
+        diagonal of Y (`interface.multiplier_rows`)."""
+        return self.surf.node_sizes()[row_nodes(self)] * self.row_weights()
+
     @property
     def line_dir(self) -> np.ndarray:
         """(N_l, 3) the tangent each line node keeps."""
@@ -219,9 +224,6 @@ class Model(BodiesModel):
     """A built 3D scene: the mixed VI plus what post-processing needs."""
 
     dimension: int = DIMENSION
-    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
-    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
-    slip_origin: np.ndarray | None = None
 
 
 class ContactSection(contact_law.contact_law(NonNegativeExpr3)):
@@ -253,17 +255,8 @@ class SolidScene(SceneModel):
 
     @model_validator(mode="after")
     def _references(self) -> SolidScene:
-        c = self.contact
-        if c is not None:
-            sbody, _ = reference(self.bodies, ["contact", "slave"], c.slave)
-            if c.master != "rigid":
-                mbody, _ = reference(self.bodies, ["contact", "master"], c.master)
-                if mbody == sbody:
-                    raise refuse(
-                        ["contact", "master"],
-                        c.master,
-                        '"rigid" or BODY.BOUNDARY of another body than the slave',
-                    )
+        if self.contact is not None:
+            interface_references(self.bodies, self.contact)
         return self
 
 
@@ -279,12 +272,8 @@ def build(scene: Scene, level: int | None = None) -> Model:
 def _build(scene: Scene, level: int | None) -> Model:
     spec = scene.validated(SCENE_MODEL)
     level = spec.scene.level if level is None else level
-    bodies: dict[str, Body] = {}
-    offset = 0
-    for name, tb in spec.bodies.items():
-        bodies[name] = build_body(name, tb, level, offset)
-        offset += bodies[name].size
-    n_full = offset
+    bodies: dict[str, Body] = build_bodies(spec, level)
+    n_full = sum(b.size for b in bodies.values())
     contact = None
     if spec.contact is not None:
         ct = spec.contact
@@ -298,7 +287,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
-        None if contact is None else partial(_rows, contact),
+        None if contact is None else partial(multiplier_rows, contact),
         field_data,
         {"scene": scene.name, "level": level},
     )
@@ -307,15 +296,6 @@ def _build(scene: Scene, level: int | None) -> Model:
 
 
 update = partial(contact_model.update_scene, SCENE_MODEL)
-
-
-def _rows(contact: SolidContact):
-    """B_full, the gap rows not from Dirichlet data (the initial gap rows), Λ_h and the Y Gram
-    matrix of the contact rows (`contact_model.mixed_vi`)."""
-    gap = np.zeros(contact.B_full.shape[0])  # (m,)
-    if contact.gap0 is not None:
-        gap[contact.rows()[0]] += contact.gap0
-    return contact.B_full, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
 
 
 count = partial(contact_model.count, SCENE_MODEL)
@@ -327,12 +307,6 @@ def row_nodes(c: SolidContact) -> np.ndarray:
     k = np.empty(c.B_full.shape[0], dtype=int)
     k[idx_n], k[idx_b], k[idx_l] = c.rows_n, c.disc[:, None], c.line
     return k
-
-
-def row_nodes_weights(c: SolidContact) -> np.ndarray:
-    """(m,) h_k W_c,k per row of B_full (W_c the row's class weight, `SolidContact.row_weights`):
-    the mesh-dependent H^{-1/2} Gram stand-in (Y)."""
-    return c.surf.node_sizes()[row_nodes(c)] * c.row_weights()
 
 
 def carrying(
