@@ -1,14 +1,10 @@
-"""What the 2D (`plane`) and 3D (`solid`) contact interfaces share, written once: the node
-names in error texts, the checked friction-bound integrand, the initial gap to a rigid
-foundation, and the part of the contact state that does not depend on how a front lays out
-its rows (the jumps B u, the slip since a load path's origin, the initial gap rows, the
-pressure scale, the state thresholds and the Lemma 4.2 identity).
-
-What stays with each front: the multiplier rows (2D: a normal and one tangential row per
-node, the dual basis of segments; 3D: a normal row and a disc or a line per node, frames and
-the polygon-clipping mortar), the two-body gap (2D: the distance along the slave normal to
-the master polyline; 3D: the weighted mortar gap of the geometry) and the layout of the
-contact state (2D per multiplier row, 3D per surface node).
+"""What the 2D (`plane`) and 3D (`solid`) contact fronts share, written once: node names in
+error texts, the checked friction-bound integrand, the rigid foundation's gap, the multiplier
+rows handed to the mixed VI, and the layout-free part of the contact state (jumps, pressure
+scale, thresholds, Lemma 4.2). Each front keeps its rows (2D: segment mortar, a normal and
+one tangential row per node; 3D: frames, polygon-clipping mortar, discs and lines), its
+two-body gap (2D: distance along the slave normal; 3D: weighted mortar gap) and the layout of
+its contact state (2D per multiplier row, 3D per surface node).
 """
 
 from __future__ import annotations
@@ -128,3 +124,17 @@ def multiplier_rows(contact: Any) -> tuple:
     if contact.gap0 is not None:
         gap[contact.idx_n] += contact.gap0
     return contact.B_full, gap, contact.Lambda(), sp.diags(contact.gram_weights())
+
+
+def friction_radius(contact: Any, lam: np.ndarray, size: int, at: Any = slice(None)) -> np.ndarray:
+    """The friction radius at the multiplier λ (B_full's row order) on the trace nodes `at` of
+    the `size` nodes: g (bilateral), g where λ_n > 0 and 0 elsewhere (unilateral Tresca),
+    F·max(λ_n, 0) (Coulomb); λ_n = 0 where a node carries no normal row; g, F are on `at`."""
+    if contact.law == "bilateral":
+        return contact.g
+    lam_n = np.zeros(size)
+    lam_n[contact.rows_n] = lam[contact.idx_n]
+    lam_n = lam_n[at]
+    if contact.friction == "coulomb":
+        return contact.F * np.maximum(lam_n, 0.0)
+    return contact.g * (lam_n > 0)

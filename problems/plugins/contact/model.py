@@ -27,6 +27,7 @@ from problems.scene.fields import load_parameter
 from problems.scene.model import expressions, refuse
 from vi_core import MixedVI, Solution, product
 
+from ..contract import Sweep
 from .bodies import build_body, dirichlet, gram, loads
 
 
@@ -280,3 +281,17 @@ def incremental(model: Any, previous: Any, previous_sol: Solution) -> None:
     origin[c.idx_n] = 0.0
     model.slip_origin = origin
     model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
+
+
+def friction_sweep(g_file: str, F_file: str) -> Sweep:
+    """The contract's SWEEP of a front: the friction bound g (Tresca) or else the coefficient
+    F (Coulomb) at 1.5, 1 and 0.6 times the scene's, drawn into `g_file` or `F_file`."""
+    return Sweep(
+        "contact.g",
+        "friction bound g [Pa]",
+        factors=(1.5, 1.0, 0.6),
+        file=g_file,
+        otherwise=Sweep(
+            "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file=F_file
+        ),
+    )

@@ -46,17 +46,17 @@ from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
 from vi_core import states as node_states
 
 from .. import transfer
-from ..contract import Sweep, check_meshed
+from ..contract import check_meshed
 from . import balance as piezo_balance
 from . import electrical as electrical_contact
 from . import extremes as contact_extremes
+from . import interface
 from . import law as contact_law
 from . import model as contact_model
 from . import plane_errors as piezo_errors
 from .bodies import Body, BodySection
 from .body_output import body_fields
 from .fields import field_data
-from .interface import checked_bound, jumps, lemma_4_2, multiplier_rows, node_at, rigid_gap
 from .law import FRICTIONS, LAWS
 from .model import BodiesModel, build_bodies, interface_references, reference
 
@@ -139,14 +139,7 @@ class Contact:
     def bound(self, lam: np.ndarray) -> np.ndarray:
         """(N_t,) the friction radius at the multiplier λ (B_full's row order): g (bilateral),
         g where λ_n > 0 and 0 elsewhere (unilateral Tresca), F·max(λ_n, 0) (Coulomb)."""
-        if self.law == "bilateral":
-            return self.g
-        lam_n = np.zeros(self.tr.size)
-        lam_n[self.rows_n] = self.normal(lam)
-        lam_n = lam_n[self.rows_t]  # (N_t,) every tangential row has a normal one (unilateral)
-        if self.friction == "coulomb":
-            return self.F * np.maximum(lam_n, 0.0)
-        return self.g * (lam_n > 0)
+        return interface.friction_radius(self, lam, self.tr.size, self.rows_t)
 
     def Lambda(self):
         """Bilateral: Λ_h = Free(N_n) × Box(−g, g); unilateral: the contact set of the node
@@ -296,7 +289,7 @@ def build_model(
 
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
-        None if contact is None else partial(multiplier_rows, contact),
+        None if contact is None else partial(interface.multiplier_rows, contact),
         field_data,
         {"scene": scene.name, "level": level},
         check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
@@ -414,7 +407,7 @@ def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray
         else:
             angle = np.degrees(np.arccos(min(abs(n[c]), 1.0)))
             bad.append(
-                f"{node_at(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
+                f"{interface.node_at(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
                 f"{angle:.3g}° off the contact normal n = [{n[0]:.6g}, {n[1]:.6g}]"
             )
     if bad:
@@ -455,7 +448,7 @@ def _contact(
         raise SceneError(
             "contact.law",
             "unilateral",
-            f"contact nodes free to separate; {node_at(slave, tr, i)} has its normal "
+            f"contact nodes free to separate; {interface.node_at(slave, tr, i)} has its normal "
             "displacement prescribed (a roller across Γ3): with unilateral contact prescribe "
             "both components there or none (or use law = 'bilateral')",
         )
@@ -482,7 +475,7 @@ def _contact(
         uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,) (fem.mortar)
         mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
     else:
-        gap_nodes = rigid_gap(ct.gap, slave.mesh.points[tr.nodes])
+        gap_nodes = interface.rigid_gap(ct.gap, slave.mesh.points[tr.nodes])
     Dloc = dual_mass(tr)  # (2 n_seg, N)
     bfun = ct.g if ct.friction == "tresca" else ct.F
     gloc = _friction_local(slave.mesh, tr, bfun).ravel()  # (2 n_seg,)
@@ -526,7 +519,7 @@ def _contact(
             "contact.master",
             f"{master.name}.{mpart}" if master is not None else "rigid",
             f"a master behind the normal multiplier of every slave node with a tangential one "
-            f"(unilateral contact); {node_at(slave, tr, i)} has none",
+            f"(unilateral contact); {interface.node_at(slave, tr, i)} has none",
         )
     W_n, W_t = (np.asarray((Q @ Dloc).sum(axis=1)).ravel() for Q in Q_c)  # ∫φ̃_k per row
     gw = Q_t @ gloc  # (N_t,) ∫gφ̃_k (Coulomb: ∫Fφ̃_k)
@@ -595,7 +588,7 @@ def _contact(
 def _friction_local(mesh: Mesh, tr: Trace, gfun) -> np.ndarray:
     """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point: `checked_bound`;
     g is the Tresca bound or the Coulomb coefficient F)."""
-    return facet_integrals(mesh, tr, checked_bound(gfun))
+    return facet_integrals(mesh, tr, interface.checked_bound(gfun))
 
 
 def _normal_distances(
@@ -768,7 +761,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     c = model.contact
     lam_n, lam_t = c.normal(sol.lam), c.tangential(sol.lam)
     radius = c.bound(sol.lam)  # (N_t,) the friction radius at λ
-    j = jumps(model, sol, radius, lambda: c.W_n.min())
+    j = interface.jumps(model, sol, radius, lambda: c.W_n.min())
     Bu, th = j.Bu, j.th  # Bu: W_k·[u]_n, W_k·[u]_τ in B_full's row order
     jump_t = c.tangential(Bu) / c.W_t  # nodal tangential (mortar) jump
     nodes = c.tr.nodes[c.rows_t]
@@ -799,7 +792,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "touch": touch,
         "touch_t": touch_t,
         "normal_state": normal[c.rows_n],
-        **lemma_4_2(sol.lam, j, g_abs, float(np.sum(weights))),
+        **interface.lemma_4_2(sol.lam, j, g_abs, float(np.sum(weights))),
         "friction": c.friction,  # the bound's name in plots and tables (tresca: g, coulomb: Fλ_n)
     }
     if c.law == "unilateral":
@@ -831,7 +824,9 @@ def interface_warnings(contact: Contact) -> list[str]:
     out = []
     tr = contact.tr
     if contact.uncovered.size:
-        where = ", ".join(node_at(contact.slave, tr, int(i)) for i in contact.uncovered[:6])
+        where = ", ".join(
+            interface.node_at(contact.slave, tr, int(i)) for i in contact.uncovered[:6]
+        )
         more = f" and {contact.uncovered.size - 6} more" if contact.uncovered.size > 6 else ""
         out.append(
             f"contact: {contact.uncovered.size} slave node(s) of {contact.slave.name}."
@@ -937,20 +932,24 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
     )
 
 
-def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
-    into `outdir`; return the summary entries."""
+def _write_bodies(model: Model, x_full: np.ndarray, outdir: Path) -> tuple[list, list]:
+    """(files, notes): BODY.vtu of every body's fields (`body_fields`) and their notes."""
     from fem.io import write_vtu
 
-    x_full = model.full(sol.u)
     files, notes = [], []
     for b in model.bodies:
         point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
-        fn = f"{b.name}.vtu"
-        write_vtu(outdir / fn, b.mesh, point, cell)
-        files.append(fn)
-        if note:
-            notes.append(note)
+        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
+        files.append(f"{b.name}.vtu")
+        notes += [note] if note else []
+    return files, notes
+
+
+def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
+    """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
+    into `outdir`; return the summary entries."""
+    x_full = model.full(sol.u)
+    files, notes = _write_bodies(model, x_full, outdir)
     summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
     if model.contact is not None:
         quad = piezo_balance.lemma_4_2(model, sol) if model.slip_origin is None else None
@@ -1003,15 +1002,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 CONTRACT = 2
-SWEEP = Sweep(
-    "contact.g",
-    "friction bound g [Pa]",
-    factors=(1.5, 1.0, 0.6),
-    file="fig_5_4.png",
-    otherwise=Sweep(
-        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep.png"
-    ),
-)
+SWEEP = contact_model.friction_sweep("fig_5_4.png", "F_sweep.png")
 NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
 extremes = contact_extremes.rows_2d
 
@@ -1032,14 +1023,7 @@ def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
 def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
     """One load step's files (no plots): a VTU per body, contact.vtu and contact.csv; the
     summary entries "files" and "contact" (the counts per state)."""
-    from fem.io import write_vtu
-
-    x_full = model.full(sol.u)
-    files = []
-    for b in model.bodies:
-        point, cell, _ = body_fields(b, x_full[b.offset : b.offset + b.size])
-        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
-        files.append(f"{b.name}.vtu")
+    files, _ = _write_bodies(model, model.full(sol.u), outdir)
     out: dict = {"files": files}
     if model.contact is not None:
         table = contact_table(model, sol)

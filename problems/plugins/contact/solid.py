@@ -66,15 +66,15 @@ from vi_core import Ball, Box, Free, NonNegative, Solution, product
 from vi_core import states as node_states
 
 from .. import transfer
-from ..contract import Sweep, check_meshed
+from ..contract import check_meshed
 from . import extremes as contact_extremes
+from . import interface
 from . import law as contact_law
 from . import model as contact_model
 from . import solid_checks as contact3d_checks
 from . import solid_errors as contact3d_errors
 from . import solid_output as contact3d_output
 from .bodies import Body
-from .interface import checked_bound, jumps, lemma_4_2, multiplier_rows, node_at, rigid_gap
 from .model import BodiesModel, build_bodies, interface_references
 from .solid_bodies import SURFACE_ORDER, BodySection3, field_data
 
@@ -160,13 +160,7 @@ class SolidContact:
         """(k,) the friction radius per surface node at the multiplier λ (B_full's row order):
         g (bilateral), g where λ_n > 0 and 0 elsewhere (unilateral Tresca), F·max(λ_n, 0)
         (Coulomb); λ_n = 0 where a node carries no normal row."""
-        if self.law == "bilateral":
-            return self.g
-        lam_n = np.zeros(self.surf.size)
-        lam_n[self.rows_n] = lam[self.rows()[0]]
-        if self.friction == "coulomb":
-            return self.F * np.maximum(lam_n, 0.0)
-        return self.g * (lam_n > 0)
+        return interface.friction_radius(self, lam, self.surf.size)
 
     @property
     def idx_n(self) -> np.ndarray:
@@ -287,7 +281,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
-        None if contact is None else partial(multiplier_rows, contact),
+        None if contact is None else partial(interface.multiplier_rows, contact),
         field_data,
         {"scene": scene.name, "level": level},
     )
@@ -523,7 +517,7 @@ def slave_contact(
         ]
         master.patch_defect = float(np.concatenate(rel).max(initial=0.0))
     if bad:
-        where = "; ".join(node_at(slave, surf, i) for i in bad[:6])
+        where = "; ".join(interface.node_at(slave, surf, i) for i in bad[:6])
         raise SceneError(
             key,
             f"{slave.name}.{part}",
@@ -543,12 +537,14 @@ def slave_contact(
         raise SceneError(
             "contact.law",
             "unilateral",
-            f"contact nodes free to separate; {node_at(slave, surf, i)} has its normal "
+            f"contact nodes free to separate; {interface.node_at(slave, surf, i)} has its normal "
             "displacement prescribed (a roller across Γ3): with unilateral contact prescribe "
             "all its components, or only tangential ones (or use law = 'bilateral')",
         )
     order = SURFACE_ORDER[slave.mesh.cell_type]
-    gloc = facet_integrals(slave.mesh, surf, checked_bound(gfun), order)  # (n_f, m) ∫_e g φ_e,a
+    gloc = facet_integrals(
+        slave.mesh, surf, interface.checked_bound(gfun), order
+    )  # (n_f, m) ∫_e g φ_e,a
     g = np.where(  # ∫gφ̃_k / W_t,k; the plain nodal mean ∫gφ_k / W_k at the other nodes
         n_tan > 0,
         (Q_t @ gloc.ravel()) / W_t,
@@ -584,7 +580,7 @@ def slave_contact(
         )  # (m,) the bilateral row of each row of B_full
         B = B[perm]
         if master is None:  # Σ_j S_n,kj gap(x_j)
-            gap0 = S_n[rows_n] @ rigid_gap(law.gap, slave.mesh.points[surf.nodes])
+            gap0 = S_n[rows_n] @ interface.rigid_gap(law.gap, slave.mesh.points[surf.nodes])
         else:
             B_n = contact_rows(dirs[:1], sdofs, n_full, mdofs)
             gap0 = -(B_n @ _positions([slave, master.body], n_full))  # (N_n,)
@@ -598,7 +594,7 @@ def slave_contact(
                     f"a master surface that does not overlap the slave {slave.name}.{part} in "
                     f"the reference configuration by more than {OVERLAP_TOL:g} × the level-0 "
                     f"node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
-                    f"{h0[i]:.3g}) at {node_at(slave, surf, int(rows_n[i]))}",
+                    f"{h0[i]:.3g}) at {interface.node_at(slave, surf, int(rows_n[i]))}",
                 )
     return SolidContact(
         slave=slave,
@@ -729,7 +725,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     idx_n, idx_b, idx_l = c.rows()
     lam = sol.lam
     radius = c.bound(lam)  # (k,) the friction radius at λ
-    j = jumps(model, sol, radius, lambda: c.W.min())  # W: the nodal weights (areas)
+    j = interface.jumps(model, sol, radius, lambda: c.W.min())  # W: the nodal weights (areas)
     Bu, Bi = j.Bu, j.Bi  # (m,) each
     out = {
         key: np.full(k, np.nan)
@@ -788,7 +784,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "pressure": j.pressure,
         "slip": slip,
         "state": state.astype(str),
-        **lemma_4_2(lam, j, g_abs, float(np.sum(rho * Wt))),
+        **interface.lemma_4_2(lam, j, g_abs, float(np.sum(rho * Wt))),
     }
 
 
@@ -812,15 +808,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 # ------------------------------------------------------------------ contract v2 declarations
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
-SWEEP = Sweep(
-    "contact.g",
-    "friction bound g [Pa]",
-    factors=(1.5, 1.0, 0.6),
-    file="g_sweep3d.png",
-    otherwise=Sweep(
-        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep3d.png"
-    ),
-)
+SWEEP = contact_model.friction_sweep("g_sweep3d.png", "F_sweep3d.png")
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
 # against the scene's [exact] table: exact_errors (contact3d_errors)
 EXACT_NORMS = contact3d_errors.NORMS
