@@ -29,6 +29,7 @@ from vi_core import MixedVI, Solution, product
 
 from ..contract import Sweep
 from .bodies import build_body, dirichlet, gram, loads
+from .interface import multiplier_rows
 
 
 @dataclass
@@ -111,7 +112,7 @@ def built(build: Callable[[Scene, int | None], Any], scene: Scene, level: int | 
 
 def mixed_vi(
     bodies: list[Any],
-    rows: Callable | None,
+    contact: Any,
     field_data: Callable,
     info: dict,
     check: Callable | None = None,
@@ -119,8 +120,8 @@ def mixed_vi(
     """The bodies' blocks side by side, reduced by their Dirichlet data, and the contact rows:
     (the MixedVI, free (n_free,) the full indices of the unknowns, values (n_full,) the
     prescribed values, the `Rhs` that recomputes f and gap from other loads and values).
-    rows() → (B_full (m, n_full), gap0 (m,) the gap rows not from Dirichlet data, Λ, Y) of the
-    contact (None: no multipliers); field_data(bodies, free, n_full) → the MixedVI's `fields`
+    contact the front's contact (None: no multipliers), whose rows are
+    `interface.multiplier_rows`; field_data(bodies, free, n_full) → the MixedVI's `fields`
     and `near_null`; check(A_full, f_full, values) may refuse the assembled data. Each body's
     operator A is released (vi.A is the copy kept: memory; paper scene level 5: 117 MB of
     bodies' A); a body keeps A's rows of its prescribed dofs, `A_fixed` (its reactions:
@@ -138,11 +139,11 @@ def mixed_vi(
     A, _, free = reduce_dirichlet(A_full, f_full, fixed, values)
     dof = np.flatnonzero(fixed)  # (n_fixed,)
     A_fixed = A_full[free][:, dof].tocsr()  # (n_free, n_fixed)
-    if rows is None:
+    if contact is None:
         B, Lam, Y = sp.csr_matrix((0, free.size)), product(), sp.csr_matrix((0, 0))
         rhs = Rhs(A_fixed, None, None, free, dof, fixed)
     else:
-        B_full, gap0, Lam, Y = rows()
+        B_full, gap0, Lam, Y = multiplier_rows(contact)
         B = B_full[:, free]
         rhs = Rhs(A_fixed, B_full[:, dof].tocsr(), gap0, free, dof, fixed)
     f, gap = rhs.at(f_full, values)

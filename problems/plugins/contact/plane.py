@@ -289,7 +289,7 @@ def build_model(
 
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
-        None if contact is None else partial(interface.multiplier_rows, contact),
+        contact,
         field_data,
         {"scene": scene.name, "level": level},
         check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),

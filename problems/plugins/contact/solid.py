@@ -281,7 +281,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
-        None if contact is None else partial(interface.multiplier_rows, contact),
+        contact,
         field_data,
         {"scene": scene.name, "level": level},
     )
