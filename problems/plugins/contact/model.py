@@ -27,7 +27,9 @@ from problems.scene.fields import load_parameter
 from problems.scene.model import expressions, refuse
 from vi_core import MixedVI, Solution, product
 
-from .bodies import dirichlet, gram, loads
+from ..contract import Sweep
+from .bodies import build_body, dirichlet, gram, loads
+from .interface import multiplier_rows
 
 
 @dataclass
@@ -45,6 +47,9 @@ class BodiesModel:
     options: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     rhs: Rhs | None = None  # f and gap from loads and values (load steps: `update`)
+    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
+    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
+    slip_origin: np.ndarray | None = None
 
     def full_fields(self) -> dict[str, np.ndarray]:
         """Boolean masks over the full vector (prescribed entries included): which entries are
@@ -69,6 +74,32 @@ class BodiesModel:
         return expand(u, self.free, self.values)
 
 
+def build_bodies(spec: Any, level: int) -> dict[str, Any]:
+    """The bodies of a validated scene model `spec` at `level` by name, their full dofs
+    numbered one after the other (`bodies.build_body`)."""
+    out: dict[str, Any] = {}
+    offset = 0
+    for name, section in spec.bodies.items():
+        out[name] = build_body(name, section, level, offset)
+        offset += out[name].size
+    return out
+
+
+def interface_references(bodies: dict[str, Any], contact: Any) -> str:
+    """The slave body of a [contact] table (`reference` checks slave and master), refusing a
+    master boundary on the slave body itself."""
+    slave, _ = reference(bodies, ["contact", "slave"], contact.slave)
+    if contact.master != "rigid":
+        master, _ = reference(bodies, ["contact", "master"], contact.master)
+        if master == slave:
+            raise refuse(
+                ["contact", "master"],
+                contact.master,
+                '"rigid" or BODY.BOUNDARY of a body other than the slave',
+            )
+    return slave
+
+
 def built(build: Callable[[Scene, int | None], Any], scene: Scene, level: int | None) -> Any:
     """build(scene, level) with floating-point warnings silenced (the data are checked where
     they are read); a SceneError raised while building names the scene file."""
@@ -81,7 +112,7 @@ def built(build: Callable[[Scene, int | None], Any], scene: Scene, level: int | 
 
 def mixed_vi(
     bodies: list[Any],
-    rows: Callable | None,
+    contact: Any,
     field_data: Callable,
     info: dict,
     check: Callable | None = None,
@@ -89,8 +120,8 @@ def mixed_vi(
     """The bodies' blocks side by side, reduced by their Dirichlet data, and the contact rows:
     (the MixedVI, free (n_free,) the full indices of the unknowns, values (n_full,) the
     prescribed values, the `Rhs` that recomputes f and gap from other loads and values).
-    rows() → (B_full (m, n_full), gap0 (m,) the gap rows not from Dirichlet data, Λ, Y) of the
-    contact (None: no multipliers); field_data(bodies, free, n_full) → the MixedVI's `fields`
+    contact the front's contact (None: no multipliers), whose rows are
+    `interface.multiplier_rows`; field_data(bodies, free, n_full) → the MixedVI's `fields`
     and `near_null`; check(A_full, f_full, values) may refuse the assembled data. Each body's
     operator A is released (vi.A is the copy kept: memory; paper scene level 5: 117 MB of
     bodies' A); a body keeps A's rows of its prescribed dofs, `A_fixed` (its reactions:
@@ -108,11 +139,11 @@ def mixed_vi(
     A, _, free = reduce_dirichlet(A_full, f_full, fixed, values)
     dof = np.flatnonzero(fixed)  # (n_fixed,)
     A_fixed = A_full[free][:, dof].tocsr()  # (n_free, n_fixed)
-    if rows is None:
+    if contact is None:
         B, Lam, Y = sp.csr_matrix((0, free.size)), product(), sp.csr_matrix((0, 0))
         rhs = Rhs(A_fixed, None, None, free, dof, fixed)
     else:
-        B_full, gap0, Lam, Y = rows()
+        B_full, gap0, Lam, Y = multiplier_rows(contact)
         B = B_full[:, free]
         rhs = Rhs(A_fixed, B_full[:, dof].tocsr(), gap0, free, dof, fixed)
     f, gap = rhs.at(f_full, values)
@@ -186,10 +217,7 @@ def update(model: BodiesModel, spec: Any, t: float) -> BodiesModel | None:
         return None
     f, gap = rhs.at(f_full, values)
     vi = model.vi.with_rhs(f=f, gap=gap)
-    out = replace(model, vi=vi, values=values, warnings=list(model.warnings))
-    if hasattr(out, "slip_origin"):
-        out.slip_origin = None
-    return out
+    return replace(model, vi=vi, values=values, warnings=list(model.warnings), slip_origin=None)
 
 
 def fields(model: BodiesModel, sol: Solution) -> dict[str, np.ndarray]:
@@ -254,3 +282,17 @@ def incremental(model: Any, previous: Any, previous_sol: Solution) -> None:
     origin[c.idx_n] = 0.0
     model.slip_origin = origin
     model.vi = model.vi.with_rhs(gap=model.vi.gap + origin)
+
+
+def friction_sweep(g_file: str, F_file: str) -> Sweep:
+    """The contract's SWEEP of a front: the friction bound g (Tresca) or else the coefficient
+    F (Coulomb) at 1.5, 1 and 0.6 times the scene's, drawn into `g_file` or `F_file`."""
+    return Sweep(
+        "contact.g",
+        "friction bound g [Pa]",
+        factors=(1.5, 1.0, 0.6),
+        file=g_file,
+        otherwise=Sweep(
+            "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file=F_file
+        ),
+    )

@@ -46,18 +46,19 @@ from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
 from vi_core import states as node_states
 
 from .. import transfer
-from ..contract import Sweep, check_meshed
+from ..contract import check_meshed
 from . import balance as piezo_balance
 from . import electrical as electrical_contact
 from . import extremes as contact_extremes
+from . import interface
 from . import law as contact_law
 from . import model as contact_model
 from . import plane_errors as piezo_errors
-from .bodies import Body, BodySection, build_body
+from .bodies import Body, BodySection
 from .body_output import body_fields
 from .fields import field_data
 from .law import FRICTIONS, LAWS
-from .model import BodiesModel, reference
+from .model import BodiesModel, build_bodies, interface_references, reference
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
 DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
@@ -138,14 +139,25 @@ class Contact:
     def bound(self, lam: np.ndarray) -> np.ndarray:
         """(N_t,) the friction radius at the multiplier λ (B_full's row order): g (bilateral),
         g where λ_n > 0 and 0 elsewhere (unilateral Tresca), F·max(λ_n, 0) (Coulomb)."""
+        return interface.friction_radius(self, lam, self.tr.size, self.rows_t)
+
+    def Lambda(self):
+        """Bilateral: Λ_h = Free(N_n) × Box(−g, g); unilateral: the contact set of the node
+        pairs [n, τ] (`contact_law.pair_set`), NonNegative over the normal-only nodes."""
+        n_n = self.rows_n.size
         if self.law == "bilateral":
-            return self.g
-        lam_n = np.zeros(self.tr.size)
-        lam_n[self.rows_n] = self.normal(lam)
-        lam_n = lam_n[self.rows_t]  # (N_t,) every tangential row has a normal one (unilateral)
-        if self.friction == "coulomb":
-            return self.F * np.maximum(lam_n, 0.0)
-        return self.g * (lam_n > 0)
+            return product(Free(n_n), Box(-self.g, self.g))
+        p = self.pairs  # every tangential row is paired with its node's normal row
+        bound = self.F if self.friction == "coulomb" else self.g
+        pairs = contact_law.pair_set(self.friction, bound, dim=2)
+        return product(pairs, NonNegative(n_n - p)) if n_n > p else product(pairs)
+
+    def gram_weights(self) -> np.ndarray:
+        """(N_n + N_t,) h_k W_k per row of B_full (h_k the longer adjacent segment, W_k the
+        nodal weight ∫φ_k): the diagonal of Y (`interface.multiplier_rows`)."""
+        rows = np.empty(self.B_full.shape[0], dtype=int)  # trace index of each row of B_full
+        rows[self.idx_n], rows[self.idx_t] = self.rows_n, self.rows_t
+        return self.tr.node_sizes()[rows] * self.tr.weights[rows]
 
 
 @dataclass
@@ -154,9 +166,6 @@ class Model(BodiesModel):
 
     dimension: int = DIMENSION
     electrical: electrical_contact.Coupling | None = None  # [contact.electrical], if given
-    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
-    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
-    slip_origin: np.ndarray | None = None
 
     def contact_state(self, sol: Solution) -> dict:
         """`contact_state(self, sol)` (for modules that this one imports)."""
@@ -206,14 +215,10 @@ class PlaneScene(SceneModel):
     def _references(self) -> PlaneScene:
         c = self.contact
         if c is not None:
-            slave = reference(self.bodies, ["contact", "slave"], c.slave)
-            if c.master != "rigid":
-                master = reference(self.bodies, ["contact", "master"], c.master)
-                if master[0] == slave[0]:
-                    raise refuse(["contact", "master"], c.master, "a body other than the slave")
+            slave = interface_references(self.bodies, c)
             e = c.electrical
             if e is not None:
-                if not self.bodies[slave[0]].material.material().piezoelectric:
+                if not self.bodies[slave].material.material().piezoelectric:
                     raise refuse(
                         ["contact", "electrical"], e.kind, "only with a piezoelectric slave body"
                     )
@@ -258,13 +263,8 @@ def build_model(
     """The Model (of `model_class`, a subclass of Model) of a validated scene model `spec`
     (of `scene`); signorini builds its scenes through it."""
     level = spec.scene.level if level is None else level
-    bodies: dict[str, Body] = {}
-    offset = 0
-    for name, tb in spec.bodies.items():
-        body = build_body(name, tb, level, offset)
-        bodies[name] = body
-        offset += body.size
-    n_full = offset
+    bodies: dict[str, Body] = build_bodies(spec, level)
+    n_full = sum(b.size for b in bodies.values())
     contact = None
     ct = spec.contact
     if ct is not None:
@@ -289,7 +289,7 @@ def build_model(
 
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
-        None if contact is None else partial(_contact_rows, contact),
+        contact,
         field_data,
         {"scene": scene.name, "level": level},
         check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
@@ -389,35 +389,6 @@ def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None
             )
 
 
-def _contact_rows(contact: Contact):
-    """B_full, the gap rows not from Dirichlet data (the initial gap), Λ_h and the Y Gram
-    matrix (`contact_model.mixed_vi`)."""
-    gap = np.zeros(contact.B_full.shape[0])  # (N_n + N_t,)
-    tr = contact.tr
-    n_n, n_t = contact.sizes
-    if contact.law == "bilateral":
-        Lam = product(Free(n_n), Box(-contact.g, contact.g))
-    else:
-        gap[contact.idx_n] += contact.gap0
-        p = contact.pairs  # every tangential row is paired with its node's normal row
-        bound = contact.F if contact.friction == "coulomb" else contact.g
-        pairs = contact_law.pair_set(contact.friction, bound, dim=2)
-        Lam = product(pairs, NonNegative(n_n - p)) if n_n > p else product(pairs)
-    h_i = np.zeros(tr.size)
-    np.maximum.at(h_i, tr.facets[:, 0], tr.measures)
-    np.maximum.at(h_i, tr.facets[:, 1], tr.measures)
-    rows = np.empty(n_n + n_t, dtype=int)  # trace index of each row of B_full
-    rows[contact.idx_n], rows[contact.idx_t] = contact.rows_n, contact.rows_t
-    Y = sp.diags(h_i[rows] * tr.weights[rows])  # mesh-dependent H^{-1/2} stand-in
-    return contact.B_full, gap, Lam, Y
-
-
-def _where(body: Body, tr: Trace, i: int) -> str:
-    """'node 12 at [0.0, 1.0]' for trace index i."""
-    node = int(tr.nodes[i])
-    return f"node {node} at {body.mesh.points[node].tolist()}"
-
-
 def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray]:
     """(carry_n, carry_t) per slave trace node: which multiplier components it carries.
 
@@ -436,7 +407,7 @@ def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray
         else:
             angle = np.degrees(np.arccos(min(abs(n[c]), 1.0)))
             bad.append(
-                f"{_where(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
+                f"{interface.node_at(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
                 f"{angle:.3g}° off the contact normal n = [{n[0]:.6g}, {n[1]:.6g}]"
             )
     if bad:
@@ -477,7 +448,7 @@ def _contact(
         raise SceneError(
             "contact.law",
             "unilateral",
-            f"contact nodes free to separate; {_where(slave, tr, i)} has its normal "
+            f"contact nodes free to separate; {interface.node_at(slave, tr, i)} has its normal "
             "displacement prescribed (a roller across Γ3): with unilateral contact prescribe "
             "both components there or none (or use law = 'bilateral')",
         )
@@ -503,14 +474,11 @@ def _contact(
         assert np.array_equal(tr.nodes, mort.slave_nodes)
         uncovered_local = np.repeat(mort.coverage < 1.0 - COVER_TOL, 2)  # (2 n_seg,) (fem.mortar)
         mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
-    elif ct.gap is not None:
-        x, y = slave.mesh.points[tr.nodes].T  # (N,) each
-        gap_nodes = np.broadcast_to(np.asarray(ct.gap(x, y), float), x.shape).copy()
-        if (gap_nodes < 0).any():
-            raise SceneError(ct.gap.path, ct.gap.source, "a distance ≥ 0 at every node of Γ3")
+    else:
+        gap_nodes = interface.rigid_gap(ct.gap, slave.mesh.points[tr.nodes])
     Dloc = dual_mass(tr)  # (2 n_seg, N)
     bfun = ct.g if ct.friction == "tresca" else ct.F
-    gloc = _friction_local(slave.mesh, tr, bfun, bfun.path).ravel()  # (2 n_seg,)
+    gloc = _friction_local(slave.mesh, tr, bfun).ravel()  # (2 n_seg,)
     sdofs = slave.u_dofs(tr.nodes)  # (N, 2)
     uncovered = np.zeros(tr.size, dtype=bool)
     blocks, rows_c, Q_c, defects, offset = [], [], [], [0.0], 0
@@ -551,7 +519,7 @@ def _contact(
             "contact.master",
             f"{master.name}.{mpart}" if master is not None else "rigid",
             f"a master behind the normal multiplier of every slave node with a tangential one "
-            f"(unilateral contact); {_where(slave, tr, i)} has none",
+            f"(unilateral contact); {interface.node_at(slave, tr, i)} has none",
         )
     W_n, W_t = (np.asarray((Q @ Dloc).sum(axis=1)).ravel() for Q in Q_c)  # ∫φ̃_k per row
     gw = Q_t @ gloc  # (N_t,) ∫gφ̃_k (Coulomb: ∫Fφ̃_k)
@@ -617,18 +585,10 @@ def _contact(
     )
 
 
-def _friction_local(mesh: Mesh, tr: Trace, gfun, key: str) -> np.ndarray:
-    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point; g is the
-    Tresca bound or the Coulomb coefficient F, named by `key`)."""
-    what = "a friction bound g" if key.endswith(".g") else "a friction coefficient F"
-
-    def g_checked(x, y):
-        gv = gfun(x, y)
-        if (gv < 0).any():
-            raise SceneError(key, float(gv.min()), f"{what} ≥ 0 everywhere on Γ3")
-        return gv
-
-    return facet_integrals(mesh, tr, g_checked)
+def _friction_local(mesh: Mesh, tr: Trace, gfun) -> np.ndarray:
+    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point: `checked_bound`;
+    g is the Tresca bound or the Coulomb coefficient F)."""
+    return facet_integrals(mesh, tr, interface.checked_bound(gfun))
 
 
 def _normal_distances(
@@ -799,46 +759,25 @@ def contact_state(model: Model, sol: Solution) -> dict:
     0).
     """
     c = model.contact
-    x_full = model.full(sol.u)
     lam_n, lam_t = c.normal(sol.lam), c.tangential(sol.lam)
-    Bu = c.B_full @ x_full  # W_k·[u]_n, W_k·[u]_τ in B_full's row order
+    radius = c.bound(sol.lam)  # (N_t,) the friction radius at λ
+    j = interface.jumps(model, sol, radius, lambda: c.W_n.min())
+    Bu, th = j.Bu, j.th  # Bu: W_k·[u]_n, W_k·[u]_τ in B_full's row order
     jump_t = c.tangential(Bu) / c.W_t  # nodal tangential (mortar) jump
     nodes = c.tr.nodes[c.rows_t]
-    u_s = x_full[c.slave.u_dofs(nodes)]  # (N_t, 2)
+    u_s = j.x_full[c.slave.u_dofs(nodes)]  # (N_t, 2)
     ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents[c.rows_t])
-    gap_rows = np.zeros(Bu.size)
-    force = 0.0
-    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
-    if c.law == "unilateral":
-        gap_rows[c.idx_n] = c.gap0
-        # the elastic nodal forces per length: the pressure scale when the bodies are apart
-        # (all of λ is rounding then)
-        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / c.W_n.min()
-    radius = c.bound(sol.lam)  # (N_t,) the friction radius at λ
-    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
-    th = node_states.solution_thresholds(
-        sol,
-        max(float(np.abs(sol.lam).max(initial=0.0)), float(radius.max(initial=0.0)), force),
-        float(np.abs(sol.u[disp]).max(initial=0.0)),
-    )
     normal = np.full(c.tr.size, "touch", dtype=object)  # bilateral: every node touches
     if c.law == "unilateral":
         normal[c.rows_n] = node_states.normal_states(lam_n, (c.gap0 - c.normal(Bu)) / c.W_n, th)
     touch = normal[c.rows_n] == "touch"  # (N_n,)
     touch_t = normal[c.rows_t] == "touch"  # (N_t,)
     rho = radius * (normal[c.rows_t] != "open")  # (N_t,); an open node has no friction
-    tang = node_states.tangential_states(lam_t, rho, c.tangential(Bi) / c.W_t, th)
+    tang = node_states.tangential_states(lam_t, rho, c.tangential(j.Bi) / c.W_t, th)
     labels = node_states.node_states(normal[c.rows_t], tang)  # (N_t,)
     slip = labels == "slip"
-    b_uh_lam = float(sol.lam @ (Bi - gap_rows))
     weights = rho * c.W_t  # (N_t,) ∫ρφ̃_k (bilateral: g_weights)
-    g_abs = float(np.sum(weights * np.abs(c.tangential(Bi) / c.W_t)))
-    tiny = np.finfo(float).eps * float(np.sum(weights)) * max(np.abs(x_full).max(), 1e-300)
-    scale = g_abs
-    if c.law == "unilateral":  # the pressure scale P times the slack: rounding when apart
-        pressure = max(float(lam_n.max(initial=0.0)), force)
-        scale = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))
-    lemma = abs(b_uh_lam - g_abs) / max(scale, tiny, 1e-300)
+    g_abs = float(np.sum(weights * np.abs(c.tangential(j.Bi) / c.W_t)))
     state = {
         "s": c.tr.s[c.rows_t],
         "points": c.slave.mesh.points[nodes],
@@ -853,17 +792,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "touch": touch,
         "touch_t": touch_t,
         "normal_state": normal[c.rows_n],
-        "b_uh_lam": b_uh_lam,
-        "int_g_abs_u": g_abs,
-        "lemma_4_2": float(lemma),
+        **interface.lemma_4_2(sol.lam, j, g_abs, float(np.sum(weights))),
         "friction": c.friction,  # the bound's name in plots and tables (tresca: g, coulomb: Fλ_n)
     }
     if c.law == "unilateral":
-        state["pressure"] = max(float(lam_n.max(initial=0.0)), force)  # the pressure scale
+        state["pressure"] = j.pressure  # the pressure scale
         state["u_n"] = c.normal(Bu) / c.W_n  # (N_n,) normal (mortar) jump [u]_n
         state["gap"] = c.gap0 / c.W_n  # (N_n,) initial gap
     if c.master_proj is not None:
-        state["ut_master"] = c.master_proj @ x_full
+        state["ut_master"] = c.master_proj @ j.x_full
     return state
 
 
@@ -887,7 +824,9 @@ def interface_warnings(contact: Contact) -> list[str]:
     out = []
     tr = contact.tr
     if contact.uncovered.size:
-        where = ", ".join(_where(contact.slave, tr, int(i)) for i in contact.uncovered[:6])
+        where = ", ".join(
+            interface.node_at(contact.slave, tr, int(i)) for i in contact.uncovered[:6]
+        )
         more = f" and {contact.uncovered.size - 6} more" if contact.uncovered.size > 6 else ""
         out.append(
             f"contact: {contact.uncovered.size} slave node(s) of {contact.slave.name}."
@@ -993,20 +932,24 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
     )
 
 
-def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
-    into `outdir`; return the summary entries."""
+def _write_bodies(model: Model, x_full: np.ndarray, outdir: Path) -> tuple[list, list]:
+    """(files, notes): BODY.vtu of every body's fields (`body_fields`) and their notes."""
     from fem.io import write_vtu
 
-    x_full = model.full(sol.u)
     files, notes = [], []
     for b in model.bodies:
         point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
-        fn = f"{b.name}.vtu"
-        write_vtu(outdir / fn, b.mesh, point, cell)
-        files.append(fn)
-        if note:
-            notes.append(note)
+        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
+        files.append(f"{b.name}.vtu")
+        notes += [note] if note else []
+    return files, notes
+
+
+def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
+    """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
+    into `outdir`; return the summary entries."""
+    x_full = model.full(sol.u)
+    files, notes = _write_bodies(model, x_full, outdir)
     summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
     if model.contact is not None:
         quad = piezo_balance.lemma_4_2(model, sol) if model.slip_origin is None else None
@@ -1059,15 +1002,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 CONTRACT = 2
-SWEEP = Sweep(
-    "contact.g",
-    "friction bound g [Pa]",
-    factors=(1.5, 1.0, 0.6),
-    file="fig_5_4.png",
-    otherwise=Sweep(
-        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep.png"
-    ),
-)
+SWEEP = contact_model.friction_sweep("fig_5_4.png", "F_sweep.png")
 NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
 extremes = contact_extremes.rows_2d
 
@@ -1088,14 +1023,7 @@ def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
 def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
     """One load step's files (no plots): a VTU per body, contact.vtu and contact.csv; the
     summary entries "files" and "contact" (the counts per state)."""
-    from fem.io import write_vtu
-
-    x_full = model.full(sol.u)
-    files = []
-    for b in model.bodies:
-        point, cell, _ = body_fields(b, x_full[b.offset : b.offset + b.size])
-        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
-        files.append(f"{b.name}.vtu")
+    files, _ = _write_bodies(model, model.full(sol.u), outdir)
     out: dict = {"files": files}
     if model.contact is not None:
         table = contact_table(model, sol)

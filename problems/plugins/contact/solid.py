@@ -61,20 +61,21 @@ from problems.errors import SceneError
 from problems.scene import Scene, SceneModel
 from problems.scene.exact import ExactSection3
 from problems.scene.fields import NonNegativeExpr3
-from problems.scene.model import head, refuse
+from problems.scene.model import head
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
 from vi_core import states as node_states
 
 from .. import transfer
-from ..contract import Sweep, check_meshed
+from ..contract import check_meshed
 from . import extremes as contact_extremes
+from . import interface
 from . import law as contact_law
 from . import model as contact_model
 from . import solid_checks as contact3d_checks
 from . import solid_errors as contact3d_errors
 from . import solid_output as contact3d_output
-from .bodies import Body, build_body
-from .model import BodiesModel, reference
+from .bodies import Body
+from .model import BodiesModel, build_bodies, interface_references
 from .solid_bodies import SURFACE_ORDER, BodySection3, field_data
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
@@ -159,13 +160,7 @@ class SolidContact:
         """(k,) the friction radius per surface node at the multiplier λ (B_full's row order):
         g (bilateral), g where λ_n > 0 and 0 elsewhere (unilateral Tresca), F·max(λ_n, 0)
         (Coulomb); λ_n = 0 where a node carries no normal row."""
-        if self.law == "bilateral":
-            return self.g
-        lam_n = np.zeros(self.surf.size)
-        lam_n[self.rows_n] = lam[self.rows()[0]]
-        if self.friction == "coulomb":
-            return self.F * np.maximum(lam_n, 0.0)
-        return self.g * (lam_n > 0)
+        return interface.friction_radius(self, lam, self.surf.size)
 
     @property
     def idx_n(self) -> np.ndarray:
@@ -187,6 +182,11 @@ class SolidContact:
         w[idx_b] = self.W_t[self.disc, None]
         w[idx_l] = self.W_t[self.line]
         return w
+
+    def gram_weights(self) -> np.ndarray:
+        """(m,) h_k W_c,k per row of B_full (W_c the row's class weight, `row_weights`): the
+        diagonal of Y (`interface.multiplier_rows`)."""
+        return self.surf.node_sizes()[row_nodes(self)] * self.row_weights()
 
     @property
     def line_dir(self) -> np.ndarray:
@@ -218,9 +218,6 @@ class Model(BodiesModel):
     """A built 3D scene: the mixed VI plus what post-processing needs."""
 
     dimension: int = DIMENSION
-    # load paths (`incremental`): B_full x of the previous step on the tangential rows, 0 on
-    # the normal ones; the friction law acts on B_full x − slip_origin (None: total form)
-    slip_origin: np.ndarray | None = None
 
 
 class ContactSection(contact_law.contact_law(NonNegativeExpr3)):
@@ -252,17 +249,8 @@ class SolidScene(SceneModel):
 
     @model_validator(mode="after")
     def _references(self) -> SolidScene:
-        c = self.contact
-        if c is not None:
-            sbody, _ = reference(self.bodies, ["contact", "slave"], c.slave)
-            if c.master != "rigid":
-                mbody, _ = reference(self.bodies, ["contact", "master"], c.master)
-                if mbody == sbody:
-                    raise refuse(
-                        ["contact", "master"],
-                        c.master,
-                        '"rigid" or BODY.BOUNDARY of another body than the slave',
-                    )
+        if self.contact is not None:
+            interface_references(self.bodies, self.contact)
         return self
 
 
@@ -278,12 +266,8 @@ def build(scene: Scene, level: int | None = None) -> Model:
 def _build(scene: Scene, level: int | None) -> Model:
     spec = scene.validated(SCENE_MODEL)
     level = spec.scene.level if level is None else level
-    bodies: dict[str, Body] = {}
-    offset = 0
-    for name, tb in spec.bodies.items():
-        bodies[name] = build_body(name, tb, level, offset)
-        offset += bodies[name].size
-    n_full = offset
+    bodies: dict[str, Body] = build_bodies(spec, level)
+    n_full = sum(b.size for b in bodies.values())
     contact = None
     if spec.contact is not None:
         ct = spec.contact
@@ -297,7 +281,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
-        None if contact is None else partial(_rows, contact),
+        contact,
         field_data,
         {"scene": scene.name, "level": level},
     )
@@ -306,15 +290,6 @@ def _build(scene: Scene, level: int | None) -> Model:
 
 
 update = partial(contact_model.update_scene, SCENE_MODEL)
-
-
-def _rows(contact: SolidContact):
-    """B_full, the gap rows not from Dirichlet data (the initial gap rows), Λ_h and the Y Gram
-    matrix of the contact rows (`contact_model.mixed_vi`)."""
-    gap = np.zeros(contact.B_full.shape[0])  # (m,)
-    if contact.gap0 is not None:
-        gap[contact.rows()[0]] += contact.gap0
-    return contact.B_full, gap, contact.Lambda(), sp.diags(row_nodes_weights(contact))
 
 
 count = partial(contact_model.count, SCENE_MODEL)
@@ -326,17 +301,6 @@ def row_nodes(c: SolidContact) -> np.ndarray:
     k = np.empty(c.B_full.shape[0], dtype=int)
     k[idx_n], k[idx_b], k[idx_l] = c.rows_n, c.disc[:, None], c.line
     return k
-
-
-def row_nodes_weights(c: SolidContact) -> np.ndarray:
-    """(m,) h_k W_c,k per row of B_full (W_c the row's class weight, `SolidContact.row_weights`):
-    the mesh-dependent H^{-1/2} Gram stand-in (Y)."""
-    return c.surf.node_sizes()[row_nodes(c)] * c.row_weights()
-
-
-def _where(body: Body, surf: Trace, i: int) -> str:
-    node = int(surf.nodes[i])
-    return f"node {node} at {body.mesh.points[node].tolist()}"
 
 
 def carrying(
@@ -505,18 +469,6 @@ def _not_facing(surf: Trace, master: Coupling) -> str:
     )
 
 
-def _rigid_gap(gap, points: np.ndarray) -> np.ndarray:
-    """(n,) the scene's initial gap to a rigid foundation at the points (n, 3); 0 without a
-    `gap` field; SceneError where it is negative."""
-    x, y, z = points.T  # (n,) each
-    if gap is None:
-        return np.zeros(x.size)
-    gap_k = np.broadcast_to(np.asarray(gap(x, y, z), float), x.shape)
-    if (gap_k < 0).any():
-        raise SceneError("contact.gap", float(gap_k.min()), "a distance ≥ 0 on Γ3")
-    return gap_k
-
-
 def _positions(bodies: list[Body], n_full: int) -> np.ndarray:
     """(n_full,) the nodal coordinates in the displacement dofs of every body, 0 elsewhere."""
     X = np.zeros(n_full)
@@ -565,7 +517,7 @@ def slave_contact(
         ]
         master.patch_defect = float(np.concatenate(rel).max(initial=0.0))
     if bad:
-        where = "; ".join(_where(slave, surf, i) for i in bad[:6])
+        where = "; ".join(interface.node_at(slave, surf, i) for i in bad[:6])
         raise SceneError(
             key,
             f"{slave.name}.{part}",
@@ -585,21 +537,14 @@ def slave_contact(
         raise SceneError(
             "contact.law",
             "unilateral",
-            f"contact nodes free to separate; {_where(slave, surf, i)} has its normal "
+            f"contact nodes free to separate; {interface.node_at(slave, surf, i)} has its normal "
             "displacement prescribed (a roller across Γ3): with unilateral contact prescribe "
             "all its components, or only tangential ones (or use law = 'bilateral')",
         )
-    what = "a friction bound g" if law.friction == "tresca" else "a friction coefficient F"
-    key_b = "contact.g" if law.friction == "tresca" else "contact.F"
-
-    def g_checked(x, y, z):
-        gv = gfun(x, y, z)
-        if (gv < 0).any():
-            raise SceneError(key_b, float(gv.min()), f"{what} ≥ 0 everywhere on Γ3")
-        return gv
-
     order = SURFACE_ORDER[slave.mesh.cell_type]
-    gloc = facet_integrals(slave.mesh, surf, g_checked, order)  # (n_f, m) ∫_e g φ_{e,a}
+    gloc = facet_integrals(
+        slave.mesh, surf, interface.checked_bound(gfun), order
+    )  # (n_f, m) ∫_e g φ_e,a
     g = np.where(  # ∫gφ̃_k / W_t,k; the plain nodal mean ∫gφ_k / W_k at the other nodes
         n_tan > 0,
         (Q_t @ gloc.ravel()) / W_t,
@@ -635,7 +580,7 @@ def slave_contact(
         )  # (m,) the bilateral row of each row of B_full
         B = B[perm]
         if master is None:  # Σ_j S_n,kj gap(x_j)
-            gap0 = S_n[rows_n] @ _rigid_gap(law.gap, slave.mesh.points[surf.nodes])
+            gap0 = S_n[rows_n] @ interface.rigid_gap(law.gap, slave.mesh.points[surf.nodes])
         else:
             B_n = contact_rows(dirs[:1], sdofs, n_full, mdofs)
             gap0 = -(B_n @ _positions([slave, master.body], n_full))  # (N_n,)
@@ -649,7 +594,7 @@ def slave_contact(
                     f"a master surface that does not overlap the slave {slave.name}.{part} in "
                     f"the reference configuration by more than {OVERLAP_TOL:g} × the level-0 "
                     f"node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
-                    f"{h0[i]:.3g}) at {_where(slave, surf, int(rows_n[i]))}",
+                    f"{h0[i]:.3g}) at {interface.node_at(slave, surf, int(rows_n[i]))}",
                 )
     return SolidContact(
         slave=slave,
@@ -778,14 +723,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
     c = model.contact
     k = c.surf.size
     idx_n, idx_b, idx_l = c.rows()
-    x_full = model.full(sol.u)
-    Bu = c.B_full @ x_full  # (m,)
     lam = sol.lam
+    radius = c.bound(lam)  # (k,) the friction radius at λ
+    j = interface.jumps(model, sol, radius, lambda: c.W.min())  # W: the nodal weights (areas)
+    Bu, Bi = j.Bu, j.Bi  # (m,) each
     out = {
         key: np.full(k, np.nan)
         for key in ("lam_n", "lam_t1", "lam_t2", "jump_n", "jump_t1", "jump_t2")
     }
-    W, Wt = c.W, c.W_t  # W: the nodal weights (areas); Wt: the tangential rows' ∫ψ̃_k
+    Wt = c.W_t  # the tangential rows' ∫ψ̃_k
     out["lam_n"][c.rows_n] = lam[idx_n]
     out["jump_n"][c.rows_n] = Bu[idx_n] / c.W_n[c.rows_n]
     lb = lam[idx_b]  # (N_b, 2)
@@ -806,32 +752,15 @@ def contact_state(model: Model, sol: Solution) -> dict:
     jvec[c.line] = jl[:, None] * c.line_dir
     has_t = np.zeros(k, dtype=bool)
     has_t[c.disc] = has_t[c.line] = True
-    gap_rows = np.zeros(Bu.size)  # the initial gap in B_full's rows (unilateral)
     has_n = np.isin(np.arange(k), c.rows_n)  # (k,) nodes carrying a normal row
-    pressure = 0.0
-    disp = model.unknown_fields().get("displacement", slice(None))  # unnamed fields: all of u
     gap = np.full(k, np.nan)
     if c.law == "unilateral":
-        gap_rows[idx_n] = c.gap0
-        # the pressure scale: the largest λ_n or the elastic nodal forces per area (all of λ is
-        # rounding when the bodies are apart)
-        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / W.min()
-        pressure = max(float(lam[idx_n].max(initial=0.0)), force)
         gap[c.rows_n] = (c.gap0 - Bu[idx_n]) / c.W_n[c.rows_n]  # the remaining normal gap
-    radius = c.bound(lam)  # (k,) the friction radius at λ
-    Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
     ji = np.zeros((k, 2))  # the tangential jump (since the origin) in the node's frame
     ji[c.disc] = Bi[idx_b] / Wt[c.disc, None]
     ji[c.line, 0] = Bi[idx_l] / Wt[c.line]
     jt = np.linalg.norm(ji, axis=1)  # (k,)
-    # states from the answer (vi_core.states): multiplier margin and gap/slip, thresholds
-    # scaled by the achieved residual, the stress scale (the whole λ: with ρ ≪ λ_n a rounding
-    # shortfall of |λ_t| relative to λ is no stick evidence) and the displacement scale
-    th = node_states.solution_thresholds(
-        sol,
-        max(float(np.abs(lam).max(initial=0.0)), float(radius.max(initial=0.0)), pressure),
-        float(np.abs(sol.u[disp]).max(initial=0.0)),
-    )
+    th = j.th  # the states from the answer (vi_core.states)
     normal = np.full(k, "touch", dtype=object)  # bilateral: every node with rows touches
     if c.law == "unilateral":
         normal[c.rows_n] = node_states.normal_states(lam[idx_n], gap[c.rows_n], th)
@@ -843,10 +772,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     state = np.full(k, "no_multiplier", dtype=object)
     state[rows] = node_states.node_states(normal, tang, has_t)[rows]
     slip = state == "slip"
-    b_uh_lam = float(lam @ (Bi - gap_rows))
     g_abs = float(np.sum((rho * Wt * jt)[has_t]))
-    tiny = np.finfo(float).eps * float(np.sum(rho * Wt)) * max(np.abs(x_full).max(), 1e-300)
-    ref = max(g_abs, pressure * float(np.abs(Bi - gap_rows).sum()))  # unilateral: P × slack
     return {
         **out,
         "lam_t_vec": vec,
@@ -855,12 +781,10 @@ def contact_state(model: Model, sol: Solution) -> dict:
         "has_t": has_t,
         "touch": touch,
         "gap": gap,
-        "pressure": pressure,
+        "pressure": j.pressure,
         "slip": slip,
         "state": state.astype(str),
-        "b_uh_lam": b_uh_lam,
-        "int_g_abs_u": g_abs,
-        "lemma_4_2": abs(b_uh_lam - g_abs) / max(ref, tiny, 1e-300),
+        **interface.lemma_4_2(lam, j, g_abs, float(np.sum(rho * Wt))),
     }
 
 
@@ -884,15 +808,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 # ------------------------------------------------------------------ contract v2 declarations
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
-SWEEP = Sweep(
-    "contact.g",
-    "friction bound g [Pa]",
-    factors=(1.5, 1.0, 0.6),
-    file="g_sweep3d.png",
-    otherwise=Sweep(
-        "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file="F_sweep3d.png"
-    ),
-)
+SWEEP = contact_model.friction_sweep("g_sweep3d.png", "F_sweep3d.png")
 NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
 # against the scene's [exact] table: exact_errors (contact3d_errors)
 EXACT_NORMS = contact3d_errors.NORMS

@@ -106,7 +106,7 @@ def test_mutation_dropped_cell_is_seen(monkeypatch):
 
 
 def test_master_must_be_another_body():
-    with pytest.raises(SceneError, match="another body"):
+    with pytest.raises(SceneError, match="a body other than the slave"):
         problems.load_scene(EXTRUDED, contact__master="disc.top")
     with pytest.raises(SceneError, match="contact.master"):
         problems.load_scene(EXTRUDED, contact__master="cradle.nowhere")

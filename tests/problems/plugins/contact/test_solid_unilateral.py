@@ -18,6 +18,7 @@ import pytest
 
 import vi_core
 from problems.errors import SceneError
+from problems.plugins.contact import interface
 from problems.plugins.contact import solid as contact3d
 from problems.plugins.contact import solid_checks as contact3d_checks
 from problems.scene import SCENES_DIR, load_scene
@@ -144,8 +145,8 @@ def test_separation_check_sees_a_wrong_sign_of_the_gap(monkeypatch):
     over = ("contact.gap='2e-7*(1 + x)'",)
     model = _model("block3d_liftoff", 0, *over)
     assert max(contact3d_checks.separation(model, _solve(model)).values()) <= 1e-10
-    real = contact3d._rigid_gap
-    monkeypatch.setattr(contact3d, "_rigid_gap", lambda *a: -real(*a))
+    real = interface.rigid_gap
+    monkeypatch.setattr(interface, "rigid_gap", lambda *a: -real(*a))
     bad = _model("block3d_liftoff", 0, *over)
     sep = contact3d_checks.separation(bad, _solve(bad))
     # the block now stops short of the foundation and presses on nothing
