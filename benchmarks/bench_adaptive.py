@@ -1,7 +1,7 @@
 """Adaptive against uniform refinement (issue 32, part 4).
 
     python benchmarks/bench_adaptive.py [--uniform L] [--max-unknowns N] [--zone-levels Z]
-        [--json FILE] [SCENE ...]
+        [--contact-zone] [--json FILE] [SCENE ...]
     python benchmarks/bench_adaptive.py --mutations [--uniform L] [--json FILE] [SCENE ...]
 
 For each scene (default: hertz and paper_two_body): uniform levels 0..L (default 4) and the
@@ -76,7 +76,9 @@ def hertz_limit(plugin, scene, zone_levels: int) -> dict:
     return {**hertz.of_model(model, sol, HERTZ_R).errors, "unknowns": sum(model.dofs.values())}
 
 
-def run(name: str, levels: int, max_unknowns: int, zone_levels: int = 0) -> dict:
+def run(
+    name: str, levels: int, max_unknowns: int, zone_levels: int = 0, contact_zone: bool = False
+) -> dict:
     from problems import pipeline
     from problems.pipeline import adaptive
     from problems.plugins.contract import nested_start, solve_model
@@ -123,6 +125,7 @@ def run(name: str, levels: int, max_unknowns: int, zone_levels: int = 0) -> dict
         max_unknowns=max_unknowns,
         solve_options=options,
         on_cycle=record,
+        contact_zone=contact_zone,
     )
     return {
         "scene": name,
@@ -195,6 +198,12 @@ def main() -> None:
         "refinements of the contact zone (a_dis, p0_dis; 5 is ~130,000 unknowns)",
     )
     ap.add_argument(
+        "--contact-zone",
+        action="store_true",
+        help="the adaptive loop also refines every cell at a touching contact node "
+        "(adapt(..., contact_zone=True))",
+    )
+    ap.add_argument(
         "--mutations",
         action="store_true",
         help="efficiency index with each contact term dropped or flipped (exact-solution scenes)",
@@ -214,7 +223,7 @@ def main() -> None:
 
     results = []
     for name in args.scenes:
-        res = run(name, args.uniform, args.max_unknowns, args.zone_levels)
+        res = run(name, args.uniform, args.max_unknowns, args.zone_levels, args.contact_zone)
         results.append(res)
         print(f"\n{name}")
         keys = [k for k in KEYS if k in res["uniform"][0]]
