@@ -1,7 +1,8 @@
 """Adaptive against uniform refinement (issue 32, part 4).
 
     python benchmarks/bench_adaptive.py [--uniform L] [--max-unknowns N] [--zone-levels Z]
-        [--json FILE] [SCENE ...]
+        [--contact-zone] [--json FILE] [SCENE ...]
+    python benchmarks/bench_adaptive.py --mutations [--uniform L] [--json FILE] [SCENE ...]
 
 For each scene (default: hertz and paper_two_body): uniform levels 0..L (default 4) and the
 adaptive loop (`problems.pipeline.adaptive.adapt`, Dörfler θ = 0.5, up to N unknowns, default
@@ -15,6 +16,10 @@ block's limit, computed once on a mesh refined Z times more around the contact z
 (`hertz_limit`). Prints the table, then per measure the first adaptive cycle that reaches the
 finest uniform level's value: its unknowns and CPU time against the uniform level's. Writes
 all rows as JSON (default bench_adaptive.json) with the peak memory.
+
+With --mutations (for the exact-solution scenes, e.g. manufactured curved_manufactured):
+per uniform level 0..L the efficiency index of the contact estimator and its value with each
+contact term dropped or flipped (`error_estimate.indicators(..., drop=, flip=)`).
 
 The paper example has no closed form: only its estimate is compared (new nodes on its arcs
 are projected onto the circle, as the uniform levels' are).
@@ -71,7 +76,9 @@ def hertz_limit(plugin, scene, zone_levels: int) -> dict:
     return {**hertz.of_model(model, sol, HERTZ_R).errors, "unknowns": sum(model.dofs.values())}
 
 
-def run(name: str, levels: int, max_unknowns: int, zone_levels: int = 0) -> dict:
+def run(
+    name: str, levels: int, max_unknowns: int, zone_levels: int = 0, contact_zone: bool = False
+) -> dict:
     from problems import pipeline
     from problems.pipeline import adaptive
     from problems.plugins.contract import nested_start, solve_model
@@ -118,6 +125,7 @@ def run(name: str, levels: int, max_unknowns: int, zone_levels: int = 0) -> dict
         max_unknowns=max_unknowns,
         solve_options=options,
         on_cycle=record,
+        contact_zone=contact_zone,
     )
     return {
         "scene": name,
@@ -146,6 +154,36 @@ def _reach(uniform: list[dict], cycles: list[dict]) -> dict:
     return out
 
 
+def mutations(name: str, levels: int) -> list[dict]:
+    """Per uniform level 0..levels of the scene `name`: {"level", "index", "drop": {term:
+    index}, "flip": {term: index}} (the efficiency index η / ‖e‖ of the contact estimator)."""
+    from pathlib import Path
+
+    from problems.pipeline import solve_model
+    from problems.plugins.contact import error_estimate as ce
+    from problems.plugins.contact import plane as pc
+    from problems.scene import load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "problems/scenes" / f"{name}.toml")
+    rows = []
+    for level in range(levels + 1):
+        model = pc.build(scene, level)
+        sol = solve_model(pc, model, method="ssn", tol=1e-12)
+        err = ce.energy_errors(model, sol)
+
+        def index(model=model, sol=sol, err=err, **mut) -> float:
+            return ce.efficiency(ce.indicators(pc.SCENE_MODEL, model, sol, **mut), err)
+
+        rows.append(
+            {
+                "level": level,
+                "index": index(),
+                **{k: {t: index(**{k: t}) for t in ce.TERMS} for k in ("drop", "flip")},
+            }
+        )
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scenes", nargs="*", default=["hertz", "paper_two_body"])
@@ -159,12 +197,33 @@ def main() -> None:
         help="Hertz: also the errors against the finite block's limit, computed with this many "
         "refinements of the contact zone (a_dis, p0_dis; 5 is ~130,000 unknowns)",
     )
+    ap.add_argument(
+        "--contact-zone",
+        action="store_true",
+        help="the adaptive loop also refines every cell at a touching contact node "
+        "(adapt(..., contact_zone=True))",
+    )
+    ap.add_argument(
+        "--mutations",
+        action="store_true",
+        help="efficiency index with each contact term dropped or flipped (exact-solution scenes)",
+    )
     args = ap.parse_args()
     from problems.commands.resources import peak_rss
 
+    if args.mutations:
+        table = {name: mutations(name, args.uniform) for name in args.scenes}
+        for name, rows in table.items():
+            for r in rows:
+                cells = " ".join(f"{t} {r['drop'][t]:.2f}/{r['flip'][t]:.2f}" for t in r["drop"])
+                print(f"{name} level {r['level']}: index {r['index']:.2f}; dropped/flipped {cells}")
+        with open(args.json, "w") as fh:
+            json.dump({"mutations": table, "peak_mib": peak_rss() / 2**20}, fh, indent=2)
+        return
+
     results = []
     for name in args.scenes:
-        res = run(name, args.uniform, args.max_unknowns, args.zone_levels)
+        res = run(name, args.uniform, args.max_unknowns, args.zone_levels, args.contact_zone)
         results.append(res)
         print(f"\n{name}")
         keys = [k for k in KEYS if k in res["uniform"][0]]

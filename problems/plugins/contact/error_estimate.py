@@ -171,13 +171,20 @@ def _spec(spec_model: Any, model: Any) -> Any:
 
 
 def indicators(
-    spec_model: Any, model: Any, sol: Solution, drop: str | None = None
+    spec_model: Any,
+    model: Any,
+    sol: Solution,
+    drop: str | None = None,
+    flip: str | None = None,
 ) -> dict[str, np.ndarray]:
-    """dict body name → (n_cells,) η_T of the module docstring (`drop`: one of TERMS left out,
-    for the mutation tests). `spec_model`: the plug-in's SCENE_MODEL, or a function scene →
-    its piezo_contact scene model (signorini: `signorini.piezo_spec`)."""
-    if drop is not None and drop not in TERMS:
-        raise ValueError(f"drop must be one of {TERMS}, got {drop!r}")
+    """dict body name → (n_cells,) η_T of the module docstring (mutation tests: `drop`, one of
+    TERMS left out; `flip`, one of TERMS with the sign of λ_h or of the defect inside it
+    reversed: σ_h n − λ_h, (G − |λ_t|)_+, (G|s_h| + λ_t s_h)_+, g − u_n). `spec_model`: the
+    plug-in's SCENE_MODEL, or a function scene → its piezo_contact scene model (signorini:
+    `signorini.piezo_spec`)."""
+    for arg, value in (("drop", drop), ("flip", flip)):
+        if value is not None and value not in TERMS:
+            raise ValueError(f"{arg} must be one of {TERMS}, got {value!r}")
     spec = _spec(spec_model, model)
     U = _nodal(model, sol)
     eta2 = {}
@@ -217,7 +224,7 @@ def indicators(
         contact_cells = np.zeros(n)
         if ct is not None and ct.slave is b:
             i = ff.on(b.mesh.boundaries[ct.slave_part])
-            terms = _contact_terms(spec.contact, ct, ff, i, sol, U, w)
+            terms = _contact_terms(spec.contact, ct, ff, i, sol, U, w, flip)
             for name, val in terms.items():
                 if name != drop:
                     contact_cells += val
@@ -225,7 +232,8 @@ def indicators(
                 active[i, :2] = False
             else:  # σ_h n + λ_h on the slave's contact facets, all components
                 lam_vec = _multiplier_at(ct, sol.lam, *_on_trace(ct, ff.nodes[i], ff.t[:, 0]))[0]
-                R[i, :, :2] = -(ff.flux[i, :, :2] + lam_vec.reshape(R[i, :, :2].shape))
+                sign = -1.0 if flip == "flux" else 1.0
+                R[i, :, :2] = -(ff.flux[i, :, :2] + sign * lam_vec.reshape(R[i, :, :2].shape))
                 active[i, :2] = True
         R = R * np.sqrt(w) * active[:, None, :]
         e2 += boundary_indicator(ff, ext, R[ext], n) + contact_cells
@@ -239,11 +247,19 @@ def _field(expr: Any, x: np.ndarray) -> np.ndarray:
 
 
 def _contact_terms(
-    section: Any, ct: Any, ff: Any, i: np.ndarray, sol: Solution, U: dict, w: np.ndarray
+    section: Any,
+    ct: Any,
+    ff: Any,
+    i: np.ndarray,
+    sol: Solution,
+    U: dict,
+    w: np.ndarray,
+    flip: str | None = None,
 ) -> dict[str, np.ndarray]:
     """(n_cells,) per contact term of TERMS but "flux" (which acts on the facet residual):
     friction bound, complementarity of the friction law, normal defect; `section` is the
-    scene's [contact] table (the bound's and the gap's expressions)."""
+    scene's [contact] table (the bound's and the gap's expressions); `flip`: see
+    `indicators`."""
     n_cells = ct.slave.mesh.n_cells
     seg, ts = _on_trace(ct, ff.nodes[i], ff.t[:, 0])  # (n_b, q) each
     _, gam, alp = _multiplier_at(ct, sol.lam, seg.ravel(), ts.ravel())  # (n_b q,) each
@@ -262,10 +278,12 @@ def _contact_terms(
         bound = bound * (gam > 0)
     shape = ff.w[i].shape  # (n_b, q)
     wq, h = ff.w[i], ff.h[i][:, None]  # (n_b, q), (n_b, 1)
-    friction = np.maximum(np.abs(alp) - bound, 0.0).reshape(shape)
-    compl = np.maximum(bound * np.abs(slip) - alp * slip, 0.0).reshape(shape)
+    sf = -1.0 if flip == "friction" else 1.0
+    friction = np.maximum(sf * (np.abs(alp) - bound), 0.0).reshape(shape)
+    sc = -1.0 if flip == "complementarity" else 1.0
+    compl = np.maximum(bound * np.abs(slip) - sc * alp * slip, 0.0).reshape(shape)
     gap = 0.0 if ct.master is not None or section.gap is None else _field(section.gap, x)
-    defect = (un - gap).reshape(shape)
+    defect = (-1.0 if flip == "normal" else 1.0) * (un - gap).reshape(shape)
     if ct.law != "bilateral":
         defect = np.maximum(defect, 0.0)
     out = {}

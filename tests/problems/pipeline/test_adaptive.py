@@ -125,3 +125,49 @@ def test_mutation_without_the_curves_the_nodes_leave_the_arc(monkeypatch):
         assert "contact" in str(err) or "master" in str(err), err
     else:
         assert _on_the_arc(model) > 1e-4
+
+
+class Keeping:
+    """A plug-in, keeping each cycle's (model, solution)."""
+
+    def __init__(self, plugin):
+        self.plugin, self.solved = plugin, []
+
+    def __getattr__(self, name):
+        return getattr(self.plugin, name)
+
+    def estimate(self, model, sol):
+        self.solved.append((model, sol))
+        return self.plugin.estimate(model, sol)
+
+
+def _touch_x(model, sol) -> tuple[np.ndarray, np.ndarray]:
+    """(x of the slave's contact nodes, their touch mask)."""
+    c = model.contact
+    return c.slave.mesh.points[c.tr.nodes[c.rows_n], 0], model.contact_state(sol)["touch"]
+
+
+@pytest.mark.parametrize("zone", [True, False])
+def test_contact_zone_bisects_every_touching_segment(zone):
+    """hertz, contact_zone=True: between the outermost touching nodes of cycle 1 the next
+    mesh has 2k + 1 contact nodes for k + 1 (every segment split); without it (the mutation)
+    the energy marking alone leaves some unsplit there (at cycle 0 it splits them all)."""
+    from problems import pipeline
+
+    loaded = pipeline.load(str(SCENES / "hertz.toml"))
+    plugin = Keeping(loaded.plugin)
+    adaptive.adapt(
+        plugin,
+        loaded.scene,
+        1e-9,
+        solve_options=OPTIONS,
+        max_cycles=3,
+        contact_zone=zone,
+    )
+    (m0, s0), (m1, s1) = plugin.solved[-2:]
+    x0, t0 = _touch_x(m0, s0)
+    lo, hi = x0[t0].min(), x0[t0].max()
+    x1, _ = _touch_x(m1, s1)
+    k = int(((x0 >= lo) & (x0 <= hi)).sum()) - 1
+    split = int(((x1 >= lo) & (x1 <= hi)).sum()) == 2 * k + 1
+    assert split == zone, (k, int(((x1 >= lo) & (x1 <= hi)).sum()))

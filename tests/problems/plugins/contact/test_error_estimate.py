@@ -45,6 +45,31 @@ def test_efficiency_index(name, levels):
         assert LOW <= _index(name, level) <= HIGH, (name, level)
 
 
+@pytest.mark.parametrize(
+    ("name", "level", "term"),
+    [
+        ("curved_manufactured", 0, "flux"),
+        ("curved_manufactured", 0, "friction"),
+        ("manufactured", 3, "complementarity"),
+    ],
+)
+def test_efficiency_test_sees_a_flipped_contact_term(name, level, term):
+    """Mutation of the efficiency test itself: with the sign inside one contact term reversed
+    the index leaves [0.5, 5]: σ_h n − λ_h 4.89 → 22.7 and (G − |λ_t|)_+ → 14.4 (curved,
+    level 0); (G|s_h| + λ_t s_h)_+ = 2G|s_h| on the slip zone, a term of the slip and not
+    of the error, 4.19 → 5.74 (manufactured, level 3; 4.04 → 4.10 at level 0, which is why
+    the level). Dropping a term keeps the index inside the window on these scenes (at most
+    4.89 → 4.52), and the normal defect is invisible to any efficiency test on them: bilateral
+    contact on a rigid foundation with biorthogonal multipliers holds u_n,h = g at the nodes,
+    so u_n,h − g is the interpolation error O(h²) and h_E⁻¹‖u_n,h − g‖² = O(h³) against
+    η² = O(h²), under either sign (squared). Its own test is test_normal_term_sees_a_normal_
+    displacement."""
+    model, sol = _solved(name, level)
+    err = ce.energy_errors(model, sol)
+    assert LOW <= ce.efficiency(ce.indicators(pc.SCENE_MODEL, model, sol), err) <= HIGH
+    assert ce.efficiency(ce.indicators(pc.SCENE_MODEL, model, sol, flip=term), err) > HIGH
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["manufactured", "curved_manufactured"])
 def test_efficiency_index_levels(name):
@@ -137,6 +162,8 @@ def test_unknown_term_refused():
     model, sol, _ = _strip()
     with pytest.raises(ValueError, match="drop must be one of"):
         ce.indicators(pc.SCENE_MODEL, model, sol, drop="jumps")
+    with pytest.raises(ValueError, match="flip must be one of"):
+        ce.indicators(pc.SCENE_MODEL, model, sol, flip="jumps")
 
 
 def test_flux_map_is_the_assembly_constitutive_law():
