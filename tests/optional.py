@@ -7,20 +7,24 @@ from types import ModuleType
 import pytest
 
 
-def gmsh() -> ModuleType:
-    """The gmsh module, or skip: not installed (ImportError), or installed but its library
-    cannot load the system's OpenGL/X11 libraries (OSError from ctypes)."""
+def _load_gmsh() -> ModuleType | Exception:
+    """The gmsh module, or why it cannot be used: not installed (ImportError), or installed but
+    its library cannot load the system's OpenGL/X11 libraries (OSError from ctypes)."""
     try:
         import gmsh as module
     except (ImportError, OSError) as err:
-        pytest.skip(f"gmsh unusable here: {type(err).__name__}: {err}")
+        return err
     return module
 
 
+def gmsh() -> ModuleType:
+    """The gmsh module, or skip the test (`_load_gmsh`)."""
+    loaded = _load_gmsh()
+    if isinstance(loaded, Exception):
+        pytest.skip(f"gmsh unusable here: {type(loaded).__name__}: {loaded}")
+    return loaded
+
+
 def has_gmsh() -> bool:
-    """Whether gmsh imports (see `gmsh`)."""
-    try:
-        import gmsh  # noqa: F401
-    except (ImportError, OSError):
-        return False
-    return True
+    """Whether gmsh can be used (`_load_gmsh`)."""
+    return not isinstance(_load_gmsh(), Exception)

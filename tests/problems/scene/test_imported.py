@@ -208,43 +208,39 @@ def test_a_geo_file_refined_by_gmsh_keeps_the_hole_round():
         assert msh[lv][1] > 1e-4  # new hole nodes on the chords
 
 
-def test_a_geo_file_without_gmsh_is_refused_with_what_to_do(tmp_path, monkeypatch):
-    import sys
-
-    from problems.scene import imported
-
-    monkeypatch.setitem(sys.modules, "gmsh", None)  # import gmsh raises ImportError
-    imported._geo.cache_clear()
-    block = rectangle((0.0, 2.0), (0.0, 1.0), (4, 2), "quad")
-    scene = _imported("rigid_foundation", {"block": block}, tmp_path)
-    (tmp_path / "block.geo").write_text("// a geometry\n")
-    scene.data["bodies"]["block"]["geometry"] = {"geo": "block.geo", "body": "block"}
-    with pytest.raises(SceneError, match="geometry.geo.*pip install gmsh"):
-        pc.build(scene, 0)
-
-
-def test_a_gmsh_that_cannot_load_its_libraries_is_refused_with_what_to_do(tmp_path, monkeypatch):
-    """gmsh installed but libGLU missing: ctypes raises OSError inside `import gmsh`."""
+@pytest.mark.parametrize(
+    "gmsh_state, says",
+    [("missing", "pip install gmsh"), ("no OpenGL", "libGLU.so.1.*apt-get install")],
+)
+def test_a_geo_file_without_a_working_gmsh_is_refused_with_what_to_do(
+    tmp_path, monkeypatch, gmsh_state, says
+):
+    """gmsh not installed (ImportError), or installed without the system's OpenGL/X11
+    libraries (ctypes raises OSError inside `import gmsh`): either way the .geo is refused with
+    what to install."""
     import builtins
     import sys
 
     from problems.scene import imported
 
-    real = builtins.__import__
+    if gmsh_state == "missing":
+        monkeypatch.setitem(sys.modules, "gmsh", None)  # import gmsh raises ImportError
+    else:
+        real = builtins.__import__
 
-    def no_glu(name, *args, **kwargs):
-        if name == "gmsh":
-            raise OSError("libGLU.so.1: cannot open shared object file")
-        return real(name, *args, **kwargs)
+        def no_glu(name, *args, **kwargs):
+            if name == "gmsh":
+                raise OSError("libGLU.so.1: cannot open shared object file")
+            return real(name, *args, **kwargs)
 
-    monkeypatch.delitem(sys.modules, "gmsh", raising=False)
-    monkeypatch.setattr(builtins, "__import__", no_glu)
+        monkeypatch.delitem(sys.modules, "gmsh", raising=False)
+        monkeypatch.setattr(builtins, "__import__", no_glu)
     imported._geo.cache_clear()
     block = rectangle((0.0, 2.0), (0.0, 1.0), (4, 2), "quad")
     scene = _imported("rigid_foundation", {"block": block}, tmp_path)
     (tmp_path / "block.geo").write_text("// a geometry\n")
     scene.data["bodies"]["block"]["geometry"] = {"geo": "block.geo", "body": "block"}
-    with pytest.raises(SceneError, match="geometry.geo.*libGLU.so.1.*apt-get install"):
+    with pytest.raises(SceneError, match=f"geometry.geo.*{says}"):
         pc.build(scene, 0)
 
 
