@@ -29,10 +29,6 @@ def run() -> int:
         print(f"mixvi: interrupted by {name}", file=sys.stderr)
         return sig.exit_status if isinstance(sig, signals.Interrupted) else 130
     except Exception as err:  # an import that failed for lack of memory, or a bug
-        sig = signals.masked(err)
-        if sig is not None:  # a signal the import machinery turned into an ImportError
-            print(f"mixvi: interrupted by {sig}", file=sys.stderr)
-            return sig.exit_status
         return failures.report(err, "--debug" in sys.argv)
     status = main()
     if status in (130, 143):  # interrupted, its clean-up done: no interpreter tear-down

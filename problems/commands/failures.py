@@ -23,6 +23,8 @@ import stat
 import sys
 import traceback
 
+from problems.output import signals
+
 # errno values of a full disk (ENOSPC, EDQUOT: a quota) and of the file-size limit (EFBIG)
 DISK_FULL = {errno.ENOSPC, errno.EDQUOT}
 FILE_TOO_LARGE = {errno.EFBIG}
@@ -150,7 +152,13 @@ def start_refusal() -> str | None:
 def report(err: BaseException, debug: bool = False) -> int:
     """Print the one line for `err` (an exception that is not a SceneError) and return the
     exit status: 2 for an exhausted resource (1 if a solve ran: memory inside the numerical
-    core), 3 for an internal error (with --debug the traceback first)."""
+    core), 3 for an internal error (with --debug the traceback first). An error that a signal
+    caused (`signals.masked`: NumPy's initialisation turns SIGINT into an ImportError) is the
+    interruption: one line, exit status 130 or 143."""
+    sig = signals.masked(err)
+    if sig is not None:
+        _say(f"mixvi: interrupted by {sig}")
+        return sig.exit_status
     if debug:
         traceback.print_exception(err)
     if isinstance(err, StdoutError) and sys.stdout is not None:

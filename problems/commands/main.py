@@ -284,10 +284,6 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # exit's flush is quiet
         return 128 + signal.SIGPIPE  # 141, as for a tool the shell saw ended by SIGPIPE
     except Exception as err:  # exhausted resources (exit 2 or 1) and internal errors (3)
-        sig = signals.masked(err)
-        if sig is not None:  # a signal the import machinery turned into an ImportError
-            print(f"mixvi: interrupted by {sig}", file=sys.stderr)
-            return sig.exit_status
         return failures.report(err, debug)
 
 
