@@ -83,11 +83,8 @@ def compare(old: dict, new: dict) -> list[dict]:
         elif not o.get("error"):
             for f in fields:
                 a, b = o.get(f), r.get(f)
-                short = f.startswith("cpu_") and f != "cpu_ratio" and max(a or 0, b or 0) < FLOOR
-                if f == "cpu_ratio":
-                    short = (
-                        max(o.get("cpu_nonlinear_s") or 0, r.get("cpu_nonlinear_s") or 0) < FLOOR
-                    )
+                timed = "cpu_nonlinear_s" if f == "cpu_ratio" else f  # the time a factor rests on
+                short = f.startswith("cpu_") and max(o.get(timed) or 0, r.get(timed) or 0) < FLOOR
                 if a is None or b is None or a <= 0 or short:
                     row["factors"][f] = None
                     continue
