@@ -239,13 +239,13 @@ def write_contact(outdir: Path, table: ContactTable) -> tuple[list[str], dict]:
     return ["contact.csv", "contact.vtu"], table.summary()
 
 
-def symmetric_tensor(sxx, syy, szz, sxy) -> np.ndarray:
-    """(n, 6) in VTK's symmetric tensor order XX, YY, ZZ, XY, YZ, XZ (ParaView shows it as a
-    tensor with named components); YZ = XZ = 0 in plane strain."""
-    z = np.zeros_like(sxx)
-    return np.stack([sxx, syy, szz, sxy, z, z], axis=1)
+VTK_ORDER = [0, 1, 2, 5, 3, 4]  # Voigt (xx, yy, zz, yz, xz, xy) → VTK (XX, YY, ZZ, XY, YZ, XZ)
 
 
-def von_mises(sxx, syy, szz, sxy) -> np.ndarray:
-    """√(½[(σxx−σyy)² + (σyy−σzz)² + (σzz−σxx)²] + 3σxy²)."""
-    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2) + 3.0 * sxy**2)
+def von_mises(s: np.ndarray) -> np.ndarray:
+    """(n,) von Mises stress √(½[(σxx−σyy)² + (σyy−σzz)² + (σzz−σxx)²] + 3(σxy² + σyz² + σxz²))
+    of Voigt stresses s (n, 6) in the order xx, yy, zz, yz, xz, xy."""
+    xx, yy, zz, yz, xz, xy = s.T
+    return np.sqrt(
+        0.5 * ((xx - yy) ** 2 + (yy - zz) ** 2 + (zz - xx) ** 2) + 3 * (xy**2 + yz**2 + xz**2)
+    )

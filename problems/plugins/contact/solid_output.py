@@ -21,15 +21,15 @@ from pathlib import Path
 
 import numpy as np
 
-from fem import assembly
 from fem.facets import frames
 from problems.output.results import BOUNDS, write_csv
 from vi_core import states as node_states
 
+from .body_output import body_fields
+
 # "ambiguous" (vi_core.states: not settled at the achieved residual) is the last code, so the
 # others keep theirs
 STATES = ("stick", "slip", "normal_only", "open", "no_multiplier", "ambiguous")
-VTK_ORDER = [0, 1, 2, 5, 3, 4]  # Voigt (xx, yy, zz, yz, xz, xy) → VTK (XX, YY, ZZ, XY, YZ, XZ)
 UNITS = {"x": "m", "normal": "1", "tangent": "1", "lambda": "Pa", "jump": "m", "g": "Pa"}
 CSV_TITLE = "mixvi contact3d results, one row per node of the slave contact surface"
 CSV_NOTES = [
@@ -46,31 +46,6 @@ CSV_NOTES = [
     "no_multiplier (clamped node), ambiguous (not settled at the achieved residual: neither "
     "the stress margin nor the gap/slip decides it; solve with a smaller --tol)",
 ]
-
-
-def von_mises3(s: np.ndarray) -> np.ndarray:
-    """(n,) von Mises stress of Voigt stresses s (n, 6)."""
-    xx, yy, zz, yz, xz, xy = s.T
-    return np.sqrt(
-        0.5 * ((xx - yy) ** 2 + (yy - zz) ** 2 + (zz - xx) ** 2) + 3 * (xy**2 + yz**2 + xz**2)
-    )
-
-
-def body_fields3(body, x_body: np.ndarray) -> tuple[dict, dict]:
-    """(point_data, cell_data) of one 3D body from its full vector."""
-    u, phi = body.split(x_body)  # (N, 3), (N,) or None
-    m = body.material
-    sigma, D = assembly.cell_fields(
-        body.mesh, u.ravel(), phi, m.C, m.e, m.kappa
-    )  # (nc, 6), (nc, 3)
-    point = {"displacement": u}
-    cell = {"stress": sigma[:, VTK_ORDER], "von_mises": von_mises3(sigma)}
-    if phi is not None:
-        grad = assembly.cell_geometry(body.mesh, 0).grad[:, 0]  # (nc, n_loc, 3) at centroids
-        point["electric_potential"] = phi
-        cell["electric_field"] = -np.einsum("ca,cai->ci", phi[body.mesh.cells], grad)
-        cell["electric_displacement"] = D
-    return point, cell
 
 
 def write_body_vtu(path: Path, mesh, point: dict, cell: dict) -> None:
@@ -216,7 +191,7 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
     x_full = model.full(sol.u)
     files = []
     for b in model.bodies:
-        point, cell = body_fields3(b, x_full[b.offset : b.offset + b.size])
+        point, cell, _ = body_fields(b, x_full[b.offset : b.offset + b.size])
         fn = f"{b.name}.vtu"
         write_body_vtu(outdir / fn, b.mesh, point, cell)
         files.append(fn)

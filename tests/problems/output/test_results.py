@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from problems.commands.main import main
-from problems.output.results import STATES, symmetric_tensor, von_mises
+from problems.output.results import STATES, VTK_ORDER, von_mises
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact.body_output import body_fields
 from problems.scene import load_scene
@@ -155,12 +155,14 @@ def test_unilateral_contact_writes_the_gap_and_open_nodes(tmp_path):
 
 
 def test_von_mises_of_uniaxial_tension_and_pure_shear():
-    one, zero = np.ones(1), np.zeros(1)
-    assert von_mises(one, zero, zero, zero)[0] == pytest.approx(1.0)
-    assert von_mises(zero, zero, zero, one)[0] == pytest.approx(np.sqrt(3.0))
-    assert von_mises(one, one, one, zero)[0] == pytest.approx(0.0)  # hydrostatic
-    t = symmetric_tensor(np.array([1.0]), np.array([2.0]), np.array([3.0]), np.array([4.0]))
-    np.testing.assert_array_equal(t, [[1, 2, 3, 4, 0, 0]])
+    def voigt(xx=0.0, yy=0.0, zz=0.0, yz=0.0, xz=0.0, xy=0.0):
+        return np.array([[xx, yy, zz, yz, xz, xy]])
+
+    assert von_mises(voigt(xx=1))[0] == pytest.approx(1.0)
+    for shear in ("xy", "yz", "xz"):
+        assert von_mises(voigt(**{shear: 1}))[0] == pytest.approx(np.sqrt(3.0))
+    assert von_mises(voigt(1, 1, 1))[0] == pytest.approx(0.0)  # hydrostatic
+    np.testing.assert_array_equal(voigt(1, 2, 3, 5, 6, 4)[:, VTK_ORDER], [[1, 2, 3, 4, 5, 6]])
 
 
 # ------------------------------------------------------------------ antiplane's friction line
