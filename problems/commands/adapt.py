@@ -53,7 +53,13 @@ def run(args: argparse.Namespace, loaded, accuracy: float) -> int:
     with output_folder(out, "--out", overwrite=args.overwrite, inputs=scene.files()) as folder:
         with folder.staging() as tmp:
             model, sol, cycles, why = adaptive.adapt(
-                plugin, scene, accuracy, max_unknowns=cap, solve_options=options, on_cycle=line
+                plugin,
+                scene,
+                accuracy,
+                max_unknowns=cap,
+                solve_options=options,
+                on_cycle=line,
+                contact_zone=args.contact_zone,
             )
             uniform = _uniform(plugin, scene, options, cycles[-1]["unknowns"])
             extras = plugin.postprocess(model, sol, tmp)
@@ -65,6 +71,7 @@ def run(args: argparse.Namespace, loaded, accuracy: float) -> int:
                 "scene": scene.name,
                 "plugin": plugin.NAME,
                 "accuracy": accuracy,
+                "contact_zone": args.contact_zone,
                 "reached": reached,
                 "stopped": why,
                 "cycles": cycles,

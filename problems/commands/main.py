@@ -145,6 +145,13 @@ def parser(full: bool = True) -> argparse.ArgumentParser:
         + ", ".join(f"{k} = level {lv}, tol {t:g}" for k, (lv, t) in ACCURACY.items())
         + "; or a number in (0, 1): adaptive refinement to that relative error estimate",
     )
+    s.add_argument(
+        "--contact-zone",
+        action="store_true",
+        help="with --accuracy NUMBER only: each adaptive cycle also refines every cell at a "
+        "touching contact node, so the whole contact zone is refined evenly (steadier nodal "
+        "pressures, e.g. the Hertz peak pressure; more unknowns per cycle)",
+    )
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
     s.add_argument("--out", default=None, help="output directory (default out/SCENE)")
     add_output_options(s)

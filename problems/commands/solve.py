@@ -30,6 +30,12 @@ def cmd_solve(args: argparse.Namespace) -> int:
     eng = engine.start(args.engine)
     if isinstance(args.accuracy, float) and eng.name != "serial":
         raise SceneError("--accuracy", str(args.accuracy), "a preset name with --engine petsc")
+    if args.contact_zone and not isinstance(args.accuracy, float):
+        raise SceneError(
+            "--contact-zone",
+            True,
+            "only with --accuracy NUMBER (adaptive refinement), e.g. --accuracy 1e-3",
+        )
     if isinstance(args.accuracy, float):  # adaptive refinement to that estimate (issue 32)
         from .adapt import run
 

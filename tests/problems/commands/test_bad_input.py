@@ -156,6 +156,12 @@ CASES = [
     Case("--tol negative", ["solve", "{d}/scene.toml", "--tol", "-1e-8"], "--tol"),
     Case("--solver unknown", ["solve", "{d}/scene.toml", "--solver", "magic"], "--solver"),
     Case("--accuracy unknown", ["solve", "--accuracy", "turbo"], "--accuracy"),
+    Case("--contact-zone without a number", ["solve", "--contact-zone"], "--contact-zone"),
+    Case(
+        "--contact-zone with a preset",
+        ["solve", "--contact-zone", "--accuracy", "fast"],
+        "--contact-zone",
+    ),
     Case("unknown option", ["solve", "--frobnicate"], "--frobnicate"),
     Case("unknown command", ["frobnicate"], "frobnicate"),
     Case("check --levels reversed", ["check", "{d}/scene.toml", "--levels", "2..1"], "--levels"),

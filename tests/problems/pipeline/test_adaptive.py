@@ -68,10 +68,12 @@ def test_efficiency_over_adaptive_cycles_curved():
 
 
 @pytest.mark.slow
-def test_cli_accuracy_number(tmp_path, capsys):
+@pytest.mark.parametrize("zone", [[], ["--contact-zone"]])
+def test_cli_accuracy_number(tmp_path, capsys, zone):
     out = tmp_path / "run"
-    assert main(["solve", "manufactured", "--accuracy", "0.7", "--out", str(out)]) == 0
+    assert main(["solve", "manufactured", "--accuracy", "0.7", *zone, "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
+    assert s["contact_zone"] is bool(zone)
     assert s["reached"] and s["cycles"][-1]["relative"] <= 0.7 and len(s["uniform"]) >= 2
     assert (out / "convergence.png").stat().st_size > 0 and (out / "estimate_block.vtu").exists()
     lines = capsys.readouterr().out.splitlines()
