@@ -37,7 +37,12 @@ def _index(name: str, level: int) -> float:
 
 
 @pytest.mark.parametrize(
-    ("name", "levels"), [("manufactured", (0, 1)), ("curved_manufactured", (0,))]
+    ("name", "levels"),
+    [
+        ("manufactured", (0, 1)),
+        ("curved_manufactured", (0,)),
+        ("unilateral_manufactured", (0, 1)),
+    ],
 )
 def test_efficiency_index(name, levels):
     """η / ‖e‖ stays in [0.5, 5] (the energy norm of `error_estimate.energy_map`)."""
@@ -71,7 +76,21 @@ def test_efficiency_test_sees_a_flipped_contact_term(name, level, term):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["manufactured", "curved_manufactured"])
+@pytest.mark.parametrize("term", ["flux", "normal"])
+def test_unilateral_efficiency_test_sees_a_flipped_term(term):
+    """unilateral_manufactured (separation, stick and slip on a curved obstacle), level 4:
+    σ_h n − λ_h 3.55 → 5.75; g − u_n, i.e. the separation (a quantity of the solution, not of
+    the error) 3.55 → 5.27. The flipped friction and complementarity terms (3.60, 4.17) and
+    every dropped term (at most 3.55 → 3.54) stay inside the window: docs/benchmarks.md,
+    issue 32."""
+    model, sol = _solved("unilateral_manufactured", 4)
+    err = ce.energy_errors(model, sol)
+    assert LOW <= ce.efficiency(ce.indicators(pc.SCENE_MODEL, model, sol), err) <= HIGH
+    assert ce.efficiency(ce.indicators(pc.SCENE_MODEL, model, sol, flip=term), err) > HIGH
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["manufactured", "curved_manufactured", "unilateral_manufactured"])
 def test_efficiency_index_levels(name):
     """The same over uniform levels 0–3."""
     for level in range(4):
