@@ -2,7 +2,8 @@
 
     python benchmarks/bench_adaptive.py [--uniform L] [--max-unknowns N] [--zone-levels Z]
         [--contact-zone] [--json FILE] [SCENE ...]
-    python benchmarks/bench_adaptive.py --mutations [--uniform L] [--json FILE] [SCENE ...]
+    python benchmarks/bench_adaptive.py --mutations [--uniform L] [--cycles C] [--json FILE]
+        [SCENE ...]
 
 For each scene (default: hertz and paper_two_body): uniform levels 0..L (default 4) and the
 adaptive loop (`problems.pipeline.adaptive.adapt`, Dörfler θ = 0.5, up to N unknowns, default
@@ -18,8 +19,10 @@ finest uniform level's value: its unknowns and CPU time against the uniform leve
 all rows as JSON (default bench_adaptive.json) with the peak memory.
 
 With --mutations (for the exact-solution scenes, e.g. manufactured curved_manufactured):
-per uniform level 0..L the efficiency index of the contact estimator and its value with each
-contact term dropped or flipped (`error_estimate.indicators(..., drop=, flip=)`).
+per uniform level 0..L (and with --cycles C per adaptive cycle 0..C − 1) the efficiency index
+of the contact estimator, its value with each contact term dropped or flipped
+(`error_estimate.indicators(..., drop=, flip=)`) and each term's share of η² (1 − η²_dropped /
+η²).
 
 The paper example has no closed form: only its estimate is compared (new nodes on its arcs
 are projected onto the circle, as the uniform levels' are).
@@ -154,13 +157,30 @@ def _reach(uniform: list[dict], cycles: list[dict]) -> dict:
     return out
 
 
-def mutations(name: str, levels: int) -> list[dict]:
-    """Per uniform level 0..levels of the scene `name`: {"level", "index", "drop": {term:
-    index}, "flip": {term: index}} (the efficiency index η / ‖e‖ of the contact estimator)."""
+def _mutation_row(model, sol) -> dict:
+    """{"unknowns", "index", "drop": {term: index}, "flip": {term: index}, "share": {term: its
+    share of η²}} of one solution (the efficiency index η / ‖e‖ of the contact estimator)."""
+    from problems.plugins.contact import error_estimate as ce
+    from problems.plugins.contact import plane as pc
+
+    err = ce.energy_errors(model, sol)
+
+    def index(**mut) -> float:
+        return ce.efficiency(ce.indicators(pc.SCENE_MODEL, model, sol, **mut), err)
+
+    row = {"unknowns": int(sum(model.dofs.values())), "index": index()}
+    row.update({k: {t: index(**{k: t}) for t in ce.TERMS} for k in ("drop", "flip")})
+    row["share"] = {t: 1.0 - (row["drop"][t] / row["index"]) ** 2 for t in ce.TERMS}
+    return row
+
+
+def mutations(name: str, levels: int, cycles: int = 0) -> list[dict]:
+    """The rows of `_mutation_row` per uniform level 0..levels of the scene `name` ("level")
+    and, with `cycles`, per adaptive cycle 0..cycles − 1 (Dörfler θ = 0.5; "cycle")."""
     from pathlib import Path
 
     from problems.pipeline import solve_model
-    from problems.plugins.contact import error_estimate as ce
+    from problems.pipeline.adaptive import adapt
     from problems.plugins.contact import plane as pc
     from problems.scene import load_scene
 
@@ -169,18 +189,21 @@ def mutations(name: str, levels: int) -> list[dict]:
     for level in range(levels + 1):
         model = pc.build(scene, level)
         sol = solve_model(pc, model, method="ssn", tol=1e-12)
-        err = ce.energy_errors(model, sol)
+        rows.append({"level": level, **_mutation_row(model, sol)})
 
-        def index(model=model, sol=sol, err=err, **mut) -> float:
-            return ce.efficiency(ce.indicators(pc.SCENE_MODEL, model, sol, **mut), err)
+    class Recording:
+        """The contact plug-in, with a row recorded at each cycle's estimate."""
 
-        rows.append(
-            {
-                "level": level,
-                "index": index(),
-                **{k: {t: index(**{k: t}) for t in ce.TERMS} for k in ("drop", "flip")},
-            }
-        )
+        def __getattr__(self, attr):
+            return getattr(pc, attr)
+
+        def estimate(self, model, sol):
+            rows.append({"cycle": sum("cycle" in r for r in rows), **_mutation_row(model, sol)})
+            return pc.estimate(model, sol)
+
+    if cycles:
+        options = {"method": "ssn", "tol": 1e-12}
+        adapt(Recording(), scene, 1e-12, solve_options=options, max_cycles=cycles)
     return rows
 
 
@@ -208,15 +231,28 @@ def main() -> None:
         action="store_true",
         help="efficiency index with each contact term dropped or flipped (exact-solution scenes)",
     )
+    ap.add_argument(
+        "--cycles",
+        type=int,
+        default=0,
+        help="with --mutations: also this many adaptive cycles (Dörfler θ = 0.5)",
+    )
     args = ap.parse_args()
     from problems.commands.resources import peak_rss
 
     if args.mutations:
-        table = {name: mutations(name, args.uniform) for name in args.scenes}
+        table = {name: mutations(name, args.uniform, args.cycles) for name in args.scenes}
         for name, rows in table.items():
             for r in rows:
-                cells = " ".join(f"{t} {r['drop'][t]:.2f}/{r['flip'][t]:.2f}" for t in r["drop"])
-                print(f"{name} level {r['level']}: index {r['index']:.2f}; dropped/flipped {cells}")
+                run = f"level {r['level']}" if "level" in r else f"cycle {r['cycle']}"
+                cells = " ".join(
+                    f"{t} {r['drop'][t]:.2f}/{r['flip'][t]:.2f} ({100 * r['share'][t]:.2f} %)"
+                    for t in r["drop"]
+                )
+                print(
+                    f"{name} {run} ({r['unknowns']} unknowns): index {r['index']:.2f}; "
+                    f"dropped/flipped (share of η²) {cells}"
+                )
         with open(args.json, "w") as fh:
             json.dump({"mutations": table, "peak_mib": peak_rss() / 2**20}, fh, indent=2)
         return

@@ -44,7 +44,7 @@ D_SEPARATION = 2.0e-3  # m: gap − u_n = D (a − x)³ on the separation zone
 S_SLIP = 1.0e-3  # m: s = S (x − b)³ on the slip zone
 P_NORMAL = 4.0e7  # Pa: λ_n = P (x − a)²
 T_SHEAR = 1.5e7  # Pa: λ_t = T (x − a)²
-K_STICK = 2.0e7  # Pa: g − λ_t = K (b − x)² on the stick zone
+K_STICK = 4.0e8  # Pa: g − λ_t = K (b − x)² on the stick zone
 INTERIOR = (0.3, 0.2)  # weights of the interior terms r_1, r_2 (× U)
 DIGITS = 15  # significant digits of the numbers in the generated expressions
 X_RANGE, Y_RANGE = (0.0, 2.0), (0.0, 1.0)

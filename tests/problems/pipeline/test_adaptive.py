@@ -75,8 +75,8 @@ class Flipped(Recording):
 
 def test_efficiency_over_adaptive_cycles_unilateral():
     """unilateral_manufactured (separation, stick, slip; exact): the index over 6 cycles
-    stays in [0.5, 5] (3.35–3.60); the mutation σ_h n − λ_h leaves it by the last cycle
-    (3.42 → 5.27 at 568 unknowns)."""
+    stays in [0.5, 5] (3.36–3.63); the mutation σ_h n − λ_h leaves it by the last cycle
+    (3.63 → 5.41 at 568 unknowns)."""
     plugin = Flipped()
     scene = load_scene(SCENES / "unilateral_manufactured.toml")
     adaptive.adapt(plugin, scene, 1e-9, solve_options=OPTIONS, max_cycles=6)
