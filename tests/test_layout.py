@@ -42,6 +42,7 @@ SCRIPTS = {
     "problems.commands.main",
     "problems.commands.entry",
     "problems.scene.manufactured",
+    "problems.scene.manufactured_unilateral",
 }
 OUTSIDE = ("benchmarks", "tests")  # never imported by the packages
 # layer name → the layers it may import (besides itself)
