@@ -198,3 +198,23 @@ def test_contact_zone_bisects_every_touching_segment(zone):
     k = int(((x0 >= lo) & (x0 <= hi)).sum()) - 1
     split = int(((x1 >= lo) & (x1 <= hi)).sum()) == 2 * k + 1
     assert split == zone, (k, int(((x1 >= lo) & (x1 <= hi)).sum()))
+
+
+@pytest.mark.parametrize("zone", [[], ["--contact-zone"]])
+def test_cli_contact_zone_reaches_the_loop(tmp_path, monkeypatch, zone):
+    """`--contact-zone` is passed on as adapt(..., contact_zone=True), and only with it (the
+    loop itself is replaced: this checks the wiring, test_cli_accuracy_number the run)."""
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def fake(*args, **kw):
+        seen.update(kw)
+        raise Stop
+
+    monkeypatch.setattr(adaptive, "adapt", fake)
+    out = tmp_path / "o"
+    assert main(["solve", "manufactured", "--accuracy", "0.7", *zone, "--out", str(out)]) != 0
+    assert seen["contact_zone"] is bool(zone)
+    assert not out.exists()  # the interrupted run left nothing behind
