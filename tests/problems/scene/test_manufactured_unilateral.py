@@ -100,6 +100,28 @@ def test_mutation_a_flipped_sign_is_seen(field, expect):
     assert expect in violations(t)
 
 
+SHIFTS = {  # a fault per remaining condition: (field, change, the condition it breaks)
+    "λ_n beyond the contact zone": ("lam_n", 1e5, "λ_n (gap − u_n) = 0"),
+    "λ_t on the open part": ("lam_t", 1e5, "λ_t = 0 where open"),
+    "a slip while sticking": ("s", 1e-6, "s = 0 where sticking"),
+}
+
+
+@pytest.mark.parametrize("fault", SHIFTS)
+def test_mutation_a_shifted_field_is_seen(fault):
+    """λ_n, λ_t or the slip moved by a constant, each breaks its own condition."""
+    field, delta, expect = SHIFTS[fault]
+    t = _traces()
+    t[field] = t[field] + delta
+    assert expect in violations(t)
+
+
+def test_mutation_a_halved_bound_is_seen():
+    t = _traces()
+    t["g"] = t["g"] / 2
+    assert "|λ_t| ≤ g" in violations(t)
+
+
 def _stress(grad: np.ndarray, C: np.ndarray) -> np.ndarray:
     """σ (..., 2, 2) of ∇u (..., 2, 2) for the plane-strain Voigt matrix C (3, 3)."""
     eps = np.stack([grad[..., 0, 0], grad[..., 1, 1], grad[..., 0, 1] + grad[..., 1, 0]], -1)
