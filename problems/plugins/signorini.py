@@ -31,6 +31,7 @@ from pydantic_core import PydanticCustomError
 from problems.output import plots
 from problems.scene import Scene, SceneModel
 from problems.scene.fields import NonNegativeExpr, Text
+from problems.scene.geometry import PlaneGeometry
 from problems.scene.model import head
 from vi_core import Solution
 
@@ -62,12 +63,14 @@ class ContactSection(pc.FrictionLaw):
 
 
 class ElasticBody(BodySection):
-    """The [body] table: a body of an elastic (not piezoelectric) material."""
+    """The [body] table: a 2D body of an elastic (not piezoelectric) material."""
+
+    geometry: PlaneGeometry
 
     @field_validator("material")
     @classmethod
     def _elastic(cls, v):
-        if v.material().piezoelectric:
+        if v.piezoelectric:
             raise PydanticCustomError("material", "an elastic (not piezoelectric) material")
         return v
 

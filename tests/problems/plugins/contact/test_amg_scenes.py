@@ -10,8 +10,7 @@ import scipy.sparse as sp
 import problems.scenes
 import vi_core
 from problems.plugins import registry
-from problems.plugins.contact.bodies import operator
-from problems.plugins.contact.fields import field_data
+from problems.plugins.contact.bodies import field_data, operator
 from problems.scene import load_scene
 from vi_core import MixedVI
 from vi_core import ssn as ssn_module
