@@ -30,7 +30,7 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
 
-from .fields import Expression, Text, Vector, evaluate
+from .fields import Expression, Text, Vector, evaluate, renamed
 from .model import Section, refuse, validate
 from .reader import Scene
 
@@ -111,3 +111,6 @@ def split_exact(scene: Scene) -> tuple[Scene, Exact | None]:
     section = validate(ExactSection, raw, scene.path, scene.overrides, ("exact",))
     rest = Scene(data, scene.path, scene.name, scene.overrides, scene.notices)
     return rest, section.compiled()
+
+
+__getattr__ = renamed(__name__, {"ExactSection3": "ExactSection"})  # the former 3D names

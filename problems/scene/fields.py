@@ -21,7 +21,9 @@ turns the first one into a SceneError naming the field path, the value and what 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+import sys
+import warnings
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
 from typing import Annotated, Any
@@ -288,3 +290,25 @@ IntPair = _integers(2)
 Cells = Annotated[IntPair, _positive_ints("two positive integers [nx, ny]")]
 BoxCells = Annotated[_integers(3), _positive_ints("three positive integers [nx, ny, nz]")]
 Direction = Annotated[_numbers(3), AfterValidator(_nonzero)]  # a 3D direction, not normalised
+
+
+def renamed(module: str, names: dict[str, str]) -> Callable[[str], Any]:
+    """The `__getattr__` of `module` that serves its former 3D names (`names`: old → new, both
+    in the module) with a DeprecationWarning; they go in the next release (issue 30)."""
+
+    def __getattr__(name: str) -> Any:
+        if name not in names:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        warnings.warn(
+            f"{module}.{name} is deprecated and goes in the next release: use {names[name]}, one "
+            "type for 2D and 3D (the dimension is the body's geometry's; a material's data: "
+            ".material(dim))",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return getattr(sys.modules[module], names[name])
+
+    return __getattr__
+
+
+__getattr__ = renamed(__name__, {"Expression3": "Expression"})

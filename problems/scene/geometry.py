@@ -54,7 +54,18 @@ from fem.mesh import Mesh
 from fem.meshing import END_PARTS, box, extrude, rectangle, transform
 from problems.errors import SceneError
 
-from .fields import BoxCells, Cells, Expression, Integer, Interval, Number, Pair, Point, Text
+from .fields import (
+    BoxCells,
+    Cells,
+    Expression,
+    Integer,
+    Interval,
+    Number,
+    Pair,
+    Point,
+    Text,
+    renamed,
+)
 from .imported import file_dimension, file_mesh, geo_base, geo_mesh, imported_mesh, resolve
 from .model import UNION_TAGS, Section, refuse
 
@@ -309,6 +320,9 @@ class GeoFile(_File):
     FILE_ATTR: ClassVar[str] = "geo"
     DIM: ClassVar[int] = 2
     geo: Text = Field(description="the .geo file, relative to the scene file")
+    body: Text | None = Field(
+        None, description="a physical surface group (omitted: every surface cell of the file)"
+    )
 
     def nodes(self, level: int) -> int:
         """gmsh's level-0 mesh's nodes after `level` uniform refinements (gmsh refines by
@@ -523,3 +537,6 @@ def _meshed(t: Section, mesher, *args) -> Mesh:
         for part in mesh.boundaries:
             trace(mesh, part)
         return mesh
+
+
+__getattr__ = renamed(__name__, {"MeshFile3": "MeshFile"})  # the former 3D names
