@@ -4,7 +4,7 @@ full vector with its Dirichlet values), the assembly of the bodies into the Mixe
 (`mixed_vi`), the nodal fields by name, the mesh size, and the check
 of a BODY.BOUNDARY reference of a scene.
 
-A body (`bodies.Body`, `contact3d_bodies.Body3D`) numbers its full dofs from `offset`:
+A body (`bodies.Body`, 2D or 3D) numbers its full dofs from `offset`:
 displacement first (`u_dofs`), then potential on piezoelectric bodies; `split` cuts its part
 of a full vector into displacement (N, d) and potential (N,) or None.
 """
