@@ -54,7 +54,7 @@ from . import interface
 from . import law as contact_law
 from . import model as contact_model
 from . import plane_errors as piezo_errors
-from .bodies import Body, BodySection, field_data
+from .bodies import Body, BodySection
 from .body_output import body_fields
 from .law import FRICTIONS, LAWS
 from .model import BodiesModel, build_bodies, interface_references, reference
@@ -289,7 +289,6 @@ def build_model(
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
         contact,
-        field_data,
         {"scene": scene.name, "level": level},
         check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
     )

@@ -73,7 +73,7 @@ from . import model as contact_model
 from . import solid_checks as contact3d_checks
 from . import solid_errors as contact3d_errors
 from . import solid_output as contact3d_output
-from .bodies import Body, BodySection, field_data
+from .bodies import Body, BodySection
 from .interface import SURFACE_ORDER
 from .model import BodiesModel, build_bodies, interface_references
 
@@ -282,7 +282,6 @@ def _build(scene: Scene, level: int | None) -> Model:
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
         contact,
-        field_data,
         {"scene": scene.name, "level": level},
     )
     bodies_ = list(bodies.values())
