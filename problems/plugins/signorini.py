@@ -37,6 +37,7 @@ from vi_core import Solution
 
 from .contact import plane as pc
 from .contact.bodies import BodySection
+from .contact.law import FrictionLaw
 from .contract import ExtremeRow, Sweep, check_boundaries, expect
 from .transfer import nodal_reference_errors
 
@@ -53,7 +54,7 @@ class Model(pc.Model):
         return pc.contact_state(self, sol)["lemma_4_2"]
 
 
-class ContactSection(pc.FrictionLaw):
+class ContactSection(FrictionLaw):
     """[contact]: the boundary Γ3, the normal gap to the obstacle (a field ≥ 0, m) and the
     friction: "tresca" with the bound g (a field ≥ 0, Pa; acts where the body touches) or
     "coulomb" with the coefficient F (a field ≥ 0)."""

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Annotated
 
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
@@ -67,18 +67,17 @@ class ExactSection(Section):
     def _shapes(self, info: ValidationInfo) -> ExactSection:
         if (self.phi is None) != (self.grad_phi is None):
             raise refuse(["phi"], self.phi and self.phi.source, "both phi and grad_phi, or neither")
-        d, scene_dim = self.dim, (info.context or {}).get("dimension")
+        d, scene_dim, written = self.dim, (info.context or {}).get("dimension"), self.model_dump()
         if scene_dim not in (None, d):
             allowed = f"{scene_dim} entries: the scene is {scene_dim}D (its geometries are)"
-            raise refuse(["u"], _sources(self.u), allowed)
-        fields = [(["grad_u"], self.grad_u, f"{d} rows, one per component of u")]
-        fields += [
-            (["grad_u", i], r, f"{d} entries, one per axis") for i, r in enumerate(self.grad_u)
-        ]
-        fields += [([k], getattr(self, k), f"{d} entries, as u") for k in ("grad_phi", "lam")]
+            raise refuse(["u"], written["u"], allowed)
+        rows = written["grad_u"]
+        fields = [(["grad_u"], rows, f"{d} rows, one per component of u")]
+        fields += [(["grad_u", i], r, f"{d} entries, one per axis") for i, r in enumerate(rows)]
+        fields += [([k], written[k], f"{d} entries, as u") for k in ("grad_phi", "lam")]
         for loc, value, allowed in fields:
             if value is not None and len(value) != d:
-                raise refuse(loc, _sources(value), allowed)
+                raise refuse(loc, value, allowed)
         return self
 
     def compiled(self) -> Exact:
@@ -95,11 +94,6 @@ class ExactSection(Section):
             grad_phi=None if gp is None else (lambda *p: evaluate(gp, *p)),
             lam=lambda *p: evaluate(lam, *p),
         )
-
-
-def _sources(v: Any) -> Any:
-    """The value as written: expressions by their text."""
-    return [_sources(e) for e in v] if isinstance(v, list) else v.source
 
 
 def split_exact(scene: Scene) -> tuple[Scene, Exact | None]:

@@ -299,14 +299,10 @@ def renamed(module: str, names: dict[str, str]) -> Callable[[str], Any]:
     def __getattr__(name: str) -> Any:
         if name not in names:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        warnings.warn(
-            f"{module}.{name} is deprecated and goes in the next release: use {names[name]}, one "
-            "type for 2D and 3D (the dimension is the body's geometry's; a material's data: "
-            ".material(dim))",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return getattr(sys.modules[module], names[name])
+        new = names[name]
+        note = f"{module}.{name} is deprecated and goes in the next release: use {new} (2D and 3D)"
+        warnings.warn(note, DeprecationWarning, stacklevel=2)
+        return getattr(sys.modules[module], new)
 
     return __getattr__
 

@@ -54,18 +54,7 @@ from fem.mesh import Mesh
 from fem.meshing import END_PARTS, box, extrude, rectangle, transform
 from problems.errors import SceneError
 
-from .fields import (
-    BoxCells,
-    Cells,
-    Expression,
-    Integer,
-    Interval,
-    Number,
-    Pair,
-    Point,
-    Text,
-    renamed,
-)
+from .fields import BoxCells, Cells, Expression, Integer, Interval, Number, Pair, Point, Text
 from .imported import file_dimension, file_mesh, geo_base, geo_mesh, imported_mesh, resolve
 from .model import UNION_TAGS, Section, refuse
 
@@ -537,6 +526,3 @@ def _meshed(t: Section, mesher, *args) -> Mesh:
         for part in mesh.boundaries:
             trace(mesh, part)
         return mesh
-
-
-__getattr__ = renamed(__name__, {"MeshFile3": "MeshFile"})  # the former 3D names

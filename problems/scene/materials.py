@@ -26,7 +26,7 @@ from pydantic_core import PydanticCustomError
 from fem.tensors import Material3D, crystal_6mm, isotropic, poled
 from fem.tensors import plane_strain as in_plane
 
-from .fields import Direction, Number, Text, renamed
+from .fields import Direction, Number, Text
 from .model import UNION_TAGS, Section
 
 EPS0 = 8.8541878128e-12  # vacuum permittivity, F/m
@@ -272,7 +272,3 @@ MaterialSpec = Annotated[
     BeforeValidator(_named, json_schema_input_type=inputs),
 ]
 UNION_TAGS.update(("material", k) for k in ("named", *KINDS))
-
-__getattr__ = renamed(
-    __name__, {f"{n}3": n for n in ("NamedMaterial", "Isotropic", "Anisotropic", "Piezoelectric")}
-)  # the former 3D names

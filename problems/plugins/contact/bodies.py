@@ -201,28 +201,23 @@ class BodySection(Section):
     def _sized(self, d: int) -> None:
         """Refuse a vector, a displacement component or a material matrix that does not fit
         the body's dimension `d`; fill in the default components (all d axes)."""
-        geometry = f"the body is {d}D (its geometry is)"
+        axes, body = AXES[d], f"the body is {d}D (its geometry is)"
         vectors = [(["body_force"], self.body_force)]
         for key in ("displacement", "traction"):
             vectors += [([key, i, "value"], p.value) for i, p in enumerate(getattr(self, key))]
         for loc, v in vectors:
             if v is not None and len(v) != d:
-                shown = [e.source for e in v]
-                raise refuse(
-                    loc, shown, f"a list of {d} entries [{', '.join(AXES[d])}]: {geometry}"
-                )
+                allowed = f"a list of {d} entries [{', '.join(axes)}]: {body}"
+                raise refuse(loc, [e.source for e in v], allowed)
         for i, p in enumerate(self.displacement):
-            if p.components is None:
-                p.components = AXES[d]
-            elif not set(p.components) <= set(AXES[d]):
-                allowed = ", ".join(c for c in COMPONENTS if set(c) <= set(AXES[d]))
+            p.components = p.components or axes
+            if not set(p.components) <= set(axes):
+                allowed = ", ".join(c for c in COMPONENTS if set(c) <= set(axes))
                 raise refuse(
-                    ["displacement", i, "components"], p.components, f"one of {allowed}: {geometry}"
+                    ["displacement", i, "components"], p.components, f"one of {allowed}: {body}"
                 )
-        wrong = self.material.wrong_size(d)
-        if wrong is not None:
-            key, value, allowed = wrong
-            raise refuse(["material", key], value, allowed)
+        if (wrong := self.material.wrong_size(d)) is not None:
+            raise refuse(["material", wrong[0]], *wrong[1:])
 
 
 def free_per_entity(

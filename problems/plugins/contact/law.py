@@ -16,7 +16,7 @@ the nodes that carry [λ_n, λ_t] (docs/coulomb.md, "Contact laws of the plug-in
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 from pydantic import model_validator
@@ -31,33 +31,6 @@ LAWS = ("bilateral", "unilateral")  # [contact] law
 FRICTIONS = ("tresca", "coulomb")  # [contact] friction
 
 
-def _check_friction(section: Any) -> Any:
-    """Exactly the bound key of the chosen friction: g (tresca) or F (coulomb)."""
-    need, other = ("g", "F") if section.friction == "tresca" else ("F", "g")
-    if getattr(section, need) is None:
-        raise refuse([need], None, f"required with friction = {section.friction!r}")
-    if getattr(section, other) is not None:
-        raise refuse(
-            [other], getattr(section, other).source, f"absent with friction = {section.friction!r}"
-        )
-    return section
-
-
-def _check_law(section: Any) -> Any:
-    """Coulomb and an initial gap need law = "unilateral"; two bodies take their gap from the
-    geometry (a `master` other than "rigid")."""
-    if section.law == "bilateral":
-        if section.friction == "coulomb":
-            raise refuse(["friction"], "coulomb", "'tresca' with law = 'bilateral'")
-        if section.gap is not None:
-            raise refuse(["gap"], section.gap.source, "absent with law = 'bilateral'")
-    if section.gap is not None and getattr(section, "master", "rigid") != "rigid":
-        raise refuse(
-            ["gap"], section.gap.source, "absent for two bodies (their gap is the geometry's)"
-        )
-    return section
-
-
 class FrictionLaw(Section):
     """The friction of a contact table: friction = "tresca" (bound g, a field ≥ 0 in Pa) or
     "coulomb" (bound F·λ_n, F a field ≥ 0); exactly the key of the chosen friction is given."""
@@ -68,21 +41,34 @@ class FrictionLaw(Section):
 
     @model_validator(mode="after")
     def _friction(self) -> FrictionLaw:
-        return _check_friction(self)
+        need, other = ("g", "F") if self.friction == "tresca" else ("F", "g")
+        if getattr(self, need) is None:
+            raise refuse([need], None, f"required with friction = {self.friction!r}")
+        if getattr(self, other) is not None:
+            allowed = f"absent with friction = {self.friction!r}"
+            raise refuse([other], getattr(self, other).source, allowed)
+        return self
 
 
 class ContactLaw(FrictionLaw):
     """The contact-law keys (module docstring): law = "bilateral" or "unilateral"; friction =
     "tresca" (g) or "coulomb" (F, unilateral only); gap = the initial normal distance to a
-    rigid foundation (unilateral only). The plug-in's [contact] table subclasses it with its
-    slave and master keys."""
+    rigid foundation (unilateral only; two bodies take theirs from the geometry). The plug-in's
+    [contact] table subclasses it with its slave and master keys."""
 
     law: Literal[LAWS] = LAWS[0]
     gap: NonNegativeExpr | None = None
 
     @model_validator(mode="after")
     def _law(self) -> ContactLaw:
-        return _check_law(self)
+        gap = None if self.gap is None else self.gap.source
+        if self.law == "bilateral" and self.friction == "coulomb":
+            raise refuse(["friction"], "coulomb", "'tresca' with law = 'bilateral'")
+        if self.law == "bilateral" and gap is not None:
+            raise refuse(["gap"], gap, "absent with law = 'bilateral'")
+        if gap is not None and getattr(self, "master", "rigid") != "rigid":
+            raise refuse(["gap"], gap, "absent for two bodies (their gap is the geometry's)")
+        return self
 
 
 def pair_set(friction: str, bound: np.ndarray, dim: int) -> ContactSet:

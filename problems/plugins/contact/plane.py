@@ -171,9 +171,6 @@ class Model(BodiesModel):
         return contact_state(self, sol)
 
 
-FrictionLaw = contact_law.FrictionLaw  # signorini's [contact] keys
-
-
 class ContactSection(contact_law.ContactLaw):
     """[contact]: slave and master boundaries (BODY.BOUNDARY, master "rigid" for a rigid
     foundation), the contact law (docs/coulomb.md, "Contact laws of the plug-ins"), and the

@@ -1,5 +1,5 @@
 """One value type per kind for 2D and 3D scenes: an expression of (x, y[, z]), and the former
-3D names served for one release with a DeprecationWarning."""
+3D names that the docs named served for one release with a DeprecationWarning."""
 
 from __future__ import annotations
 
@@ -10,15 +10,7 @@ import pytest
 
 from problems.scene.fields import Expression
 
-RENAMED = [
-    ("fields", "Expression3", "Expression"),
-    ("exact", "ExactSection3", "ExactSection"),
-    ("geometry", "MeshFile3", "MeshFile"),
-    ("materials", "NamedMaterial3", "NamedMaterial"),
-    ("materials", "Isotropic3", "Isotropic"),
-    ("materials", "Anisotropic3", "Anisotropic"),
-    ("materials", "Piezoelectric3", "Piezoelectric"),
-]
+RENAMED = [("fields", "Expression3", "Expression"), ("exact", "ExactSection3", "ExactSection")]
 
 
 @pytest.mark.parametrize("module,old,new", RENAMED)
