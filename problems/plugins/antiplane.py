@@ -32,7 +32,7 @@ from problems.output import plots, results
 from problems.output.results import ContactTable
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import Expression, NonNegativeExpr, Number, Text
-from problems.scene.geometry import Geometry
+from problems.scene.geometry import PlaneGeometry
 from problems.scene.imported import require_curve
 from problems.scene.model import head, one_or_many
 from vi_core import Box, MixedVI, Solution
@@ -76,7 +76,7 @@ class Model(ScalarModel):
 class Domain(Section):
     """[domain]: geometry, shear modulus μ > 0 (Pa), load f₀ (a field)."""
 
-    geometry: Geometry
+    geometry: PlaneGeometry
     shear_modulus: Annotated[Number, Field(gt=0.0)]
     load: Expression = Expression(0.0)
 

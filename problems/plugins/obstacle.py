@@ -25,7 +25,7 @@ from pydantic import BeforeValidator, Field, model_validator
 from fem import assembly
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import Expression
-from problems.scene.geometry import Geometry
+from problems.scene.geometry import PlaneGeometry
 from problems.scene.model import head, one_or_many
 from vi_core import MixedVI, NonNegative, Solution
 from vi_core import states as node_states
@@ -65,7 +65,7 @@ class Model(ScalarModel):
 class Domain(Section):
     """[domain]: geometry, load f (a field), obstacle ψ (a field)."""
 
-    geometry: Geometry
+    geometry: PlaneGeometry
     load: Expression = Expression(0.0)
     obstacle: Expression
 

@@ -31,11 +31,13 @@ from pydantic_core import PydanticCustomError
 from problems.output import plots
 from problems.scene import Scene, SceneModel
 from problems.scene.fields import NonNegativeExpr, Text
+from problems.scene.geometry import PlaneGeometry
 from problems.scene.model import head
 from vi_core import Solution
 
 from .contact import plane as pc
 from .contact.bodies import BodySection
+from .contact.law import FrictionLaw
 from .contract import ExtremeRow, Sweep, check_boundaries, expect
 from .transfer import nodal_reference_errors
 
@@ -52,7 +54,7 @@ class Model(pc.Model):
         return pc.contact_state(self, sol)["lemma_4_2"]
 
 
-class ContactSection(pc.FrictionLaw):
+class ContactSection(FrictionLaw):
     """[contact]: the boundary Γ3, the normal gap to the obstacle (a field ≥ 0, m) and the
     friction: "tresca" with the bound g (a field ≥ 0, Pa; acts where the body touches) or
     "coulomb" with the coefficient F (a field ≥ 0)."""
@@ -62,12 +64,14 @@ class ContactSection(pc.FrictionLaw):
 
 
 class ElasticBody(BodySection):
-    """The [body] table: a body of an elastic (not piezoelectric) material."""
+    """The [body] table: a 2D body of an elastic (not piezoelectric) material."""
+
+    geometry: PlaneGeometry
 
     @field_validator("material")
     @classmethod
     def _elastic(cls, v):
-        if v.material().piezoelectric:
+        if v.piezoelectric:
             raise PydanticCustomError("material", "an elastic (not piezoelectric) material")
         return v
 

@@ -1,4 +1,4 @@
-"""Exact solutions of contact scenes: the `[exact]` table of piezo_contact scenes.
+"""Exact solutions of contact scenes: the `[exact]` table of contact scenes, 2D or 3D.
 
 A scene may carry an `[exact]` table of expression fields (same safe expressions as every scene
 value) giving the exact solution:
@@ -15,9 +15,10 @@ the table from a scene and compiles it. The study engine measures errors against
 
 The generator of the shipped manufactured scenes (2D and 3D) is `problems.scene.manufactured`.
 
-contact3d scenes carry the same table with fields of (x, y, z) (`ExactSection3`): u, grad_u
-(3 × 3), phi, grad_phi (3) and lam = λ = −σn on Γ3 as a Cartesian 3-vector (frame-free);
-errors `problems.plugins.contact.solid_errors`.
+A 3D scene's table has fields of (x, y, z): u, grad_u (3 × 3), phi, grad_phi (3) and
+lam = λ = −σn on Γ3 as a Cartesian 3-vector (frame-free); errors
+`problems.plugins.contact.solid_errors`. The table's dimension is that of u (`dim`); the other
+fields are checked against it here, and it against the bodies' by the scene.
 """
 
 from __future__ import annotations
@@ -27,9 +28,9 @@ from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationInfo, model_validator
 
-from .fields import Expression, Expression3, Text, Vector, Vector3, evaluate
+from .fields import Expression, Text, Vector, evaluate, renamed
 from .model import Section, refuse, validate
 from .reader import Scene
 
@@ -48,19 +49,35 @@ class Exact:
 
 
 class ExactSection(Section):
-    """The [exact] table of a contact scene."""
+    """The [exact] table of a contact scene (2D or 3D: d = the length of u)."""
 
     source: Text = ""
     u: Vector
-    grad_u: Annotated[list[Vector], Field(min_length=2, max_length=2)]
+    grad_u: Annotated[list[Vector], Field(min_length=2, max_length=3)]
     phi: Expression | None = None
     grad_phi: Vector | None = None
     lam: Vector
 
+    @property
+    def dim(self) -> int:
+        """The dimension of the table's fields: u's number of components."""
+        return len(self.u)
+
     @model_validator(mode="after")
-    def _phi_pair(self) -> ExactSection:
+    def _shapes(self, info: ValidationInfo) -> ExactSection:
         if (self.phi is None) != (self.grad_phi is None):
             raise refuse(["phi"], self.phi and self.phi.source, "both phi and grad_phi, or neither")
+        d, scene_dim, written = self.dim, (info.context or {}).get("dimension"), self.model_dump()
+        if scene_dim not in (None, d):
+            allowed = f"{scene_dim} entries: the scene is {scene_dim}D (its geometries are)"
+            raise refuse(["u"], written["u"], allowed)
+        rows = written["grad_u"]
+        fields = [(["grad_u"], rows, f"{d} rows, one per component of u")]
+        fields += [(["grad_u", i], r, f"{d} entries, one per axis") for i, r in enumerate(rows)]
+        fields += [([k], written[k], f"{d} entries, as u") for k in ("grad_phi", "lam")]
+        for loc, value, allowed in fields:
+            if value is not None and len(value) != d:
+                raise refuse(loc, value, allowed)
         return self
 
     def compiled(self) -> Exact:
@@ -79,16 +96,6 @@ class ExactSection(Section):
         )
 
 
-class ExactSection3(ExactSection):
-    """The [exact] table of a contact3d scene: fields of (x, y, z), lam the Cartesian λ."""
-
-    u: Vector3
-    grad_u: Annotated[list[Vector3], Field(min_length=3, max_length=3)]
-    phi: Expression3 | None = None
-    grad_phi: Vector3 | None = None
-    lam: Vector3
-
-
 def split_exact(scene: Scene) -> tuple[Scene, Exact | None]:
     """The scene without its `[exact]` table, and the compiled table (None if absent)."""
     if "exact" not in scene.data:
@@ -98,3 +105,6 @@ def split_exact(scene: Scene) -> tuple[Scene, Exact | None]:
     section = validate(ExactSection, raw, scene.path, scene.overrides, ("exact",))
     rest = Scene(data, scene.path, scene.name, scene.overrides, scene.notices)
     return rest, section.compiled()
+
+
+__getattr__ = renamed(__name__, {"ExactSection3": "ExactSection"})  # the former 3D names

@@ -1,12 +1,12 @@
-"""Safe arithmetic expressions of (x, y) — and of the load parameter t in a scene with a
-`[load_path]` — for scene values, parsed with `ast`, never `eval`.
+"""Safe arithmetic expressions of (x, y) or (x, y, z) — and of the load parameter t in a scene
+with a `[load_path]` — for scene values, parsed with `ast`, never `eval`.
 
 Grammar (checked before anything is evaluated)::
 
     expr     := number | name | expr OP expr | (+|-) expr | expr CMP expr | call | ( expr )
     OP       := + | - | * | / | **
     CMP      := < | <= | > | >=            (one comparison, gives 0.0 / 1.0)
-    name     := x | y | t | pi | e     (t only where the caller admits it: a load path)
+    name     := x | y | z | t | pi | e (z in a 3D scene, t with a load path: the caller checks)
     call     := FUNCTION ( expr, ... )     positional arguments only, exactly ARITY of them
 
 Functions and their arities: one argument — sin cos tan exp log sqrt abs tanh arctan sinh cosh
@@ -60,8 +60,9 @@ _BINOPS = {
 }
 _CMPOPS = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt, ast.GtE: operator.ge}
 ALLOWED = (
-    "a number or an arithmetic expression of x, y and, in a scene with a [load_path], its load "
-    "parameter t (numbers, pi, e, + - * / **, comparisons, and the functions "
+    "a number or an arithmetic expression of x, y (and z in a 3D scene) and, in a scene with a "
+    "[load_path], its load parameter t (numbers, pi, e, + - * / **, comparisons, and the "
+    "functions "
     + ", ".join(f"{n}/{a}" for n, (a, _) in sorted(FUNCTIONS.items()))
     + " (name/arity))"
 )

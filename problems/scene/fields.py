@@ -7,22 +7,23 @@ turns the first one into a SceneError naming the field path, the value and what 
 - `Number`: an int or float (never a bool or a string), finite, of size ≤ MAX_MAGNITUDE;
   ranges are added per field with `Field(gt=..., le=...)`.
 - `Expression`: a number or an expression string (`problems.scene.expressions`), compiled
-  once; called as f(x, y) it refuses a non-finite or oversized result
-  with its field path and text (`NonNegativeExpr`: constants also checked ≥ 0 when read).
-  `Vector` is a pair of them. An expression may use the load parameter t when the scene has
-  a `[load_path]` (checked by `problems.scene.model.validate`); it is evaluated at the t of
-  the enclosing `load_parameter(t)` block (a load step), and outside one at the path's last t
+  once; called as f(x, y) in a 2D scene, f(x, y, z) in a 3D one, it refuses a non-finite or
+  oversized result with its field path and text (`NonNegativeExpr`: constants also checked ≥ 0
+  when read); `Vector` is two or three of them (the table holding it checks it has d). z
+  only in a 3D scene, the load parameter t only in a scene with a `[load_path]` (both
+  checked by `problems.scene.model.validate`); an expression is evaluated at the t of the
+  enclosing `load_parameter(t)` block (a load step), and outside one at the path's last t
   (`Expression.t_end`, set by validation).
-- `Expression3`: the same for 3D scenes, a field f(x, y, z) (one class with `Expression`,
-  the coordinates are its only difference); `Vector3` is three of them.
-- `Interval`, `IntPair`, `Point`: [a, b] pairs; `Cells`/`Cells3`: cell counts per axis;
+- `Interval`, `IntPair`, `Point`: [a, b] pairs; `Cells`/`BoxCells`: cell counts per axis;
   `Direction`: a non-zero 3-vector (a poling axis).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+import sys
+import warnings
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
 from typing import Annotated, Any
@@ -79,7 +80,8 @@ Integer = Annotated[int, BeforeValidator(integer_value)]
 Text = Annotated[str, BeforeValidator(text_value)]
 
 
-VARIABLES = ("x", "y", "t")  # t: the load parameter (scenes with a [load_path] only)
+VARIABLES = ("x", "y", "z", "t")  # z: 3D scenes only; t: the load parameter (scenes with a
+# [load_path] only)
 _LOAD_T: ContextVar[float | None] = ContextVar("load_parameter", default=None)
 
 
@@ -95,7 +97,8 @@ def load_parameter(t: float) -> Iterator[None]:
 
 
 class Expression:
-    """A compiled scalar field f(x, y) of a scene: a constant or an expression text.
+    """A compiled scalar field f(x, y) (2D) or f(x, y, z) (3D) of a scene: a constant or an
+    expression text.
 
     `path` (the dotted scene field, set by `problems.scene.model.validate`) and `source` name
     it in every refusal. Calling it never changes its arguments. `uses_t`: the text names the
@@ -103,21 +106,19 @@ class Expression:
     t of the scene's load path, set by validation; None: the scene has no load path).
     """
 
-    VARIABLES = VARIABLES  # the names an expression text may use, in call order
-    ALLOWED_TEXT = ALLOWED  # what a refusal lists as allowed
-
     def __init__(self, source: float | str):
         self.source = source
         self.path = "(expression)"
         self.t_end: float | None = None
         if isinstance(source, str):
-            self._fn = compile_expression(source, self.VARIABLES)
+            self._fn = compile_expression(source, VARIABLES)
             self.constant = False
-            self.uses_t = "t" in _names(source)
+            names = _names(source)
+            self.uses_t, self.uses_z = "t" in names, "z" in names
         else:
             self._fn = None
             self.constant = True
-            self.uses_t = False
+            self.uses_t = self.uses_z = False
 
     def load_t(self) -> float:
         """The load parameter this expression is evaluated at now (0 if it does not use t;
@@ -131,17 +132,17 @@ class Expression:
         return t
 
     def __call__(self, *coords: np.ndarray) -> np.ndarray:
-        """Values at the points whose coordinates are `coords` ((x, y), or (x, y, z) for an
-        `Expression3`): an array of their broadcast shape (SceneError if any value is not
-        finite or larger than MAX_MAGNITUDE)."""
-        names = self.VARIABLES[:-1]  # the coordinates; the last variable is t
-        if len(coords) != len(names):
-            raise TypeError(f"{self!r} takes the coordinates {', '.join(names)}")
+        """Values at the points whose coordinates are `coords` ((x, y) in 2D, (x, y, z) in
+        3D): an array of their broadcast shape (SceneError if any value is not finite or
+        larger than MAX_MAGNITUDE)."""
+        if len(coords) not in (2, 3) or (self.uses_z and len(coords) == 2):
+            raise TypeError(f"{self!r} takes the coordinates x, y{', z' * self.uses_z}")
+        names = VARIABLES[: len(coords)]
         shape = np.broadcast_shapes(*(np.shape(c) for c in coords))
         if self._fn is None:
             return np.full(shape, float(self.source))
         t = self.load_t()
-        out = self._fn(*coords, np.float64(t))
+        out = self._fn(*coords[:2], coords[2] if len(coords) == 3 else 0.0, np.float64(t))
         bad = ~(np.isfinite(out) & (np.abs(out) <= MAX_MAGNITUDE))
         if bad.any():
             i = np.unravel_index(int(np.argmax(bad)), shape)
@@ -166,8 +167,8 @@ class Expression:
 
     @classmethod
     def parse(cls, v: Any) -> Expression:
-        """A number or an expression text of the class's VARIABLES → an instance of the class
-        (pydantic error otherwise, listing what is allowed)."""
+        """A number or an expression text of VARIABLES → an Expression (pydantic error
+        otherwise, listing what is allowed)."""
         if isinstance(v, cls):
             return v
         if isinstance(v, str):
@@ -177,10 +178,10 @@ class Expression:
                 raise PydanticCustomError(
                     "expression",
                     "{why}; allowed: {allowed}",
-                    {"allowed": cls.ALLOWED_TEXT, "why": str(err)},
+                    {"allowed": ALLOWED, "why": str(err)},
                 ) from None
-            if not (set(cls.VARIABLES) & _names(v)):  # a constant expression: evaluate it now
-                val = e._fn(*[np.zeros(1)] * len(cls.VARIABLES))
+            if not (set(VARIABLES) & _names(v)):  # a constant expression: evaluate it now
+                val = e._fn(*[np.zeros(1)] * len(VARIABLES))
                 if not (np.isfinite(val).all() and (np.abs(val) <= MAX_MAGNITUDE).all()):
                     raise PydanticCustomError(
                         "expression",
@@ -191,9 +192,7 @@ class Expression:
         try:
             number_value(v)
         except PydanticCustomError:
-            raise PydanticCustomError(
-                "expression", "{allowed}", {"allowed": cls.ALLOWED_TEXT}
-            ) from None
+            raise PydanticCustomError("expression", "{allowed}", {"allowed": ALLOWED}) from None
         return cls(v)
 
     @classmethod
@@ -214,13 +213,18 @@ class Expression:
                 {"type": "number"},
                 {"type": "string", "maxLength": MAX_LENGTH, "minLength": 1},
             ],
-            "description": cls.ALLOWED_TEXT,
+            "description": ALLOWED,
         }
 
 
 NO_LOAD_PATH = (
-    "an expression of x and y: t is the load parameter of a load path, and this scene has no "
-    "[load_path] section (add one, e.g. `[load_path]` with `steps = 10`, docs/load_paths.md)"
+    "an expression of the coordinates: t is the load parameter of a load path, and this scene "
+    "has no [load_path] section (add one, e.g. `[load_path]` with `steps = 10`, docs/load_paths.md)"
+)
+
+
+Z_IN_2D = (
+    "an expression of x and y: z is a coordinate of 3D scenes, and this scene's geometries are 2D"
 )
 
 
@@ -236,24 +240,15 @@ def _nonnegative(e: Expression) -> Expression:
     return e
 
 
-class Expression3(Expression):
-    """A compiled scalar field f(x, y, z) of a 3D scene: the same grammar, limits, refusals
-    and field paths, called with three coordinates."""
-
-    VARIABLES = ("x", "y", "z", "t")
-    ALLOWED_TEXT = ALLOWED.replace("of x, y", "of x, y, z")
-
-
 NonNegativeExpr = Annotated[Expression, AfterValidator(_nonnegative)]  # constants checked now,
 # expressions where they are evaluated
-NonNegativeExpr3 = Annotated[Expression3, AfterValidator(_nonnegative)]
-Vector = Annotated[list[Expression], Field(min_length=2, max_length=2)]
-Vector3 = Annotated[list[Expression3], Field(min_length=3, max_length=3)]
+Vector = Annotated[list[Expression], Field(min_length=2, max_length=3)]  # d entries: checked
+# against the dimension by the table that holds it (`problems.plugins.contact.bodies`)
 
 
 def evaluate(components: Sequence[Expression], *coords: np.ndarray) -> np.ndarray:
     """A vector field's values: (..., len(components)) at the points whose coordinates are
-    `coords` (x, y; x, y, z for the `Expression3` of a 3D scene)."""
+    `coords` (x, y in 2D; x, y, z in 3D)."""
     return np.stack([c(*coords) for c in components], axis=-1)
 
 
@@ -293,5 +288,23 @@ Point = Pair
 Interval = Annotated[Pair, AfterValidator(_increasing)]
 IntPair = _integers(2)
 Cells = Annotated[IntPair, _positive_ints("two positive integers [nx, ny]")]
-Cells3 = Annotated[_integers(3), _positive_ints("three positive integers [nx, ny, nz]")]
+BoxCells = Annotated[_integers(3), _positive_ints("three positive integers [nx, ny, nz]")]
 Direction = Annotated[_numbers(3), AfterValidator(_nonzero)]  # a 3D direction, not normalised
+
+
+def renamed(module: str, names: dict[str, str]) -> Callable[[str], Any]:
+    """The `__getattr__` of `module` that serves its former 3D names (`names`: old → new, both
+    in the module) with a DeprecationWarning; they go in the next release (issue 30)."""
+
+    def __getattr__(name: str) -> Any:
+        if name not in names:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        new = names[name]
+        note = f"{module}.{name} is deprecated and goes in the next release: use {new} (2D and 3D)"
+        warnings.warn(note, DeprecationWarning, stacklevel=2)
+        return getattr(sys.modules[module], new)
+
+    return __getattr__
+
+
+__getattr__ = renamed(__name__, {"Expression3": "Expression"})

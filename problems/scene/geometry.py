@@ -1,6 +1,10 @@
 """Geometry tables of 2D and 3D scenes (pydantic sections) → meshes at a refinement level.
 
-2D kinds (`Geometry`), a union told apart by `kind`: "rectangle" (structured P1/Q1), "half_disc"
+`Geometry` is the union of every kind, told apart by `kind` (a file by its `mesh` or `geo`
+key); each table's DIM (2 or 3; a mesh file's is its cells') is the dimension of the body it
+meshes. `PlaneGeometry` takes the 2D ones only (plug-ins whose scenes are 2D).
+
+2D kinds: "rectangle" (structured P1/Q1), "half_disc"
 and "cradle" (the paper's two bodies as mapped Q1 blocks with boundary nodes on the true arc);
 or a file, `{ mesh = "FILE", body = "GROUP" }` or `{ geo = "FILE.geo", body = "GROUP" }`
 (`imported`; the path relative to the scene file). The built-in kinds name their boundary parts
@@ -11,7 +15,7 @@ or degenerate cells), is a SceneError naming the key. Every geometry counts its 
 before meshing (`GeometryTable.nodes`, exact), so a command refuses a level range before it
 solves the coarser levels (`problems.commands.resources.check_levels`).
 
-3D kinds (`Geometry3`, 3D `fem.mesh.Mesh`es): "box", [x0, x1] × [y0, y1] × [z0, z1] in
+3D kinds (3D `fem.mesh.Mesh`es): "box", [x0, x1] × [y0, y1] × [z0, z1] in
 nx × ny × nz hexahedra (Q1) or 6 tetrahedra each (P1), each level halving the cells' size; parts
 "left"/"right" (x), "front"/"back" (y), "bottom"/"top" (z). An optional `bottom_lift` = h(x, y)
 curves the bottom into the surface z = z0 + h(x, y): every node moves up by
@@ -20,8 +24,8 @@ h(x, y)·(z1 − z)/(z1 − z0) (nodes on the true surface at every level; the t
 built-in 2D geometry table (`section`: rectangle, half_disc or cradle, in the x–y plane)
 extruded over z in `layers` layers of hexahedra (`fem.meshing.extrude`; a level refines the
 section and doubles the layers); its parts are the section's (surfaces over its curves) and
-"z0"/"z1" (the ends). A mesh file, `{ mesh = "part.msh", body = "bracket" }`: a physical volume
-group of linear tetrahedra or hexahedra, its physical surface groups the parts.
+"z0"/"z1" (the ends). A 3D mesh file, `{ mesh = "part.msh", body = "bracket" }`: a physical
+volume group of linear tetrahedra or hexahedra, its physical surface groups the parts.
 """
 
 from __future__ import annotations
@@ -50,8 +54,8 @@ from fem.mesh import Mesh
 from fem.meshing import END_PARTS, box, extrude, rectangle, transform
 from problems.errors import SceneError
 
-from .fields import Cells, Cells3, Expression3, Integer, Interval, Number, Pair, Point, Text
-from .imported import file_mesh, geo_base, geo_mesh, imported_mesh, resolve
+from .fields import BoxCells, Cells, Expression, Integer, Interval, Number, Pair, Point, Text
+from .imported import file_dimension, file_mesh, geo_base, geo_mesh, imported_mesh, resolve
 from .model import UNION_TAGS, Section, refuse
 
 
@@ -72,6 +76,7 @@ class GeometryTable(Section):
     meshing; `check_size(level)` refuses more than MAX_NODES, naming SIZE_KEY."""
 
     SIZE_KEY: ClassVar[str]  # the key that sets the mesh's size, blamed for a refusal
+    DIM: ClassVar[int]  # the mesh's dimension (a mesh file: its cells', None if unreadable)
 
     def nodes(self, level: int) -> int:
         """Nodes of the mesh at refinement `level` (exact), before it is built."""
@@ -105,6 +110,7 @@ class Rectangle(GeometryTable):
 
     BOUNDARIES: ClassVar[tuple[str, ...]] = ("bottom", "right", "top", "left")
     SIZE_KEY: ClassVar[str] = "cells"
+    DIM: ClassVar[int] = 2
     kind: Literal["rectangle"]
     x: Interval
     y: Interval
@@ -151,6 +157,7 @@ class Rectangle(GeometryTable):
 
 class _Arc(GeometryTable):
     SIZE_KEY: ClassVar[str] = "n_contact"
+    DIM: ClassVar[int] = 2
     center: Point = [0.0, 1.5]
     radius: Annotated[Number, Field(gt=0.0)] = 1.0
     angle: Annotated[Number, Field(gt=0.0, lt=np.pi)] = np.pi / 2
@@ -228,7 +235,9 @@ class _File(GeometryTable):
     FILE_KEY: ClassVar[str]  # the scene key naming the file
     FILE_ATTR: ClassVar[str]  # the field holding it
     body: Text | None = Field(
-        None, description="a physical surface group (omitted: every surface cell of the file)"
+        None,
+        description="a physical group of the file's cells: a surface group in a 2D file, a "
+        "volume group in a 3D one (omitted: every such cell of the file)",
     )
     _dir: Path | None = None
 
@@ -265,23 +274,31 @@ class _File(GeometryTable):
 
 
 class MeshFile(_File):
-    """`{ mesh = "FILE", body = "GROUP" }`: a mesh file (gmsh .msh or any meshio format), the
-    group's cells refined `level` times with new boundary nodes on the file's polyline."""
+    """`{ mesh = "FILE", body = "GROUP" }`: a mesh file (gmsh .msh or any meshio format), 2D
+    (its highest cells are surface cells in the plane z = 0) or 3D (linear tetrahedra or
+    hexahedra), the group's cells refined `level` times (new boundary nodes on the file's
+    polyline in 2D; each cell into 8, new nodes on the file's faces, in 3D); its physical
+    groups of one dimension lower are the boundary parts."""
 
     FILE_KEY: ClassVar[str] = "mesh"
     FILE_ATTR: ClassVar[str] = "mesh_file"  # `mesh` is the method
-    PLANAR: ClassVar[bool] = True  # a 2D file (MeshFile3: a 3D one)
     mesh_file: Text = Field(alias="mesh", description="the file, relative to the scene file")
+
+    @property
+    def DIM(self) -> int | None:  # noqa: N802 (the name every geometry has)
+        """The file's highest cell dimension (None if it cannot be read: meshing names why)."""
+        return file_dimension(self.resolved())
 
     def nodes(self, level: int) -> int:
         """The file's mesh's nodes after `level` uniform refinements."""
-        key = self.key("mesh")
-        return file_mesh(self.resolved(), self.body, key, self.PLANAR).refined_nodes(level)
+        key, planar = self.key("mesh"), self.DIM != 3
+        return file_mesh(self.resolved(), self.body, key, planar).refined_nodes(level)
 
     def mesh(self, level: int) -> Mesh:
         """The body's mesh at refinement `level`."""
         self.check_size(level)
-        return imported_mesh(self.resolved(), self.body, level, self.key("mesh"), self.PLANAR)
+        key, planar = self.key("mesh"), self.DIM != 3
+        return imported_mesh(self.resolved(), self.body, level, key, planar)
 
 
 class GeoFile(_File):
@@ -290,7 +307,11 @@ class GeoFile(_File):
 
     FILE_KEY: ClassVar[str] = "geo"
     FILE_ATTR: ClassVar[str] = "geo"
+    DIM: ClassVar[int] = 2
     geo: Text = Field(description="the .geo file, relative to the scene file")
+    body: Text | None = Field(
+        None, description="a physical surface group (omitted: every surface cell of the file)"
+    )
 
     def nodes(self, level: int) -> int:
         """gmsh's level-0 mesh's nodes after `level` uniform refinements (gmsh refines by
@@ -309,14 +330,15 @@ class Box(GeometryTable):
 
     BOUNDARIES: ClassVar[tuple[str, ...]] = ("left", "right", "front", "back", "bottom", "top")
     SIZE_KEY: ClassVar[str] = "cells"
+    DIM: ClassVar[int] = 3
     kind: Literal["box"]
     x: Interval
     y: Interval
     z: Interval
-    cells: Cells3
+    cells: BoxCells
     element: Literal["hexahedron", "tetra"] = "hexahedron"
-    bottom_lift: Expression3 | None = None
-    top_lift: Expression3 | None = None
+    bottom_lift: Expression | None = None
+    top_lift: Expression | None = None
 
     def nodes(self, level: int) -> int:
         """The grid's nodes (tetrahedra split the hexahedra without new nodes)."""
@@ -338,7 +360,7 @@ class Box(GeometryTable):
 
 
 def _lifted(
-    h: Expression3, at: float, weight: Callable[[np.ndarray], np.ndarray], height: float
+    h: Expression, at: float, weight: Callable[[np.ndarray], np.ndarray], height: float
 ) -> Callable[[np.ndarray], np.ndarray]:
     """The node map z += h(x, y, at)·weight(z)/height (a box's curved bottom or top)."""
 
@@ -354,6 +376,7 @@ class Extruded(GeometryTable):
     """A built-in 2D geometry extruded along z in layers of hexahedra (plane-strain scenes)."""
 
     SIZE_KEY: ClassVar[str] = "layers"
+    DIM: ClassVar[int] = 3
     kind: Literal["extruded"]
     section: Annotated[Rectangle | HalfDisc | Cradle, Field(discriminator="kind")]
     z: Interval
@@ -378,17 +401,6 @@ class Extruded(GeometryTable):
                 self.key("section"), self.section.model_dump(), "a section of quadrilaterals"
             )
         return extrude(m2, tuple(self.z), layers)
-
-
-class MeshFile3(MeshFile):
-    """`{ mesh = "FILE", body = "GROUP" }`: a 3D mesh file (gmsh .msh or any meshio format) of
-    linear tetrahedra or hexahedra, the volume group's cells refined `level` times (each into 8,
-    new nodes on the file's faces); its physical surface groups are the boundary parts."""
-
-    PLANAR: ClassVar[bool] = False
-    body: Text | None = Field(
-        None, description="a physical volume group (omitted: every volume cell of the file)"
-    )
 
 
 def _tag(v: Any) -> str | None:
@@ -431,19 +443,50 @@ def _union(members: dict[str, type[Section]], files: str) -> Any:
     ]
 
 
-# The geometry kinds: add a kind by adding a Section with a `kind` literal, BOUNDARIES (None:
-# known only once meshed) and mesh(level) to a union.
-GEOMETRY_2D = {
+# The geometry kinds: add a kind by adding a Section with a `kind` literal, DIM, BOUNDARIES
+# (None: known only once meshed) and mesh(level) to the union.
+GEOMETRIES = {
     "rectangle": Rectangle,
     "half_disc": HalfDisc,
     "cradle": Cradle,
+    "box": Box,
+    "extruded": Extruded,
     "mesh": MeshFile,
     "geo": GeoFile,
 }
-GEOMETRY_3D = {"box": Box, "extruded": Extruded, "mesh": MeshFile3}
-Geometry = _union(GEOMETRY_2D, "mesh = FILE or geo = FILE.geo")
-Geometry3 = _union(GEOMETRY_3D, "mesh = FILE, a 3D mesh file")
-UNION_TAGS.update(("geometry", k) for k in (*GEOMETRY_2D, *GEOMETRY_3D))
+FILES = "mesh = FILE or geo = FILE.geo"
+Geometry = _union(GEOMETRIES, FILES)
+PLANE_KINDS = ("rectangle", "half_disc", "cradle", "mesh", "geo")  # a 2D-only plug-in's
+PlaneGeometry = Annotated[
+    _union({k: GEOMETRIES[k] for k in PLANE_KINDS}, FILES),
+    AfterValidator(lambda g: _in_dimension(g, 2)),
+]
+UNION_TAGS.update(("geometry", k) for k in GEOMETRIES)
+# the built-in kinds of each dimension: 2 (rectangle, half_disc, cradle), 3 (box, extruded)
+KINDS = {
+    d: tuple(k for k, g in GEOMETRIES.items() if not issubclass(g, _File) and g.DIM == d)
+    for d in (2, 3)
+}
+CELLS = {2: "surface cells in the plane z = 0", 3: "a volume with tetrahedra or hexahedra"}
+
+
+def wrong_dimension(g: GeometryTable, dim: int) -> tuple[list[str], Any, str] | None:
+    """(key, value, what is allowed) if the geometry table `g` is not of dimension `dim` (a
+    scene of that dimension); None if it is (or if it is an unreadable file)."""
+    if g.DIM in (None, dim):
+        return None
+    if isinstance(g, _File):
+        file = getattr(g, g.FILE_ATTR)
+        return [g.FILE_KEY], file, f"a {dim}D mesh file ({CELLS[dim]}): the scene is {dim}D"
+    kinds = " | ".join(KINDS[dim])
+    return ["kind"], g.kind, f"kind = {kinds}, or a {dim}D mesh file: the scene is {dim}D"
+
+
+def _in_dimension(g: GeometryTable, dim: int) -> GeometryTable:
+    wrong = wrong_dimension(g, dim)
+    if wrong is not None:
+        raise refuse(*wrong)
+    return g
 
 
 def check_sizes(model: Section, level: int) -> None:

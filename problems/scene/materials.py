@@ -9,9 +9,9 @@ scene extruded from a 2D one solves the same problem.
 A scene's `material` is a name of CRYSTALS ("BaTiO3"), optionally with the poling direction
 (`{ name = "BaTiO3", poling = [0, 0, 1] }`; default the vertical axis: y in 2D, z in 3D) and a
 scaled coupling, or a table with `kind` = isotropic (E, ν), anisotropic (C) or piezoelectric
-(C, e, κ) whose matrices have the scene's sizes. `MaterialSpec` (2D) and `MaterialSpec3` (3D) are
-the same union at the two dimensions (`DIM` of each member); `.material()` is the constitutive
-data: a `Material` in 2D, a `Material3D` in 3D.
+(C, e, κ) whose matrices have the body's sizes (`wrong_size`, checked by the body). One union,
+`MaterialSpec`, serves both dimensions: `.material(dim)` is the constitutive data, a `Material`
+in 2D, a `Material3D` in 3D.
 """
 
 from __future__ import annotations
@@ -115,12 +115,11 @@ Matrix = list[list[Number]]
 VOIGT = {2: 3, 3: 6}  # Voigt size per dimension
 
 
-def _shaped(rows: int, cols: int):
+def _rows(square: bool):
     def check(v: list) -> list:
-        if len(v) != rows or any(len(r) != cols for r in v):
-            raise PydanticCustomError(
-                "matrix", "a {rows}×{cols} matrix of numbers", {"rows": rows, "cols": cols}
-            )
+        if not v or len(v) > 6 or any(len(r) != (len(v) if square else len(v[0])) for r in v):
+            kind = "square matrix" if square else "matrix"
+            raise PydanticCustomError("matrix", "a {kind} of numbers (6×6 at most)", {"kind": kind})
         return v
 
     return AfterValidator(check)
@@ -143,110 +142,102 @@ def _spd(what: str):
     return AfterValidator(check)
 
 
-def _elasticity(d: int) -> Any:
-    n = VOIGT[d]
-    return Annotated[Matrix, _shaped(n, n), _spd(f"elasticity matrix C ({n}×{n} Voigt)")]
+# the shapes by dimension (`MaterialTable.wrong_size`): C d_V × d_V (Voigt), e d × d_V, κ d × d
+Elasticity = Annotated[Matrix, _rows(True), _spd("elasticity matrix C (Voigt)")]
+Coupling = Annotated[Matrix, _rows(False)]
+Permittivity = Annotated[Matrix, _rows(True), _spd("permittivity κ")]
+SHAPES = {
+    "C": lambda d: (VOIGT[d], VOIGT[d]),
+    "e": lambda d: (d, VOIGT[d]),
+    "kappa": lambda d: (d, d),
+}
 
 
-def _coupling(d: int) -> Any:
-    return Annotated[Matrix, _shaped(d, VOIGT[d])]
+class MaterialTable(Section):
+    """A scene's material, of either dimension: `material(dim)` is its constitutive data in a
+    body of dimension `dim`, `wrong_size(dim)` the first matrix whose shape does not fit it."""
+
+    piezoelectric: ClassVar[bool] = False  # whether it couples a potential (a body's φ)
+
+    def material(self, dim: int) -> Material | Material3D:
+        """The constitutive data in a body of dimension `dim`."""
+        raise NotImplementedError
+
+    def wrong_size(self, dim: int) -> tuple[str, list, str] | None:
+        """(key, value, what is allowed) of the first matrix whose shape does not fit a body
+        of dimension `dim`; None if all do."""
+        for key, shape in SHAPES.items():
+            m = getattr(self, key, None)
+            rows, cols = shape(dim)
+            if m is not None and (len(m) != rows or len(m[0]) != cols):
+                return key, m, f"a {rows}×{cols} matrix of numbers (the body is {dim}D)"
+        return None
 
 
-def _permittivity(d: int) -> Any:
-    return Annotated[Matrix, _shaped(d, d), _spd(f"permittivity κ ({d}×{d})")]
-
-
-class NamedMaterial(Section):
+class NamedMaterial(MaterialTable):
     """A crystal of CRYSTALS poled along `poling` (default: y in 2D, z in 3D), its piezoelectric
     coupling optionally scaled."""
 
-    DIM: ClassVar[int] = 2
+    piezoelectric: ClassVar[bool] = True
     name: Literal[MATERIAL_NAMES]
     poling: Direction | None = Field(
         None, description="the poling direction [dx, dy, dz] (default: y in 2D, z in 3D)"
     )
     coupling_scale: Annotated[Number, Field(gt=0.0, lt=MAX_COUPLING)] = 1.0
 
-    def material(self) -> Material | Material3D:
-        """The constitutive data."""
-        m, scale = crystal(self.name, self.poling, self.DIM), self.coupling_scale
-        label = self.name if scale == 1.0 else f"{self.name} (coupling ×{scale:g})"
-        return _at_dim(Material3D(label, m.C, scale * m.e, m.kappa), self.DIM)
+    @property
+    def label(self) -> str:
+        """The name, with the coupling's scale if it is not 1."""
+        scale = self.coupling_scale
+        return self.name if scale == 1.0 else f"{self.name} (coupling ×{scale:g})"
+
+    def material(self, dim: int) -> Material | Material3D:
+        """The constitutive data in a body of dimension `dim`."""
+        m = crystal(self.name, self.poling, dim)
+        return _at_dim(Material3D(self.label, m.C, self.coupling_scale * m.e, m.kappa), dim)
 
 
-class Isotropic(Section):
+class Isotropic(MaterialTable):
     """Linear isotropic elasticity (plane strain in 2D) from Young's modulus E and Poisson's ν."""
 
-    DIM: ClassVar[int] = 2
     kind: Literal["isotropic"]
     E: Annotated[Number, Field(gt=0.0)]
     nu: Annotated[Number, Field(gt=-1.0, lt=0.5)]
     label: Text = "isotropic"
 
-    def material(self) -> Material | Material3D:
-        """The constitutive data."""
-        return _at_dim(isotropic(self.E, self.nu, self.label), self.DIM)
+    def material(self, dim: int) -> Material | Material3D:
+        """The constitutive data in a body of dimension `dim`."""
+        return _at_dim(isotropic(self.E, self.nu, self.label), dim)
 
 
-class Anisotropic(Section):
+class Anisotropic(MaterialTable):
     """A general elastic material: the Voigt matrix C (3×3 in 2D, 6×6 in 3D; symmetric
     positive definite)."""
 
-    DIM: ClassVar[int] = 2
     kind: Literal["anisotropic"]
-    C: _elasticity(2)
+    C: Elasticity
     label: Text = "anisotropic"
 
-    def material(self) -> Material | Material3D:
-        """The constitutive data."""
-        kind = Material if self.DIM == 2 else Material3D
-        return kind(self.label, np.array(self.C, dtype=float))
+    def material(self, dim: int) -> Material | Material3D:
+        """The constitutive data in a body of dimension `dim`."""
+        return (Material if dim == 2 else Material3D)(self.label, np.array(self.C, dtype=float))
 
 
-class Piezoelectric(Section):
+class Piezoelectric(MaterialTable):
     """A piezoelectric material: C, the coupling e and the permittivity κ (2D: 3×3, 2×3, 2×2;
     3D: 6×6, 3×6, 3×3)."""
 
-    DIM: ClassVar[int] = 2
+    piezoelectric: ClassVar[bool] = True
     kind: Literal["piezoelectric"]
-    C: _elasticity(2)
-    e: _coupling(2)
-    kappa: _permittivity(2)
+    C: Elasticity
+    e: Coupling
+    kappa: Permittivity
     label: Text = "piezoelectric"
 
-    def material(self) -> Material | Material3D:
-        """The constitutive data."""
+    def material(self, dim: int) -> Material | Material3D:
+        """The constitutive data in a body of dimension `dim`."""
         C, e, k = (np.array(m, dtype=float) for m in (self.C, self.e, self.kappa))
-        kind = Material if self.DIM == 2 else Material3D
-        return kind(self.label, C, e, k)
-
-
-class NamedMaterial3(NamedMaterial):
-    """A crystal of CRYSTALS in a 3D scene (poled along z unless `poling` says otherwise)."""
-
-    DIM: ClassVar[int] = 3
-
-
-class Isotropic3(Isotropic):
-    """Linear isotropic elasticity in a 3D scene."""
-
-    DIM: ClassVar[int] = 3
-
-
-class Anisotropic3(Anisotropic):
-    """A general elastic material in a 3D scene: C 6×6."""
-
-    DIM: ClassVar[int] = 3
-    C: _elasticity(3)
-
-
-class Piezoelectric3(Piezoelectric):
-    """A piezoelectric material in a 3D scene: C 6×6, e 3×6, κ 3×3."""
-
-    DIM: ClassVar[int] = 3
-    C: _elasticity(3)
-    e: _coupling(3)
-    kappa: _permittivity(3)
+        return (Material if dim == 2 else Material3D)(self.label, C, e, k)
 
 
 def _tag(v: Any) -> str | None:
@@ -263,27 +254,21 @@ def _named(v: Any) -> Any:
     return {"name": v} if isinstance(v, str) else v
 
 
-def _spec(*members: type[Section]) -> Any:
-    """The material union of one dimension: members named, isotropic, anisotropic, piezoelectric."""
-    named, *kinds = members
-    union = Annotated[named, Tag("named")]
-    for kind, member in zip(KINDS, kinds, strict=True):
-        union = union | Annotated[member, Tag(kind)]
-    inputs = Literal[MATERIAL_NAMES]
-    for member in members:
-        inputs = inputs | member
-    return Annotated[
-        union,
-        Discriminator(
-            _tag,
-            custom_error_type="material",
-            custom_error_message="a material name (" + ", ".join(sorted(CRYSTALS)) + ") or a "
-            "table with name = NAME (and poling = [dx, dy, dz]) or kind = " + " | ".join(KINDS),
-        ),
-        BeforeValidator(_named, json_schema_input_type=inputs),
-    ]
-
-
-MaterialSpec = _spec(NamedMaterial, Isotropic, Anisotropic, Piezoelectric)
-MaterialSpec3 = _spec(NamedMaterial3, Isotropic3, Anisotropic3, Piezoelectric3)
+members = (NamedMaterial, Isotropic, Anisotropic, Piezoelectric)
+union = Annotated[NamedMaterial, Tag("named")]
+for kind, member in zip(KINDS, members[1:], strict=True):
+    union = union | Annotated[member, Tag(kind)]
+inputs = Literal[MATERIAL_NAMES]
+for member in members:
+    inputs = inputs | member
+MaterialSpec = Annotated[
+    union,
+    Discriminator(
+        _tag,
+        custom_error_type="material",
+        custom_error_message="a material name (" + ", ".join(sorted(CRYSTALS)) + ") or a "
+        "table with name = NAME (and poling = [dx, dy, dz]) or kind = " + " | ".join(KINDS),
+    ),
+    BeforeValidator(_named, json_schema_input_type=inputs),
+]
 UNION_TAGS.update(("material", k) for k in ("named", *KINDS))

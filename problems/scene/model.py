@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Iterable, Sequence
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
 from problems.errors import SceneError
 
-from .fields import NO_LOAD_PATH, Expression, Integer, Number, Text
+from .fields import NO_LOAD_PATH, Z_IN_2D, Expression, Integer, Number, Text
 
 FORMAT = 2  # the current scene format; format 1 (no `format` key) is migrated on loading
 MAX_LEVEL = 12
@@ -159,7 +159,9 @@ class LoadPath(Section):
 
 class SceneModel(Section):
     """The root of a scene: format, [scene], [solver], [load_path]; plug-ins add their
-    sections."""
+    sections. DIMENSION: that of the scene's geometries (an expression may use z only in 3D)."""
+
+    DIMENSION: ClassVar[int] = 2
 
     format: Literal[2] = Field(description="the scene format (2)")
     scene: Head
@@ -188,7 +190,8 @@ def validate(
     field, the value, what is allowed and the override that caused it, if one did). `prefix`:
     where `data` sits in the scene when `cls` is one section (e.g. ("exact",))."""
     try:
-        model = cls.model_validate(data, context={"file": file})
+        dimension = getattr(cls, "DIMENSION", None)  # a scene's, told to its bodies
+        model = cls.model_validate(data, context={"file": file, "dimension": dimension})
     except ValidationError as err:
         e = err.errors()[0]
         e = {**e, "loc": (*prefix, *e["loc"])}
@@ -198,7 +201,7 @@ def validate(
         raise _scene_error(e, root, file, overrides or {}) from None
     assign_paths(model, path_text(prefix))
     if isinstance(model, SceneModel):
-        _load_parameter(model, file, overrides or {})
+        _variables(model, file, overrides or {})
     return model
 
 
@@ -215,15 +218,20 @@ def expressions(obj: Any) -> list[Expression]:
     return []
 
 
-def _load_parameter(model: SceneModel, file: str | None, overrides: dict[str, str]) -> None:
-    """Refuse t in an expression of a scene without [load_path] (naming the field); with one,
-    tell every expression the path's last t (its value outside a load step)."""
+def _variables(model: SceneModel, file: str | None, overrides: dict[str, str]) -> None:
+    """Refuse z in an expression of a 2D scene and t in one of a scene without [load_path]
+    (naming the field); with a load path, tell every expression its last t (its value
+    outside a load step)."""
     path = model.load_path
     t_end = path.values()[-1] if path is not None else None
     for e in expressions(model):
-        if e.uses_t and path is None:
-            err = SceneError(e.path, e.source, NO_LOAD_PATH, file)
-            raise _with_override(err, e.path, overrides)
+        for used, allowed in (
+            (e.uses_z and model.DIMENSION == 2, Z_IN_2D),
+            (e.uses_t and path is None, NO_LOAD_PATH),
+        ):
+            if used:
+                err = SceneError(e.path, e.source, allowed, file)
+                raise _with_override(err, e.path, overrides)
         e.t_end = t_end
 
 

@@ -52,7 +52,7 @@ class ContactScene(SceneModel):
     def _by_dimension(cls, data: Any, handler: Any, info: ValidationInfo) -> Any:
         file = (info.context or {}).get("file")
         model = FRONTS[scene_dimension(data, file)].SCENE_MODEL
-        return model.model_validate(data, context=info.context)
+        return model.model_validate(data, context={"file": file, "dimension": model.DIMENSION})
 
     @classmethod
     def __get_pydantic_json_schema__(cls, core_schema: Any, handler: Any) -> dict:

@@ -1,6 +1,9 @@
 """Bodies of a contact scene: the [bodies.NAME] section model, and its assembly
-(geometry → mesh, material, loads, Dirichlet data), in 2D and in 3D (the 3D section's value
-types: `problems.plugins.contact.solid_bodies`).
+(geometry → mesh, material, loads, Dirichlet data), in 2D and in 3D, the fields of the
+unknowns with their near-null spaces for the iterative linear path (`field_data`).
+
+A body's geometry decides its dimension d (`BodySection.dim`); its vectors, displacement
+components and material matrices are checked against d where the table is validated.
 
 A body owns d displacement unknowns per node (d = 2 or 3, the mesh's dimension) and, only if
 its material is piezoelectric, one potential unknown per node. Global (full) numbering: body
@@ -13,11 +16,11 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
-from typing import Annotated, ClassVar, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import scipy.sparse as sp
-from pydantic import BeforeValidator, model_validator
+from pydantic import BeforeValidator, Field, ValidationInfo, model_validator
 
 from fem import assembly
 from fem.mesh import Mesh
@@ -25,7 +28,7 @@ from fem.refined_counts import Skeleton
 from fem.tensors import Material3D
 from problems.scene import Section
 from problems.scene.fields import Expression, Text, Vector, evaluate
-from problems.scene.geometry import Geometry
+from problems.scene.geometry import Geometry, wrong_dimension
 from problems.scene.materials import Material, MaterialSpec
 from problems.scene.model import one_or_many, refuse
 
@@ -100,13 +103,16 @@ class Body:
 
 
 Parts = BeforeValidator(one_or_many)
+AXES = {2: "xy", 3: "xyz"}  # a body's displacement components by dimension
 
 
 class DisplacementPart(Section):
-    """A [[displacement]] part: prescribed components of u on a boundary part."""
+    """A [[displacement]] part: prescribed components of u on a boundary part (m)."""
 
     boundary: Text
-    components: Literal["x", "y", "xy"] = "xy"
+    components: Literal[tuple(COMPONENTS)] | None = Field(
+        None, description="the prescribed components (default: all, xy in 2D and xyz in 3D)"
+    )
     value: Vector
 
 
@@ -118,18 +124,16 @@ class TractionPart(Section):
 
 
 class ScalarPart(Section):
-    """A [[potential]] or [[charge]] part: a scalar field on a boundary part."""
+    """A [[potential]] (V) or [[charge]] (C/m²) part: a scalar field on a boundary part."""
 
     boundary: Text
     value: Expression
 
 
 class BodySection(Section):
-    """One [bodies.NAME] table (and signorini's [body]): geometry, material, loads, data.
-    (The 3D table, `contact3d_bodies.BodySection3`, is this one with 3D value types.)"""
-
-    # where φ is prescribed, as the refusal of a piezoelectric body without [[potential]] says
-    POTENTIAL_WHERE: ClassVar[str] = "Γ_a, where φ is prescribed"
+    """One [bodies.NAME] table (and signorini's [body]): geometry, material, loads, data. The
+    geometry decides the body's dimension d; vectors have d entries, displacement components
+    are among d axes and the material's matrices have the sizes of d."""
 
     material: MaterialSpec
     geometry: Geometry
@@ -140,6 +144,11 @@ class BodySection(Section):
     potential: Annotated[list[ScalarPart], Parts] = []
     charge: Annotated[list[ScalarPart], Parts] = []
 
+    @property
+    def dim(self) -> int | None:
+        """The body's dimension, its geometry's (None: a mesh file that cannot be read)."""
+        return self.geometry.DIM
+
     def boundary_refs(self) -> list[tuple[str, str]]:
         """(field path, boundary name) of every boundary this table names."""
         return [
@@ -149,11 +158,18 @@ class BodySection(Section):
         ]
 
     @model_validator(mode="after")
-    def _consistent(self) -> BodySection:
+    def _consistent(self, info: ValidationInfo) -> BodySection:
+        scene_dim = (info.context or {}).get("dimension")  # the scene's, if it is validated
+        wrong = None if scene_dim is None else wrong_dimension(self.geometry, scene_dim)
+        if wrong is not None:
+            field, value, allowed = wrong
+            raise refuse(["geometry", *field], value, allowed)
         names = self.geometry.BOUNDARIES
         for key in ("displacement", "traction", "potential", "charge"):
             for i, part in enumerate(getattr(self, key)):
                 check_boundaries([key, i, "boundary"], [part.boundary], names)
+        if self.dim is not None:
+            self._sized(self.dim)
         prescribed_once("displacement", [([p.boundary], p.components) for p in self.displacement])
         prescribed_once("potential", [([p.boundary], "") for p in self.potential])
         if not self.displacement:
@@ -162,13 +178,13 @@ class BodySection(Section):
                 [],
                 "at least one [[displacement]] part (otherwise a rigid motion is left free)",
             )
-        material = self.material.material()
+        material = self.material
         if material.piezoelectric and not self.potential:
             raise refuse(
                 ["potential"],
                 None,
-                f"at least one [[potential]] part ({self.POTENTIAL_WHERE}): the material "
-                f"{material.name!r} is piezoelectric",
+                "at least one [[potential]] part (Γ_a, where φ is prescribed): the material "
+                f"{material.label!r} is piezoelectric",
             )
         if not material.piezoelectric:
             for key in ("potential", "charge", "free_charge"):
@@ -177,10 +193,31 @@ class BodySection(Section):
                     raise refuse(
                         [key],
                         v.source if isinstance(v, Expression) else [p.boundary for p in v],
-                        f"not allowed: the material {material.name!r} is not piezoelectric, so "
-                        "the body has no electric potential",
+                        f"not allowed: the material {material.label!r} is not piezoelectric, "
+                        "so the body has no electric potential",
                     )
         return self
+
+    def _sized(self, d: int) -> None:
+        """Refuse a vector, a displacement component or a material matrix that does not fit
+        the body's dimension `d`; fill in the default components (all d axes)."""
+        axes, body = AXES[d], f"the body is {d}D (its geometry is)"
+        vectors = [(["body_force"], self.body_force)]
+        for key in ("displacement", "traction"):
+            vectors += [([key, i, "value"], p.value) for i, p in enumerate(getattr(self, key))]
+        for loc, v in vectors:
+            if v is not None and len(v) != d:
+                allowed = f"a list of {d} entries [{', '.join(axes)}]: {body}"
+                raise refuse(loc, [e.source for e in v], allowed)
+        for i, p in enumerate(self.displacement):
+            p.components = p.components or axes
+            if not set(p.components) <= set(axes):
+                allowed = ", ".join(c for c in COMPONENTS if set(c) <= set(axes))
+                raise refuse(
+                    ["displacement", i, "components"], p.components, f"one of {allowed}: {body}"
+                )
+        if (wrong := self.material.wrong_size(d)) is not None:
+            raise refuse(["material", wrong[0]], *wrong[1:])
 
 
 def free_per_entity(
@@ -224,7 +261,7 @@ def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
     mesh = t.geometry.mesh(level) if given is None else given
     if t.geometry.BOUNDARIES is None:
         check_meshed(mesh, t.boundary_refs())
-    body = Body(name, mesh, t.material.material(), offset)
+    body = Body(name, mesh, t.material.material(mesh.points.shape[1]), offset)
     f = loads(t, body)
     fixed, values = dirichlet(t, body)
     body.A, body.f, body.fixed, body.values = operator(body), f, fixed, values
@@ -293,3 +330,35 @@ def dirichlet(t: BodySection, body: Body) -> tuple[np.ndarray, np.ndarray]:
             fixed[d * N + nodes] = True
             values[d * N + nodes] = tt.value(*coordinates(mesh, nodes))
     return fixed, values
+
+
+# The rotations of the rigid-body modes by dimension: (i, j) turns x_i into x_j, the mode
+# (−x_j, x_i) on the components (i, j) (2D: about z; 3D: about x, y, z)
+ROTATIONS = {2: ((0, 1),), 3: ((1, 2), (2, 0), (0, 1))}
+
+
+def field_data(bodies: list[Body], free: np.ndarray, n_full: int) -> dict:
+    """`MixedVI` keywords fields and near_null, for `vi_core.krylov`'s per-field multigrid:
+    displacement and potential masks over the unknowns `free` (full indices), and the
+    displacement block's rigid-body modes (n_disp, d + len(ROTATIONS[d])): the d translations,
+    then the rotations (the potential block's near-null space is the constant, the default)."""
+    dim = bodies[0].dim
+    comp = np.full(n_full, -1)  # displacement component of each full dof, −1 = potential
+    xyz = np.zeros((n_full, dim))  # (n_full, d) node coordinates of each displacement dof
+    for b in bodies:
+        d = b.u_dofs(np.arange(b.n_nodes))  # (N, d)
+        comp[d] = np.arange(dim)[None, :]
+        for k in range(dim):
+            xyz[d[:, k]] = b.mesh.points
+    c, p = comp[free], xyz[free]  # (n,), (n, d)
+    disp = c >= 0
+    modes = np.zeros((free.size, dim + len(ROTATIONS[dim])))  # (n, modes)
+    for k in range(dim):
+        modes[c == k, k] = 1.0
+    for r, (i, j) in enumerate(ROTATIONS[dim]):
+        modes[c == i, dim + r] = -p[c == i, j]
+        modes[c == j, dim + r] = p[c == j, i]
+    fields = {"displacement": disp}
+    if (~disp).any():
+        fields["potential"] = ~disp
+    return {"fields": fields, "near_null": {"displacement": modes[disp]}}

@@ -10,12 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from problems.errors import SceneError
-from problems.scene.geometry import GEOMETRY_2D, GEOMETRY_3D
+from problems.scene.geometry import KINDS
 from problems.scene.imported import file_dimension, resolve
 
-FILES = ("mesh", "geo")  # the union tags that name a file rather than a built-in kind
-KINDS_2D = tuple(k for k in GEOMETRY_2D if k not in FILES)  # (rectangle, half_disc, cradle)
-KINDS_3D = tuple(k for k in GEOMETRY_3D if k not in FILES)  # (box, extruded)
 ALIASES = {"piezo_contact": 2, "contact3d": 3}  # the former plug-ins and their dimension
 DEFAULT = 2  # nothing tells (no body, an unreadable geometry): the 2D model names the error
 
@@ -25,10 +22,9 @@ def _geometry_dimension(geometry: Any, scene_file: str | None) -> int | None:
     if not isinstance(geometry, dict):
         return None
     kind = geometry.get("kind")
-    if kind in KINDS_2D:
-        return 2
-    if kind in KINDS_3D:
-        return 3
+    for d, kinds in KINDS.items():
+        if kind in kinds:
+            return d
     if "geo" in geometry:
         return 2
     name = geometry.get("mesh")

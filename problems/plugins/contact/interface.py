@@ -21,6 +21,12 @@ from problems.errors import SceneError
 from vi_core import Solution
 from vi_core import states as node_states
 
+# Quadrature order of the 3D contact surface integrals (W, normals, g_k, the dual basis of the
+# mortar): Q1 faces of a curved surface are not planar and |∂x/∂ξ × ∂x/∂η| is not polynomial
+# (order 4 leaves 7e-11 in the rigid-body rows of spherical_cap, order 8 3e-15); P1 faces are
+# flat (order 4 exact).
+SURFACE_ORDER = {"hexahedron": 8, "tetra": 4}
+
 
 def node_at(body: Any, tr: Trace, i: int) -> str:
     """'node 12 at [0.0, 1.0]' for trace index i of `body`'s contact boundary `tr`."""

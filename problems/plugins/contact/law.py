@@ -9,21 +9,20 @@ contact3d (3D): the keys, their validation and the multiplier set they make.
     gap                  the initial normal distance to a rigid foundation (m, a field ≥ 0);
                          unilateral only; two bodies take theirs from the geometry
 
-Exactly the key of the chosen friction (g or F) is given. The tables differ between 2D and 3D
-only in the variables of their fields (x, y or x, y, z): `friction_law(expr)` and
-`contact_law(expr)` make the table classes for a field type; `pair_set` the vi_core set of the
-nodes that carry [λ_n, λ_t] (docs/coulomb.md, "Contact laws of the plug-ins").
+Exactly the key of the chosen friction (g or F) is given. The tables are the same in 2D and
+3D (fields of x, y or x, y, z): `FrictionLaw` and `ContactLaw`; `pair_set` the vi_core set of
+the nodes that carry [λ_n, λ_t] (docs/coulomb.md, "Contact laws of the plug-ins").
 """
 
 from __future__ import annotations
 
-from functools import cache
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 from pydantic import model_validator
 
 from problems.scene import Section
+from problems.scene.fields import NonNegativeExpr
 from problems.scene.model import refuse
 from vi_core import Coulomb, UnilateralTresca
 from vi_core.coulomb import ContactSet
@@ -32,72 +31,44 @@ LAWS = ("bilateral", "unilateral")  # [contact] law
 FRICTIONS = ("tresca", "coulomb")  # [contact] friction
 
 
-def _check_friction(section: Any) -> Any:
-    """Exactly the bound key of the chosen friction: g (tresca) or F (coulomb)."""
-    need, other = ("g", "F") if section.friction == "tresca" else ("F", "g")
-    if getattr(section, need) is None:
-        raise refuse([need], None, f"required with friction = {section.friction!r}")
-    if getattr(section, other) is not None:
-        raise refuse(
-            [other], getattr(section, other).source, f"absent with friction = {section.friction!r}"
-        )
-    return section
+class FrictionLaw(Section):
+    """The friction of a contact table: friction = "tresca" (bound g, a field ≥ 0 in Pa) or
+    "coulomb" (bound F·λ_n, F a field ≥ 0); exactly the key of the chosen friction is given."""
+
+    friction: Literal[FRICTIONS] = FRICTIONS[0]
+    g: NonNegativeExpr | None = None
+    F: NonNegativeExpr | None = None
+
+    @model_validator(mode="after")
+    def _friction(self) -> FrictionLaw:
+        need, other = ("g", "F") if self.friction == "tresca" else ("F", "g")
+        if getattr(self, need) is None:
+            raise refuse([need], None, f"required with friction = {self.friction!r}")
+        if getattr(self, other) is not None:
+            allowed = f"absent with friction = {self.friction!r}"
+            raise refuse([other], getattr(self, other).source, allowed)
+        return self
 
 
-def _check_law(section: Any) -> Any:
-    """Coulomb and an initial gap need law = "unilateral"; two bodies take their gap from the
-    geometry (a `master` other than "rigid")."""
-    if section.law == "bilateral":
-        if section.friction == "coulomb":
+class ContactLaw(FrictionLaw):
+    """The contact-law keys (module docstring): law = "bilateral" or "unilateral"; friction =
+    "tresca" (g) or "coulomb" (F, unilateral only); gap = the initial normal distance to a
+    rigid foundation (unilateral only; two bodies take theirs from the geometry). The plug-in's
+    [contact] table subclasses it with its slave and master keys."""
+
+    law: Literal[LAWS] = LAWS[0]
+    gap: NonNegativeExpr | None = None
+
+    @model_validator(mode="after")
+    def _law(self) -> ContactLaw:
+        gap = None if self.gap is None else self.gap.source
+        if self.law == "bilateral" and self.friction == "coulomb":
             raise refuse(["friction"], "coulomb", "'tresca' with law = 'bilateral'")
-        if section.gap is not None:
-            raise refuse(["gap"], section.gap.source, "absent with law = 'bilateral'")
-    if section.gap is not None and getattr(section, "master", "rigid") != "rigid":
-        raise refuse(
-            ["gap"], section.gap.source, "absent for two bodies (their gap is the geometry's)"
-        )
-    return section
-
-
-@cache
-def friction_law(expr: Any) -> type[Section]:
-    """The table with the friction keys (friction, g, F) for fields of type `expr` (one class
-    per field type)."""
-
-    class FrictionLaw(Section):
-        """The friction of a contact table: friction = "tresca" (bound g, a field ≥ 0 in Pa) or
-        "coulomb" (bound F·λ_n, F a field ≥ 0); exactly the key of the chosen friction is
-        given."""
-
-        friction: Literal[FRICTIONS] = FRICTIONS[0]
-        g: expr | None = None
-        F: expr | None = None
-
-        @model_validator(mode="after")
-        def _friction(self) -> FrictionLaw:
-            return _check_friction(self)
-
-    return FrictionLaw
-
-
-@cache
-def contact_law(expr: Any) -> type[Section]:
-    """The table with the contact-law keys (law, friction, g, F, gap) for fields of type
-    `expr`; the plug-in's [contact] table subclasses it with its slave and master keys."""
-
-    class ContactLaw(friction_law(expr)):
-        """The contact law (module docstring of problems.plugins.contact.law): law =
-        "bilateral" or "unilateral"; friction = "tresca" (g) or "coulomb" (F, unilateral only);
-        gap = the initial normal distance to a rigid foundation (unilateral only)."""
-
-        law: Literal[LAWS] = LAWS[0]
-        gap: expr | None = None
-
-        @model_validator(mode="after")
-        def _law(self) -> ContactLaw:
-            return _check_law(self)
-
-    return ContactLaw
+        if self.law == "bilateral" and gap is not None:
+            raise refuse(["gap"], gap, "absent with law = 'bilateral'")
+        if gap is not None and getattr(self, "master", "rigid") != "rigid":
+            raise refuse(["gap"], gap, "absent for two bodies (their gap is the geometry's)")
+        return self
 
 
 def pair_set(friction: str, bound: np.ndarray, dim: int) -> ContactSet:

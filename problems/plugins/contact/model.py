@@ -4,7 +4,7 @@ full vector with its Dirichlet values), the assembly of the bodies into the Mixe
 (`mixed_vi`), the nodal fields by name, the mesh size, and the check
 of a BODY.BOUNDARY reference of a scene.
 
-A body (`bodies.Body`, `contact3d_bodies.Body3D`) numbers its full dofs from `offset`:
+A body (`bodies.Body`, 2D or 3D) numbers its full dofs from `offset`:
 displacement first (`u_dofs`), then potential on piezoelectric bodies; `split` cuts its part
 of a full vector into displacement (N, d) and potential (N,) or None.
 """
@@ -28,7 +28,7 @@ from problems.scene.model import expressions, refuse
 from vi_core import MixedVI, Solution, product
 
 from ..contract import Sweep
-from .bodies import build_body, dirichlet, gram, loads
+from .bodies import build_body, dirichlet, field_data, gram, loads
 from .interface import multiplier_rows
 
 
@@ -113,7 +113,6 @@ def built(build: Callable[[Scene, int | None], Any], scene: Scene, level: int | 
 def mixed_vi(
     bodies: list[Any],
     contact: Any,
-    field_data: Callable,
     info: dict,
     check: Callable | None = None,
 ) -> tuple[MixedVI, np.ndarray, np.ndarray, Rhs]:
@@ -121,8 +120,8 @@ def mixed_vi(
     (the MixedVI, free (n_free,) the full indices of the unknowns, values (n_full,) the
     prescribed values, the `Rhs` that recomputes f and gap from other loads and values).
     contact the front's contact (None: no multipliers), whose rows are
-    `interface.multiplier_rows`; field_data(bodies, free, n_full) → the MixedVI's `fields`
-    and `near_null`; check(A_full, f_full, values) may refuse the assembled data. Each body's
+    `interface.multiplier_rows`; the MixedVI's `fields` and `near_null` are
+    `bodies.field_data`'s; check(A_full, f_full, values) may refuse the assembled data. Each body's
     operator A is released (vi.A is the copy kept: memory; paper scene level 5: 117 MB of
     bodies' A); a body keeps A's rows of its prescribed dofs, `A_fixed` (its reactions:
     `piezo_balance`). vi.X, the norm of `vi_core.constants`, is a function that assembles it

@@ -39,7 +39,7 @@ from problems.output import plots, results
 from problems.output.results import ContactTable
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.exact import ExactSection, split_exact
-from problems.scene.fields import NonNegativeExpr, Text
+from problems.scene.fields import Text
 from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
 from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
@@ -56,7 +56,6 @@ from . import model as contact_model
 from . import plane_errors as piezo_errors
 from .bodies import Body, BodySection
 from .body_output import body_fields
-from .fields import field_data
 from .law import FRICTIONS, LAWS
 from .model import BodiesModel, build_bodies, interface_references, reference
 
@@ -172,10 +171,7 @@ class Model(BodiesModel):
         return contact_state(self, sol)
 
 
-FrictionLaw = contact_law.friction_law(NonNegativeExpr)  # signorini's [contact] keys
-
-
-class ContactSection(contact_law.contact_law(NonNegativeExpr)):
+class ContactSection(contact_law.ContactLaw):
     """[contact]: slave and master boundaries (BODY.BOUNDARY, master "rigid" for a rigid
     foundation), the contact law (docs/coulomb.md, "Contact laws of the plug-ins"), and the
     multiplier end rule.
@@ -218,12 +214,12 @@ class PlaneScene(SceneModel):
             slave = interface_references(self.bodies, c)
             e = c.electrical
             if e is not None:
-                if not self.bodies[slave].material.material().piezoelectric:
+                if not self.bodies[slave].material.piezoelectric:
                     raise refuse(
                         ["contact", "electrical"], e.kind, "only with a piezoelectric slave body"
                     )
                 piezo_master = c.master != "rigid" and (
-                    self.bodies[c.master.split(".")[0]].material.material().piezoelectric
+                    self.bodies[c.master.split(".")[0]].material.piezoelectric
                 )
                 if piezo_master and e.kind != "insulating" and e.phi_F != 0.0:
                     raise refuse(
@@ -235,7 +231,7 @@ class PlaneScene(SceneModel):
         if self.output is not None and self.output.potential_along is not None:
             field = ["output", "potential_along"]
             body, _ = reference(self.bodies, field, self.output.potential_along)
-            if not self.bodies[body].material.material().piezoelectric:
+            if not self.bodies[body].material.piezoelectric:
                 raise refuse(
                     field, self.output.potential_along, "a boundary of a piezoelectric body"
                 )
@@ -290,7 +286,6 @@ def build_model(
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
         contact,
-        field_data,
         {"scene": scene.name, "level": level},
         check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
     )

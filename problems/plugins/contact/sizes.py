@@ -33,7 +33,7 @@ def sizes(spec: SceneModel, levels: Sequence[int]) -> list[tuple[int, int, int]]
         mesh = tb.geometry.mesh(0)
         if tb.geometry.BOUNDARIES is None:
             check_meshed(mesh, tb.boundary_refs())
-        body = Body(name, mesh, tb.material.material(), 0)
+        body = Body(name, mesh, tb.material.material(mesh.points.shape[1]), 0)
         skeleton = Skeleton(mesh)
         disp, pot = free_per_entity(tb, body, skeleton)  # (n_entities,) each
         on_slave = None

@@ -48,7 +48,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -59,8 +59,7 @@ from fem import mortar as dual_mortar
 from fem.facets import Trace, dual_mass, facet_integrals, frames, multiplier_basis, trace
 from problems.errors import SceneError
 from problems.scene import Scene, SceneModel
-from problems.scene.exact import ExactSection3
-from problems.scene.fields import NonNegativeExpr3
+from problems.scene.exact import ExactSection
 from problems.scene.model import head
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
 from vi_core import states as node_states
@@ -74,9 +73,9 @@ from . import model as contact_model
 from . import solid_checks as contact3d_checks
 from . import solid_errors as contact3d_errors
 from . import solid_output as contact3d_output
-from .bodies import Body
+from .bodies import Body, BodySection
+from .interface import SURFACE_ORDER
 from .model import BodiesModel, build_bodies, interface_references
-from .solid_bodies import SURFACE_ORDER, BodySection3, field_data
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
 ALIAS = "contact3d"  # its former name, still accepted (registry.ALIASES)
@@ -220,7 +219,7 @@ class Model(BodiesModel):
     dimension: int = DIMENSION
 
 
-class ContactSection(contact_law.contact_law(NonNegativeExpr3)):
+class ContactSection(contact_law.ContactLaw):
     """[contact]: the slave boundary (BODY.BOUNDARY), the master ("rigid": a rigid foundation
     along the slave surface, or at the distance `gap` from it; or BODY.BOUNDARY of another body:
     the 3D dual mortar) and the contact law (fields of x, y, z): law = "bilateral" (λ_n of any
@@ -242,10 +241,11 @@ Head = head(NAME, 1, ALIAS)
 class SolidScene(SceneModel):
     """A contact3d scene: 3D bodies and an optional contact interface."""
 
+    DIMENSION: ClassVar[int] = DIMENSION
     scene: Head
-    bodies: Annotated[dict[str, BodySection3], Field(min_length=1)]
+    bodies: Annotated[dict[str, BodySection], Field(min_length=1)]
     contact: ContactSection | None = None
-    exact: ExactSection3 | None = None  # a manufactured solution (contact3d_errors)
+    exact: ExactSection | None = None  # a manufactured solution (contact3d_errors)
 
     @model_validator(mode="after")
     def _references(self) -> SolidScene:
@@ -282,7 +282,6 @@ def _build(scene: Scene, level: int | None) -> Model:
     vi, free, values, rhs = contact_model.mixed_vi(
         list(bodies.values()),
         contact,
-        field_data,
         {"scene": scene.name, "level": level},
     )
     bodies_ = list(bodies.values())

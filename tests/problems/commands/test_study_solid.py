@@ -18,7 +18,7 @@ import vi_core
 from problems.commands import study
 from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
-from problems.scene.exact import Exact, ExactSection3
+from problems.scene.exact import Exact, ExactSection
 
 from ..plugins.contact.test_manufactured import slope_failures
 
@@ -55,7 +55,7 @@ def test_study_reports_the_exact_errors_and_rates(tmp_path, capsys):
 
 
 def test_a_wrong_exact_solution_fails_the_rates(tmp_path, monkeypatch):
-    compiled = ExactSection3.compiled
+    compiled = ExactSection.compiled
 
     def rest(e: Exact) -> tuple:
         return e.phi, e.grad_phi, e.lam
@@ -64,5 +64,5 @@ def test_a_wrong_exact_solution_fails_the_rates(tmp_path, monkeypatch):
         e = compiled(self)
         return Exact(e.u, lambda *p: np.swapaxes(e.grad_u(*p), -1, -2), *rest(e))
 
-    monkeypatch.setattr(ExactSection3, "compiled", off)
+    monkeypatch.setattr(ExactSection, "compiled", off)
     assert slope_failures(run(tmp_path)["rates"]["ssn"])

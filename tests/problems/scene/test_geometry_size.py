@@ -14,7 +14,7 @@ from problems.commands import resources
 from problems.errors import SceneError
 from problems.plugins import registry
 from problems.scene import geometry, load_scene
-from problems.scene.geometry import Box, Cradle, Extruded, HalfDisc, MeshFile, MeshFile3, Rectangle
+from problems.scene.geometry import Box, Cradle, Extruded, HalfDisc, MeshFile, Rectangle
 
 MESHES = Path(__file__).parents[3] / "problems" / "scenes" / "meshes"
 
@@ -53,7 +53,7 @@ def test_the_count_is_the_built_mesh_s_for_every_kind(seed):
     "g",
     [
         _file(MeshFile, "plate_with_hole.msh", "plate"),
-        _file(MeshFile3, "bracket3d.msh", "bracket"),
+        _file(MeshFile, "bracket3d.msh", "bracket"),
     ],
     ids=["quads from a file", "tetrahedra from a file"],
 )

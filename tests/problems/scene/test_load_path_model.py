@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from problems.errors import SceneError
 from problems.plugins import registry
 from problems.scene import SCENES_DIR, load_scene
-from problems.scene.fields import Expression, Expression3, load_parameter
+from problems.scene.fields import Expression, load_parameter
 from problems.scene.model import expressions
 
 SHIPPED = sorted(p.stem for p in SCENES_DIR.glob("*.toml"))
@@ -68,7 +68,7 @@ def test_t_without_a_load_path_is_refused_naming_the_field(case, seed):
     (e,) = [e for e in expressions(spec) if e.path == path]
     assert e.uses_t and e.t_end == 1.0
     x = rng.uniform(-1, 1, 3)
-    args = (x,) * (3 if isinstance(e, Expression3) else 2)  # contact3d: f(x, y, z)
+    args = (x,) * 3 if spec.DIMENSION == 3 else (x,) * 2  # a 3D scene: f(x, y, z)
     assert np.allclose(e(*args), scale)  # outside a step: the path's last t
     t = float(rng.uniform(0, 1))
     with load_parameter(t):

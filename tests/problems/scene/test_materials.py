@@ -18,7 +18,7 @@ from vi_core import solve
 def test_the_2d_constants_are_the_6mm_layout_poled_along_y(name):
     """C on (xx, yy, xy), the σ_zz rows, e and κ of a crystal poled along y, entry by entry."""
     c11, c12, c13, c33, c44, e31, e33, e15, k11, k33 = mt.CRYSTALS[name]
-    m = mt.NamedMaterial(name=name).material()
+    m = mt.NamedMaterial(name=name).material(2)
     assert np.array_equal(m.C, [[c11, c13, 0.0], [c13, c33, 0.0], [0.0, 0.0, c44]])
     assert np.array_equal(m.C_zz, [c12, c13, 0.0])
     assert np.array_equal(m.e, [[0.0, 0.0, e15], [e31, e33, 0.0]])
@@ -42,8 +42,8 @@ def test_mutation_a_wrong_out_of_plane_row_is_told_apart(monkeypatch):
 
 
 def test_isotropic_is_the_same_law_in_2d_and_3d():
-    m2 = mt.Isotropic(kind="isotropic", E=2.0e11, nu=0.3).material()
-    m3 = mt.Isotropic3(kind="isotropic", E=2.0e11, nu=0.3).material()
+    table = mt.Isotropic(kind="isotropic", E=2.0e11, nu=0.3)
+    m2, m3 = table.material(2), table.material(3)
     assert np.array_equal(m2.C, m3.C[np.ix_([0, 1, 5], [0, 1, 5])])
     assert np.array_equal(m2.C_zz, m3.C[2, [0, 1, 5]]) and m2.e is None and m3.e is None
     lam = m3.C[0, 1]
@@ -51,10 +51,11 @@ def test_isotropic_is_the_same_law_in_2d_and_3d():
 
 
 def test_the_default_poling_is_the_vertical_axis():
-    for cls, axis in ((mt.NamedMaterial, [0.0, 1.0, 0.0]), (mt.NamedMaterial3, [0.0, 0.0, 1.0])):
-        a, b = cls(name="PZT-5H").material(), cls(name="PZT-5H", poling=axis).material()
+    for dim, axis in ((2, [0.0, 1.0, 0.0]), (3, [0.0, 0.0, 1.0])):
+        named = mt.NamedMaterial
+        a, b = named(name="PZT-5H").material(dim), named(name="PZT-5H", poling=axis).material(dim)
         assert np.array_equal(a.C, b.C) and np.array_equal(a.e, b.e)
-    sideways = mt.NamedMaterial(name="PZT-5H", poling=[1.0, 0.0, 0.0]).material()
+    sideways = mt.NamedMaterial(name="PZT-5H", poling=[1.0, 0.0, 0.0]).material(2)
     assert sideways.e[0, 0] == mt.CRYSTALS["PZT-5H"][6]  # D_x ← ε_xx: e33 along x
 
 
@@ -75,14 +76,14 @@ def _table(m) -> str:
 
 
 @pytest.mark.parametrize(
-    ("name", "plugin", "cls"),
-    [("rigid_foundation", pc, mt.NamedMaterial), ("block3d", contact3d, mt.NamedMaterial3)],
+    ("name", "plugin", "dim"),
+    [("rigid_foundation", pc, 2), ("block3d", contact3d, 3)],
 )
-def test_full_tensors_solve_the_named_material_s_problem(name, plugin, cls):
+def test_full_tensors_solve_the_named_material_s_problem(name, plugin, dim):
     """The named BaTiO3 written out as a piezoelectric table (3×3/2×3/2×2 in 2D, 6×6/3×6/3×3
     in 3D) gives the same solution; with e's sign flipped it does not (mutation)."""
     named = _solved(plugin.build, load_scene(name))
-    m = cls(name="BaTiO3").material()
+    m = mt.NamedMaterial(name="BaTiO3").material(dim)
     written = load_scene(name, [f"bodies.block.material={_table(m)}"])
     scale = np.abs(named).max()
     assert np.allclose(_solved(plugin.build, written), named, rtol=1e-12, atol=1e-14 * scale)

@@ -10,8 +10,7 @@ import scipy.sparse as sp
 import problems.scenes
 import vi_core
 from problems.plugins import registry
-from problems.plugins.contact.bodies import operator
-from problems.plugins.contact.fields import field_data
+from problems.plugins.contact.bodies import field_data, operator
 from problems.scene import load_scene
 from vi_core import MixedVI
 from vi_core import ssn as ssn_module
@@ -43,21 +42,22 @@ def test_amg_agrees_with_direct_on_every_shipped_scene(name, level):
         assert a.info["fallback"] == []
 
 
-@pytest.mark.parametrize("name", ["paper_two_body", "rigid_foundation", "signorini"])
+@pytest.mark.parametrize("name", ["paper_two_body", "rigid_foundation", "signorini", "block3d"])
 def test_field_data_rigid_body_modes_are_null_vectors(name):
-    """Without Dirichlet reduction the displacement block annihilates the three modes
-    (mutation: a rotation with the wrong sign in one component does not)."""
+    """Without Dirichlet reduction the displacement block annihilates the rigid-body modes (3
+    in 2D, 6 in 3D; mutation: a rotation with the wrong sign in one component does not)."""
     model = _model(name, 1)
     bodies = model.bodies if hasattr(model, "bodies") else [model.body]
     A = sp.block_diag([operator(b) for b in bodies], format="csr")
     n_full = A.shape[0]
     data = field_data(bodies, np.arange(n_full), n_full)
     disp = data["fields"]["displacement"]
-    modes = data["near_null"]["displacement"]  # (n_disp, 3)
+    modes = data["near_null"]["displacement"]  # (n_disp, 3 or 6)
+    assert modes.shape[1] == {2: 3, 3: 6}[bodies[0].dim]
     K = A[disp][:, disp]
     scale = abs(K).max() * np.abs(modes).max()
     assert np.abs(K @ modes).max() <= 1e-9 * scale
-    wrong = modes[:, 2].copy()
+    wrong = modes[:, -1].copy()  # the rotation about z, (−y, x)
     wrong[modes[:, 1] == 1] *= -1  # (−y, −x): not a rotation
     assert np.abs(K @ wrong).max() > 1e-3 * scale
     if model.vi.fields is not None:

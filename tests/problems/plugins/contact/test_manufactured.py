@@ -25,9 +25,9 @@ from problems.plugins.contact import solid_errors as contact3d_errors
 from problems.plugins.contact.bodies import BodySection
 from problems.scene import load_scene
 from problems.scene.exact import split_exact
-from problems.scene.fields import Expression3, evaluate
+from problems.scene.fields import Expression, evaluate
 from problems.scene.manufactured import CENTRE, S0, SIDES
-from problems.scene.materials import NAMED, NamedMaterial3
+from problems.scene.materials import NAMED, NamedMaterial
 from vi_core import solve
 
 STEP = 1e-5  # central differences: error ~ STEP² · (third derivatives) on an O(1) domain
@@ -180,7 +180,7 @@ def exact3(spec):
 
 
 def _material() -> Material3D:
-    return NamedMaterial3(name="BaTiO3", poling=[0.0, 0.0, 1.0]).material()
+    return NamedMaterial(name="BaTiO3", poling=[0.0, 0.0, 1.0]).material(3)
 
 
 def _fields3(exact3, x, y, z):
@@ -234,7 +234,7 @@ def _same_values(a, b, points) -> None:
         for x, y in zip(a, b, strict=True):
             _same_values(x, y, points)
     elif isinstance(a, str) and a != b:
-        va, vb = Expression3(a)(*points), Expression3(b)(*points)
+        va, vb = Expression(a)(*points), Expression(b)(*points)
         np.testing.assert_allclose(va, vb, rtol=1e-12, atol=1e-12 * np.abs(va).max())
     else:
         assert a == b
@@ -426,13 +426,13 @@ def test_a_wrong_traction_sign_breaks_the_rates(monkeypatch):
 
 
 def test_a_wrong_coupling_sign_breaks_the_rates(monkeypatch):
-    material = NamedMaterial3.material
+    material = NamedMaterial.material
 
-    def flipped(self) -> Material3D:
-        m = material(self)
+    def flipped(self, dim: int) -> Material3D:
+        m = material(self, dim)
         return Material3D(m.name, m.C, -m.e, m.kappa)
 
-    monkeypatch.setattr(NamedMaterial3, "material", flipped)
+    monkeypatch.setattr(NamedMaterial, "material", flipped)
     h, errs, _ = _errors(load_scene(NAME_3D), "hexahedron")
     assert slope_failures(slopes(h, errs))
 

@@ -75,3 +75,69 @@ def test_count_in_2d_is_the_built_size(name):
     for level, c in zip((0, 1), counted, strict=True):
         vi = plane.build(scene, level).vi
         assert c == (vi.n + vi.m, vi.A.nnz, vi.n)
+
+
+def _refused(name: str, change) -> SceneError:
+    scene = load_scene(name)
+    change(scene.data)
+    with pytest.raises(SceneError) as err:
+        scene.validated(contact.SCENE_MODEL)
+    return err.value
+
+
+def _set(*path_value):
+    *path, value = path_value
+
+    def change(data):
+        node = data
+        for p in path[:-1]:
+            node = node[p]
+        node[path[-1]] = value
+
+    return change
+
+
+SIX = [[float(i == j) for j in range(6)] for i in range(6)]
+R, B, M = "rigid_foundation", "block3d", "manufactured"
+
+
+@pytest.mark.parametrize(
+    "name,change,key,words",
+    [
+        (R, _set("bodies", "block", "displacement", 0, "value", [0, 0, 0]),
+         "bodies.block.displacement[0].value", "a list of 2 entries [x, y]: the body is 2D"),
+        (B, _set("bodies", "block", "displacement", 0, "value", [0, 0]),
+         "bodies.block.displacement[0].value", "a list of 3 entries [x, y, z]: the body is 3D"),
+        (R, _set("bodies", "block", "body_force", [0, 0, 1]),
+         "bodies.block.body_force", "a list of 2 entries"),
+        (R, _set("bodies", "block", "displacement", 0, "components", "xz"),
+         "bodies.block.displacement[0].components", "one of x, y, xy: the body is 2D"),
+        (R, _set("bodies", "block", "material", {"kind": "anisotropic", "C": SIX}),
+         "bodies.block.material.C", "a 3×3 matrix of numbers (the body is 2D)"),
+        (R, _set("bodies", "block", "potential", 0, "value", "z"),
+         "bodies.block.potential[0].value", "z is a coordinate of 3D scenes"),
+        (R, _set("contact", "g", "1e6*(1 + z)"), "contact.g", "z is a coordinate of 3D scenes"),
+        (R, lambda d: _set("scene", "plugin", "contact3d")(d) or d.pop("output"),
+         "bodies.block.geometry.kind", "kind = box | extruded, or a 3D mesh file"),
+        (B, _set("scene", "plugin", "piezo_contact"),
+         "bodies.block.geometry.kind", "kind = rectangle | half_disc | cradle"),
+        (M, _set("exact", "u", ["x", "y", "z"]), "exact.u", "2 entries: the scene is 2D"),
+        (M, _set("exact", "grad_u", 0, ["x", "y", "x"]), "exact.grad_u[0]", "2 entries"),
+        (M, _set("exact", "lam", ["x", "y", "x"]), "exact.lam", "2 entries, as u"),
+    ],
+)  # fmt: skip
+def test_values_are_checked_against_the_geometry_s_dimension(name, change, key, words):
+    """One body table for 2D and 3D: its geometry decides d, and a vector, a component, a
+    matrix, an expression of z or an [exact] field that does not fit d is refused naming the
+    field and what d allows."""
+    err = _refused(name, change)
+    assert err.key == key and words in str(err), str(err)
+
+
+def test_the_default_components_are_every_axis_of_the_body():
+    """A [[displacement]] without components holds all d of them (xy in 2D, xyz in 3D)."""
+    for name, axes in ((R, "xy"), (B, "xyz")):
+        scene = load_scene(name)
+        assert "components" not in scene.data["bodies"]["block"]["displacement"][0]
+        spec = scene.validated(contact.SCENE_MODEL)
+        assert spec.bodies["block"].displacement[0].components == axes

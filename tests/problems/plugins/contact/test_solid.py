@@ -286,7 +286,7 @@ def _pair_bound(scene, level: int) -> int:
     spec = scene.validated(contact3d.SCENE_MODEL)
     total = 0
     for name, tb in spec.bodies.items():
-        body = bodies.Body(name, tb.geometry.mesh(0), tb.material.material(), 0)
+        body = bodies.Body(name, tb.geometry.mesh(0), tb.material.material(3), 0)
         sk = Skeleton(body.mesh)
         total += sk.pair_bound(sum(bodies.free_per_entity(tb, body, sk)), level)
     return total
