@@ -38,7 +38,7 @@ from problems.errors import SceneError
 from problems.output import plots, results
 from problems.output.results import ContactTable
 from problems.scene import Scene, SceneModel, Section
-from problems.scene.exact import ExactSection, split_exact
+from problems.scene.exact import ExactSection
 from problems.scene.fields import NonNegativeExpr, Text
 from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
@@ -49,11 +49,10 @@ from .. import transfer
 from ..contract import check_meshed
 from . import balance as piezo_balance
 from . import electrical as electrical_contact
+from . import errors, interface
 from . import extremes as contact_extremes
-from . import interface
 from . import law as contact_law
 from . import model as contact_model
-from . import plane_errors as piezo_errors
 from .bodies import Body, BodySection
 from .body_output import body_fields
 from .fields import field_data
@@ -1003,7 +1002,10 @@ fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 CONTRACT = 2
 SWEEP = contact_model.friction_sweep("fig_5_4.png", "F_sweep.png")
-NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
+NORMS = errors.REFERENCE_NORMS[DIMENSION]  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
+EXACT_NORMS = errors.EXACT_NORMS  # with u_L2
+exact_errors = partial(errors.exact_errors, SCENE_MODEL, contact_state)
+reference_errors = partial(errors.reference_errors, contact_state)
 extremes = contact_extremes.rows_2d
 
 
@@ -1012,12 +1014,6 @@ def draw(ax, model: Model, sol: Solution) -> str:
     if model.contact is None:
         return "no contact interface"
     return plots.friction_panel(ax, contact_state(model, sol))
-
-
-def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
-    """The NORMS against the scene's [exact] table (None without one)."""
-    _, exact = split_exact(model.scene)
-    return None if exact is None else piezo_errors.exact_errors(model, sol.u, sol.lam, exact)
 
 
 def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
@@ -1036,11 +1032,6 @@ def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
 count = partial(contact_model.count, SCENE_MODEL)
 update = partial(contact_model.update_scene, SCENE_MODEL)
 incremental = contact_model.incremental
-
-
-def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
-    """The NORMS against the solution of the finer level `ref` of the same scene."""
-    return piezo_errors.reference_errors(model, sol.u, sol.lam, ref, ref_sol.u, ref_sol.lam)
 
 
 from .error_estimate import estimate as _estimate  # noqa: E402 (issue 32)

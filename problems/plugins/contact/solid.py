@@ -67,12 +67,11 @@ from vi_core import states as node_states
 
 from .. import transfer
 from ..contract import check_meshed
+from . import errors, interface
 from . import extremes as contact_extremes
-from . import interface
 from . import law as contact_law
 from . import model as contact_model
 from . import solid_checks as contact3d_checks
-from . import solid_errors as contact3d_errors
 from . import solid_output as contact3d_output
 from .bodies import Body
 from .model import BodiesModel, build_bodies, interface_references
@@ -245,7 +244,7 @@ class SolidScene(SceneModel):
     scene: Head
     bodies: Annotated[dict[str, BodySection3], Field(min_length=1)]
     contact: ContactSection | None = None
-    exact: ExactSection3 | None = None  # a manufactured solution (contact3d_errors)
+    exact: ExactSection3 | None = None  # a manufactured solution (`errors`)
 
     @model_validator(mode="after")
     def _references(self) -> SolidScene:
@@ -809,9 +808,10 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 SWEEP = contact_model.friction_sweep("g_sweep3d.png", "F_sweep3d.png")
-NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
-# against the scene's [exact] table: exact_errors (contact3d_errors)
-EXACT_NORMS = contact3d_errors.NORMS
+NORMS = errors.REFERENCE_NORMS[DIMENSION]  # against a finer level: reference_errors
+EXACT_NORMS = errors.EXACT_NORMS  # against the scene's [exact] table: exact_errors
+exact_errors = partial(errors.exact_errors, SCENE_MODEL, contact_state)
+reference_errors = partial(errors.reference_errors, contact_state)
 extremes = contact_extremes.rows_3d
 
 
@@ -827,47 +827,3 @@ def draw(ax, model: Model, sol: Solution) -> str:
     ax.set_aspect("equal")
     ax.legend(fontsize=7)
     return f"slip {int(st['slip'].sum())} of {int(st['has_t'].sum())} nodes"
-
-
-def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
-    """The EXACT_NORMS against the scene's [exact] table (None without one):
-    `contact3d_errors.exact_errors`."""
-    section = model.scene.validated(SCENE_MODEL).exact
-    if section is None:
-        return None
-    state = None if model.contact is None else contact_state(model, sol)
-    return contact3d_errors.exact_errors(model, sol, section.compiled(), state)
-
-
-def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
-    """The NORMS against a finer level `ref` of the same scene, at the coarse level's nodes
-    (nested: every coarse node is a fine node): relative RMS of u and φ over the nodes and of
-    λ (all its components) over the coarse contact nodes, weighted by W_k."""
-    out = {}
-
-    def matched(points_c: np.ndarray, points_f: np.ndarray) -> np.ndarray:
-        at = {tuple(np.round(p, 10)): i for i, p in enumerate(points_f)}
-        return np.array([at[tuple(np.round(p, 10))] for p in points_c])
-
-    fc, ff = fields(model, sol), fields(ref, ref_sol)
-    for b, bf in zip(model.bodies, ref.bodies, strict=True):
-        idx = matched(b.mesh.points, bf.mesh.points)
-        for key, norm in (("displacement", "u_nodes"), ("potential", "phi_nodes")):
-            name = f"{b.name}.{key}"
-            if name in fc:
-                d, r = fc[name] - ff[name][idx], ff[name][idx]
-                out[norm] = float(np.sqrt(np.sum(d**2) / max(np.sum(r**2), 1e-300)))
-    if model.contact is not None:
-        c, cf = model.contact, ref.contact
-        idx = matched(c.slave.mesh.points[c.surf.nodes], cf.slave.mesh.points[cf.surf.nodes])
-        s, sf = contact_state(model, sol), contact_state(ref, ref_sol)
-
-        def lam(st: dict, normals: np.ndarray) -> np.ndarray:
-            return np.nan_to_num(st["lam_n"])[:, None] * normals + st["lam_t_vec"]
-
-        d = lam(s, c.normals) - lam(sf, cf.normals)[idx]
-        r = lam(sf, cf.normals)[idx]
-        out["lam_nodes"] = float(
-            np.sqrt(np.sum(c.W[:, None] * d**2) / max(np.sum(c.W[:, None] * r**2), 1e-300))
-        )
-    return out
