@@ -48,13 +48,13 @@ from vi_core import states as node_states
 from .. import transfer
 from ..contract import check_meshed
 from . import balance as piezo_balance
+from . import checks, errors, interface
 from . import electrical as electrical_contact
-from . import errors, interface
 from . import extremes as contact_extremes
 from . import law as contact_law
 from . import model as contact_model
 from .bodies import Body, BodySection
-from .body_output import body_fields
+from .body_output import write_bodies
 from .fields import field_data
 from .law import FRICTIONS, LAWS
 from .model import BodiesModel, build_bodies, interface_references, reference
@@ -291,7 +291,7 @@ def build_model(
         contact,
         field_data,
         {"scene": scene.name, "level": level},
-        check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
+        check=partial(checks.finite_data, contact=contact),
     )
     model = model_class(
         scene, level, list(bodies.values()), contact, vi, free, values, options, rhs=rhs
@@ -370,22 +370,6 @@ def problem_at(model: Model, sol: Solution) -> MixedVI:
     if c is None or c.law.kind == "none":
         return model.vi
     return c.frozen(c.conductances(sol.lam))
-
-
-def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None) -> None:
-    """Refuse data that overflow in assembly (each number finite, their products not)."""
-    parts = {"stiffness (materials)": A_full.data, "loads": f_full, "Dirichlet values": values}
-    if contact is not None:
-        parts["friction bound g" if contact.F is None else "friction coefficient F"] = (
-            contact.g_weights if contact.F is None else contact.F
-        )
-        if contact.gap0 is not None:
-            parts["gap"] = contact.gap0
-    for what, arr in parts.items():
-        if not np.isfinite(arr).all():
-            raise SceneError(
-                "(scene)", what, "data whose assembled system is finite (magnitudes overflow)"
-            )
 
 
 def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray]:
@@ -931,24 +915,11 @@ def contact_table(model: Model, sol: Solution) -> ContactTable:
     )
 
 
-def _write_bodies(model: Model, x_full: np.ndarray, outdir: Path) -> tuple[list, list]:
-    """(files, notes): BODY.vtu of every body's fields (`body_fields`) and their notes."""
-    from fem.io import write_vtu
-
-    files, notes = [], []
-    for b in model.bodies:
-        point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
-        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
-        files.append(f"{b.name}.vtu")
-        notes += [note] if note else []
-    return files, notes
-
-
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
     into `outdir`; return the summary entries."""
     x_full = model.full(sol.u)
-    files, notes = _write_bodies(model, x_full, outdir)
+    files, notes = write_bodies(model, x_full, outdir)
     summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
     if model.contact is not None:
         quad = piezo_balance.lemma_4_2(model, sol) if model.slip_origin is None else None
@@ -1019,7 +990,7 @@ def draw(ax, model: Model, sol: Solution) -> str:
 def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
     """One load step's files (no plots): a VTU per body, contact.vtu and contact.csv; the
     summary entries "files" and "contact" (the counts per state)."""
-    files, _ = _write_bodies(model, model.full(sol.u), outdir)
+    files, _ = write_bodies(model, model.full(sol.u), outdir)
     out: dict = {"files": files}
     if model.contact is not None:
         table = contact_table(model, sol)

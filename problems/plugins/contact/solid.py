@@ -67,11 +67,10 @@ from vi_core import states as node_states
 
 from .. import transfer
 from ..contract import check_meshed
-from . import errors, interface
+from . import checks, errors, interface
 from . import extremes as contact_extremes
 from . import law as contact_law
 from . import model as contact_model
-from . import solid_checks as contact3d_checks
 from . import solid_output as contact3d_output
 from .bodies import Body
 from .model import BodiesModel, build_bodies, interface_references
@@ -283,6 +282,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         contact,
         field_data,
         {"scene": scene.name, "level": level},
+        check=partial(checks.finite_data, contact=contact),
     )
     bodies_ = list(bodies.values())
     return Model(scene, level, bodies_, contact, vi, free, values, spec.options(), rhs=rhs)
@@ -791,7 +791,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """Write the body VTUs, the contact surface (contact.vtu), contact.csv, results.pvd and
     the stick/slip map into `outdir`; return the summary entries."""
     summary = contact3d_output.write(model, sol, outdir, contact_state)
-    summary["checks"] = contact3d_checks.solution_checks(model, sol)
+    summary["checks"] = checks.solution_checks(model, sol)
     c = model.contact
     if c is not None and c.law == "unilateral":
         st = contact_state(model, sol)

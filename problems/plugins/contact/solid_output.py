@@ -25,7 +25,7 @@ from fem.facets import frames
 from problems.output.results import BOUNDS, write_csv
 from vi_core import states as node_states
 
-from .body_output import body_fields
+from .body_output import write_bodies
 
 # "ambiguous" (vi_core.states: not settled at the achieved residual) is the last code, so the
 # others keep theirs
@@ -46,18 +46,6 @@ CSV_NOTES = [
     "no_multiplier (clamped node), ambiguous (not settled at the achieved residual: neither "
     "the stress margin nor the gap/slip decides it; solve with a smaller --tol)",
 ]
-
-
-def write_body_vtu(path: Path, mesh, point: dict, cell: dict) -> None:
-    """A 3D mesh with point and cell data as .vtu."""
-    import meshio
-
-    meshio.Mesh(
-        mesh.points,
-        [(mesh.cell_type, mesh.cells)],
-        point_data=point,
-        cell_data={k: [v] for k, v in cell.items()},
-    ).write(str(path), file_format="vtu")
 
 
 def table(model, st: dict) -> dict[str, np.ndarray]:
@@ -188,13 +176,7 @@ def frame_checks(model) -> dict:
 
 def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
     """All result files of a solve; the summary entries."""
-    x_full = model.full(sol.u)
-    files = []
-    for b in model.bodies:
-        point, cell, _ = body_fields(b, x_full[b.offset : b.offset + b.size])
-        fn = f"{b.name}.vtu"
-        write_body_vtu(outdir / fn, b.mesh, point, cell)
-        files.append(fn)
+    files, _ = write_bodies(model, model.full(sol.u), outdir)
     summary: dict = {}
     if model.contact is not None:
         c = model.contact
