@@ -825,23 +825,6 @@ def interface_warnings(contact: Contact) -> list[str]:
     return out
 
 
-def contact_warnings(state: dict) -> list[str]:
-    """What a user must know about the friction bound of this solution."""
-    g, lam_t = state["g"], state["lam_t"]
-    if not state["touch"].any():
-        return ["no node of Γ3 touches: the bodies are apart (λ = 0)"]
-    if not g.any():
-        return ["zero friction on Γ3: frictionless sliding"]
-    out = node_states.warnings(state["state"])
-    if not state["slip"].any():
-        used = float(np.max(np.abs(lam_t) / np.where(g > 0, g, np.inf)))
-        out.append(
-            f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
-            "bound, so the problem is tied (g above every tangential stress)"
-        )
-    return out
-
-
 # a bilateral interface of two bodies that stands apart by more than this fraction of the
 # largest displacement of the slave's contact nodes is warned of: closing it changes the answer
 CLOSED_GAP_TOL = 0.1
@@ -951,7 +934,9 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
                 **electrical_contact.report(model.electrical, sol),
                 **electrical_contact.touching(model.electrical, sol, state["touch"]),
             }
-        summary["warnings"] = contact_warnings(state) + closed_gap_warning(model, sol)
+        summary["warnings"] = interface.friction_warnings(
+            state["state"], state["g"], state["lam_t"], state["slip"], state["touch"]
+        ) + closed_gap_warning(model, sol)
     if notes:
         summary["notes"] = notes
     along = model.options.get("potential_along")

@@ -23,8 +23,8 @@ import numpy as np
 
 from fem.facets import frames
 from problems.output.results import BOUNDS, write_csv
-from vi_core import states as node_states
 
+from . import interface
 from .body_output import write_bodies
 
 # "ambiguous" (vi_core.states: not settled at the achieved residual) is the last code, so the
@@ -210,7 +210,14 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             "frames": frame_checks(model),
         }
         summary["lemma_4_2"] = st["lemma_4_2"]
-        summary["warnings"] = _warnings(st)
+        has_t = st["has_t"]
+        summary["warnings"] = interface.friction_warnings(
+            st["state"],
+            st["g"][has_t],
+            np.linalg.norm(st["lam_t_vec"][has_t], axis=1),
+            st["slip"][has_t],
+            st["touch"],
+        )
         if c.master is not None:
             summary["contact"]["uncovered_nodes"] = missing = uncovered(c)
             if missing:
@@ -240,22 +247,3 @@ def areas(c, st: dict) -> list[float]:
 def uncovered(c) -> list[int]:
     """Slave node ids without the master behind their whole support (no multiplier)."""
     return [int(n) for n in c.surf.nodes[~c.master.covered]]
-
-
-def _warnings(st: dict) -> list[str]:
-    g, has_t = st["g"], st["has_t"]
-    out = node_states.warnings(st["state"])
-    if not g[has_t].any():
-        return [*out, "g = 0 on Γ3: frictionless sliding (a linear problem)"]
-    if not st["slip"].any():
-        used = float(
-            np.max(
-                np.linalg.norm(st["lam_t_vec"][has_t], axis=1)
-                / np.where(g[has_t] > 0, g[has_t], np.inf)
-            )
-        )
-        out.append(
-            f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
-            "bound (the problem is tied)"
-        )
-    return out
