@@ -45,10 +45,9 @@ from problems.scene.model import head, refuse
 from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
 from vi_core import states as node_states
 
-from .. import transfer
 from ..contract import check_meshed
 from . import balance as piezo_balance
-from . import checks, errors, interface
+from . import checks, errors, interface, warm_starts
 from . import electrical as electrical_contact
 from . import extremes as contact_extremes
 from . import law as contact_law
@@ -657,70 +656,7 @@ def _initial_gap(
     return np.nan_to_num(t)
 
 
-def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
-    """Initial guess for `fine` from the solution on the coarser level (nested iteration).
-
-    Along Γ3 (the same curve on every level, parametrised by normalised arc length) the normal
-    coefficients are interpolated, and the tangential ones through their ratio r = α/ρ to the
-    friction radius ρ (g; Coulomb: F·λ_n): a fine node between two coarse slip nodes gets
-    |r| = 1, i.e. it starts on the bound even where g varies, and the first Newton step starts
-    from the coarse stick/slip partition instead of rediscovering it. A fine node between a
-    coarse stick and a coarse slip node starts on the bound where |r| extrapolated from the
-    stick side reaches 1 (`_slip_ahead`).
-
-    u0, the displacement and potential, is the coarse solution interpolated at the fine nodes
-    (`transfer.prolongate`: the Q1/P1 prolongation of nested meshes; the new nodes of a curved
-    boundary lie outside the coarse mesh and are extrapolated, counted in
-    start["outside_nodes"]), then tied where λ0 predicts a tied row (`vi_core.ssn.tied_start`):
-    the first Newton step's GMRES starts from it (paper scene, levels 2–5: 12, 13, 15, 16
-    iterations instead of 14, 15, 18, 19 from u = 0).
-    """
-    if coarse.contact is None or fine.contact is None:
-        return {}
-    cc, fc = coarse.contact, fine.contact
-    sc, sf = cc.tr.s / cc.tr.s[-1], fc.tr.s / fc.tr.s[-1]
-    lam_c = coarse_sol.lam
-    lam_n = np.interp(sf[fc.rows_n], sc[cc.rows_n], cc.normal(lam_c))
-    rc = cc.bound(lam_c)
-    ratio_c = np.divide(cc.tangential(lam_c), rc, out=np.zeros(rc.size), where=rc > 0)
-    ratio = np.clip(np.interp(sf[fc.rows_t], sc[cc.rows_t], ratio_c), -1.0, 1.0)
-    on_bound = (np.abs(ratio) >= 1.0 - transfer.ON_BOUND) | _slip_ahead(
-        sc[cc.rows_t], ratio_c, sf[fc.rows_t]
-    )
-    ratio[on_bound] = np.sign(ratio[on_bound])
-    lam0 = np.zeros(fc.B_full.shape[0])
-    lam0[fc.idx_n] = lam_n
-    lam0[fc.idx_t] = ratio * fc.bound(lam0)
-    return transfer.carried_start(coarse, coarse_sol, fine, lam0)
-
-
-def _slip_ahead(xc: np.ndarray, ratio_c: np.ndarray, xf: np.ndarray) -> np.ndarray:
-    """(M,) fine positions xf (M,) lying between a coarse stick node a and a coarse slip node
-    (coarse positions xc (K,) increasing, ratios α/ρ `ratio_c` (K,)) where |r| extrapolated
-    linearly from a and its other neighbour b (also stick) reaches 1.
-
-    Why: the ratio rises steeply towards a stick/slip transition, so interpolating it between a
-    and the slip node leaves the new node between them below 1 (stick) where the fine solution
-    slips. Paper scene, nested iteration: levels 4 and 5 found the new nodes next to both
-    transitions slipping (|r_a| = 0.937, |r_b| = 0.709 at level 3: extrapolated 1.05 at the
-    midpoint; 0.934, 0.784 at level 4: 1.009), which took the fine level a second Newton step
-    with its own linear solve; at levels 2 and 3 extrapolation gives 0.84 and 0.61: stick, as
-    the fine solutions have it."""
-    slip = np.abs(ratio_c) >= 1.0 - transfer.ON_BOUND  # (K,)
-    out = np.zeros(xf.size, dtype=bool)
-    if xc.size < 3:
-        return out
-    k = np.clip(np.searchsorted(xc, xf, side="right") - 1, 0, xc.size - 2)  # (M,) interval
-    edge = slip[k] != slip[k + 1]  # (M,) between a stick and a slip node
-    a = np.where(slip[k], k + 1, k)  # (M,) its stick end
-    b = np.where(slip[k], k + 2, k - 1)  # (M,) the stick end's other neighbour
-    ok = edge & (b >= 0) & (b < xc.size) & (xf > xc[k]) & (xf < xc[k + 1])
-    a, b = a[ok], b[ok]
-    ok_b = ~slip[b]
-    ra, rb = np.abs(ratio_c[a]), np.abs(ratio_c[b])
-    r = ra + (ra - rb) * (xf[ok] - xc[a]) / (xc[a] - xc[b])  # linear through b and a
-    out[np.flatnonzero(ok)[ok_b & (r >= 1.0)]] = True
-    return out
+warm_start = warm_starts.along_curve  # nested iteration (`warm_start`)
 
 
 # ------------------------------------------------------------------ post-processing

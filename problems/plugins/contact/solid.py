@@ -65,9 +65,8 @@ from problems.scene.model import head
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
 from vi_core import states as node_states
 
-from .. import transfer
 from ..contract import check_meshed
-from . import checks, errors, interface
+from . import checks, errors, interface, warm_starts
 from . import extremes as contact_extremes
 from . import law as contact_law
 from . import model as contact_model
@@ -622,86 +621,6 @@ def slave_contact(
     )
 
 
-# ------------------------------------------------------------------ nested iteration
-def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
-    """Initial guess for `fine` from the coarser level's solution (nested iteration).
-
-    λ0: λ_n and the friction ratio r = λ_t/ρ (ρ the friction radius) interpolated linearly
-    over the contact surface, |r| and the direction of r separately (then in the fine frames,
-    clipped to |r| ≤ 1 and put on the bound where it reaches it), so a fine node between
-    coarse slip nodes starts slipping: interpolating the vector r shortens it wherever the
-    slip direction turns (bracket3d level 1: 25 of the 71 slip nodes predicted, 78 with 67
-    right this way).
-
-    u0: the coarse displacement (and potential) at the fine nodes
-    (`transfer.prolongate`; fine nodes outside the coarse mesh, extrapolated, are
-    counted in start["outside_nodes"]), then moved on the slave dofs so that B u0 = gap on
-    the rows λ0 predicts tied (normal rows that touch, stick nodes; `vi_core.ssn.tied_start`),
-    every other row of B u0 kept. Why: the first Newton step decides stick or slip from
-    y = λ0 + B u0 − gap, and with u0 = 0 a predicted slip node has |y_t| = ρ to rounding —
-    the disc's boundary, counted as stick (`vi_core.Ball`): bracket3d level 2 took its first
-    step with 73 of the 201 slip nodes free, then 8 Newton steps; the carried slip puts y
-    outside the disc. The tied rows are given to `tied_start` for the same reason.
-    """
-    if coarse.contact is None or fine.contact is None:
-        return {}
-    from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
-    from scipy.spatial import QhullError
-
-    cc, fc = coarse.contact, fine.contact
-    st = contact_state(coarse, coarse_sol)
-    n_mean = cc.normals.sum(axis=0)
-    a, b = frames(n_mean[None, :] / np.linalg.norm(n_mean))
-    P = cc.slave.mesh.points[cc.surf.nodes]
-    Q = fc.slave.mesh.points[fc.surf.nodes]
-    uv_c = np.stack([P @ a[0], P @ b[0]], axis=1)  # (k_c, 2) chart coordinates
-    uv_f = np.stack([Q @ a[0], Q @ b[0]], axis=1)  # (k_f, 2)
-
-    def interp(vals: np.ndarray, known: np.ndarray) -> np.ndarray:
-        pts, v = uv_c[known], vals[known]
-        try:
-            out = LinearNDInterpolator(pts, v)(uv_f)
-        except QhullError:  # fewer than 3 known points, or all on one line: nearest only
-            return NearestNDInterpolator(pts, v)(uv_f)
-        miss = np.isnan(out).any(axis=-1) if out.ndim > 1 else np.isnan(out)
-        if miss.any():
-            out[miss] = NearestNDInterpolator(pts, v)(uv_f[miss])
-        return out
-
-    lam_n_c = np.zeros(cc.surf.size)
-    lam_n_c[cc.rows_n] = st["lam_n"][cc.rows_n]
-    lam_n = interp(lam_n_c, np.isin(np.arange(cc.surf.size), cc.rows_n))[fc.rows_n]
-    has_t = np.isin(np.arange(cc.surf.size), np.concatenate([cc.disc, cc.line]))
-    rho = st["g"]  # (k_c,) the friction radius of the coarse solution
-    ratio_c = np.divide(
-        st["lam_t_vec"], rho[:, None], out=np.zeros((cc.surf.size, 3)), where=rho[:, None] > 0
-    )
-    mag = interp(np.linalg.norm(ratio_c, axis=1), has_t)  # (k_f,) |r|
-    r = interp(ratio_c, has_t)  # (k_f, 3) its direction
-    length = np.linalg.norm(r, axis=1)  # (k_f,)
-    r *= np.divide(mag, length, out=np.zeros_like(mag), where=length > 0)[:, None]
-    r1 = np.einsum("ij,ij->i", r, fc.t1)
-    r2 = np.einsum("ij,ij->i", r, fc.t2)
-    rd = np.stack([r1[fc.disc], r2[fc.disc]], axis=1)  # (N_b, 2)
-    norm = np.linalg.norm(rd, axis=1)
-    slip_b = norm >= 1.0 - transfer.ON_BOUND  # (N_b,)
-    rd = np.where(slip_b[:, None], rd / np.maximum(norm, 1e-300)[:, None], rd)
-    rl = np.clip(np.einsum("ij,ij->i", r[fc.line], fc.line_dir), -1.0, 1.0)
-    slip_l = np.abs(rl) >= 1.0 - transfer.ON_BOUND  # (N_l,)
-    rl = np.where(slip_l, np.sign(rl), rl)
-    idx_n, idx_b, idx_l = fc.rows()
-    lam0 = np.zeros(fc.B_full.shape[0])
-    lam0[idx_n] = lam_n
-    bound = fc.bound(lam0)  # (k_f,) the fine radius at the interpolated λ_n
-    lam0[idx_b] = rd * bound[fc.disc, None]
-    lam0[idx_l] = rl * bound[fc.line]
-    tied = np.zeros(lam0.size, dtype=bool)  # (m,) the rows λ0 predicts tied
-    tied[idx_n] = True if fc.law == "bilateral" else lam_n > 0
-    tied[idx_b] = ((bound[fc.disc] > 0) & ~slip_b)[:, None]
-    tied[idx_l] = (bound[fc.line] > 0) & ~slip_l
-    return transfer.carried_start(coarse, coarse_sol, fine, lam0, tied)
-
-
 incremental = contact_model.incremental
 
 
@@ -812,6 +731,7 @@ NORMS = errors.REFERENCE_NORMS[DIMENSION]  # against a finer level: reference_er
 EXACT_NORMS = errors.EXACT_NORMS  # against the scene's [exact] table: exact_errors
 exact_errors = partial(errors.exact_errors, SCENE_MODEL, contact_state)
 reference_errors = partial(errors.reference_errors, contact_state)
+warm_start = partial(warm_starts.over_surface, contact_state)  # nested iteration
 extremes = contact_extremes.rows_3d
 
 
