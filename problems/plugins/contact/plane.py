@@ -44,7 +44,7 @@ from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
 from vi_core import states as node_states
 
 from ..contract import check_meshed
-from . import checks, errors, interface, plane_output, warm_starts
+from . import checks, errors, interface, plane_output, separation, warm_starts
 from . import electrical as electrical_contact
 from . import extremes as contact_extremes
 from . import law as contact_law
@@ -58,16 +58,6 @@ NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
 DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
 ALIAS = "piezo_contact"  # its former name, still accepted (registry.ALIASES)
 LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
-# Two-body interfaces must coincide in the reference configuration (bilateral contact has no
-# initial gap). A slave node may sit off the master polyline (distance along its normal) by at
-# most SEPARATION_TOL × h, h the longest of its adjacent slave segments and the master segment
-# it faces, measured on the level-0 mesh (h · 2^level: uniform refinement does not change the
-# geometry of a mesh read from a file, whose new boundary nodes stay on its polylines): this
-# admits the chord-versus-arc discrepancy of a discretised curved interface (the sagitta
-# h²/(8r), i.e. h/(8r) relative to h: 0.02 for the paper's mesh, < 0.1 while h < 0.8 r), e.g.
-# two bodies meshed separately in gmsh along one curve, and refuses bodies that overlap or
-# stand apart by more (docs/design.md, "Meshes from files").
-SEPARATION_TOL = 0.1
 DESCRIPTION = (
     "elasto-piezoelectric bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
     "(dual mortar multipliers)"
@@ -443,9 +433,9 @@ def _contact(
     closed = 0.0  # the initial gap bilateral contact closes
     if master is not None:
         if unilateral:
-            gap_nodes = _initial_gap(slave, part, tr, tr.normals, master, mpart, level)
+            gap_nodes = separation.initial_gap(slave, part, tr, tr.normals, master, mpart, level)
         else:
-            closed = _check_separation(slave, part, tr, tr.normals, master, mpart, level)
+            closed = separation.check_separation(slave, part, tr, tr.normals, master, mpart, level)
         reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.measures.min())
         mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, reach=reach)
         assert np.array_equal(tr.nodes, mort.slave_nodes)
@@ -566,89 +556,6 @@ def _friction_local(mesh: Mesh, tr: Trace, gfun) -> np.ndarray:
     """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point: `checked_bound`;
     g is the Tresca bound or the Coulomb coefficient F)."""
     return facet_integrals(mesh, tr, interface.checked_bound(gfun))
-
-
-def _normal_distances(
-    x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Signed distance t from each point x_i along n_i to the polyline of segments [a_k, b_k],
-    and the index of the segment hit.
-
-    t > 0: the polyline lies outside (a gap), t < 0: behind (an overlap); the hit of smallest
-    |t|, NaN where the line x_i + t n_i misses every segment. Chunked to bound memory.
-    """
-    out = np.full(len(x), np.nan)
-    seg = np.zeros(len(x), dtype=int)
-    d = b - a  # (M, 2)
-    for lo in range(0, len(x), 256):
-        xi, ni = x[lo : lo + 256, None, :], n[lo : lo + 256, None, :]  # (c, 1, 2)
-        det = ni[..., 0] * -d[None, :, 1] + ni[..., 1] * d[None, :, 0]  # (c, M)
-        r = a[None] - xi  # (c, M, 2)
-        with np.errstate(all="ignore"):
-            t = (r[..., 0] * -d[None, :, 1] + r[..., 1] * d[None, :, 0]) / det
-            s = (ni[..., 0] * r[..., 1] - ni[..., 1] * r[..., 0]) / det
-        hit = (np.abs(det) > 0) & (s >= -1e-12) & (s <= 1 + 1e-12)
-        t = np.where(hit, t, np.inf)
-        k = np.argmin(np.abs(t), axis=1)
-        best = t[np.arange(len(k)), k]
-        out[lo : lo + 256] = np.where(np.isfinite(best), best, np.nan)
-        seg[lo : lo + 256] = k
-    return out, seg
-
-
-def _separation(slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int):
-    """(t, h): the signed distance (N,) of each slave node along its normal to the master
-    polyline (NaN where it misses) and h (N,), the longer of the node's adjacent segments and
-    the master segment hit, times 2^level (the level-0 mesh size)."""
-    mtr = trace(master.mesh, mpart)
-    P = master.mesh.points[mtr.nodes]
-    t, k = _normal_distances(
-        slave.mesh.points[tr.nodes], normals, P[mtr.facets[:, 0]], P[mtr.facets[:, 1]]
-    )
-    h = mtr.measures[k]
-    np.maximum.at(h, tr.facets[:, 0], tr.measures)
-    np.maximum.at(h, tr.facets[:, 1], tr.measures)
-    return t, h * 2.0**level  # the size at level 0, where the interface geometry was given
-
-
-def _refuse_separation(slave, part, master, mpart, tr, t, h, bad, where) -> None:
-    rel = np.nan_to_num(t / h)
-    i = bad[np.argmax(np.abs(rel[bad]))]
-    what = "overlap the slave body" if rel[i] < 0 else "stand apart from it"
-    raise SceneError(
-        "contact.master",
-        f"{master.name}.{mpart}",
-        f"a master boundary {where} {slave.name}.{part} in the "
-        f"reference configuration: it would {what} by {abs(t[i]):.3g} "
-        f"({abs(rel[i]):.2f} × the local level-0 mesh size {h[i]:.3g}; allowed "
-        f"{SEPARATION_TOL:g}) at slave node {slave.mesh.points[tr.nodes[i]].tolist()}",
-    )
-
-
-def _check_separation(
-    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
-) -> float:
-    """SceneError if the interfaces overlap or stand apart by more than SEPARATION_TOL·h
-    (`_separation`): bilateral contact needs coincident interfaces. Returns the largest gap
-    (m, ≥ 0) between them that bilateral contact closes (`closed_gap_warning`)."""
-    t, h = _separation(slave, part, tr, normals, master, mpart, level)
-    bad = np.flatnonzero(np.abs(np.nan_to_num(t / h)) > SEPARATION_TOL)
-    if bad.size:
-        _refuse_separation(slave, part, master, mpart, tr, t, h, bad, "that coincides with")
-    return float(np.maximum(np.nan_to_num(t), 0.0).max(initial=0.0))
-
-
-def _initial_gap(
-    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
-) -> np.ndarray:
-    """The initial normal gap (N,) of unilateral contact between two bodies: the distance
-    along each slave normal to the master (0 where the normal misses it). The bodies may
-    start apart; an overlap beyond SEPARATION_TOL·h (`_separation`) is refused."""
-    t, h = _separation(slave, part, tr, normals, master, mpart, level)
-    bad = np.flatnonzero(-np.nan_to_num(t / h) > SEPARATION_TOL)
-    if bad.size:
-        _refuse_separation(slave, part, master, mpart, tr, t, h, bad, "facing")
-    return np.nan_to_num(t)
 
 
 warm_start = warm_starts.along_curve  # nested iteration (`warm_start`)

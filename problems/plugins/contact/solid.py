@@ -39,7 +39,7 @@ the node touches (Tresca). The rows of a node are then side by side (`SolidConta
 then the normal-only nodes (NonNegative); a node whose normal displacement is prescribed is
 refused. The initial gap is Σ_j S_n,kj gap(x_j) for a rigid foundation (the scene's field) and
 the weighted mortar gap −n_k·(Σ_j S_n,kj x_s,j − Σ_j M_n,kj x_m,j) for two bodies, which may
-start apart (an overlap beyond OVERLAP_TOL × the level-0 node size is refused).
+start apart (an overlap beyond separation.SEPARATION_TOL × the level-0 node size is refused).
 """
 
 from __future__ import annotations
@@ -53,7 +53,6 @@ from typing import Annotated, Literal
 import numpy as np
 import scipy.sparse as sp
 from pydantic import Field, model_validator
-from scipy.spatial import cKDTree
 
 from fem import mortar as dual_mortar
 from fem.facets import Trace, dual_mass, facet_integrals, frames, multiplier_basis, trace
@@ -66,7 +65,7 @@ from vi_core import Ball, Box, Free, NonNegative, Solution, product
 from vi_core import states as node_states
 
 from ..contract import check_meshed
-from . import checks, errors, interface, warm_starts
+from . import checks, errors, interface, separation, warm_starts
 from . import extremes as contact_extremes
 from . import law as contact_law
 from . import model as contact_model
@@ -84,10 +83,6 @@ DESCRIPTION = (
 )
 CONTRACT = 2
 ALIGN_TOL = 1e-10  # sine of the angle under which a prescribed direction counts as n or ⟂ n
-# Unilateral contact of two bodies: the master may stand apart from the slave (an initial gap)
-# but overlap it by at most OVERLAP_TOL × the level-0 node size (the chord-versus-surface
-# discrepancy of two curved surfaces meshed apart, as 2D's SEPARATION_TOL).
-OVERLAP_TOL = 0.1
 
 
 @dataclass
@@ -421,7 +416,7 @@ def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Couplin
     no multiplier (`covered`); patch_defect is set by `slave_contact`."""
     try:
         order = SURFACE_ORDER[slave.mesh.cell_type]  # that of the slave block in slave_contact
-        reach = 1.0 + _distance(slave, part, master, mpart)
+        reach = 1.0 + separation.reach(slave, part, master, mpart)
         mo = dual_mortar.mortar_coupling(
             slave.mesh, part, master.mesh, mpart, face_order=order, reach=reach
         )
@@ -431,40 +426,6 @@ def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Couplin
         ) from None
     dofs = master.u_dofs(mo.master.nodes)  # (k_m, 3)
     return Coupling(master, mpart, mo.M, dofs, np.nan, dual_mortar.covered_nodes(mo), mo.n_cells)
-
-
-def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
-    """How far the master surface stands from the slave one, in slave face sizes: the largest
-    distance of a slave surface node to the nearest master surface node over the smallest
-    slave face diameter (0 for coincident surfaces); it widens the mortar's candidate search
-    for bodies that start apart."""
-    faces = slave.mesh.boundaries[part]  # (n_f, k)
-    P = slave.mesh.points
-    xs = P[np.unique(faces)]
-    xm = master.mesh.points[np.unique(master.mesh.boundaries[mpart])]
-    d, _ = cKDTree(xm).query(xs)
-    size = np.linalg.norm(P[faces[:, 0]] - P[faces[:, 2]], axis=1).min()  # a diagonal
-    return float(d.max() / size)
-
-
-def _not_facing(surf: Trace, master: Coupling) -> str:
-    """What is wrong with a master surface that lies behind no slave node's support (what a
-    master must be, and which of the three ways it is not: it faces the same way as the slave,
-    it lies behind the slave, or the two do not overlap seen along the slave's normal)."""
-    mesh = master.body.mesh
-    msurf = trace(mesh, master.part, SURFACE_ORDER[mesh.cell_type])
-    n_s, n_m = surf.normals.mean(axis=0), msurf.normals.mean(axis=0)  # (3,) mean outward normals
-    ahead = float((msurf.points.mean(axis=0) - surf.points.mean(axis=0)) @ n_s)
-    if float(n_s @ n_m) > 0:
-        why = "the two surfaces face the same way (their outward normals agree)"
-    elif ahead < 0:
-        why = "the two surfaces face away from each other (the master lies behind the slave)"
-    else:
-        why = "the two surfaces do not overlap seen along the slave's normal"
-    return (
-        "a master surface facing the slave one and overlapping it: no slave node has this master "
-        f"behind its faces, so no contact multiplier can be placed; {why}"
-    )
 
 
 def _positions(bodies: list[Body], n_full: int) -> np.ndarray:
@@ -483,7 +444,7 @@ def slave_contact(
     table (`ContactSection`: law, friction, g or F, gap). Unilateral contact puts the rows of a
     node side by side (`SolidContact.rows`) and builds the initial gap rows: Σ_j S_n,kj gap(x_j)
     for a rigid foundation, the weighted mortar gap −(D x_s − M x_m)·n_k of the geometry for two
-    bodies (an overlap of more than OVERLAP_TOL × the level-0 node size is refused)."""
+    bodies (an overlap beyond `separation.SEPARATION_TOL` × the level-0 node size is refused)."""
     unilateral = law.law == "unilateral"
     gfun = law.g if law.friction == "tresca" else law.F
     key = "contact.slave"
@@ -501,7 +462,9 @@ def slave_contact(
     covered = np.ones(surf.size, dtype=bool) if master is None else master.covered
     if master is not None and not covered.any():  # no multiplier at all: say why
         raise SceneError(
-            "contact.master", f"{master.body.name}.{master.part}", _not_facing(surf, master)
+            "contact.master",
+            f"{master.body.name}.{master.part}",
+            separation.not_facing(surf, master),
         )
     M_loc = None if master is None else master.M_loc
     S_n, M_n, W_n, _ = class_blocks(surf, carry_n, covered, law.ends, M_loc)
@@ -584,14 +547,14 @@ def slave_contact(
             gap0 = -(B_n @ _positions([slave, master.body], n_full))  # (N_n,)
             h0 = surf.node_sizes()[rows_n] * 2.0**level  # the level-0 node size
             rel = gap0 / W_n[rows_n] / h0
-            if (rel < -OVERLAP_TOL).any():
+            if (rel < -separation.SEPARATION_TOL).any():
                 i = int(np.argmin(rel))
                 raise SceneError(
                     "contact.master",
                     f"{master.body.name}.{master.part}",
                     f"a master surface that does not overlap the slave {slave.name}.{part} in "
-                    f"the reference configuration by more than {OVERLAP_TOL:g} × the level-0 "
-                    f"node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
+                    f"the reference configuration by more than {separation.SEPARATION_TOL:g} × "
+                    f"the level-0 node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
                     f"{h0[i]:.3g}) at {interface.node_at(slave, surf, int(rows_n[i]))}",
                 )
     return SolidContact(

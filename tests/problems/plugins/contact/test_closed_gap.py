@@ -9,7 +9,7 @@ import json
 import pytest
 
 import problems
-from problems.plugins.contact import plane, plane_output
+from problems.plugins.contact import plane_output, separation
 
 SCENE = "shear_strip_two_body"  # the base's top at y = 0, touching the block's bottom
 
@@ -43,12 +43,12 @@ def test_the_gap_and_its_warning_reach_summary_json(tmp_path):
 
 
 def test_mutation_an_unmeasured_gap_is_caught(monkeypatch):
-    real = plane._separation
+    real = separation.separation
 
     def coincident(*a, **kw):  # the distances dropped: every node on the master
         t, h = real(*a, **kw)
         return t * 0.0, h
 
-    monkeypatch.setattr(plane, "_separation", coincident)
+    monkeypatch.setattr(separation, "separation", coincident)
     with pytest.raises(AssertionError):
         test_a_real_gap_is_measured_and_warned_of()
