@@ -1,10 +1,6 @@
 """How the two bodies of a contact interface stand to each other in the reference
-configuration. 2D: the signed distance of each slave node along its normal to the master
-polyline (`separation`), refused beyond SEPARATION_TOL × the local level-0 mesh size where
-the interfaces must coincide (bilateral, `check_separation`) or where they overlap
-(unilateral, `initial_gap`, which returns the initial gap). 3D: how far the master surface
-stands (`reach`, the mortar's search widening) and why a master faces no slave node
-(`not_facing`); the 3D overlap refusal uses the same SEPARATION_TOL (`solid.slave_contact`)."""
+configuration: 2D separation along the slave normals (`check_separation`, `initial_gap`),
+3D reach and facing (`reach`, `not_facing`); one tolerance SEPARATION_TOL for both."""
 
 from __future__ import annotations
 

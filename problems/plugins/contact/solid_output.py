@@ -73,19 +73,11 @@ def write_surface_vtu(path: Path, model, st: dict) -> None:
 
     c = model.contact
     code = np.array([STATES.index(s) for s in st["state"]], dtype=np.int32)
+    cols = table(model, st)
     point = {
-        "normal": c.normals,
-        "tangent1": c.t1,
-        "tangent2": c.t2,
-        "lambda_n": st["lam_n"],
-        "lambda_t": st["lam_t1"],
-        "lambda_t2": st["lam_t2"],
-        "jump_t": st["jump_t1"],
-        "jump_t2": st["jump_t2"],
-        "lambda_t_vec": st["lam_t_vec"],
-        "jump_t_vec": st["jump_t_vec"],
-        "g": st["g"],
-        "state": code,
+        **{k: v for k, v in cols.items() if k.startswith(("lambda", "jump")) or k == "g"},
+        **{"normal": c.normals, "tangent1": c.t1, "tangent2": c.t2},
+        **{"lambda_t_vec": st["lam_t_vec"], "jump_t_vec": st["jump_t_vec"], "state": code},
         **{f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)},
     }
     meshio.Mesh(

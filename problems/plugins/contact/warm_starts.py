@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from fem.facets import frames
 from vi_core import Solution
 
 from .. import transfer
+from .solid_output import chart
 
 
 def along_curve(coarse: Any, coarse_sol: Solution, fine: Any) -> dict:
@@ -110,12 +110,8 @@ def over_surface(contact_state: Callable, coarse: Any, coarse_sol: Solution, fin
 
     cc, fc = coarse.contact, fine.contact
     st = contact_state(coarse, coarse_sol)
-    n_mean = cc.normals.sum(axis=0)
-    a, b = frames(n_mean[None, :] / np.linalg.norm(n_mean))
-    P = cc.slave.mesh.points[cc.surf.nodes]
-    Q = fc.slave.mesh.points[fc.surf.nodes]
-    uv_c = np.stack([P @ a[0], P @ b[0]], axis=1)  # (k_c, 2) chart coordinates
-    uv_f = np.stack([Q @ a[0], Q @ b[0]], axis=1)  # (k_f, 2)
+    uv_c, a, b = chart(coarse)  # (k_c, 2) chart coordinates
+    uv_f = fc.slave.mesh.points[fc.surf.nodes] @ np.stack([a, b], axis=1)  # (k_f, 2)
 
     def interp(vals: np.ndarray, known: np.ndarray) -> np.ndarray:
         pts, v = uv_c[known], vals[known]
