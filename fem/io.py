@@ -29,12 +29,14 @@ def write_vtu(
     point_data: dict[str, np.ndarray] | None = None,
     cell_data: dict[str, np.ndarray] | None = None,
 ) -> None:
-    """Write `mesh` with nodal and per-cell fields to a .vtu file.
+    """Write a 2D or 3D `mesh` with nodal and per-cell fields to a .vtu file.
 
     Fields are (n,) scalars, (n, c) arrays, or flat interleaved 2-vector fields of length 2 n
     (e.g. a displacement dof vector); 2-component vectors get a zero third component.
     """
-    points = np.concatenate([mesh.points, np.zeros((mesh.n_nodes, 1))], axis=1)  # (N, 3)
+    points = mesh.points  # (N, 3); 2D points get a zero z
+    if points.shape[1] == 2:
+        points = np.concatenate([points, np.zeros((mesh.n_nodes, 1))], axis=1)
     out = meshio.Mesh(
         points,
         [(mesh.cell_type, mesh.cells)],

@@ -14,7 +14,7 @@ the iterations, the peak memory (tracemalloc peak during the solve: numpy arrays
 objects; native workspaces of SuperLU/PARDISO/Clarabel are not seen) and the error norms the
 plug-in declares (contract v2: `NORMS`, `mesh_size`, `reference_errors`, optionally
 `exact_errors` with its own names `EXACT_NORMS` where they differ; for the 2D contact
-plug-in those of Theorem 4.1, `problems.plugins.contact.plane_errors`): against the scene's exact
+plug-in those of Theorem 4.1, `problems.plugins.contact.errors`): against the scene's exact
 solution if it has one (`exact_errors` not None), otherwise against the finest level solved by
 the same solver at the tightest tolerance. That level is then the reference: its records
 are marked `"reference": true` (they carry only the solver error of looser tolerances, and

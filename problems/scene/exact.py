@@ -17,7 +17,7 @@ The generator of the shipped manufactured scenes (2D and 3D) is `problems.scene.
 
 A 3D scene's table has fields of (x, y, z): u, grad_u (3 × 3), phi, grad_phi (3) and
 lam = λ = −σn on Γ3 as a Cartesian 3-vector (frame-free); errors
-`problems.plugins.contact.solid_errors`. The table's dimension is that of u (`dim`); the other
+`problems.plugins.contact.errors`. The table's dimension is that of u (`dim`); the other
 fields are checked against it here, and it against the bodies' by the scene.
 """
 

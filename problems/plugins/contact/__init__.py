@@ -7,8 +7,11 @@ the modules `plane` (2D: a contact node carries a normal and one tangential mult
 friction interval [−g, g]) and `solid` (3D: a normal and up to two tangential ones, the
 friction disc |λ_t| ≤ g); they share the bodies and their assembly (`bodies`, `fields`,
 `body_output`), the model and its mixed VI (`model`), the contact law's scene keys and sets
-(`law`), the electrical contact (`electrical`), the load-path and warm-start transfers
-(`problems.plugins.transfer`) and the manufactured balance (`balance`). Each front declares
+(`law`), the layout-free contact state and warnings (`interface`), the error norms (`errors`),
+the checks (`checks`), the electrical contact (`electrical`), the load-path and warm-start
+transfers (`problems.plugins.transfer`, `warm_starts`), the two-body geometry checks
+(`separation`) and the manufactured balance (`balance`); `plane_output` and `solid_output`
+write each front's files. Each front declares
 the whole contract v2 with NAME = "contact"; `registry.for_scene` hands a scene the front of
 its dimension (`front`), and this module answers for the plug-in as a whole where no scene is
 at hand (`mixvi schema`, `mixvi extremes`, listings).

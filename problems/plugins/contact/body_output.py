@@ -1,5 +1,5 @@
-"""The per-body VTU fields of a contact solve, 2D or 3D, named for ParaView users (docs/design.md,
-"Results"; docs/fem3d.md, "Contact: results").
+"""The per-body VTU fields and files (`write_bodies`) of a contact solve, 2D or 3D, named for
+ParaView users (docs/design.md, "Results"; docs/fem3d.md, "Contact: results").
 
 Point data: displacement (m; 2 components in 2D, 3 in 3D), electric_potential (V). Cell data
 (at the centroids): stress (Pa, a symmetric tensor in VTK order XX, YY, ZZ, XY, YZ, XZ),
@@ -10,9 +10,12 @@ lacks them the ZZ component is NaN, von_mises is not written and the returned no
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from fem import assembly
+from fem.io import write_vtu
 from problems.output.results import VTK_ORDER, von_mises
 
 
@@ -47,3 +50,14 @@ def body_fields(body, x_body: np.ndarray) -> tuple[dict, dict, str | None]:
         cell["electric_field"] = -grad_phi
         cell["electric_displacement"] = D
     return point, cell, note
+
+
+def write_bodies(model, x_full: np.ndarray, outdir: Path) -> tuple[list[str], list[str]]:
+    """(files, notes): BODY.vtu of every body's fields (`body_fields`) and their notes."""
+    files, notes = [], []
+    for b in model.bodies:
+        point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
+        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
+        files.append(f"{b.name}.vtu")
+        notes += [note] if note else []
+    return files, notes

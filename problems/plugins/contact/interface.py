@@ -1,10 +1,10 @@
 """What the 2D (`plane`) and 3D (`solid`) contact fronts share, written once: node names in
 error texts, the checked friction-bound integrand, the rigid foundation's gap, the multiplier
-rows handed to the mixed VI, and the layout-free part of the contact state (jumps, pressure
-scale, thresholds, Lemma 4.2). Each front keeps its rows (2D: segment mortar, a normal and
-one tangential row per node; 3D: frames, polygon-clipping mortar, discs and lines), its
-two-body gap (2D: distance along the slave normal; 3D: weighted mortar gap) and the layout of
-its contact state (2D per multiplier row, 3D per surface node).
+rows handed to the mixed VI, the layout-free part of the contact state (jumps, pressure
+scale, thresholds, Lemma 4.2) and the friction warnings. Each front keeps its rows (2D:
+segment mortar, a normal and one tangential row per node; 3D: frames, polygon-clipping
+mortar, discs and lines), its two-body gap (2D: distance along the slave normal; 3D: weighted
+mortar gap) and the layout of its contact state (2D per multiplier row, 3D per surface node).
 """
 
 from __future__ import annotations
@@ -144,3 +144,24 @@ def friction_radius(contact: Any, lam: np.ndarray, size: int, at: Any = slice(No
     if contact.friction == "coulomb":
         return contact.F * np.maximum(lam_n, 0.0)
     return contact.g * (lam_n > 0)
+
+
+def friction_warnings(
+    states: np.ndarray, g: np.ndarray, lam_t: np.ndarray, slip: np.ndarray, touch: np.ndarray
+) -> list[str]:
+    """What a user must know about the friction bound of a solution: no node touching, g = 0,
+    no node slipping (how much of the bound λ_t uses), and `vi_core.states.warnings`. `states`,
+    `touch` per contact node; g (friction radius) and |λ_t| (both (k_t,)) and `slip` per node
+    carrying a tangential multiplier."""
+    if not touch.any():
+        return ["no node of Γ3 touches: the bodies are apart (λ = 0)"]
+    out = node_states.warnings(states)
+    if not g.any():
+        return [*out, "g = 0 on Γ3: frictionless sliding (a linear problem)"]
+    if not slip.any():
+        used = float(np.max(np.abs(lam_t) / np.where(g > 0, g, np.inf)))
+        out.append(
+            f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
+            "bound, so the problem is tied (g above every tangential stress)"
+        )
+    return out

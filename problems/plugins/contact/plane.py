@@ -24,7 +24,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import partial
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -35,27 +34,22 @@ import vi_core
 from fem.facets import ENDS, Trace, dual_mass, facet_integrals, multiplier_basis, trace
 from fem.mesh import Mesh
 from problems.errors import SceneError
-from problems.output import plots, results
-from problems.output.results import ContactTable
+from problems.output import plots
 from problems.scene import Scene, SceneModel, Section
-from problems.scene.exact import ExactSection, split_exact
+from problems.scene.exact import ExactSection
 from problems.scene.fields import Text
 from problems.scene.imported import require_curve
 from problems.scene.model import head, refuse
 from vi_core import Box, Free, MixedVI, NonNegative, Solution, product
 from vi_core import states as node_states
 
-from .. import transfer
 from ..contract import check_meshed
-from . import balance as piezo_balance
+from . import checks, errors, interface, plane_output, separation, warm_starts
 from . import electrical as electrical_contact
 from . import extremes as contact_extremes
-from . import interface
 from . import law as contact_law
 from . import model as contact_model
-from . import plane_errors as piezo_errors
 from .bodies import Body, BodySection
-from .body_output import body_fields
 from .law import FRICTIONS, LAWS
 from .model import BodiesModel, build_bodies, interface_references, reference
 
@@ -63,16 +57,6 @@ NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
 DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
 ALIAS = "piezo_contact"  # its former name, still accepted (registry.ALIASES)
 LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
-# Two-body interfaces must coincide in the reference configuration (bilateral contact has no
-# initial gap). A slave node may sit off the master polyline (distance along its normal) by at
-# most SEPARATION_TOL × h, h the longest of its adjacent slave segments and the master segment
-# it faces, measured on the level-0 mesh (h · 2^level: uniform refinement does not change the
-# geometry of a mesh read from a file, whose new boundary nodes stay on its polylines): this
-# admits the chord-versus-arc discrepancy of a discretised curved interface (the sagitta
-# h²/(8r), i.e. h/(8r) relative to h: 0.02 for the paper's mesh, < 0.1 while h < 0.8 r), e.g.
-# two bodies meshed separately in gmsh along one curve, and refuses bodies that overlap or
-# stand apart by more (docs/design.md, "Meshes from files").
-SEPARATION_TOL = 0.1
 DESCRIPTION = (
     "elasto-piezoelectric bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
     "(dual mortar multipliers)"
@@ -81,7 +65,6 @@ DESCRIPTION = (
 # tangent if the sine of the angle between them is at most ALIGN_TOL (a roller on a side
 # perpendicular to a flat contact: exactly 0).
 ALIGN_TOL = 1e-10
-PATCH_DEFECT_LIMIT = 1e-8  # above it `mixvi solve` warns and exits 1 (unless --allow-defect)
 
 
 @dataclass
@@ -287,7 +270,7 @@ def build_model(
         list(bodies.values()),
         contact,
         {"scene": scene.name, "level": level},
-        check=lambda A_full, f_full, values: _check_finite(A_full, f_full, values, contact),
+        check=partial(checks.finite_data, contact=contact),
     )
     model = model_class(
         scene, level, list(bodies.values()), contact, vi, free, values, options, rhs=rhs
@@ -295,7 +278,7 @@ def build_model(
     if ct is not None and ct.electrical is not None:
         model.electrical = _electrical(ct.electrical, contact, vi, free, values)
     if contact is not None:
-        model.warnings += interface_warnings(contact)
+        model.warnings += plane_output.interface_warnings(contact)
     for b in model.bodies:
         ev = np.linalg.eigvalsh(b.material.C)
         if ev[-1] / ev[0] > LOCKING_RATIO:
@@ -366,22 +349,6 @@ def problem_at(model: Model, sol: Solution) -> MixedVI:
     if c is None or c.law.kind == "none":
         return model.vi
     return c.frozen(c.conductances(sol.lam))
-
-
-def _check_finite(A_full: sp.csr_matrix, f_full, values, contact: Contact | None) -> None:
-    """Refuse data that overflow in assembly (each number finite, their products not)."""
-    parts = {"stiffness (materials)": A_full.data, "loads": f_full, "Dirichlet values": values}
-    if contact is not None:
-        parts["friction bound g" if contact.F is None else "friction coefficient F"] = (
-            contact.g_weights if contact.F is None else contact.F
-        )
-        if contact.gap0 is not None:
-            parts["gap"] = contact.gap0
-    for what, arr in parts.items():
-        if not np.isfinite(arr).all():
-            raise SceneError(
-                "(scene)", what, "data whose assembled system is finite (magnitudes overflow)"
-            )
 
 
 def _carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray]:
@@ -461,9 +428,9 @@ def _contact(
     closed = 0.0  # the initial gap bilateral contact closes
     if master is not None:
         if unilateral:
-            gap_nodes = _initial_gap(slave, part, tr, tr.normals, master, mpart, level)
+            gap_nodes = separation.initial_gap(slave, part, tr, tr.normals, master, mpart, level)
         else:
-            closed = _check_separation(slave, part, tr, tr.normals, master, mpart, level)
+            closed = separation.check_separation(slave, part, tr, tr.normals, master, mpart, level)
         reach = 1.0 + float(np.max(gap_nodes, initial=0.0) / tr.measures.min())
         mort = mortar_coupling(slave.mesh, part, master.mesh, mpart, reach=reach)
         assert np.array_equal(tr.nodes, mort.slave_nodes)
@@ -586,153 +553,7 @@ def _friction_local(mesh: Mesh, tr: Trace, gfun) -> np.ndarray:
     return facet_integrals(mesh, tr, interface.checked_bound(gfun))
 
 
-def _normal_distances(
-    x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Signed distance t from each point x_i along n_i to the polyline of segments [a_k, b_k],
-    and the index of the segment hit.
-
-    t > 0: the polyline lies outside (a gap), t < 0: behind (an overlap); the hit of smallest
-    |t|, NaN where the line x_i + t n_i misses every segment. Chunked to bound memory.
-    """
-    out = np.full(len(x), np.nan)
-    seg = np.zeros(len(x), dtype=int)
-    d = b - a  # (M, 2)
-    for lo in range(0, len(x), 256):
-        xi, ni = x[lo : lo + 256, None, :], n[lo : lo + 256, None, :]  # (c, 1, 2)
-        det = ni[..., 0] * -d[None, :, 1] + ni[..., 1] * d[None, :, 0]  # (c, M)
-        r = a[None] - xi  # (c, M, 2)
-        with np.errstate(all="ignore"):
-            t = (r[..., 0] * -d[None, :, 1] + r[..., 1] * d[None, :, 0]) / det
-            s = (ni[..., 0] * r[..., 1] - ni[..., 1] * r[..., 0]) / det
-        hit = (np.abs(det) > 0) & (s >= -1e-12) & (s <= 1 + 1e-12)
-        t = np.where(hit, t, np.inf)
-        k = np.argmin(np.abs(t), axis=1)
-        best = t[np.arange(len(k)), k]
-        out[lo : lo + 256] = np.where(np.isfinite(best), best, np.nan)
-        seg[lo : lo + 256] = k
-    return out, seg
-
-
-def _separation(slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int):
-    """(t, h): the signed distance (N,) of each slave node along its normal to the master
-    polyline (NaN where it misses) and h (N,), the longer of the node's adjacent segments and
-    the master segment hit, times 2^level (the level-0 mesh size)."""
-    mtr = trace(master.mesh, mpart)
-    P = master.mesh.points[mtr.nodes]
-    t, k = _normal_distances(
-        slave.mesh.points[tr.nodes], normals, P[mtr.facets[:, 0]], P[mtr.facets[:, 1]]
-    )
-    h = mtr.measures[k]
-    np.maximum.at(h, tr.facets[:, 0], tr.measures)
-    np.maximum.at(h, tr.facets[:, 1], tr.measures)
-    return t, h * 2.0**level  # the size at level 0, where the interface geometry was given
-
-
-def _refuse_separation(slave, part, master, mpart, tr, t, h, bad, where) -> None:
-    rel = np.nan_to_num(t / h)
-    i = bad[np.argmax(np.abs(rel[bad]))]
-    what = "overlap the slave body" if rel[i] < 0 else "stand apart from it"
-    raise SceneError(
-        "contact.master",
-        f"{master.name}.{mpart}",
-        f"a master boundary {where} {slave.name}.{part} in the "
-        f"reference configuration: it would {what} by {abs(t[i]):.3g} "
-        f"({abs(rel[i]):.2f} × the local level-0 mesh size {h[i]:.3g}; allowed "
-        f"{SEPARATION_TOL:g}) at slave node {slave.mesh.points[tr.nodes[i]].tolist()}",
-    )
-
-
-def _check_separation(
-    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
-) -> float:
-    """SceneError if the interfaces overlap or stand apart by more than SEPARATION_TOL·h
-    (`_separation`): bilateral contact needs coincident interfaces. Returns the largest gap
-    (m, ≥ 0) between them that bilateral contact closes (`closed_gap_warning`)."""
-    t, h = _separation(slave, part, tr, normals, master, mpart, level)
-    bad = np.flatnonzero(np.abs(np.nan_to_num(t / h)) > SEPARATION_TOL)
-    if bad.size:
-        _refuse_separation(slave, part, master, mpart, tr, t, h, bad, "that coincides with")
-    return float(np.maximum(np.nan_to_num(t), 0.0).max(initial=0.0))
-
-
-def _initial_gap(
-    slave: Body, part: str, tr: Trace, normals, master: Body, mpart: str, level: int = 0
-) -> np.ndarray:
-    """The initial normal gap (N,) of unilateral contact between two bodies: the distance
-    along each slave normal to the master (0 where the normal misses it). The bodies may
-    start apart; an overlap beyond SEPARATION_TOL·h (`_separation`) is refused."""
-    t, h = _separation(slave, part, tr, normals, master, mpart, level)
-    bad = np.flatnonzero(-np.nan_to_num(t / h) > SEPARATION_TOL)
-    if bad.size:
-        _refuse_separation(slave, part, master, mpart, tr, t, h, bad, "facing")
-    return np.nan_to_num(t)
-
-
-def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
-    """Initial guess for `fine` from the solution on the coarser level (nested iteration).
-
-    Along Γ3 (the same curve on every level, parametrised by normalised arc length) the normal
-    coefficients are interpolated, and the tangential ones through their ratio r = α/ρ to the
-    friction radius ρ (g; Coulomb: F·λ_n): a fine node between two coarse slip nodes gets
-    |r| = 1, i.e. it starts on the bound even where g varies, and the first Newton step starts
-    from the coarse stick/slip partition instead of rediscovering it. A fine node between a
-    coarse stick and a coarse slip node starts on the bound where |r| extrapolated from the
-    stick side reaches 1 (`_slip_ahead`).
-
-    u0, the displacement and potential, is the coarse solution interpolated at the fine nodes
-    (`transfer.prolongate`: the Q1/P1 prolongation of nested meshes; the new nodes of a curved
-    boundary lie outside the coarse mesh and are extrapolated, counted in
-    start["outside_nodes"]), then tied where λ0 predicts a tied row (`vi_core.ssn.tied_start`):
-    the first Newton step's GMRES starts from it (paper scene, levels 2–5: 12, 13, 15, 16
-    iterations instead of 14, 15, 18, 19 from u = 0).
-    """
-    if coarse.contact is None or fine.contact is None:
-        return {}
-    cc, fc = coarse.contact, fine.contact
-    sc, sf = cc.tr.s / cc.tr.s[-1], fc.tr.s / fc.tr.s[-1]
-    lam_c = coarse_sol.lam
-    lam_n = np.interp(sf[fc.rows_n], sc[cc.rows_n], cc.normal(lam_c))
-    rc = cc.bound(lam_c)
-    ratio_c = np.divide(cc.tangential(lam_c), rc, out=np.zeros(rc.size), where=rc > 0)
-    ratio = np.clip(np.interp(sf[fc.rows_t], sc[cc.rows_t], ratio_c), -1.0, 1.0)
-    on_bound = (np.abs(ratio) >= 1.0 - transfer.ON_BOUND) | _slip_ahead(
-        sc[cc.rows_t], ratio_c, sf[fc.rows_t]
-    )
-    ratio[on_bound] = np.sign(ratio[on_bound])
-    lam0 = np.zeros(fc.B_full.shape[0])
-    lam0[fc.idx_n] = lam_n
-    lam0[fc.idx_t] = ratio * fc.bound(lam0)
-    return transfer.carried_start(coarse, coarse_sol, fine, lam0)
-
-
-def _slip_ahead(xc: np.ndarray, ratio_c: np.ndarray, xf: np.ndarray) -> np.ndarray:
-    """(M,) fine positions xf (M,) lying between a coarse stick node a and a coarse slip node
-    (coarse positions xc (K,) increasing, ratios α/ρ `ratio_c` (K,)) where |r| extrapolated
-    linearly from a and its other neighbour b (also stick) reaches 1.
-
-    Why: the ratio rises steeply towards a stick/slip transition, so interpolating it between a
-    and the slip node leaves the new node between them below 1 (stick) where the fine solution
-    slips. Paper scene, nested iteration: levels 4 and 5 found the new nodes next to both
-    transitions slipping (|r_a| = 0.937, |r_b| = 0.709 at level 3: extrapolated 1.05 at the
-    midpoint; 0.934, 0.784 at level 4: 1.009), which took the fine level a second Newton step
-    with its own linear solve; at levels 2 and 3 extrapolation gives 0.84 and 0.61: stick, as
-    the fine solutions have it."""
-    slip = np.abs(ratio_c) >= 1.0 - transfer.ON_BOUND  # (K,)
-    out = np.zeros(xf.size, dtype=bool)
-    if xc.size < 3:
-        return out
-    k = np.clip(np.searchsorted(xc, xf, side="right") - 1, 0, xc.size - 2)  # (M,) interval
-    edge = slip[k] != slip[k + 1]  # (M,) between a stick and a slip node
-    a = np.where(slip[k], k + 1, k)  # (M,) its stick end
-    b = np.where(slip[k], k + 2, k - 1)  # (M,) the stick end's other neighbour
-    ok = edge & (b >= 0) & (b < xc.size) & (xf > xc[k]) & (xf < xc[k + 1])
-    a, b = a[ok], b[ok]
-    ok_b = ~slip[b]
-    ra, rb = np.abs(ratio_c[a]), np.abs(ratio_c[b])
-    r = ra + (ra - rb) * (xf[ok] - xc[a]) / (xc[a] - xc[b])  # linear through b and a
-    out[np.flatnonzero(ok)[ok_b & (r >= 1.0)]] = True
-    return out
+warm_start = warm_starts.along_curve  # nested iteration (`warm_start`)
 
 
 # ------------------------------------------------------------------ post-processing
@@ -799,207 +620,19 @@ def contact_state(model: Model, sol: Solution) -> dict:
     return state
 
 
-def interface_summary(contact: Contact) -> dict:
-    """The interface entries of summary.json["contact"]: patch defect, crosspoints, coverage."""
-    tr = contact.tr
-    dropped = np.setdiff1d(np.arange(tr.size), np.intersect1d(contact.rows_n, contact.rows_t))
-    dropped = np.setdiff1d(dropped, contact.uncovered)
-    return {
-        "master": "rigid" if contact.master is None else contact.master.name,
-        "mortar_patch_defect": contact.patch_defect,
-        "ends": contact.ends,
-        "multipliers": {"normal": int(contact.rows_n.size), "tangential": int(contact.rows_t.size)},
-        "crosspoint_nodes": tr.nodes[dropped].tolist(),
-        "uncovered_nodes": tr.nodes[contact.uncovered].tolist(),
-    }
-
-
-def interface_warnings(contact: Contact) -> list[str]:
-    """Console warnings about the interface: uncovered slave nodes and the patch defect."""
-    out = []
-    tr = contact.tr
-    if contact.uncovered.size:
-        where = ", ".join(
-            interface.node_at(contact.slave, tr, int(i)) for i in contact.uncovered[:6]
-        )
-        more = f" and {contact.uncovered.size - 6} more" if contact.uncovered.size > 6 else ""
-        out.append(
-            f"contact: {contact.uncovered.size} slave node(s) of {contact.slave.name}."
-            f"{contact.slave_part} have no master behind their whole support and carry no "
-            f"multiplier (left free): {where}{more}"
-        )
-    if contact.patch_defect > PATCH_DEFECT_LIMIT:
-        out.append(
-            f"contact: mortar patch defect {contact.patch_defect:.3g} > {PATCH_DEFECT_LIMIT:g}: "
-            "a rigid translation of both bodies is not transferred across the interface — the "
-            "mortar projection is wrong for this geometry; results are not trustworthy"
-        )
-    return out
-
-
-def contact_warnings(state: dict) -> list[str]:
-    """What a user must know about the friction bound of this solution."""
-    g, lam_t = state["g"], state["lam_t"]
-    if not state["touch"].any():
-        return ["no node of Γ3 touches: the bodies are apart (λ = 0)"]
-    if not g.any():
-        return ["zero friction on Γ3: frictionless sliding"]
-    out = node_states.warnings(state["state"])
-    if not state["slip"].any():
-        used = float(np.max(np.abs(lam_t) / np.where(g > 0, g, np.inf)))
-        out.append(
-            f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
-            "bound, so the problem is tied (g above every tangential stress)"
-        )
-    return out
-
-
-# a bilateral interface of two bodies that stands apart by more than this fraction of the
-# largest displacement of the slave's contact nodes is warned of: closing it changes the answer
-CLOSED_GAP_TOL = 0.1
-
-
-def closed_gap_summary(model: Model, sol: Solution) -> dict:
-    """summary.json's contact.initial_gap_closed (bilateral contact of two bodies): the largest
-    initial gap (m) the law closes, and that gap over the largest displacement of the slave's
-    contact nodes; {} for unilateral contact and a rigid foundation."""
-    c = model.contact
-    if c.law != "bilateral" or c.master is None:
-        return {}
-    u = model.full(sol.u)[c.slave.u_dofs(c.tr.nodes)]  # (N, 2)
-    scale = float(np.linalg.norm(u, axis=1).max(initial=0.0))
-    ratio = c.closed_gap / scale if scale > 0 else (0.0 if c.closed_gap == 0 else np.inf)
-    return {"initial_gap_closed": {"max": c.closed_gap, "relative_to_displacement": ratio}}
-
-
-def closed_gap_warning(model: Model, sol: Solution) -> list[str]:
-    """A warning when bilateral contact closes an initial gap above CLOSED_GAP_TOL × the
-    largest contact displacement (a real gap, not rounding: use law = "unilateral")."""
-    entry = closed_gap_summary(model, sol).get("initial_gap_closed")
-    if entry is None or entry["relative_to_displacement"] <= CLOSED_GAP_TOL:
-        return []
-    return [
-        f"contact: the bodies start apart by up to {entry['max']:.3g} m "
-        f"({entry['relative_to_displacement']:.3g} × the largest contact displacement) and "
-        "the bilateral law closes that gap; if the gap is real, set contact.law = "
-        "'unilateral' (contact.initial_gap_closed)"
-    ]
-
-
-def _unilateral_summary(contact: Contact, state: dict) -> dict:
-    """The summary entries only unilateral contact has: open nodes, the law and friction."""
-    return {
-        "open": int(np.sum(state["normal_state"] == "open")),
-        "law": contact.law,
-        "friction": contact.friction,
-        "min_gap": float((state["gap"] - state["u_n"]).min(initial=np.inf)),
-    }
-
-
-def contact_table(model: Model, sol: Solution) -> ContactTable:
-    """One row per slave node of Γ3 (problems.output.results): λ_n, λ_t, the tangential
-    mortar jump and stick/slip; NaN and state 'no_multiplier' where a node carries none."""
-    c = model.contact
-    tr = c.tr
-    st = contact_state(model, sol)
-    k = tr.size
-    lam_n, lam_t, jump_t = np.full(k, np.nan), np.full(k, np.nan), np.full(k, np.nan)
-    lam_n[c.rows_n] = st["lam_n"]
-    lam_t[c.rows_t] = st["lam_t"]
-    jump_t[c.rows_t] = st["jump_t"]
-    state = np.full(k, "no_multiplier", dtype=object)
-    state[c.rows_t] = st["state"]
-    gap = None
-    if c.law == "unilateral":
-        gap = np.full(k, np.nan)
-        gap[c.rows_n] = np.maximum(st["gap"] - st["u_n"], 0.0)
-    return ContactTable(
-        points=c.slave.mesh.points[tr.nodes],
-        normals=tr.normals,
-        weights=tr.weights,
-        segments=tr.facets,
-        lambda_n=lam_n,
-        lambda_t=lam_t,
-        jump_t=jump_t,
-        state=state.astype(str),
-        gap=gap,
-        friction=c.friction,
-    )
-
-
-def _write_bodies(model: Model, x_full: np.ndarray, outdir: Path) -> tuple[list, list]:
-    """(files, notes): BODY.vtu of every body's fields (`body_fields`) and their notes."""
-    from fem.io import write_vtu
-
-    files, notes = [], []
-    for b in model.bodies:
-        point, cell, note = body_fields(b, x_full[b.offset : b.offset + b.size])
-        write_vtu(outdir / f"{b.name}.vtu", b.mesh, point, cell)
-        files.append(f"{b.name}.vtu")
-        notes += [note] if note else []
-    return files, notes
-
-
-def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """Write VTU fields (one per body, the contact line), contact.csv and PNG plots
-    into `outdir`; return the summary entries."""
-    x_full = model.full(sol.u)
-    files, notes = _write_bodies(model, x_full, outdir)
-    summary: dict = {"force_balance": piezo_balance.force_balance(model, sol)}
-    if model.contact is not None:
-        quad = piezo_balance.lemma_4_2(model, sol) if model.slip_origin is None else None
-        if quad is not None:
-            summary["lemma_4_2_quadrature"] = quad
-        state = contact_state(model, sol)
-        files += plots.contact_plots(state, outdir, title=model.scene.name)
-        table = contact_table(model, sol)
-        files += results.write_contact(outdir, table)[0]
-        labels = state["state"]
-        summary["contact"] = {
-            "nodes": int(labels.size),
-            "stick": int(np.sum(labels == "stick")),
-            "slip": int(np.sum(labels == "slip")),
-            "ambiguous": int(np.sum(labels == "ambiguous")),
-            **(
-                _unilateral_summary(model.contact, state)
-                if model.contact.law != "bilateral"
-                else {}
-            ),
-            **table.totals(),
-            **interface_summary(model.contact),
-            **closed_gap_summary(model, sol),
-            "table": table.records(),
-        }
-        summary["lemma_4_2"] = state["lemma_4_2"]
-        if model.electrical is not None:
-            summary["electrical"] = {
-                **electrical_contact.report(model.electrical, sol),
-                **electrical_contact.touching(model.electrical, sol, state["touch"]),
-            }
-        summary["warnings"] = contact_warnings(state) + closed_gap_warning(model, sol)
-    if notes:
-        summary["notes"] = notes
-    along = model.options.get("potential_along")
-    if along is not None:
-        b = next(bb for bb in model.bodies if bb.name == along[0])
-        tr = trace(b.mesh, along[1])
-        _, phi = b.split(x_full[b.offset : b.offset + b.size])
-        files.append(
-            plots.potential_plot(
-                b.mesh.points[tr.nodes], tr.s, phi[tr.nodes], outdir, f"{along[0]}.{along[1]}"
-            )
-        )
-    summary["files"] = sorted(files)
-    return summary
-
-
 # ------------------------------------------------------------------ contract v2 declarations
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 CONTRACT = 2
 SWEEP = contact_model.friction_sweep("fig_5_4.png", "F_sweep.png")
-NORMS = piezo_errors.NORMS  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
+NORMS = errors.REFERENCE_NORMS[DIMENSION]  # u_H1, phi_H1, phi_L2, lam (Theorem 4.1)
+EXACT_NORMS = errors.EXACT_NORMS  # with u_L2
+exact_errors = partial(errors.exact_errors, SCENE_MODEL, contact_state)
+reference_errors = partial(errors.reference_errors, contact_state)
 extremes = contact_extremes.rows_2d
+postprocess = plane_output.postprocess  # result files and summary entries
+step_output = plane_output.step_output  # one load step's files
+contact_table = plane_output.contact_table  # contact.csv's rows (signorini's too)
 
 
 def draw(ax, model: Model, sol: Solution) -> str:
@@ -1009,33 +642,9 @@ def draw(ax, model: Model, sol: Solution) -> str:
     return plots.friction_panel(ax, contact_state(model, sol))
 
 
-def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
-    """The NORMS against the scene's [exact] table (None without one)."""
-    _, exact = split_exact(model.scene)
-    return None if exact is None else piezo_errors.exact_errors(model, sol.u, sol.lam, exact)
-
-
-def step_output(model: Model, sol: Solution, outdir: Path) -> dict:
-    """One load step's files (no plots): a VTU per body, contact.vtu and contact.csv; the
-    summary entries "files" and "contact" (the counts per state)."""
-    files, _ = _write_bodies(model, model.full(sol.u), outdir)
-    out: dict = {"files": files}
-    if model.contact is not None:
-        table = contact_table(model, sol)
-        written, contact = results.write_contact(outdir, table)
-        files += written
-        out["contact"] = contact["counts"]
-    return out
-
-
 count = partial(contact_model.count, SCENE_MODEL)
 update = partial(contact_model.update_scene, SCENE_MODEL)
 incremental = contact_model.incremental
-
-
-def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
-    """The NORMS against the solution of the finer level `ref` of the same scene."""
-    return piezo_errors.reference_errors(model, sol.u, sol.lam, ref, ref_sol.u, ref_sol.lam)
 
 
 from .error_estimate import estimate as _estimate  # noqa: E402 (issue 32)

@@ -39,7 +39,7 @@ the node touches (Tresca). The rows of a node are then side by side (`SolidConta
 then the normal-only nodes (NonNegative); a node whose normal displacement is prescribed is
 refused. The initial gap is Σ_j S_n,kj gap(x_j) for a rigid foundation (the scene's field) and
 the weighted mortar gap −n_k·(Σ_j S_n,kj x_s,j − Σ_j M_n,kj x_m,j) for two bodies, which may
-start apart (an overlap beyond OVERLAP_TOL × the level-0 node size is refused).
+start apart (an overlap beyond separation.SEPARATION_TOL × the level-0 node size is refused).
 """
 
 from __future__ import annotations
@@ -53,7 +53,6 @@ from typing import Annotated, ClassVar, Literal
 import numpy as np
 import scipy.sparse as sp
 from pydantic import Field, model_validator
-from scipy.spatial import cKDTree
 
 from fem import mortar as dual_mortar
 from fem.facets import Trace, dual_mass, facet_integrals, frames, multiplier_basis, trace
@@ -64,14 +63,11 @@ from problems.scene.model import head
 from vi_core import Ball, Box, Free, NonNegative, Solution, product
 from vi_core import states as node_states
 
-from .. import transfer
 from ..contract import check_meshed
+from . import checks, errors, interface, separation, warm_starts
 from . import extremes as contact_extremes
-from . import interface
 from . import law as contact_law
 from . import model as contact_model
-from . import solid_checks as contact3d_checks
-from . import solid_errors as contact3d_errors
 from . import solid_output as contact3d_output
 from .bodies import Body, BodySection
 from .interface import SURFACE_ORDER
@@ -86,10 +82,6 @@ DESCRIPTION = (
 )
 CONTRACT = 2
 ALIGN_TOL = 1e-10  # sine of the angle under which a prescribed direction counts as n or ⟂ n
-# Unilateral contact of two bodies: the master may stand apart from the slave (an initial gap)
-# but overlap it by at most OVERLAP_TOL × the level-0 node size (the chord-versus-surface
-# discrepancy of two curved surfaces meshed apart, as 2D's SEPARATION_TOL).
-OVERLAP_TOL = 0.1
 
 
 @dataclass
@@ -245,7 +237,7 @@ class SolidScene(SceneModel):
     scene: Head
     bodies: Annotated[dict[str, BodySection], Field(min_length=1)]
     contact: ContactSection | None = None
-    exact: ExactSection | None = None  # a manufactured solution (contact3d_errors)
+    exact: ExactSection | None = None  # a manufactured solution (`errors`)
 
     @model_validator(mode="after")
     def _references(self) -> SolidScene:
@@ -283,6 +275,7 @@ def _build(scene: Scene, level: int | None) -> Model:
         list(bodies.values()),
         contact,
         {"scene": scene.name, "level": level},
+        check=partial(checks.finite_data, contact=contact),
     )
     bodies_ = list(bodies.values())
     return Model(scene, level, bodies_, contact, vi, free, values, spec.options(), rhs=rhs)
@@ -422,7 +415,7 @@ def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Couplin
     no multiplier (`covered`); patch_defect is set by `slave_contact`."""
     try:
         order = SURFACE_ORDER[slave.mesh.cell_type]  # that of the slave block in slave_contact
-        reach = 1.0 + _distance(slave, part, master, mpart)
+        reach = 1.0 + separation.reach(slave, part, master, mpart)
         mo = dual_mortar.mortar_coupling(
             slave.mesh, part, master.mesh, mpart, face_order=order, reach=reach
         )
@@ -432,40 +425,6 @@ def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Couplin
         ) from None
     dofs = master.u_dofs(mo.master.nodes)  # (k_m, 3)
     return Coupling(master, mpart, mo.M, dofs, np.nan, dual_mortar.covered_nodes(mo), mo.n_cells)
-
-
-def _distance(slave: Body, part: str, master: Body, mpart: str) -> float:
-    """How far the master surface stands from the slave one, in slave face sizes: the largest
-    distance of a slave surface node to the nearest master surface node over the smallest
-    slave face diameter (0 for coincident surfaces); it widens the mortar's candidate search
-    for bodies that start apart."""
-    faces = slave.mesh.boundaries[part]  # (n_f, k)
-    P = slave.mesh.points
-    xs = P[np.unique(faces)]
-    xm = master.mesh.points[np.unique(master.mesh.boundaries[mpart])]
-    d, _ = cKDTree(xm).query(xs)
-    size = np.linalg.norm(P[faces[:, 0]] - P[faces[:, 2]], axis=1).min()  # a diagonal
-    return float(d.max() / size)
-
-
-def _not_facing(surf: Trace, master: Coupling) -> str:
-    """What is wrong with a master surface that lies behind no slave node's support (what a
-    master must be, and which of the three ways it is not: it faces the same way as the slave,
-    it lies behind the slave, or the two do not overlap seen along the slave's normal)."""
-    mesh = master.body.mesh
-    msurf = trace(mesh, master.part, SURFACE_ORDER[mesh.cell_type])
-    n_s, n_m = surf.normals.mean(axis=0), msurf.normals.mean(axis=0)  # (3,) mean outward normals
-    ahead = float((msurf.points.mean(axis=0) - surf.points.mean(axis=0)) @ n_s)
-    if float(n_s @ n_m) > 0:
-        why = "the two surfaces face the same way (their outward normals agree)"
-    elif ahead < 0:
-        why = "the two surfaces face away from each other (the master lies behind the slave)"
-    else:
-        why = "the two surfaces do not overlap seen along the slave's normal"
-    return (
-        "a master surface facing the slave one and overlapping it: no slave node has this master "
-        f"behind its faces, so no contact multiplier can be placed; {why}"
-    )
 
 
 def _positions(bodies: list[Body], n_full: int) -> np.ndarray:
@@ -484,7 +443,7 @@ def slave_contact(
     table (`ContactSection`: law, friction, g or F, gap). Unilateral contact puts the rows of a
     node side by side (`SolidContact.rows`) and builds the initial gap rows: Σ_j S_n,kj gap(x_j)
     for a rigid foundation, the weighted mortar gap −(D x_s − M x_m)·n_k of the geometry for two
-    bodies (an overlap of more than OVERLAP_TOL × the level-0 node size is refused)."""
+    bodies (an overlap beyond `separation.SEPARATION_TOL` × the level-0 node size is refused)."""
     unilateral = law.law == "unilateral"
     gfun = law.g if law.friction == "tresca" else law.F
     key = "contact.slave"
@@ -502,7 +461,9 @@ def slave_contact(
     covered = np.ones(surf.size, dtype=bool) if master is None else master.covered
     if master is not None and not covered.any():  # no multiplier at all: say why
         raise SceneError(
-            "contact.master", f"{master.body.name}.{master.part}", _not_facing(surf, master)
+            "contact.master",
+            f"{master.body.name}.{master.part}",
+            separation.not_facing(surf, master),
         )
     M_loc = None if master is None else master.M_loc
     S_n, M_n, W_n, _ = class_blocks(surf, carry_n, covered, law.ends, M_loc)
@@ -585,14 +546,14 @@ def slave_contact(
             gap0 = -(B_n @ _positions([slave, master.body], n_full))  # (N_n,)
             h0 = surf.node_sizes()[rows_n] * 2.0**level  # the level-0 node size
             rel = gap0 / W_n[rows_n] / h0
-            if (rel < -OVERLAP_TOL).any():
+            if (rel < -separation.SEPARATION_TOL).any():
                 i = int(np.argmin(rel))
                 raise SceneError(
                     "contact.master",
                     f"{master.body.name}.{master.part}",
                     f"a master surface that does not overlap the slave {slave.name}.{part} in "
-                    f"the reference configuration by more than {OVERLAP_TOL:g} × the level-0 "
-                    f"node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
+                    f"the reference configuration by more than {separation.SEPARATION_TOL:g} × "
+                    f"the level-0 node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
                     f"{h0[i]:.3g}) at {interface.node_at(slave, surf, int(rows_n[i]))}",
                 )
     return SolidContact(
@@ -620,86 +581,6 @@ def slave_contact(
         gap_field=law.gap if unilateral and master is None else None,
         bound_field=gfun,
     )
-
-
-# ------------------------------------------------------------------ nested iteration
-def warm_start(coarse: Model, coarse_sol: Solution, fine: Model) -> dict:
-    """Initial guess for `fine` from the coarser level's solution (nested iteration).
-
-    λ0: λ_n and the friction ratio r = λ_t/ρ (ρ the friction radius) interpolated linearly
-    over the contact surface, |r| and the direction of r separately (then in the fine frames,
-    clipped to |r| ≤ 1 and put on the bound where it reaches it), so a fine node between
-    coarse slip nodes starts slipping: interpolating the vector r shortens it wherever the
-    slip direction turns (bracket3d level 1: 25 of the 71 slip nodes predicted, 78 with 67
-    right this way).
-
-    u0: the coarse displacement (and potential) at the fine nodes
-    (`transfer.prolongate`; fine nodes outside the coarse mesh, extrapolated, are
-    counted in start["outside_nodes"]), then moved on the slave dofs so that B u0 = gap on
-    the rows λ0 predicts tied (normal rows that touch, stick nodes; `vi_core.ssn.tied_start`),
-    every other row of B u0 kept. Why: the first Newton step decides stick or slip from
-    y = λ0 + B u0 − gap, and with u0 = 0 a predicted slip node has |y_t| = ρ to rounding —
-    the disc's boundary, counted as stick (`vi_core.Ball`): bracket3d level 2 took its first
-    step with 73 of the 201 slip nodes free, then 8 Newton steps; the carried slip puts y
-    outside the disc. The tied rows are given to `tied_start` for the same reason.
-    """
-    if coarse.contact is None or fine.contact is None:
-        return {}
-    from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
-    from scipy.spatial import QhullError
-
-    cc, fc = coarse.contact, fine.contact
-    st = contact_state(coarse, coarse_sol)
-    n_mean = cc.normals.sum(axis=0)
-    a, b = frames(n_mean[None, :] / np.linalg.norm(n_mean))
-    P = cc.slave.mesh.points[cc.surf.nodes]
-    Q = fc.slave.mesh.points[fc.surf.nodes]
-    uv_c = np.stack([P @ a[0], P @ b[0]], axis=1)  # (k_c, 2) chart coordinates
-    uv_f = np.stack([Q @ a[0], Q @ b[0]], axis=1)  # (k_f, 2)
-
-    def interp(vals: np.ndarray, known: np.ndarray) -> np.ndarray:
-        pts, v = uv_c[known], vals[known]
-        try:
-            out = LinearNDInterpolator(pts, v)(uv_f)
-        except QhullError:  # fewer than 3 known points, or all on one line: nearest only
-            return NearestNDInterpolator(pts, v)(uv_f)
-        miss = np.isnan(out).any(axis=-1) if out.ndim > 1 else np.isnan(out)
-        if miss.any():
-            out[miss] = NearestNDInterpolator(pts, v)(uv_f[miss])
-        return out
-
-    lam_n_c = np.zeros(cc.surf.size)
-    lam_n_c[cc.rows_n] = st["lam_n"][cc.rows_n]
-    lam_n = interp(lam_n_c, np.isin(np.arange(cc.surf.size), cc.rows_n))[fc.rows_n]
-    has_t = np.isin(np.arange(cc.surf.size), np.concatenate([cc.disc, cc.line]))
-    rho = st["g"]  # (k_c,) the friction radius of the coarse solution
-    ratio_c = np.divide(
-        st["lam_t_vec"], rho[:, None], out=np.zeros((cc.surf.size, 3)), where=rho[:, None] > 0
-    )
-    mag = interp(np.linalg.norm(ratio_c, axis=1), has_t)  # (k_f,) |r|
-    r = interp(ratio_c, has_t)  # (k_f, 3) its direction
-    length = np.linalg.norm(r, axis=1)  # (k_f,)
-    r *= np.divide(mag, length, out=np.zeros_like(mag), where=length > 0)[:, None]
-    r1 = np.einsum("ij,ij->i", r, fc.t1)
-    r2 = np.einsum("ij,ij->i", r, fc.t2)
-    rd = np.stack([r1[fc.disc], r2[fc.disc]], axis=1)  # (N_b, 2)
-    norm = np.linalg.norm(rd, axis=1)
-    slip_b = norm >= 1.0 - transfer.ON_BOUND  # (N_b,)
-    rd = np.where(slip_b[:, None], rd / np.maximum(norm, 1e-300)[:, None], rd)
-    rl = np.clip(np.einsum("ij,ij->i", r[fc.line], fc.line_dir), -1.0, 1.0)
-    slip_l = np.abs(rl) >= 1.0 - transfer.ON_BOUND  # (N_l,)
-    rl = np.where(slip_l, np.sign(rl), rl)
-    idx_n, idx_b, idx_l = fc.rows()
-    lam0 = np.zeros(fc.B_full.shape[0])
-    lam0[idx_n] = lam_n
-    bound = fc.bound(lam0)  # (k_f,) the fine radius at the interpolated λ_n
-    lam0[idx_b] = rd * bound[fc.disc, None]
-    lam0[idx_l] = rl * bound[fc.line]
-    tied = np.zeros(lam0.size, dtype=bool)  # (m,) the rows λ0 predicts tied
-    tied[idx_n] = True if fc.law == "bilateral" else lam_n > 0
-    tied[idx_b] = ((bound[fc.disc] > 0) & ~slip_b)[:, None]
-    tied[idx_l] = (bound[fc.line] > 0) & ~slip_l
-    return transfer.carried_start(coarse, coarse_sol, fine, lam0, tied)
 
 
 incremental = contact_model.incremental
@@ -791,7 +672,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     """Write the body VTUs, the contact surface (contact.vtu), contact.csv, results.pvd and
     the stick/slip map into `outdir`; return the summary entries."""
     summary = contact3d_output.write(model, sol, outdir, contact_state)
-    summary["checks"] = contact3d_checks.solution_checks(model, sol)
+    summary["checks"] = checks.solution_checks(model, sol)
     c = model.contact
     if c is not None and c.law == "unilateral":
         st = contact_state(model, sol)
@@ -808,9 +689,11 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 fields = contact_model.fields  # nodal fields by name
 mesh_size = contact_model.mesh_size  # h of the built level
 SWEEP = contact_model.friction_sweep("g_sweep3d.png", "F_sweep3d.png")
-NORMS = ("u_nodes", "phi_nodes", "lam_nodes")  # against a finer level: reference_errors
-# against the scene's [exact] table: exact_errors (contact3d_errors)
-EXACT_NORMS = contact3d_errors.NORMS
+NORMS = errors.REFERENCE_NORMS[DIMENSION]  # against a finer level: reference_errors
+EXACT_NORMS = errors.EXACT_NORMS  # against the scene's [exact] table: exact_errors
+exact_errors = partial(errors.exact_errors, SCENE_MODEL, contact_state)
+reference_errors = partial(errors.reference_errors, contact_state)
+warm_start = partial(warm_starts.over_surface, contact_state)  # nested iteration
 extremes = contact_extremes.rows_3d
 
 
@@ -826,47 +709,3 @@ def draw(ax, model: Model, sol: Solution) -> str:
     ax.set_aspect("equal")
     ax.legend(fontsize=7)
     return f"slip {int(st['slip'].sum())} of {int(st['has_t'].sum())} nodes"
-
-
-def exact_errors(model: Model, sol: Solution) -> dict[str, float] | None:
-    """The EXACT_NORMS against the scene's [exact] table (None without one):
-    `contact3d_errors.exact_errors`."""
-    section = model.scene.validated(SCENE_MODEL).exact
-    if section is None:
-        return None
-    state = None if model.contact is None else contact_state(model, sol)
-    return contact3d_errors.exact_errors(model, sol, section.compiled(), state)
-
-
-def reference_errors(model: Model, sol: Solution, ref: Model, ref_sol: Solution) -> dict:
-    """The NORMS against a finer level `ref` of the same scene, at the coarse level's nodes
-    (nested: every coarse node is a fine node): relative RMS of u and φ over the nodes and of
-    λ (all its components) over the coarse contact nodes, weighted by W_k."""
-    out = {}
-
-    def matched(points_c: np.ndarray, points_f: np.ndarray) -> np.ndarray:
-        at = {tuple(np.round(p, 10)): i for i, p in enumerate(points_f)}
-        return np.array([at[tuple(np.round(p, 10))] for p in points_c])
-
-    fc, ff = fields(model, sol), fields(ref, ref_sol)
-    for b, bf in zip(model.bodies, ref.bodies, strict=True):
-        idx = matched(b.mesh.points, bf.mesh.points)
-        for key, norm in (("displacement", "u_nodes"), ("potential", "phi_nodes")):
-            name = f"{b.name}.{key}"
-            if name in fc:
-                d, r = fc[name] - ff[name][idx], ff[name][idx]
-                out[norm] = float(np.sqrt(np.sum(d**2) / max(np.sum(r**2), 1e-300)))
-    if model.contact is not None:
-        c, cf = model.contact, ref.contact
-        idx = matched(c.slave.mesh.points[c.surf.nodes], cf.slave.mesh.points[cf.surf.nodes])
-        s, sf = contact_state(model, sol), contact_state(ref, ref_sol)
-
-        def lam(st: dict, normals: np.ndarray) -> np.ndarray:
-            return np.nan_to_num(st["lam_n"])[:, None] * normals + st["lam_t_vec"]
-
-        d = lam(s, c.normals) - lam(sf, cf.normals)[idx]
-        r = lam(sf, cf.normals)[idx]
-        out["lam_nodes"] = float(
-            np.sqrt(np.sum(c.W[:, None] * d**2) / max(np.sum(c.W[:, None] * r**2), 1e-300))
-        )
-    return out

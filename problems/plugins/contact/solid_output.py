@@ -23,9 +23,9 @@ import numpy as np
 
 from fem.facets import frames
 from problems.output.results import BOUNDS, write_csv
-from vi_core import states as node_states
 
-from .body_output import body_fields
+from . import interface
+from .body_output import write_bodies
 
 # "ambiguous" (vi_core.states: not settled at the achieved residual) is the last code, so the
 # others keep theirs
@@ -46,18 +46,6 @@ CSV_NOTES = [
     "no_multiplier (clamped node), ambiguous (not settled at the achieved residual: neither "
     "the stress margin nor the gap/slip decides it; solve with a smaller --tol)",
 ]
-
-
-def write_body_vtu(path: Path, mesh, point: dict, cell: dict) -> None:
-    """A 3D mesh with point and cell data as .vtu."""
-    import meshio
-
-    meshio.Mesh(
-        mesh.points,
-        [(mesh.cell_type, mesh.cells)],
-        point_data=point,
-        cell_data={k: [v] for k, v in cell.items()},
-    ).write(str(path), file_format="vtu")
 
 
 def table(model, st: dict) -> dict[str, np.ndarray]:
@@ -85,19 +73,11 @@ def write_surface_vtu(path: Path, model, st: dict) -> None:
 
     c = model.contact
     code = np.array([STATES.index(s) for s in st["state"]], dtype=np.int32)
+    cols = table(model, st)
     point = {
-        "normal": c.normals,
-        "tangent1": c.t1,
-        "tangent2": c.t2,
-        "lambda_n": st["lam_n"],
-        "lambda_t": st["lam_t1"],
-        "lambda_t2": st["lam_t2"],
-        "jump_t": st["jump_t1"],
-        "jump_t2": st["jump_t2"],
-        "lambda_t_vec": st["lam_t_vec"],
-        "jump_t_vec": st["jump_t_vec"],
-        "g": st["g"],
-        "state": code,
+        **{k: v for k, v in cols.items() if k.startswith(("lambda", "jump")) or k == "g"},
+        **{"normal": c.normals, "tangent1": c.t1, "tangent2": c.t2},
+        **{"lambda_t_vec": st["lam_t_vec"], "jump_t_vec": st["jump_t_vec"], "state": code},
         **{f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)},
     }
     meshio.Mesh(
@@ -188,13 +168,7 @@ def frame_checks(model) -> dict:
 
 def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
     """All result files of a solve; the summary entries."""
-    x_full = model.full(sol.u)
-    files = []
-    for b in model.bodies:
-        point, cell, _ = body_fields(b, x_full[b.offset : b.offset + b.size])
-        fn = f"{b.name}.vtu"
-        write_body_vtu(outdir / fn, b.mesh, point, cell)
-        files.append(fn)
+    files, _ = write_bodies(model, model.full(sol.u), outdir)
     summary: dict = {}
     if model.contact is not None:
         c = model.contact
@@ -228,7 +202,14 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             "frames": frame_checks(model),
         }
         summary["lemma_4_2"] = st["lemma_4_2"]
-        summary["warnings"] = _warnings(st)
+        has_t = st["has_t"]
+        summary["warnings"] = interface.friction_warnings(
+            st["state"],
+            st["g"][has_t],
+            np.linalg.norm(st["lam_t_vec"][has_t], axis=1),
+            st["slip"][has_t],
+            st["touch"],
+        )
         if c.master is not None:
             summary["contact"]["uncovered_nodes"] = missing = uncovered(c)
             if missing:
@@ -258,22 +239,3 @@ def areas(c, st: dict) -> list[float]:
 def uncovered(c) -> list[int]:
     """Slave node ids without the master behind their whole support (no multiplier)."""
     return [int(n) for n in c.surf.nodes[~c.master.covered]]
-
-
-def _warnings(st: dict) -> list[str]:
-    g, has_t = st["g"], st["has_t"]
-    out = node_states.warnings(st["state"])
-    if not g[has_t].any():
-        return [*out, "g = 0 on Γ3: frictionless sliding (a linear problem)"]
-    if not st["slip"].any():
-        used = float(
-            np.max(
-                np.linalg.norm(st["lam_t_vec"][has_t], axis=1)
-                / np.where(g[has_t] > 0, g[has_t], np.inf)
-            )
-        )
-        out.append(
-            f"no node slips: the tangential multiplier uses at most {used:.3g} of the friction "
-            "bound (the problem is tied)"
-        )
-    return out

@@ -13,7 +13,7 @@ from problems.scene import load_scene
 from .electrical import SCENE, drop_electrical, matches
 
 RECORD_KEYS = {"level", "h", "unknowns", "solver", "tol", "time_s", "iterations", "err"}
-ERR_KEYS = {"u_H1", "phi_H1", "phi_L2", "lam"}
+ERR_KEYS = {"u_L2", "u_H1", "phi_H1", "phi_L2", "lam"}
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,7 @@
 """`mixvi study manufactured3d`: the exact errors of the 3D manufactured solution per level
 (u and φ in L² and H¹, λ in the discrete norm: `contact3d.EXACT_NORMS`, computed by
-`contact3d_errors`) with fitted rates, through the same study command as 2D's `manufactured`.
+`problems.plugins.contact.errors`) with fitted rates, through the same study command as
+2D's `manufactured`.
 
 Cross-checks: every record's errors are those of an independent build, solve and
 `contact3d.exact_errors` of that level; the rates written are the fit of the records

@@ -15,6 +15,7 @@ from fem.meshing import box, rectangle
 from problems.commands.main import main
 from problems.errors import SceneError
 from problems.plugins.contact import plane as pc
+from problems.plugins.contact import separation
 from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
 from tests import optional
@@ -170,8 +171,8 @@ def test_a_separately_meshed_interface_stays_accepted_under_refinement():
 
 
 def test_mutation_a_tolerance_on_the_refined_mesh_size_refuses_it(monkeypatch):
-    real = pc._check_separation
-    monkeypatch.setattr(pc, "_check_separation", lambda *a: real(*a[:-1], 0))
+    real = separation.check_separation
+    monkeypatch.setattr(separation, "check_separation", lambda *a: real(*a[:-1], 0))
     with pytest.raises(SceneError, match="overlap"):
         pc.build(load_scene("wavy_two_body"), 3)
 

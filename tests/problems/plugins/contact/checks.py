@@ -12,7 +12,7 @@ from problems.scene import load_scene
 from problems.scene.exact import split_exact
 
 # README, scene `manufactured`: fitted rates over levels 2–4 against the exact solution, norms
-# of problems/plugins/contact/plane_errors.py (u in H¹, φ in H¹, λ in the h^{1/2}-weighted L²)
+# of problems/plugins/contact/errors.py (u in H¹, φ in H¹, λ in the h^{1/2}-weighted L²)
 MANUFACTURED_RATES = {"u_H1": 1.00, "phi_H1": 1.09, "lam": 1.43}
 MANUFACTURED_LEVELS = [2, 3, 4]
 RATE_WITHIN = 0.1

@@ -23,3 +23,21 @@ def test_a_friction_bound_negative_somewhere_on_the_contact_is_refused(name, ove
     with pytest.raises(SceneError) as err:
         registry.for_scene(scene).build(scene, 0)
     assert err.value.key == "contact.g" and "≥ 0 everywhere on Γ3" in err.value.allowed
+
+
+def test_friction_warnings_say_apart_frictionless_or_tied():
+    """`interface.friction_warnings` (both fronts' summary.json warnings): nothing touches,
+    g = 0, no node slips (with the share of the bound λ_t uses), and silence otherwise."""
+    import numpy as np
+
+    from problems.plugins.contact.interface import friction_warnings
+
+    states = np.array(["stick", "slip"])
+    g, lam_t, slip, touch = np.array([2.0, 2.0]), np.array([1.0, 2.0]), np.array([0, 1]), [1, 1]
+    assert friction_warnings(states, g, lam_t, slip.astype(bool), np.array(touch, bool)) == []
+    apart = friction_warnings(states, g, lam_t, slip.astype(bool), np.zeros(2, bool))
+    assert apart == ["no node of Γ3 touches: the bodies are apart (λ = 0)"]
+    free = friction_warnings(states, 0 * g, lam_t, slip.astype(bool), np.ones(2, bool))
+    assert any("frictionless" in w for w in free)
+    tied = friction_warnings(states, g, np.array([-1.0, 0.5]), np.zeros(2, bool), np.ones(2, bool))
+    assert any("uses at most 0.5 of the friction bound" in w and "tied" in w for w in tied)

@@ -18,8 +18,8 @@ import pytest
 import fem.mortar as fm
 from problems.commands.main import main
 from problems.errors import SceneError
+from problems.plugins.contact import errors, plane_output
 from problems.plugins.contact import plane as pc
-from problems.plugins.contact.plane_errors import exact_errors
 from problems.scene import load_scene
 from problems.scene.exact import split_exact
 from vi_core import solve
@@ -108,7 +108,7 @@ def test_keep_is_first_order_when_the_master_is_finer():
 def test_merge_keeps_the_multiplier_exact_at_a_clamped_end_and_keep_does_not(name):
     """λ as a function of the multiplier basis: merge reproduces λ·τ = g up to the clamped end
     (rounding), keep has λ_h = g ψ_1 ≠ g on the end segment: an O(h) error in the h-weighted
-    L² norm of `piezo_errors` (the displacements are exact either way)."""
+    L² norm of `errors` (the displacements are exact either way)."""
     errs = {}
     for ends in ("merge", "keep"):
         errs[ends] = []
@@ -116,7 +116,7 @@ def test_merge_keeps_the_multiplier_exact_at_a_clamped_end_and_keep_does_not(nam
             scene, exact = _variant(name, ends, "shipped")
             model = pc.build(scene, level)
             sol = solve(model.vi, "ssn", tol=1e-13)
-            e = exact_errors(model, sol.u, sol.lam, exact)
+            e = errors.against(model, sol, exact, pc.contact_state)
             assert e["u_H1"] <= 1e-15  # absolute: ‖u‖_H1 ≈ 1e-3
             errs[ends].append(e["lam"])
     assert max(errs["merge"]) <= 1e-12 * G
@@ -158,7 +158,7 @@ def test_clamped_end_on_the_curved_paper_interface(ends):
     assert c.patch_defect <= 1e-12
     st = pc.contact_state(model, sol)
     assert st["slip"].sum() > 4 and st["lemma_4_2"] <= 1e-10  # g lowered: some nodes slip
-    summary = pc.interface_summary(c)
+    summary = plane_output.interface_summary(c)
     assert summary["crosspoint_nodes"] == c.tr.nodes[[0, -1]].tolist()
 
 

@@ -21,9 +21,9 @@ from problems.commands import main as cli
 from problems.commands.resources import Sizes
 from problems.errors import SceneError
 from problems.plugins.contact import bodies
+from problems.plugins.contact import checks as contact3d_checks
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact import solid as contact3d
-from problems.plugins.contact import solid_checks as contact3d_checks
 from problems.plugins.contact.solid_output import frame_checks
 from problems.scene import load_scene
 from vi_core.kkt import Checker

@@ -18,9 +18,9 @@ import fem.facets as ff
 import vi_core
 from problems.commands import check
 from problems.commands.main import main
+from problems.plugins.contact import checks as contact3d_checks
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact import solid as contact3d
-from problems.plugins.contact import solid_checks as contact3d_checks
 from problems.scene import load_scene
 from vi_core.ssn import Condensation
 

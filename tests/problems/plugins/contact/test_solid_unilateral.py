@@ -18,9 +18,9 @@ import pytest
 
 import vi_core
 from problems.errors import SceneError
+from problems.plugins.contact import checks as contact3d_checks
 from problems.plugins.contact import interface
 from problems.plugins.contact import solid as contact3d
-from problems.plugins.contact import solid_checks as contact3d_checks
 from problems.scene import SCENES_DIR, load_scene
 
 E_HAT = np.array([0.8, 0.6, 0.0])

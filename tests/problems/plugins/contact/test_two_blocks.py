@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import vi_core
+from problems.plugins.contact import checks as contact3d_checks
 from problems.plugins.contact import solid as contact3d
-from problems.plugins.contact import solid_checks as contact3d_checks
 from problems.scene import load_scene
 
 from .test_solid_unilateral import _geometric_gap

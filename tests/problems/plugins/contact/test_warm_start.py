@@ -1,5 +1,5 @@
 """Nested iteration's warm start of piezo_contact: the stick/slip prediction at a transition
-(`piezo_contact._slip_ahead`), checked against an independent computation and, on the paper
+(`warm_starts._slip_ahead`), checked against an independent computation and, on the paper
 scene, against the fine level's own solution."""
 
 import numpy as np
@@ -9,6 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from problems.plugins.contact import plane as pc
+from problems.plugins.contact import warm_starts
 from problems.plugins.contract import nested_start
 from problems.scene import load_scene
 from vi_core import solve
@@ -45,7 +46,7 @@ def _expected(xc, ratio, xf) -> np.ndarray:
 
 def _wrong_side(xc, ratio, xf):
     """A fault to catch: extrapolation from the slip end instead of the stick end."""
-    return pc._slip_ahead(xc, np.where(np.abs(ratio) >= 1 - 1e-9, 0.5, 1.0), xf)
+    return warm_starts._slip_ahead(xc, np.where(np.abs(ratio) >= 1 - 1e-9, 0.5, 1.0), xf)
 
 
 def _mismatches(fn, seeds) -> int:
@@ -55,16 +56,16 @@ def _mismatches(fn, seeds) -> int:
 @given(st.integers(0, 2**32 - 1))
 def test_slip_ahead_matches_the_rule(seed):
     xc, ratio, xf = _profile(seed)
-    np.testing.assert_array_equal(pc._slip_ahead(xc, ratio, xf), _expected(xc, ratio, xf))
+    np.testing.assert_array_equal(warm_starts._slip_ahead(xc, ratio, xf), _expected(xc, ratio, xf))
 
 
 def test_slip_ahead_check_catches_faults():
     """The check above fails for a wrong side, a dropped extrapolation, a flipped test."""
     seeds = range(200)
-    assert _mismatches(pc._slip_ahead, seeds) == 0
+    assert _mismatches(warm_starts._slip_ahead, seeds) == 0
     assert _mismatches(_wrong_side, seeds) > 0
     assert _mismatches(lambda xc, r, xf: np.zeros(xf.size, dtype=bool), seeds) > 0
-    assert _mismatches(lambda xc, r, xf: ~pc._slip_ahead(xc, r, xf), seeds) > 0
+    assert _mismatches(lambda xc, r, xf: ~warm_starts._slip_ahead(xc, r, xf), seeds) > 0
 
 
 def _predicted_and_final(level: int, slip_ahead) -> tuple[np.ndarray, np.ndarray]:
@@ -73,12 +74,12 @@ def _predicted_and_final(level: int, slip_ahead) -> tuple[np.ndarray, np.ndarray
     coarse = pc.build(scene, level - 1)
     cs = solve(coarse.vi, "ssn", tol=1e-12)
     fine = pc.build(scene, level)
-    original = pc._slip_ahead
-    pc._slip_ahead = slip_ahead
+    original = warm_starts._slip_ahead
+    warm_starts._slip_ahead = slip_ahead
     try:
         lam0 = pc.warm_start(coarse, cs, fine)["lam0"]
     finally:
-        pc._slip_ahead = original
+        warm_starts._slip_ahead = original
     sol = solve(fine.vi, "ssn", tol=1e-12, lam0=lam0)
     c = fine.contact
 
@@ -93,7 +94,7 @@ def test_warm_start_predicts_the_fine_slip_rows():
     """Paper scene, level 4 from level 3: the predicted slip rows are the solution's (then one
     Newton step solved to tol is the answer); interpolation alone misses the two new nodes at
     the transitions (the mutation: `_slip_ahead` dropped)."""
-    predicted, final = _predicted_and_final(4, pc._slip_ahead)
+    predicted, final = _predicted_and_final(4, warm_starts._slip_ahead)
     np.testing.assert_array_equal(predicted, final)
     predicted, final = _predicted_and_final(4, lambda xc, r, xf: np.zeros(xf.size, dtype=bool))
     assert (predicted != final).sum() == 2
@@ -131,12 +132,12 @@ def test_warm_start_carries_the_coarse_displacement_and_potential():
     start, same, err = _carried(2)
     assert start["carries"] == ["lam0", "u0"] and start["outside_nodes"] > 0  # the curved arc
     assert same and (err <= 0.05).all(), err
-    original = pc.transfer.prolongate
-    pc.transfer.prolongate = lambda c, x, f: (np.zeros(f.values.size), 0)
+    original = warm_starts.transfer.prolongate
+    warm_starts.transfer.prolongate = lambda c, x, f: (np.zeros(f.values.size), 0)
     try:
         assert (_carried(2)[2] > 0.5).all()
     finally:
-        pc.transfer.prolongate = original
+        warm_starts.transfer.prolongate = original
 
 
 @pytest.mark.slow

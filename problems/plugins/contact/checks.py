@@ -1,4 +1,8 @@
-"""Checks of a built 3D contact model that do not trust the code that built it.
+"""Checks of contact data and of built contact models that do not trust the code that built them.
+
+- `finite_data` (2D and 3D, at build): every assembled number finite (SceneError otherwise).
+
+3D models (summary.json "checks"):
 
 - `rigid_body_defect`: the six rigid-body modes r of each body are in the kernel of its
   assembled elasticity block (before Dirichlet reduction): max ‖K r‖ / (‖K‖_∞ ‖r‖_∞).
@@ -22,10 +26,30 @@ from __future__ import annotations
 import numpy as np
 
 from fem import assembly
+from problems.errors import SceneError
 from vi_core import states as node_states
 
 from .bodies import operator
-from .solid_bodies import SURFACE_ORDER
+from .interface import SURFACE_ORDER
+
+
+def finite_data(A_full, f_full: np.ndarray, values: np.ndarray, contact) -> None:
+    """Refuse data that overflow in assembly (each number finite, their products not): the
+    stiffness, loads, prescribed values and the contact's friction bound (or Coulomb F) and
+    initial gap (`model.mixed_vi`'s check, 2D and 3D)."""
+    parts = {"stiffness (materials)": A_full.data, "loads": f_full, "Dirichlet values": values}
+    if contact is not None:
+        coulomb = contact.F is not None
+        parts["friction coefficient F" if coulomb else "friction bound g"] = (
+            contact.F if coulomb else contact.g
+        )
+        if contact.gap0 is not None:
+            parts["gap"] = contact.gap0
+    for what, arr in parts.items():
+        if not np.isfinite(arr).all():
+            raise SceneError(
+                "(scene)", what, "data whose assembled system is finite (magnitudes overflow)"
+            )
 
 
 def rigid_body_defect(body) -> float:
