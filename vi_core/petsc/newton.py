@@ -38,7 +38,7 @@ import scipy.sparse as sp
 from vi_core.problem import MixedVI
 from vi_core.sets import Free
 from vi_core.solution import Solution
-from vi_core.ssn import Condensation, finish
+from vi_core.ssn import Condensation, damped_step, finish
 
 from .ksp import LinearSolve
 from .runtime import Reductions, petsc
@@ -141,18 +141,11 @@ def solve_ssn_petsc(
         u_new = red.gather(own.dofs, x, e.n)
         lam_own = own.Dt_inv @ (own.f_S - own.A_S @ u_new)  # (k_m,)
         lam_new = red.gather(own.mult, lam_own, e.m)
-        du, dl = u_new - u, lam_new - lam
-        t, best = 1.0, None
-        while True:
-            cand = _residual(e, own, red, u + t * du, lam + t * dl, scale)
-            if best is None or cand < best[1]:
-                best = (t, cand)
-            if not damping or cand <= (1.0 - 1e-4 * t) * res or t < 1.0 / 64:
-                break
-            t *= 0.5
-        t, res = best
+        u, lam, t, res = damped_step(
+            lambda u, lam: _residual(e, own, red, u, lam, scale), u, lam, u_new, lam_new, res,
+            damping,
+        )  # fmt: skip
         damped += t < 1.0
-        u, lam = u + t * du, lam + t * dl
         history.append(res)
         converged = res <= tol
         if on_step is not None:
