@@ -19,17 +19,24 @@ What is distributed and what is not (issue 33, docs/distributed.md):
   ``linear_solver="amg"``, MUMPS again for a step GMRES does not solve. PETSc options
   (``-mixvi_ksp_*``, ``-mixvi_pc_*``) override through PETSC_OPTIONS.
 
+* **No whole copy of the equilibrated A.** The equilibrated VI (`MixedVI.equilibrated`, a
+  whole-size copy of A's values) is read once, for the owned rows handed to PETSc, and then
+  released (vi's cache of it dropped; a later use builds it again); the equilibrium residual
+  reads the owned rows of vi's own A, scaled: s_u ⊙ (A (s_u ⊙ u')).
+
 Not yet distributed (what remains, stated in docs/distributed.md): the model is built on
 every rank (the plug-in assembles A and B whole, then each rank keeps its rows), u and λ are
 replicated after each step (an allgather), and the active-set map of Λ is evaluated on the
 replicated y (O(m), the interface) with each rank using its owned rows. Memory per rank
-therefore does not fall with the ranks yet; the Newton matrix and its factors do.
+therefore falls only by what the Newton matrix and its preconditioner take
+(docs/benchmarks.md, "The petsc engine").
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -58,11 +65,33 @@ def _row_view(M: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
     )
 
 
+@dataclass(frozen=True)
+class _Kept:
+    """What the Newton loop keeps of the equilibrated VI once its owned rows are in PETSc: the
+    interface-sized data (B, Λ, gap) and f, no A (the duck type `finish` reads: B, gap)."""
+
+    B: sp.csr_matrix  # (m, n)
+    f: np.ndarray  # (n,)
+    gap: np.ndarray  # (m,)
+    Lambda: Any
+    n: int
+    m: int
+
+
+def _released(vi: MixedVI, e: MixedVI) -> _Kept:
+    """e's parts the loop needs; vi's cached equilibrated copy (e, a whole-size copy of A's
+    values) dropped, so that it is freed once the caller lets go of e."""
+    vi.__dict__.pop("equilibrated", None)  # the cached_property's value
+    return _Kept(B=e.B, f=e.f, gap=e.gap, Lambda=e.Lambda, n=e.n, m=e.m)
+
+
 class _Owned:
     """The rows a rank owns, what its steps need of the slave rows, and its first condensed
-    Newton matrix (`first`: the fixed rows and the slave rows' pattern, handed to PETSc once)."""
+    Newton matrix (`first`: the fixed rows and the slave rows' pattern, handed to PETSc once).
+    The equilibrium residual's rows are vi's own (physical) A's, not copied: A' = S A S with
+    S = diag(s_u) (`MixedVI.scaling`)."""
 
-    def __init__(self, e: MixedVI, cond: Condensation, comm: Any, PETSc: Any):
+    def __init__(self, vi: MixedVI, e: MixedVI, cond: Condensation, comm: Any, PETSc: Any):
         n = e.n
         probe = PETSc.Vec().createMPI((PETSc.DECIDE, n), comm=comm)
         self.lo, self.hi = probe.getOwnershipRange()
@@ -73,7 +102,8 @@ class _Owned:
         R_own = R[(R >= lo) & (R < hi)]  # (k_R,) owned fixed rows
         self.mult = np.flatnonzero((S >= lo) & (S < hi))  # (k_m,) owned multiplier rows
         A = e.A.tocsr()
-        self.A_own = _row_view(A, lo, hi)  # (k, n) for the equilibrium residual, no copy
+        self.A_own = _row_view(vi.A.tocsr(), lo, hi)  # (k, n) physical rows, no copy
+        self.s_u = vi.scaling.s_u  # (n,)
         self.A_S = A[S]  # (m, n) the slave rows (a multiplier's recovery reads its D block's)
         self.f_S = e.f[S]  # (m,)
         self.X = (cond.Dt_inv @ self.A_S).tocsr()  # (m, n) D^{-T} A_S
@@ -113,9 +143,10 @@ class _Owned:
         return _on_pattern(K_S, self.pattern_S).data
 
 
-def _residual(e: MixedVI, own: _Owned, red: Reductions, u, lam, scale: float) -> float:
+def _residual(e: _Kept, own: _Owned, red: Reductions, u, lam, scale: float) -> float:
     """The relative natural-map residual (`vi_core.natural_residual`) from owned parts."""
-    r1 = own.A_own @ u + own.Bt_own @ lam - e.f[own.lo : own.hi]  # (k,)
+    Au = own.s_u[own.lo : own.hi] * (own.A_own @ (own.s_u * u))  # (k,) owned rows of A'u
+    r1 = Au + own.Bt_own @ lam - e.f[own.lo : own.hi]  # (k,)
     p = e.Lambda.project(lam + e.B @ u - e.gap)  # (m,) replicated (the interface)
     r2 = lam[own.mult] - p[own.mult]  # (k_m,)
     return float(np.hypot(red.norm(r1), red.norm(r2)) / scale)
@@ -152,9 +183,10 @@ def solve_ssn_petsc(
             "the petsc engine condenses the multipliers: B has no block-diagonal slave part "
             "(dual mortar multipliers)"
         )
-    own = _Owned(e, cond, comm, PETSc)
+    own = _Owned(vi, e, cond, comm, PETSc)
     kind = "gamg" if linear_solver == "amg" else "mumps"
     solver = LinearSolve(PETSc, comm, kind, e, own.lo, own.first())
+    e = _released(vi, e)  # the whole equilibrated A is freed: the owned rows are in PETSc
     memory = {"set_up": red.comm.allgather(peak_mb())}
     u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
