@@ -2,7 +2,8 @@
 2D and 3D: the dimension d, the reference element and its quadrature come from the mesh's cell
 type (`fem.elements`).
 
-Matrices are assembled in chunks of `CHUNK` cells: the quadrature data and local matrices of
+Matrices are assembled in chunks of at most `CHUNK` cells (fewer where a cell's local
+matrices per quadrature point are large: `LOCAL_ENTRIES`): the quadrature data and local matrices of
 one chunk, not of the whole mesh, are alive at a time, and their values are summed into the
 matrix's final sparsity pattern (built first from the cells' dof pairs, so it is the same
 whatever the chunk size: explicit zeros where entries cancel are kept). Computed for all cells
@@ -34,6 +35,12 @@ from .facets import facet_quadrature
 from .jacobians import CHUNK, check_cells, cofactors, determinants
 from .mesh import Mesh
 from .tensors import VOIGT_PAIRS
+
+# a chunk's kernels hold a few arrays of (k, n_qp, r, c) entries (per quadrature point, before
+# the sum over points): k is bounded so that one holds at most this many (16 MiB of float64).
+# CHUNK cells alone left them at 75 MiB for hexahedra (8 points, 24 dofs), the whole peak of
+# the build of block3d level 2 (142 MiB above the imports with 2,048 cells in one chunk)
+LOCAL_ENTRIES = 2**21
 
 Func = Callable[..., np.ndarray] | float | Sequence[float]
 
@@ -145,6 +152,8 @@ def _assemble_forms(
     of k cells, computed chunk by chunk; the cells are checked once first (`check_cells`)."""
     check_cells(mesh)
     pts, wts = reference_element(mesh.cell_type).quadrature(order)
+    per_cell = wts.size * rows.shape[1] * cols.shape[1]  # entries of a cell's (n_qp, r, c)
+    chunk = min(chunk, max(1, LOCAL_ENTRIES // per_cell))  # chunk < 1 is refused below
     return _assemble_chunks(
         lambda cells: kernel(_geometry(mesh, pts, wts, cells)), rows, cols, shape, chunk
     )

@@ -409,19 +409,11 @@ def _solve_ssn(
             if linear:  # Λ = Rᵐ: the first Newton step is the solution, solve it to tol at once
                 eta = min(eta, 0.1 * tol / res)
         u_new, lam_new = stepper.step(J, W, rhs_c, guess=u, forcing=eta)
-        du, dl = u_new - u, lam_new - lam
-        t, best = 1.0, None
-        while True:
-            cand = natural_residual(e, u + t * du, lam + t * dl).relative
-            if best is None or cand < best[1]:
-                best = (t, cand)
-            if not damping or cand <= (1.0 - 1e-4 * t) * res or t < 1.0 / 64:
-                break
-            t *= 0.5
-        t, res = best
-        if t < 1.0:
-            damped += 1
-        u, lam = u + t * du, lam + t * dl
+        u, lam, t, res = damped_step(
+            lambda u, lam: natural_residual(e, u, lam).relative, u, lam, u_new, lam_new, res,
+            damping,
+        )  # fmt: skip
+        damped += t < 1.0
         history.append(res)
         converged = res <= tol
         if on_step is not None:
@@ -461,6 +453,32 @@ def _solve_ssn(
             f"ssn: residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"
         )
     return sol
+
+
+def damped_step(
+    residual_at: Callable[[np.ndarray, np.ndarray], float],
+    u: np.ndarray,
+    lam: np.ndarray,
+    u_new: np.ndarray,
+    lam_new: np.ndarray,
+    res: float,
+    damping: bool,
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """The step from (u, λ) towards the Newton iterate (u_new, λ_new), serial or on PETSc:
+    t = 1, halved while the residual (`residual_at(u, λ)`, a global reduction on PETSc) does not
+    fall by the Armijo factor 1 − 1e-4·t below `res`, down to t = 1/64; the best t tried wins.
+    Without damping t = 1. Returns (u + t·du, λ + t·dλ, t, its residual)."""
+    du, dl = u_new - u, lam_new - lam  # (n,), (m,)
+    t, best = 1.0, None
+    while True:
+        cand = residual_at(u + t * du, lam + t * dl)
+        if best is None or cand < best[1]:
+            best = (t, cand)
+        if not damping or cand <= (1.0 - 1e-4 * t) * res or t < 1.0 / 64:
+            break
+        t *= 0.5
+    t, res = best
+    return u + t * du, lam + t * dl, t, res
 
 
 def finish(

@@ -9,9 +9,11 @@ every rank runs the same solve (nested iteration included: each level's Newton l
 `vi_core.petsc.solve_ssn_petsc`); rank 0 writes the results as the serial command does (same files,
 same summary.json fields, plus solver_info["engine"] and ["ranks"]), the other ranks write
 nothing and exit with the same status. An exception on one rank mid-solve aborts the whole run
-(MPI_Abort) with a line naming the rank; a rank killed by a signal ends the run through mpiexec,
-and rank 0's staging folder is removed by its SIGTERM handling (the output folder is written
-only once the solve is done).
+(MPI_Abort) with a line naming the rank; a rank killed by a signal ends the run through mpiexec.
+Rank 0 opens its staging folder only once the solve is done (`solve._solve`): inside a PETSc
+call (petsc4py holds the GIL) it cannot run its SIGTERM handling before mpiexec's SIGKILL, so a
+run ended mid-solve leaves the claimed folder as it was (a load path's steps, written as they
+end, are the exception: a killed run's staging folder is cleared by the next run there).
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ import tempfile
 import time
 from contextlib import ExitStack
 from pathlib import Path
+from typing import Any
 
 import problems.pipeline as pipeline
 from problems.errors import SceneError
@@ -94,12 +95,19 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
     limit without --allow-defect."""
     out = folder.path
     path = None  # the load path's steps, if the scene has one
+    solved = None
+    if loaded.spec.load_path is None:
+        # the solve before the staging folder exists: a run ended mid-solve by a signal it
+        # cannot act on in time (a rank of --engine petsc inside a PETSc call, which holds
+        # the GIL, is killed by mpiexec a moment after its SIGTERM) leaves no staged files
+        solved = _solve_levels(args, loaded, level)
     with folder.staging() as tmp:
-        if loaded.spec.load_path is not None:  # one solve per load step
+        if solved is None:  # one solve per load step, each step's files written as it ends
             path, datasets = load_path.solve_steps(args, loaded, level, tmp)
             run, coarse = path.run, {}
         else:
-            run, coarse = _solve_levels(args, loaded, level, tmp)
+            run, coarse_states = solved
+            coarse = _write_levels(loaded.plugin, coarse_states, tmp)
         model, sol, nested = run.model, run.solution, run.nested
         extras, files, warnings = written.state_files(loaded, run, tmp)
         if path is None:
@@ -142,24 +150,20 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
 
 
 def _solve_levels(
-    args, loaded: pipeline.Loaded, level: int, tmp: Path
-) -> tuple[pipeline.Run, dict[int, list[str]]]:
+    args, loaded: pipeline.Loaded, level: int
+) -> tuple[pipeline.Run, list[tuple[Any, Any]]]:
     """One state, with a progress bar over the levels of the nested iteration (on a terminal
-    only); with --write-levels each coarse level's results under levels/L/ (its files by
-    level, the second value)."""
-    plugin = loaded.plugin
-    coarse: dict[int, list[str]] = {}  # level → its files under levels/L/
+    only); with --write-levels each coarse level's model and solution (the second value, for
+    `_write_levels` once the solve is done), else none."""
+    coarse: list[tuple[Any, Any]] = []  # (model, solution) of each coarse level, in order
     bar = progress_bar(total=level + 1, unit="level", desc="solving", leave=False)
 
     def on_level(model, sol) -> None:  # a coarse level is solved
         bar.update(1)
-        if args.write_levels:  # its results, under levels/L/
-            sub = Path("levels") / str(model.level)
-            (tmp / sub).mkdir(parents=True)
-            written = plugin.postprocess(model, sol, tmp / sub).get("files", [])
-            coarse[model.level] = [(sub / f).as_posix() for f in written]
+        if args.write_levels:
+            coarse.append((model, sol))
 
-    with bar:  # the work in a worker thread, on_level's writes in this one (signals module)
+    with bar:  # the work in a worker thread, on_level in this one (signals module)
         run = signals.interruptible(
             pipeline.solve,
             loaded,
@@ -171,6 +175,17 @@ def _solve_levels(
         bar.update(bar.total - bar.n)
         bar.refresh()  # the full bar is shown before it is cleared, however fast the last level
     return run, coarse
+
+
+def _write_levels(plugin, coarse: list[tuple[Any, Any]], tmp: Path) -> dict[int, list[str]]:
+    """Each coarse level's results under tmp/levels/L/; its files by level."""
+    files: dict[int, list[str]] = {}
+    for model, sol in coarse:
+        sub = Path("levels") / str(model.level)
+        (tmp / sub).mkdir(parents=True)
+        written = plugin.postprocess(model, sol, tmp / sub).get("files", [])
+        files[model.level] = [(sub / f).as_posix() for f in written]
+    return files
 
 
 def _vec(v) -> str:

@@ -424,3 +424,46 @@ def test_tied_start_ties_the_rows_it_is_given():
     np.testing.assert_allclose(B @ tied_start(vi, u0, lam0), [0.0, 0.0], atol=1e-15)
     u = tied_start(vi, u0, lam0, np.array([True, False]))
     np.testing.assert_allclose(B @ u, [0.0, 0.15], atol=1e-15)
+
+
+# faults injected into ssn.damped_step's source: (text, replacement)
+DAMPING_FAULTS = {
+    "no_armijo": ("cand <= (1.0 - 1e-4 * t) * res", "True"),
+    "last_not_best": ("best is None or cand < best[1]", "True"),
+    "no_floor": ("t < 1.0 / 64", "t < 1.0 / 4"),
+}
+
+
+@pytest.mark.parametrize("fault", [None, *DAMPING_FAULTS])
+def test_damped_step_halves_to_the_best_trial(fault):
+    """The shared step of the serial and PETSc loops (`ssn.damped_step`): on a residual that
+    is smallest at t = 0.2, t is halved to 1/4 (the first trial meeting the Armijo test); when
+    no trial meets it, the best one tried (t = 1/32, among 1 ... 1/128) wins; without damping
+    t = 1. Mutations (faults in its source): the Armijo test dropped, the last trial kept
+    instead of the best, the floor at 1/64 raised."""
+    import inspect
+    import textwrap
+
+    from vi_core import ssn
+
+    step = ssn.damped_step
+    if fault is not None:
+        src = textwrap.dedent(inspect.getsource(ssn.damped_step))
+        old, new = DAMPING_FAULTS[fault]
+        assert old in src
+        space: dict = {}
+        exec(src.replace(old, new), vars(ssn) | {}, space)
+        step = space["damped_step"]
+
+    def residual(u, lam):  # smallest at t = 0.2 on the segment from 0 to 1
+        return abs(u[0] - 0.2) + 0.1 + abs(lam[0])
+
+    def late(u, lam):  # smallest at t = 0.03: the best trial is t = 1/32
+        return abs(u[0] - 0.03) + 0.1 + abs(lam[0])
+
+    z, one = np.zeros(1), np.ones(1)
+    u, lam, t, res = step(residual, z, z, one, z, 0.3, True)
+    got = [(t, float(round(res, 12)), float(u[0]), float(lam[0]))]
+    got.append(step(late, z, z, one, z, 0.05, True)[2])  # no trial meets Armijo
+    got.append(step(residual, z, z, one, z, 0.3, False)[2])
+    assert (got == [(0.25, 0.15, 0.25, 0.0), 1 / 32, 1.0]) == (fault is None), got

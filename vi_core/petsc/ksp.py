@@ -1,5 +1,20 @@
-"""The linear solve of a condensed Newton step on PETSc: one set-up / solve object per Newton
-loop (MUMPS LU, or GMRES with GAMG and the near-null space with a MUMPS fallback)."""
+"""The linear solves of the condensed Newton steps on PETSc: one `mpiaij` matrix and one KSP per
+Newton loop, the fixed rows written once and the slave rows rewritten at every step (MUMPS LU, or
+GMRES preconditioned by GAMG with the near-null space, with a MUMPS fallback).
+
+Preconditioners of the iterative path (``linear_solver="amg"``), chosen by the PETSc option
+``-mixvi_amg_pc`` (PETSC_OPTIONS; default ``fieldsplit`` where the problem has several fields):
+
+* ``fieldsplit``: PCFIELDSPLIT over the `MixedVI.fields` (displacement, potential), block
+  lower triangular (multiplicative, the serial amg path's `vi_core.block_amg` order), one
+  GAMG V-cycle per field (``preonly``); the displacement block gets its rigid-body modes
+  (`MixedVI.near_null`) as GAMG's near-null space, composed on the field's IS.
+* ``gamg``: GAMG on the whole condensed matrix, each field's near-null vectors on its rows and a
+  constant on each field without any.
+
+Any ``-mixvi_*`` option (``-mixvi_ksp_rtol``, ``-mixvi_fieldsplit_displacement_pc_gamg_*``, …)
+overrides the defaults set here.
+"""
 
 from __future__ import annotations
 
@@ -10,45 +25,100 @@ import scipy.sparse as sp
 
 from vi_core.problem import MixedVI
 
+from .runtime import Reductions
+
 KINDS = ("mumps", "gamg")
+AMG_PCS = ("fieldsplit", "gamg")
 GMRES_RTOL = 1e-12  # relative residual of a GMRES solve (an inexact step moves u by ~rtol·|u|)
 GMRES_MAX_IT = 500
 
 
-def near_null_vectors(e: MixedVI) -> np.ndarray | None:
-    """(n, d) orthonormal columns: each field's near-null vectors (`MixedVI.near_null`) on the
-    field's rows, zero elsewhere, and a constant on each field without any; None without
-    fields."""
-    if not e.fields:
-        return None
-    cols = []
-    for name, mask in e.fields.items():
-        N = (e.near_null or {}).get(name)
-        N = np.ones((int(mask.sum()), 1)) if N is None else N  # (k, d)
-        Z = np.zeros((e.n, N.shape[1]))
-        Z[mask] = N
-        cols.append(Z)
-    Q, _ = np.linalg.qr(np.hstack(cols))  # (n, d) orthonormal (MatNullSpace asks for it)
+def orthonormal(local: np.ndarray, red: Reductions) -> np.ndarray:
+    """(k, d) this rank's rows of an orthonormal basis of the columns whose rows the ranks
+    hold (`local`, (k, d) here): Cholesky QR, twice (CholeskyQR2: orthonormal to rounding for
+    the rigid-body modes' conditioning), one d × d allreduce each."""
+    Q = local
+    for _ in range(2):
+        G = red.comm.allreduce(Q.T @ Q)  # (d, d) the global Gram matrix
+        L = np.linalg.cholesky(G)
+        Q = np.linalg.solve(L, Q.T).T  # (k, d) Q L^{-T}
     return Q
 
 
-class LinearSolve:
-    """Set up for a matrix, then solve with it, on the ranks of `comm` (each passes its owned
-    rows [lo, lo + k) as a csr (k, n) matrix and its part (k,) of the right-hand side)."""
+def near_null_rows(e: MixedVI, name: str, lo: int, hi: int) -> np.ndarray:
+    """(k_f, d) the near-null vectors of field `name` on its rows owned here ([lo, hi) ∩ the
+    field), in the field's order; one constant column for a field without any."""
+    mask = e.fields[name]
+    owned = mask[lo:hi]  # (k,) which owned rows are in the field
+    N = (e.near_null or {}).get(name)
+    if N is None:
+        return np.ones((int(owned.sum()), 1))
+    first = int(mask[:lo].sum())  # the field's rows before this rank's
+    return N[first : first + int(owned.sum())]  # (k_f, d)
 
-    def __init__(self, PETSc: Any, comm: Any, kind: str, e: MixedVI, lo: int):
+
+class LinearSolve:
+    """The condensed Newton matrix of one Newton loop on the ranks of `comm` and its KSP.
+
+    K_local : (k, n) csr, this rank's rows [lo, lo + k) of the matrix, on its fixed pattern (the
+        rows `set_rows` rewrites hold their every possible entry, explicit zeros included).
+    kind : "mumps" (LU) or "gamg" (GMRES with the preconditioner ``-mixvi_amg_pc``)."""
+
+    def __init__(
+        self, PETSc: Any, comm: Any, kind: str, e: MixedVI, lo: int, K_local: sp.csr_matrix
+    ):
         if kind not in KINDS:
             raise ValueError(f"petsc linear solver {kind!r} unknown; allowed: {', '.join(KINDS)}")
-        self.PETSc, self.comm, self.kind, self.n, self.lo = PETSc, comm, kind, e.n, lo
-        self.near = near_null_vectors(e) if kind == "gamg" else None
+        self.PETSc, self.comm, self.kind = PETSc, comm, kind
+        self.red = Reductions(comm)
+        k, n = K_local.shape
+        self.lo, self.hi = lo, lo + k
+        self.K = PETSc.Mat().createAIJ(
+            size=((k, n), (k, n)),
+            csr=(
+                K_local.indptr.astype(PETSc.IntType),
+                K_local.indices.astype(PETSc.IntType),
+                K_local.data,
+            ),
+            comm=comm,
+        )
+        self.K.setOption(PETSc.Mat.Option.NEW_NONZERO_LOCATION_ERR, True)  # the pattern is fixed
+        self.K.assemble()
+        self.b, self.x = self.K.createVecs()
+        self.pc = self._amg_pc(e) if kind == "gamg" else None
+        self._nullspaces: list[Any] = []  # kept alive with the KSP
+        self.ksp = self._ksp(kind, e)
         self.iterations = 0  # GMRES iterations so far
         self.steps: list[dict] = []  # per solve: its KSP, iterations, reason
 
-    def _ksp(self, K: Any, kind: str) -> Any:
+    def _amg_pc(self, e: MixedVI) -> str:
+        """The preconditioner of the iterative path: ``-mixvi_amg_pc`` or the default."""
+        opts = self.PETSc.Options()
+        if not opts.hasName("mixvi_amg_pc"):
+            return "fieldsplit" if e.fields and len(e.fields) > 1 else "gamg"
+        asked = opts.getString("mixvi_amg_pc")
+        if asked not in AMG_PCS:
+            raise ValueError(f"-mixvi_amg_pc {asked!r} unknown; allowed: {', '.join(AMG_PCS)}")
+        return asked
+
+    def _nullspace(self, local: np.ndarray) -> Any:
+        """A PETSc near-null space of the vectors whose rows this rank holds (`local`, (k, d))."""
+        PETSc = self.PETSc
+        Q = orthonormal(local, self.red)  # MatNullSpace asks for orthonormal vectors
+        vecs = []
+        for j in range(Q.shape[1]):
+            v = PETSc.Vec().createMPI((Q.shape[0], PETSc.DECIDE), comm=self.comm)
+            v.setArray(Q[:, j])
+            vecs.append(v)
+        space = PETSc.NullSpace().create(vectors=vecs, comm=self.comm)
+        self._nullspaces.append(space)
+        return space
+
+    def _ksp(self, kind: str, e: MixedVI | None = None) -> Any:
         PETSc = self.PETSc
         ksp = PETSc.KSP().create(comm=self.comm)
         ksp.setOptionsPrefix("mixvi_")
-        ksp.setOperators(K)
+        ksp.setOperators(self.K)
         pc = ksp.getPC()
         if kind == "mumps":
             ksp.setType("preonly")
@@ -57,62 +127,84 @@ class LinearSolve:
         else:
             ksp.setType("gmres")
             ksp.setTolerances(rtol=GMRES_RTOL, atol=0.0, max_it=GMRES_MAX_IT)
-            pc.setType("gamg")
+            ksp.setInitialGuessNonzero(True)
+            if self.pc == "fieldsplit":
+                self._fieldsplit(pc, e)
+            else:
+                pc.setType("gamg")
+                if e.fields:
+                    cols = []
+                    for name, mask in e.fields.items():
+                        N = near_null_rows(e, name, self.lo, self.hi)  # (k_f, d)
+                        Z = np.zeros((self.hi - self.lo, N.shape[1]))
+                        Z[mask[self.lo : self.hi]] = N
+                        cols.append(Z)
+                    self.K.setNearNullSpace(self._nullspace(np.hstack(cols)))
         ksp.setFromOptions()
         return ksp
 
-    def solve(self, K_local: sp.csr_matrix, rhs: np.ndarray, guess: np.ndarray, _tol=None):
-        """x (k,) owned part of the solution of K x = rhs."""
-        PETSc, k = self.PETSc, K_local.shape[0]
-        K = PETSc.Mat().createAIJ(
-            size=((k, self.n), (k, self.n)),
-            csr=(
-                K_local.indptr.astype(PETSc.IntType),
-                K_local.indices.astype(PETSc.IntType),
-                K_local.data,
-            ),
-            comm=self.comm,
-        )
+    def _fieldsplit(self, pc: Any, e: MixedVI) -> None:
+        """PCFIELDSPLIT over e.fields (module docstring); defaults only where no -mixvi_ option
+        says otherwise."""
+        PETSc = self.PETSc
+        pc.setType("fieldsplit")
+        pc.setFieldSplitType(PETSc.PC.CompositeType.MULTIPLICATIVE)
+        opts = PETSc.Options()
+        for name, mask in e.fields.items():
+            rows = self.lo + np.flatnonzero(mask[self.lo : self.hi])  # (k_f,) global rows
+            index = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=self.comm)
+            if (e.near_null or {}).get(name) is not None:
+                # PCFIELDSPLIT hands a "nearnullspace" composed on the IS to its block
+                near = near_null_rows(e, name, self.lo, self.hi)  # (k_f, d)
+                index.compose("nearnullspace", self._nullspace(near))
+            pc.setFieldSplitIS((name, index))
+            for key, value in (("ksp_type", "preonly"), ("pc_type", "gamg")):
+                if not opts.hasName(f"mixvi_fieldsplit_{name}_{key}"):
+                    opts.setValue(f"mixvi_fieldsplit_{name}_{key}", value)
+
+    def set_rows(self, rows: np.ndarray, pattern: sp.csr_matrix, values: np.ndarray) -> None:
+        """Rows `rows` (global, (r,)) of the matrix overwritten with `values` (pattern.nnz,) on
+        `pattern` ((r, n) csr, the rows' fixed pattern), then the matrix assembled."""
+        K, ip, insert = self.K, pattern.indptr, self.PETSc.InsertMode.INSERT_VALUES
+        idx = pattern.indices.astype(self.PETSc.IntType)
+        for i, row in enumerate(rows):
+            K.setValues(int(row), idx[ip[i] : ip[i + 1]], values[ip[i] : ip[i + 1]], insert)
         K.assemble()
-        if self.near is not None:
-            vecs = []
-            for j in range(self.near.shape[1]):
-                v = K.createVecRight()
-                v.setArray(self.near[self.lo : self.lo + k, j])
-                vecs.append(v)
-            K.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=self.comm))
-        b = K.createVecLeft()
+
+    def solve(self, rhs: np.ndarray, guess: np.ndarray) -> np.ndarray:
+        """x (k,) owned part of the solution of K x = rhs (rhs (k,), guess (k,) owned parts;
+        the guess starts GMRES)."""
+        b, x = self.b, self.x
         b.setArray(rhs)
-        x = K.createVecRight()
-        kind = self.kind
-        ksp = self._ksp(K, kind)
-        if kind == "gamg":
-            x.setArray(guess)
-            ksp.setInitialGuessNonzero(True)
-        ksp.solve(b, x)
+        x.setArray(guess)
+        self.ksp.solve(b, x)
         record = {
-            "ksp": kind,
-            "iterations": ksp.getIterationNumber(),
-            "reason": int(ksp.getConvergedReason()),
+            "ksp": self.kind,
+            "iterations": self.ksp.getIterationNumber(),
+            "reason": int(self.ksp.getConvergedReason()),
         }
-        if kind == "gamg":
+        if self.kind == "gamg":
+            record["pc"] = self.pc
             self.iterations += record["iterations"]
             if record["reason"] < 0:  # GMRES did not converge: MUMPS for this step
-                ksp.destroy()
-                ksp = self._ksp(K, "mumps")
-                ksp.solve(b, x)
+                direct = self._ksp("mumps")
+                direct.solve(b, x)
+                direct.destroy()
                 record["fallback"] = "mumps"
         self.steps.append(record)
-        out = x.getArray().copy()
-        for obj in (ksp, K, b, x):
+        return x.getArray().copy()
+
+    def destroy(self) -> None:
+        """Free the PETSc objects (collective)."""
+        for obj in (self.ksp, self.K, self.b, self.x, *self._nullspaces):
             obj.destroy()
-        return out
 
     def info(self) -> dict:
         """What the solves did, for Solution.info (the serial amg path's keys where they mean
         the same: krylov_iterations per step and the steps that fell back to a direct solve)."""
         out = {"linear_solver": f"petsc-{self.kind}", "petsc_solves": self.steps}
         if self.kind == "gamg":
+            out["preconditioner"] = self.pc
             out["krylov_iterations"] = [s["iterations"] for s in self.steps]
             out["fallback"] = [
                 {"step": i + 1, "reason": f"KSP reason {s['reason']}: MUMPS"}

@@ -19,35 +19,79 @@ What is distributed and what is not (issue 33, docs/distributed.md):
   ``linear_solver="amg"``, MUMPS again for a step GMRES does not solve. PETSc options
   (``-mixvi_ksp_*``, ``-mixvi_pc_*``) override through PETSC_OPTIONS.
 
+* **No whole copy of the equilibrated A.** The equilibrated VI (`MixedVI.equilibrated`, a
+  whole-size copy of A's values) is read once, for the owned rows handed to PETSc, and then
+  released (vi's cache of it dropped; a later use builds it again); the equilibrium residual
+  reads the owned rows of vi's own A, scaled: s_u ⊙ (A (s_u ⊙ u')).
+
 Not yet distributed (what remains, stated in docs/distributed.md): the model is built on
 every rank (the plug-in assembles A and B whole, then each rank keeps its rows), u and λ are
 replicated after each step (an allgather), and the active-set map of Λ is evaluated on the
 replicated y (O(m), the interface) with each rank using its owned rows. Memory per rank
-therefore does not fall with the ranks yet; the Newton matrix and its factors do.
+therefore falls only by what the Newton matrix and its preconditioner take
+(docs/benchmarks.md, "The petsc engine").
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from vi_core.problem import MixedVI
-from vi_core.sets import Free
 from vi_core.solution import Solution
-from vi_core.ssn import Condensation, finish
+from vi_core.ssn import (
+    Condensation,
+    _block_structure,
+    _on_pattern,
+    _structure,
+    damped_step,
+    finish,
+)
 
 from .ksp import LinearSolve
-from .runtime import Reductions, petsc
+from .runtime import Reductions, peak_mb, petsc
+
+
+def _row_view(M: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
+    """(hi − lo, n) rows [lo, hi) of the canonical csr M on M's own arrays (no copy)."""
+    p0, p1 = M.indptr[lo], M.indptr[hi]
+    return sp.csr_matrix(
+        (M.data[p0:p1], M.indices[p0:p1], M.indptr[lo : hi + 1] - p0), shape=(hi - lo, M.shape[1])
+    )
+
+
+@dataclass(frozen=True)
+class _Kept:
+    """What the Newton loop keeps of the equilibrated VI once its owned rows are in PETSc: the
+    interface-sized data (B, Λ, gap) and f, no A (the duck type `finish` reads: B, gap)."""
+
+    B: sp.csr_matrix  # (m, n)
+    f: np.ndarray  # (n,)
+    gap: np.ndarray  # (m,)
+    Lambda: Any
+    n: int
+    m: int
+
+
+def _released(vi: MixedVI, e: MixedVI) -> _Kept:
+    """e's parts the loop needs; vi's cached equilibrated copy (e, a whole-size copy of A's
+    values) dropped, so that it is freed once the caller lets go of e."""
+    vi.__dict__.pop("equilibrated", None)  # the cached_property's value
+    return _Kept(B=e.B, f=e.f, gap=e.gap, Lambda=e.Lambda, n=e.n, m=e.m)
 
 
 class _Owned:
-    """The rows a rank owns and the fixed parts of the condensed system on them."""
+    """The rows a rank owns, what its steps need of the slave rows, and its first condensed
+    Newton matrix (`first`: the fixed rows and the slave rows' pattern, handed to PETSc once).
+    The equilibrium residual's rows are vi's own (physical) A's, not copied: A' = S A S with
+    S = diag(s_u) (`MixedVI.scaling`)."""
 
-    def __init__(self, e: MixedVI, cond: Condensation, comm: Any, PETSc: Any):
+    def __init__(self, vi: MixedVI, e: MixedVI, cond: Condensation, comm: Any, PETSc: Any):
         n = e.n
         probe = PETSc.Vec().createMPI((PETSc.DECIDE, n), comm=comm)
         self.lo, self.hi = probe.getOwnershipRange()
@@ -55,26 +99,54 @@ class _Owned:
         lo, hi = self.lo, self.hi
         R, S = cond.R, cond.S
         self.dofs = np.arange(lo, hi)  # (k,) owned primal rows
-        self.R_pos = np.flatnonzero((R >= lo) & (R < hi))  # positions in R of owned R rows
+        R_own = R[(R >= lo) & (R < hi)]  # (k_R,) owned fixed rows
         self.mult = np.flatnonzero((S >= lo) & (S < hi))  # (k_m,) owned multiplier rows
         A = e.A.tocsr()
-        self.A_S = A[S]  # (m, n)
+        self.A_own = _row_view(vi.A.tocsr(), lo, hi)  # (k, n) physical rows, no copy
+        self.s_u = vi.scaling.s_u  # (n,)
+        self.A_S = A[S]  # (m, n) the slave rows (a multiplier's recovery reads its D block's)
         self.f_S = e.f[S]  # (m,)
         self.X = (cond.Dt_inv @ self.A_S).tocsr()  # (m, n) D^{-T} A_S
-        BR_t = sp.csr_matrix(e.B[:, R].T)[self.R_pos]  # (k_R, m) owned rows of B_Rᵀ
-        self.K_R = (A[R[self.R_pos]] - BR_t @ self.X).tocsr()  # (k_R, n)
-        self.rhs_R = e.f[R[self.R_pos]] - BR_t @ (cond.Dt_inv @ self.f_S)  # (k_R,)
         self.Dt = cond.D.T.tocsr()[self.mult]  # (k_m, m) owned rows of Dᵀ
         self.Dt_inv = cond.Dt_inv[self.mult]  # (k_m, m) owned rows of D^{-T}
-        # local row of each stacked row [owned R; owned S]
-        self.local_rows = np.concatenate([R[self.R_pos], S[self.mult]]) - lo  # (k,)
-        self.A_own = A[lo:hi]  # (k, n) for the equilibrium residual
         self.Bt_own = sp.csr_matrix(e.B.T)[lo:hi]  # (k, m)
+        BR_t = sp.csr_matrix(e.B[:, R_own].T)  # (k_R, m) owned rows of B_Rᵀ
+        self.rhs_R = e.f[R_own] - BR_t @ (cond.Dt_inv @ self.f_S)  # (k_R,)
+        # the owned slave rows' pattern: Dᵀ(W D^{-T} A_S + J B) with every entry of J and W
+        # present (blocks of Λ), the same at every step whatever the active set
+        G = _block_structure(e.Lambda.block_sizes())  # (m, m)
+        self.pattern_S = _structure(
+            _structure(self.Dt) @ (G @ (_structure(self.X) + _structure(e.B)))
+        )
+        self.pattern_S.sort_indices()  # (k_m, n)
+        self.rows_S = S[self.mult]  # (k_m,) their global rows
+        # local row of each stacked row [owned R; owned S], and that order
+        self.order = np.argsort(np.concatenate([R_own, self.rows_S]) - lo)  # (k,)
+        self.K_R = (A[R_own] - BR_t @ self.X).tocsr()  # (k_R, n) A_R − B_Rᵀ D^{-T} A_S
+
+    def first(self) -> sp.csr_matrix:
+        """(k, n) the owned rows of the condensed Newton matrix in local order: the fixed rows,
+        and the slave rows on their pattern with explicit zeros (`set_rows` fills them); the
+        fixed rows' scipy copy is released (PETSc holds them from now on)."""
+        zeros = sp.csr_matrix(
+            (np.zeros(self.pattern_S.nnz), self.pattern_S.indices, self.pattern_S.indptr),
+            shape=self.pattern_S.shape,
+        )
+        stacked = sp.vstack([self.K_R, zeros], format="csr")[self.order]  # (k, n)
+        stacked.sort_indices()
+        self.K_R = None
+        return stacked
+
+    def slave_rows(self, e: MixedVI, J: sp.csr_matrix, W: sp.csr_matrix) -> np.ndarray:
+        """(pattern_S.nnz,) the owned slave rows Dᵀ(W D^{-T} A_S + J B) on their pattern."""
+        K_S = self.Dt @ (W @ self.X) + self.Dt @ (J @ e.B)  # (k_m, n)
+        return _on_pattern(K_S, self.pattern_S).data
 
 
-def _residual(e: MixedVI, own: _Owned, red: Reductions, u, lam, scale: float) -> float:
+def _residual(e: _Kept, own: _Owned, red: Reductions, u, lam, scale: float) -> float:
     """The relative natural-map residual (`vi_core.natural_residual`) from owned parts."""
-    r1 = own.A_own @ u + own.Bt_own @ lam - e.f[own.lo : own.hi]  # (k,)
+    Au = own.s_u[own.lo : own.hi] * (own.A_own @ (own.s_u * u))  # (k,) owned rows of A'u
+    r1 = Au + own.Bt_own @ lam - e.f[own.lo : own.hi]  # (k,)
     p = e.Lambda.project(lam + e.B @ u - e.gap)  # (m,) replicated (the interface)
     r2 = lam[own.mult] - p[own.mult]  # (k_m,)
     return float(np.hypot(red.norm(r1), red.norm(r2)) / scale)
@@ -111,8 +183,11 @@ def solve_ssn_petsc(
             "the petsc engine condenses the multipliers: B has no block-diagonal slave part "
             "(dual mortar multipliers)"
         )
-    own = _Owned(e, cond, comm, PETSc)
-    solver = LinearSolve(PETSc, comm, "gamg" if linear_solver == "amg" else "mumps", e, own.lo)
+    own = _Owned(vi, e, cond, comm, PETSc)
+    kind = "gamg" if linear_solver == "amg" else "mumps"
+    solver = LinearSolve(PETSc, comm, kind, e, own.lo, own.first())
+    e = _released(vi, e)  # the whole equilibrated A is freed: the owned rows are in PETSc
+    memory = {"set_up": red.comm.allgather(peak_mb())}
     u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
     Lam = e.Lambda
@@ -120,7 +195,6 @@ def solve_ssn_petsc(
     res = _residual(e, own, red, u, lam, scale)
     history, damped, k = [res], 0, 0
     converged = res <= tol
-    linear = all(isinstance(b, Free) for b in Lam.blocks())
     nloc = own.hi - own.lo
     while not converged and k < max_iter:
         k += 1
@@ -130,29 +204,18 @@ def solve_ssn_petsc(
         W = sp.identity(e.m, format="csr") - J
         rhs_c = p - J @ y - J @ e.gap
         # owned slave rows: Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)
-        K_S = (own.Dt @ (W @ own.X) + own.Dt @ (J @ e.B)).tocsr()  # (k_m, n)
+        solver.set_rows(own.rows_S, own.pattern_S, own.slave_rows(e, J, W))
         rhs_S = own.Dt @ (W @ (cond.Dt_inv @ own.f_S) - rhs_c)  # (k_m,)
-        stacked = sp.vstack([own.K_R, K_S], format="csr")  # (k, n) rows [owned R; owned S]
-        order = np.argsort(own.local_rows)
-        K_local = stacked[order].tocsr()  # (k, n) in local row order
-        K_local.sort_indices()
-        rhs = np.concatenate([own.rhs_R, rhs_S])[order]  # (k,)
-        x = solver.solve(K_local, rhs, u[own.lo : own.hi], tol if linear else None)
+        rhs = np.concatenate([own.rhs_R, rhs_S])[own.order]  # (k,) in local row order
+        x = solver.solve(rhs, u[own.lo : own.hi])
         u_new = red.gather(own.dofs, x, e.n)
         lam_own = own.Dt_inv @ (own.f_S - own.A_S @ u_new)  # (k_m,)
         lam_new = red.gather(own.mult, lam_own, e.m)
-        du, dl = u_new - u, lam_new - lam
-        t, best = 1.0, None
-        while True:
-            cand = _residual(e, own, red, u + t * du, lam + t * dl, scale)
-            if best is None or cand < best[1]:
-                best = (t, cand)
-            if not damping or cand <= (1.0 - 1e-4 * t) * res or t < 1.0 / 64:
-                break
-            t *= 0.5
-        t, res = best
+        u, lam, t, res = damped_step(
+            lambda u, lam: _residual(e, own, red, u, lam, scale), u, lam, u_new, lam_new, res,
+            damping,
+        )  # fmt: skip
         damped += t < 1.0
-        u, lam = u + t * du, lam + t * dl
         history.append(res)
         converged = res <= tol
         if on_step is not None:
@@ -173,6 +236,8 @@ def solve_ssn_petsc(
         lambda lam: _residual(e, own, red, u, lam, scale), history, k, t0,
     )  # fmt: skip
     res, converged = sol.residual, sol.converged
+    solver.destroy()
+    memory["end"] = red.comm.allgather(peak_mb())
     sol.info = {
         "engine": "petsc",
         "ranks": comm.getSize(),
@@ -181,6 +246,7 @@ def solve_ssn_petsc(
         "damped_steps": int(damped),
         "inside": sol.info["inside"],
         **solver.info(),
+        "peak_mb": memory,  # per rank: ru_maxrss after the set-up and at the end
     }
     if estimate_condition:
         sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
