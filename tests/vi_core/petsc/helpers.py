@@ -16,6 +16,9 @@ MPI_ENV = {
     "OMPI_ALLOW_RUN_AS_ROOT": "1",
     "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
     "OMP_NUM_THREADS": "1",
+    # ranks waiting in a collective yield the core (Open MPI busy-polls unless it sees more
+    # ranks than slots; the machine is shared): 2 ranks took 26 s CPU, yielding 18 s
+    "OMPI_MCA_mpi_yield_when_idle": "1",
 }
 
 

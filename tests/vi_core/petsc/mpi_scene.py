@@ -1,46 +1,90 @@
-"""Run under mpiexec by the tests: solve a scene with the petsc engine on every rank; rank 0
-saves each field of u (displacement, potential), λ, the contact states and the residual to an
-.npz.
+"""Run under mpiexec by the tests: solve scenes with the petsc engine on every rank; rank 0
+saves each field of u (displacement, potential), λ, the contact states and the residual of each
+scene to an .npz.
 
     mpiexec -n P python -m tests.vi_core.petsc.mpi_scene SCENE LEVEL LINEAR OUT.npz [MUTATION]
+    mpiexec -n P python -m tests.vi_core.petsc.mpi_scene --many OUTDIR LINEAR SCENE:LEVEL ...
+        [--mutation MUTATION]        (one launch for many scenes: OUTDIR/SCENE.npz each)
 """
 
 from __future__ import annotations
 
+import inspect
+import re
 import sys
+from pathlib import Path
 
 import numpy as np
 
 import problems.pipeline as pipeline
 from problems.commands import engine
+from problems.pipeline.load_path import solve_path
 
 
 def solved(scene: str, level: int, linear_solver: str, name: str = "serial") -> dict:
     """Each field of u ("u:displacement", "u:potential", ...), λ ("lam"), the contact states,
-    the residual and the engine's record of `scene` at `level` solved on engine `name`."""
+    the Newton steps, the residual and the engine's record of `scene` at `level` solved on
+    engine `name`. A scene with a load path is solved step by step as `mixvi solve` does: u,
+    λ, the states and the Newton steps of every step, concatenated; the residual and records
+    are the last step's."""
     eng = engine.start(name)
     loaded = pipeline.load(scene)
+    steps: list[tuple] = []
     with engine.running(eng):
-        run = pipeline.solve(loaded, level, linear_solver=linear_solver)
-    sol = run.solution
-    state = pipeline.results(loaded, run).contact or {}
-    fields = run.model.vi.fields or {"all": np.ones(sol.u.shape, bool)}
+        if loaded.spec.load_path is None:
+            run = pipeline.solve(loaded, level, linear_solver=linear_solver)
+            steps.append((run.model, run.solution))
+            converged = run.solution.converged
+        else:
+            path = solve_path(
+                loaded,
+                level,
+                linear_solver=linear_solver,
+                on_step=lambda s: steps.append((s.model, s.solution)),
+            )
+            converged = path.converged and len(path.steps) == len(steps)
+    fields: dict[str, list] = {}
+    for model, sol in steps:
+        state = (
+            loaded.plugin.contact_state(model, sol)
+            if hasattr(loaded.plugin, "contact_state") and getattr(model, "contact", 1) is not None
+            else {}
+        )
+        masks = model.vi.fields or {"all": np.ones(sol.u.shape, bool)}
+        for key, val in [
+            *((f"u:{f}", sol.u[mask]) for f, mask in masks.items()),
+            ("lam", sol.lam),
+            ("state", np.asarray(state.get("state", []), dtype=str)),
+            ("iterations", np.array([sol.iterations])),
+        ]:
+            fields.setdefault(key, []).append(val)
+    sol = steps[-1][1]
     return {
-        **{f"u:{name}": sol.u[mask] for name, mask in fields.items()},
-        "lam": sol.lam,
-        "state": np.asarray(state.get("state", []), dtype=str),
+        **{key: np.concatenate(vals) for key, vals in fields.items()},
         "residual": sol.residual,
-        "converged": sol.converged,
+        "converged": converged,
+        "steps": len(steps),
         "ranks": sol.info.get("ranks", 1),
         "engine": sol.info.get("engine", "serial"),
         "rank": eng.rank,
     }
 
 
+# faults injected into vi_core/petsc/newton.py's source: name → (pattern, replacement)
+SOURCE_FAULTS = {
+    # the W term of the owned slave rows Dᵀ(W D^{-T} A_S + J B) with its sign flipped (the J B
+    # term's sign is invisible in 2D: J is 0 or 1 there and its rows' right-hand side 0)
+    "slave_sign": (r"Dt @ \(W @ (\w+)\.X\)", r"Dt @ (-W @ \1.X)"),
+}
+
+
 def _mutate(name: str) -> None:
     """Inject a fault the tests must see (mutation tests): "local_gather" gathers only this
-    rank's owned entries of each new iterate (the others stay 0)."""
-    from vi_core.petsc import runtime
+    rank's owned entries of each new iterate (the others stay 0: the off-rank entries
+    dropped); a SOURCE_FAULTS name rewrites vi_core.petsc.newton's source (ValueError if the
+    pattern is no longer there: the mutation must then be updated, not skipped)."""
+    from vi_core import petsc as vi_petsc
+    from vi_core.petsc import newton, runtime
 
     if name == "local_gather":
 
@@ -50,11 +94,29 @@ def _mutate(name: str) -> None:
             return out
 
         runtime.Reductions.gather = gather
+    elif name in SOURCE_FAULTS:
+        pattern, new = SOURCE_FAULTS[name]
+        src, count = re.subn(pattern, new, inspect.getsource(newton))
+        if count != 1:
+            raise ValueError(f"mutation {name}: {pattern!r} found {count} times in newton.py")
+        exec(compile(src, newton.__file__, "exec"), vars(newton))
+        vi_petsc.solve_ssn_petsc = newton.solve_ssn_petsc
     elif name:
         raise ValueError(f"unknown mutation {name!r}")
 
 
 def main(argv: list[str]) -> int:
+    if argv[0] == "--many":
+        mutation = argv[argv.index("--mutation") + 1] if "--mutation" in argv else ""
+        argv = argv[: argv.index("--mutation")] if mutation else argv
+        _, outdir, linear_solver, *cases = argv
+        _mutate(mutation)
+        for case in cases:
+            scene, level = case.split(":")
+            got = solved(scene, int(level), linear_solver, "petsc")
+            if got.pop("rank") == 0:
+                np.savez(Path(outdir) / f"{scene}.npz", **got)
+        return 0
     scene, level, linear_solver, out, *mutation = argv
     _mutate(mutation[0] if mutation else "")
     got = solved(scene, int(level), linear_solver, "petsc")
