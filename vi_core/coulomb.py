@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from .sets import ConvexSet, _vector
+from .sets import ConvexSet, _vector, beyond
 
 OPEN = 1e-10  # `tresca_bound`: λ_n ≤ OPEN · (largest λ_n) counts as apart (rounding)
 
@@ -98,8 +98,9 @@ class ContactSet(ConvexSet):
         blocks[:, 0, 0] = (yn > 0).astype(float)
         # tangential rows: zero where ρ = 0 (P_t ≡ 0 there), identity while sticking,
         # (ρ/|y_t|)(I − ŷŷᵀ) in y_t and ρ'(y_n) ŷ in y_n while slipping
-        stick = (r > 0) & (nt <= r)
-        slip = (r > 0) & (nt > r)
+        out = beyond(nt, r)  # (k,) on the disc's rim counts as sticking (sets.TIE)
+        stick = (r > 0) & ~out
+        slip = (r > 0) & out
         blocks[stick, 1:, 1:] = np.eye(t)
         if slip.any():
             yh = yt[slip] / nt[slip, None]  # (k_slip, t)

@@ -160,6 +160,21 @@ class Box(ConvexSet):
         return f"Box(size={self.size})"
 
 
+# A point whose norm is within this relative band of the radius is on the sphere: its
+# side there is decided by rounding alone (a load step warm-started at the last step's solution
+# puts every slipping node at |y_t| = ρ to ±1e-14), and two engines that agree to rounding
+# (serial splu, PETSc MUMPS on 2 ranks) would then take other generalised derivatives and other
+# Newton paths to the same answer. The band makes the choice a rule: on the sphere counts as
+# inside (the identity block), as exact equality always did.
+TIE = 1e-12
+
+
+def beyond(norm: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Where a norm lies outside its ball by more than rounding (norm > radius·(1 + TIE));
+    `jacobian`s pick the derivative of the projection by it (`project` stays exact)."""
+    return norm > radius * (1.0 + TIE)
+
+
 class Ball(ConvexSet):
     """k Euclidean balls of radius r_j in R^dim (e.g. 3D Tresca friction discs).
 
@@ -193,7 +208,7 @@ class Ball(ConvexSet):
         Y, norm = self._split(y)
         d = self.dim
         blocks = np.broadcast_to(np.eye(d), (self.k, d, d)).copy()  # (k, d, d)
-        out = norm > self.radius
+        out = beyond(norm, self.radius)
         if out.any():
             yh = Y[out] / norm[out, None]  # (k_out, d)
             g = (self.radius[out] / norm[out])[:, None, None]  # (k_out, 1, 1)

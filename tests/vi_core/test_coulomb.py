@@ -487,3 +487,62 @@ def test_mutation_a_sign_flip_in_the_update_fails_the_hand_values(fault, monkeyp
         S = Coulomb([0.5, 2.0], 2)
         P = S.project(np.array([2.0, 3.0, 1.0, -5.0])).reshape(2, 2)
         assert (np.abs(P[:, 1]) <= S.F * P[:, 0]).all()
+
+
+def _rim_points(S, rng: np.random.Generator, rel: float) -> np.ndarray:
+    """A random y with every node's |y_t| = ρ(y_n)·(1 + rel): on the rim, off it by `rel`."""
+    Y = rng.standard_normal((S.k, S.dim))
+    Y[:, 0] = rng.uniform(0.5, 2.0, S.k)
+    r, _ = S.radius(Y[:, 0])
+    Y[:, 1:] *= (r * (1.0 + rel) / np.linalg.norm(Y[:, 1:], axis=1))[:, None]
+    return Y.ravel()
+
+
+@given(
+    st.integers(0, 2**32 - 1),
+    st.sampled_from(sorted(SETS)),
+    st.sampled_from((2, 3)),
+    st.sampled_from((-1e-14, -2.2e-16, 0.0, 2.2e-16, 1e-14)),
+)
+@settings(max_examples=20)
+def test_a_node_on_the_rim_by_rounding_sticks(seed, kind, dim, rel):
+    """|y_t| = ρ(1 ± a few ulp) — every slipping node of a load step's warm start — gets the
+    sticking derivative (identity tangential block) whichever side rounding put it on, so two
+    engines that agree to rounding take the same Newton steps (vi_core.sets.TIE); a node off
+    the rim by 1e-9 gets the slip derivative."""
+    rng = np.random.default_rng(seed)
+    S = SETS[kind](rng, dim)
+    t = dim - 1
+    blocks = S.jacobian(_rim_points(S, rng, rel)).toarray()
+    for j in range(S.k):
+        tan = blocks[j * dim + 1 : (j + 1) * dim, j * dim + 1 : (j + 1) * dim]
+        np.testing.assert_array_equal(tan, np.eye(t))
+    blocks = S.jacobian(_rim_points(S, rng, 1e-9)).toarray()
+    for j in range(S.k):
+        tan = blocks[j * dim + 1 : (j + 1) * dim, j * dim + 1 : (j + 1) * dim]
+        assert not np.array_equal(tan, np.eye(t))
+
+
+def test_a_ball_node_on_the_rim_by_rounding_is_inside():
+    """The Tresca disc (`Ball`) decides its rim by the same rule."""
+    rng = np.random.default_rng(3)
+    B = Ball(rng.uniform(0.5, 2.0, 5), 2)
+    Y = rng.standard_normal((5, 2))
+    for rel, inside in ((1e-14, True), (-1e-14, True), (1e-9, False)):
+        Yr = Y * (B.radius * (1 + rel) / np.linalg.norm(Y, axis=1))[:, None]
+        J = B.jacobian(Yr.ravel()).toarray()
+        assert np.array_equal(J, np.eye(10)) is inside
+
+
+@pytest.mark.parametrize("band", [0.0, -1e-12])
+def test_mutation_rim_decided_by_rounding_is_caught(band, monkeypatch):
+    """Without the band (strict `>` as before) or with it turned the other way, a node at
+    ρ(1 + 1e-14) slips: the rim test above fails."""
+    import vi_core.sets as sets_module
+
+    monkeypatch.setattr(sets_module, "TIE", band)
+    rng = np.random.default_rng(0)
+    S = Coulomb(rng.uniform(0.5, 2.0, 6), 3)
+    J = S.jacobian(_rim_points(S, rng, 1e-14)).toarray()
+    tan = [J[3 * j + 1 : 3 * j + 3, 3 * j + 1 : 3 * j + 3] for j in range(6)]
+    assert not all(np.array_equal(b, np.eye(2)) for b in tan)
