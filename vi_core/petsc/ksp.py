@@ -76,8 +76,8 @@ class LinearSolve:
         self.K = PETSc.Mat().createAIJ(
             size=((k, n), (k, n)),
             csr=(
-                K_local.indptr.astype(PETSc.IntType),
-                K_local.indices.astype(PETSc.IntType),
+                K_local.indptr.astype(PETSc.IntType, copy=False),
+                K_local.indices.astype(PETSc.IntType, copy=False),
                 K_local.data,
             ),
             comm=comm,

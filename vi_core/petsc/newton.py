@@ -67,22 +67,27 @@ def _row_view(M: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
 
 @dataclass(frozen=True)
 class _Kept:
-    """What the Newton loop keeps of the equilibrated VI once its owned rows are in PETSc: the
-    interface-sized data (B, Λ, gap) and f, no A (the duck type `finish` reads: B, gap)."""
+    """The equilibrated VI without its A (`MixedVI.equilibrated_parts`): the interface-sized
+    data (B, Λ, gap), f and the field metadata; A' is read by owned rows only
+    (`MixedVI.equilibrated_rows`). The duck type `finish` (B, gap) and `LinearSolve` (fields,
+    near_null) read."""
 
     B: sp.csr_matrix  # (m, n)
     f: np.ndarray  # (n,)
     gap: np.ndarray  # (m,)
     Lambda: Any
+    fields: dict | None
+    near_null: dict | None
     n: int
     m: int
 
 
-def _released(vi: MixedVI, e: MixedVI) -> _Kept:
-    """e's parts the loop needs; vi's cached equilibrated copy (e, a whole-size copy of A's
-    values) dropped, so that it is freed once the caller lets go of e."""
+def _kept(vi: MixedVI) -> _Kept:
+    """vi's equilibrated parts without A; vi's cached equilibrated copy, if a serial path made
+    one (a whole-size copy of A's values), dropped."""
     vi.__dict__.pop("equilibrated", None)  # the cached_property's value
-    return _Kept(B=e.B, f=e.f, gap=e.gap, Lambda=e.Lambda, n=e.n, m=e.m)
+    p = vi.equilibrated_parts()
+    return _Kept(p["B"], p["f"], p["gap"], p["Lambda"], p["fields"], p["near_null"], vi.n, vi.m)
 
 
 class _Owned:
@@ -91,7 +96,7 @@ class _Owned:
     The equilibrium residual's rows are vi's own (physical) A's, not copied: A' = S A S with
     S = diag(s_u) (`MixedVI.scaling`)."""
 
-    def __init__(self, vi: MixedVI, e: MixedVI, cond: Condensation, comm: Any, PETSc: Any):
+    def __init__(self, vi: MixedVI, e: _Kept, cond: Condensation, comm: Any, PETSc: Any):
         n = e.n
         probe = PETSc.Vec().createMPI((PETSc.DECIDE, n), comm=comm)
         self.lo, self.hi = probe.getOwnershipRange()
@@ -101,10 +106,11 @@ class _Owned:
         self.dofs = np.arange(lo, hi)  # (k,) owned primal rows
         R_own = R[(R >= lo) & (R < hi)]  # (k_R,) owned fixed rows
         self.mult = np.flatnonzero((S >= lo) & (S < hi))  # (k_m,) owned multiplier rows
-        A = e.A.tocsr()
+        A_R = vi.equilibrated_rows(R_own)  # (k_R, n) the owned fixed rows of A'
         self.A_own = _row_view(vi.A.tocsr(), lo, hi)  # (k, n) physical rows, no copy
         self.s_u = vi.scaling.s_u  # (n,)
-        self.A_S = A[S]  # (m, n) the slave rows (a multiplier's recovery reads its D block's)
+        self.A_S = vi.equilibrated_rows(S)  # (m, n) the slave rows of A' (a multiplier's
+        # recovery reads its D block's)
         self.f_S = e.f[S]  # (m,)
         self.X = (cond.Dt_inv @ self.A_S).tocsr()  # (m, n) D^{-T} A_S
         self.Dt = cond.D.T.tocsr()[self.mult]  # (k_m, m) owned rows of Dᵀ
@@ -122,7 +128,7 @@ class _Owned:
         self.rows_S = S[self.mult]  # (k_m,) their global rows
         # local row of each stacked row [owned R; owned S], and that order
         self.order = np.argsort(np.concatenate([R_own, self.rows_S]) - lo)  # (k,)
-        self.K_R = (A[R_own] - BR_t @ self.X).tocsr()  # (k_R, n) A_R − B_Rᵀ D^{-T} A_S
+        self.K_R = (A_R - BR_t @ self.X).tocsr()  # (k_R, n) A_R − B_Rᵀ D^{-T} A_S
 
     def first(self) -> sp.csr_matrix:
         """(k, n) the owned rows of the condensed Newton matrix in local order: the fixed rows,
@@ -176,7 +182,7 @@ def solve_ssn_petsc(
     comm = PETSc.COMM_WORLD
     red = Reductions(comm)
     t0 = time.perf_counter()
-    e, sc = vi.equilibrated, vi.scaling
+    e, sc = _kept(vi), vi.scaling
     cond = Condensation.detect(e.B)
     if cond is None:
         raise ValueError(
@@ -186,7 +192,6 @@ def solve_ssn_petsc(
     own = _Owned(vi, e, cond, comm, PETSc)
     kind = "gamg" if linear_solver == "amg" else "mumps"
     solver = LinearSolve(PETSc, comm, kind, e, own.lo, own.first())
-    e = _released(vi, e)  # the whole equilibrated A is freed: the owned rows are in PETSc
     memory = {"set_up": red.comm.allgather(peak_mb())}
     u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
