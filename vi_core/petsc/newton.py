@@ -24,7 +24,8 @@ What is distributed and what is not (issue 33, docs/distributed.md):
   the slave rows, then the owned fixed rows); vi.A itself keeps only the rank's rows [lo, hi)
   from then until the solve ends (`_rows_only`; the equilibrium residual reads them, scaled:
   s_u ⊙ (A (s_u ⊙ u'))), and is made whole again at the end (`_whole`, one allgather of the
-  rows: the serial post-processing reads it).
+  rows: the serial post-processing reads it), or given back its own A where another holder
+  kept that alive (a load path's step shares A with its model: no second copy).
 
 Not yet distributed (what remains, stated in docs/distributed.md): the model is built whole on
 every rank (the plug-in assembles A and B whole; each rank then keeps its rows of A during the
@@ -36,6 +37,7 @@ evaluated on the replicated y (O(m), the interface) with each rank using its own
 from __future__ import annotations
 
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -226,6 +228,7 @@ def solve_ssn_petsc(
     A_S = vi.equilibrated_rows(cond.S)  # (m, n) the slave rows of A', wherever they are owned
     # vi.A (canonical since equilibrated_rows) keeps this rank's rows only until the solve
     # ends, the others freed (if nothing else holds them): no rank holds the whole A meanwhile
+    whole = weakref.ref(vi.A)
     vi.A = _rows_only(vi.A, lo, hi)
     try:
         own = _Owned(vi, e, cond, A_S, lo, hi)
@@ -300,4 +303,7 @@ def solve_ssn_petsc(
             )
         return sol
     finally:
-        vi.A = _whole(vi.A, lo, hi, red)
+        # the whole A back: the same object where another holder kept it alive (a load path's
+        # step shares A with the model it came from) on every rank, else gathered from the rows
+        kept = whole()
+        vi.A = kept if red.all_true(kept is not None) else _whole(vi.A, lo, hi, red)
