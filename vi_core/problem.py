@@ -235,12 +235,17 @@ class MixedVI:
     @cached_property
     def equilibrated(self) -> MixedVI:
         """The same VI in variables u' = u / s_u, λ' = λ / s_lam (unit diagonal, unit rows)."""
+        return MixedVI(A=self._scaled_A(), **self.equilibrated_parts())
+
+    def equilibrated_parts(self) -> dict:
+        """Everything of `equilibrated` but its A (B, f, Lambda, gap, info, fields, near_null;
+        interface- and vector-sized), for a solver that reads A' by rows (`equilibrated_rows`)
+        and so never holds a whole-size copy of A's values."""
         s = self.scaling
         Su, Sl = sp.diags(s.s_u), sp.diags(s.s_lam)
         # A u + Bᵀλ = f  →  (Su A Su) u' + (Su Bᵀ Sl) λ' = Su f
         # (Bu − gap) ∈ N_Λ(λ)  ⇔  Sl (B Su u' − gap) ∈ N_{Λ/s_lam}(λ')   (Sl diagonal > 0)
-        return MixedVI(
-            A=self._scaled_A(s.s_u),
+        return dict(
             B=(Sl @ self.B @ Su).tocsr(),
             f=self.f * s.s_u,
             Lambda=self.Lambda.scaled(s.s_lam),
@@ -254,18 +259,35 @@ class MixedVI:
             or None,
         )
 
-    def _scaled_A(self, s_u: np.ndarray) -> sp.csr_matrix:
-        """Su A Su on A's own index arrays (shared, not copied: a third of a copy of A less;
-        paper scene level 5: 34 MB). A not in canonical form (sorted, no duplicates) or with
-        explicit zeros is first replaced by a canonical copy without them (the same matrix; the
-        caller's arrays untouched), so no later operation reorders the shared indices, and e.A
-        has the structure of the product Su A Su (which drops zeros: a direct solver's
-        ordering follows the structure)."""
+    def equilibrated_rows(self, rows: np.ndarray) -> sp.csr_matrix:
+        """(r, n) the rows `rows` (r,) of `equilibrated`.A, the same values, built from those
+        rows of A alone (a distributed solver's owned rows: no whole-size copy)."""
+        A, s_u = self._canonical_A(), self.scaling.s_u
+        rows = np.asarray(rows, dtype=np.intp)
+        Ar = A[rows]  # (r, n) a canonical copy of the rows
+        data = np.repeat(s_u[rows], np.diff(Ar.indptr))  # (nnz_r,) s_i of each entry's row
+        data *= Ar.data
+        data *= s_u[Ar.indices]
+        Ar.data = data
+        return Ar
+
+    def _canonical_A(self) -> sp.csr_matrix:
+        """A in canonical form (sorted, no duplicates) without explicit zeros: A itself, or a
+        canonical copy (the same matrix; the caller's arrays untouched) that replaces it, so no
+        later operation reorders indices shared with a scaled copy."""
         A = self.A
         if not A.has_canonical_format or not A.data.all():
             A = self.A = A.copy()
             A.sum_duplicates()
             A.eliminate_zeros()
+        return A
+
+    def _scaled_A(self) -> sp.csr_matrix:
+        """Su A Su on A's own index arrays (shared, not copied: a third of a copy of A less;
+        paper scene level 5: 34 MB), A canonical first (`_canonical_A`), so e.A has the
+        structure of the product Su A Su (which drops zeros: a direct solver's ordering follows
+        the structure)."""
+        A, s_u = self._canonical_A(), self.scaling.s_u
         data = np.repeat(s_u, np.diff(A.indptr))  # (nnz,) s_i of each entry's row
         data *= A.data
         data *= s_u[A.indices]

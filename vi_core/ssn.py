@@ -292,9 +292,9 @@ def tied_start(
     if cond is None:
         return None
     if tied is None:
-        e, sc = vi.equilibrated, vi.scaling
-        y = np.asarray(lam0, float) / sc.s_lam - e.gap  # (m,) ssn's y at (0, λ0)
-        W = sp.identity(vi.m, format="csr") - e.Lambda.jacobian(y)
+        e, sc = vi.equilibrated_parts(), vi.scaling  # no whole-size copy of A for Λ', gap'
+        y = np.asarray(lam0, float) / sc.s_lam - e["gap"]  # (m,) ssn's y at (0, λ0)
+        W = sp.identity(vi.m, format="csr") - e["Lambda"].jacobian(y)
         tied = np.asarray(abs(W).sum(axis=1)).ravel() == 0  # (m,)
     u = np.array(u0, dtype=float)
     # B[:, S] = D: moving u_S by D^{-1} e moves B u by e, on the rows of e only

@@ -18,12 +18,10 @@ overrides the defaults set here.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.sparse as sp
-
-from vi_core.problem import MixedVI
 
 from .runtime import Reductions
 
@@ -31,6 +29,14 @@ KINDS = ("mumps", "gamg")
 AMG_PCS = ("fieldsplit", "gamg")
 GMRES_RTOL = 1e-12  # relative residual of a GMRES solve (an inexact step moves u by ~rtol·|u|)
 GMRES_MAX_IT = 500
+
+
+class Fields(Protocol):
+    """What the preconditioner reads of the equilibrated VI: `MixedVI.fields` and
+    `MixedVI.near_null` (a MixedVI, or the engine's VI without A, `newton._Kept`)."""
+
+    fields: dict | None
+    near_null: dict | None
 
 
 def orthonormal(local: np.ndarray, red: Reductions) -> np.ndarray:
@@ -45,7 +51,7 @@ def orthonormal(local: np.ndarray, red: Reductions) -> np.ndarray:
     return Q
 
 
-def near_null_rows(e: MixedVI, name: str, lo: int, hi: int) -> np.ndarray:
+def near_null_rows(e: Fields, name: str, lo: int, hi: int) -> np.ndarray:
     """(k_f, d) the near-null vectors of field `name` on its rows owned here ([lo, hi) ∩ the
     field), in the field's order; one constant column for a field without any."""
     mask = e.fields[name]
@@ -65,7 +71,7 @@ class LinearSolve:
     kind : "mumps" (LU) or "gamg" (GMRES with the preconditioner ``-mixvi_amg_pc``)."""
 
     def __init__(
-        self, PETSc: Any, comm: Any, kind: str, e: MixedVI, lo: int, K_local: sp.csr_matrix
+        self, PETSc: Any, comm: Any, kind: str, e: Fields, lo: int, K_local: sp.csr_matrix
     ):
         if kind not in KINDS:
             raise ValueError(f"petsc linear solver {kind!r} unknown; allowed: {', '.join(KINDS)}")
@@ -76,8 +82,8 @@ class LinearSolve:
         self.K = PETSc.Mat().createAIJ(
             size=((k, n), (k, n)),
             csr=(
-                K_local.indptr.astype(PETSc.IntType),
-                K_local.indices.astype(PETSc.IntType),
+                K_local.indptr.astype(PETSc.IntType, copy=False),
+                K_local.indices.astype(PETSc.IntType, copy=False),
                 K_local.data,
             ),
             comm=comm,
@@ -91,7 +97,7 @@ class LinearSolve:
         self.iterations = 0  # GMRES iterations so far
         self.steps: list[dict] = []  # per solve: its KSP, iterations, reason
 
-    def _amg_pc(self, e: MixedVI) -> str:
+    def _amg_pc(self, e: Fields) -> str:
         """The preconditioner of the iterative path: ``-mixvi_amg_pc`` or the default."""
         opts = self.PETSc.Options()
         if not opts.hasName("mixvi_amg_pc"):
@@ -114,7 +120,7 @@ class LinearSolve:
         self._nullspaces.append(space)
         return space
 
-    def _ksp(self, kind: str, e: MixedVI | None = None) -> Any:
+    def _ksp(self, kind: str, e: Fields | None = None) -> Any:
         PETSc = self.PETSc
         ksp = PETSc.KSP().create(comm=self.comm)
         ksp.setOptionsPrefix("mixvi_")
@@ -143,7 +149,7 @@ class LinearSolve:
         ksp.setFromOptions()
         return ksp
 
-    def _fieldsplit(self, pc: Any, e: MixedVI) -> None:
+    def _fieldsplit(self, pc: Any, e: Fields) -> None:
         """PCFIELDSPLIT over e.fields (module docstring); defaults only where no -mixvi_ option
         says otherwise."""
         PETSc = self.PETSc

@@ -19,22 +19,25 @@ What is distributed and what is not (issue 33, docs/distributed.md):
   ``linear_solver="amg"``, MUMPS again for a step GMRES does not solve. PETSc options
   (``-mixvi_ksp_*``, ``-mixvi_pc_*``) override through PETSC_OPTIONS.
 
-* **No whole copy of the equilibrated A.** The equilibrated VI (`MixedVI.equilibrated`, a
-  whole-size copy of A's values) is read once, for the owned rows handed to PETSc, and then
-  released (vi's cache of it dropped; a later use builds it again); the equilibrium residual
-  reads the owned rows of vi's own A, scaled: s_u ⊙ (A (s_u ⊙ u')).
+* **No rank holds the whole A during a solve.** The equilibrated VI is never formed whole
+  (`MixedVI.equilibrated_parts`: B', f', gap', Λ'; A' read by rows, `MixedVI.equilibrated_rows`:
+  the slave rows, then the owned fixed rows); vi.A itself keeps only the rank's rows [lo, hi)
+  from then until the solve ends (`_rows_only`; the equilibrium residual reads them, scaled:
+  s_u ⊙ (A (s_u ⊙ u'))), and is made whole again at the end (`_whole`, one allgather of the
+  rows: the serial post-processing reads it), or given back its own A where another holder
+  kept that alive (a load path's step shares A with its model: no second copy).
 
-Not yet distributed (what remains, stated in docs/distributed.md): the model is built on
-every rank (the plug-in assembles A and B whole, then each rank keeps its rows), u and λ are
-replicated after each step (an allgather), and the active-set map of Λ is evaluated on the
-replicated y (O(m), the interface) with each rank using its owned rows. Memory per rank
-therefore falls only by what the Newton matrix and its preconditioner take
+Not yet distributed (what remains, stated in docs/distributed.md): the model is built whole on
+every rank (the plug-in assembles A and B whole; each rank then keeps its rows of A during the
+solve), u and λ are replicated after each step (an allgather), and the active-set map of Λ is
+evaluated on the replicated y (O(m), the interface) with each rank using its owned rows
 (docs/benchmarks.md, "The petsc engine").
 """
 
 from __future__ import annotations
 
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -67,22 +70,53 @@ def _row_view(M: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
 
 @dataclass(frozen=True)
 class _Kept:
-    """What the Newton loop keeps of the equilibrated VI once its owned rows are in PETSc: the
-    interface-sized data (B, Λ, gap) and f, no A (the duck type `finish` reads: B, gap)."""
+    """The equilibrated VI without its A (`MixedVI.equilibrated_parts`): the interface-sized
+    data (B, Λ, gap), f and the field metadata; A' is read by owned rows only
+    (`MixedVI.equilibrated_rows`). The duck type `finish` (B, gap) and `LinearSolve` (fields,
+    near_null) read."""
 
     B: sp.csr_matrix  # (m, n)
     f: np.ndarray  # (n,)
     gap: np.ndarray  # (m,)
     Lambda: Any
+    fields: dict | None
+    near_null: dict | None
     n: int
     m: int
 
 
-def _released(vi: MixedVI, e: MixedVI) -> _Kept:
-    """e's parts the loop needs; vi's cached equilibrated copy (e, a whole-size copy of A's
-    values) dropped, so that it is freed once the caller lets go of e."""
+def _rows_only(A: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
+    """(n, n) A with only its rows [lo, hi) (a copy of them), every other row empty."""
+    own = A[lo:hi]  # (k, n) a copy
+    nnz = own.indptr[-1]
+    indptr = np.concatenate(
+        [np.zeros(lo, A.indptr.dtype), own.indptr, np.full(A.shape[0] - hi, nnz, A.indptr.dtype)]
+    )  # (n + 1,)
+    return sp.csr_matrix((own.data, own.indices, indptr), shape=A.shape)
+
+
+def _whole(A: sp.csr_matrix, lo: int, hi: int, red: Reductions) -> sp.csr_matrix:
+    """A whole again from the ranks' rows-only copies (`_rows_only`, rows [lo, hi) here): the
+    same values, indices and pattern as before (rows concatenated in rank order)."""
+    p0, p1 = A.indptr[lo], A.indptr[hi]
+    parts = red.comm.allgather((A.data[p0:p1], A.indices[p0:p1], np.diff(A.indptr[lo : hi + 1])))
+    data = np.concatenate([d for d, _, _ in parts])  # (nnz,)
+    indices = np.concatenate([i for _, i, _ in parts])  # (nnz,)
+    counts = np.concatenate([c for _, _, c in parts])  # (n,)
+    indptr = np.zeros(A.shape[0] + 1, A.indptr.dtype)
+    np.cumsum(counts, out=indptr[1:])
+    whole = sp.csr_matrix((data, indices, indptr), shape=A.shape)
+    whole.has_sorted_indices = True  # each row as it was: canonical (`_canonical_A`)
+    whole.has_canonical_format = True
+    return whole
+
+
+def _kept(vi: MixedVI) -> _Kept:
+    """vi's equilibrated parts without A; vi's cached equilibrated copy, if a serial path made
+    one (a whole-size copy of A's values), dropped."""
     vi.__dict__.pop("equilibrated", None)  # the cached_property's value
-    return _Kept(B=e.B, f=e.f, gap=e.gap, Lambda=e.Lambda, n=e.n, m=e.m)
+    p = vi.equilibrated_parts()
+    return _Kept(p["B"], p["f"], p["gap"], p["Lambda"], p["fields"], p["near_null"], vi.n, vi.m)
 
 
 class _Owned:
@@ -91,20 +125,19 @@ class _Owned:
     The equilibrium residual's rows are vi's own (physical) A's, not copied: A' = S A S with
     S = diag(s_u) (`MixedVI.scaling`)."""
 
-    def __init__(self, vi: MixedVI, e: MixedVI, cond: Condensation, comm: Any, PETSc: Any):
-        n = e.n
-        probe = PETSc.Vec().createMPI((PETSc.DECIDE, n), comm=comm)
-        self.lo, self.hi = probe.getOwnershipRange()
-        probe.destroy()
-        lo, hi = self.lo, self.hi
+    def __init__(
+        self, vi: MixedVI, e: _Kept, cond: Condensation, A_S: sp.csr_matrix, lo: int, hi: int
+    ):
+        self.lo, self.hi = lo, hi
         R, S = cond.R, cond.S
         self.dofs = np.arange(lo, hi)  # (k,) owned primal rows
         R_own = R[(R >= lo) & (R < hi)]  # (k_R,) owned fixed rows
         self.mult = np.flatnonzero((S >= lo) & (S < hi))  # (k_m,) owned multiplier rows
-        A = e.A.tocsr()
+        A_R = vi.equilibrated_rows(R_own)  # (k_R, n) the owned fixed rows of A'
         self.A_own = _row_view(vi.A.tocsr(), lo, hi)  # (k, n) physical rows, no copy
         self.s_u = vi.scaling.s_u  # (n,)
-        self.A_S = A[S]  # (m, n) the slave rows (a multiplier's recovery reads its D block's)
+        self.A_S = A_S  # (m, n) the slave rows of A' (a multiplier's recovery reads its D
+        # block's)
         self.f_S = e.f[S]  # (m,)
         self.X = (cond.Dt_inv @ self.A_S).tocsr()  # (m, n) D^{-T} A_S
         self.Dt = cond.D.T.tocsr()[self.mult]  # (k_m, m) owned rows of Dᵀ
@@ -122,7 +155,7 @@ class _Owned:
         self.rows_S = S[self.mult]  # (k_m,) their global rows
         # local row of each stacked row [owned R; owned S], and that order
         self.order = np.argsort(np.concatenate([R_own, self.rows_S]) - lo)  # (k,)
-        self.K_R = (A[R_own] - BR_t @ self.X).tocsr()  # (k_R, n) A_R − B_Rᵀ D^{-T} A_S
+        self.K_R = (A_R - BR_t @ self.X).tocsr()  # (k_R, n) A_R − B_Rᵀ D^{-T} A_S
 
     def first(self) -> sp.csr_matrix:
         """(k, n) the owned rows of the condensed Newton matrix in local order: the fixed rows,
@@ -152,6 +185,14 @@ def _residual(e: _Kept, own: _Owned, red: Reductions, u, lam, scale: float) -> f
     return float(np.hypot(red.norm(r1), red.norm(r2)) / scale)
 
 
+def _ownership(PETSc: Any, comm: Any, n: int) -> tuple[int, int]:
+    """[lo, hi): the rows of n this rank owns in PETSc's default layout."""
+    probe = PETSc.Vec().createMPI((PETSc.DECIDE, n), comm=comm)
+    lo, hi = probe.getOwnershipRange()
+    probe.destroy()
+    return lo, hi
+
+
 def solve_ssn_petsc(
     vi: MixedVI,
     tol: float = 1e-10,
@@ -176,82 +217,93 @@ def solve_ssn_petsc(
     comm = PETSc.COMM_WORLD
     red = Reductions(comm)
     t0 = time.perf_counter()
-    e, sc = vi.equilibrated, vi.scaling
+    e, sc = _kept(vi), vi.scaling
     cond = Condensation.detect(e.B)
     if cond is None:
         raise ValueError(
             "the petsc engine condenses the multipliers: B has no block-diagonal slave part "
             "(dual mortar multipliers)"
         )
-    own = _Owned(vi, e, cond, comm, PETSc)
-    kind = "gamg" if linear_solver == "amg" else "mumps"
-    solver = LinearSolve(PETSc, comm, kind, e, own.lo, own.first())
-    e = _released(vi, e)  # the whole equilibrated A is freed: the owned rows are in PETSc
-    memory = {"set_up": red.comm.allgather(peak_mb())}
-    u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
-    lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
-    Lam = e.Lambda
-    scale = max(red.norm(e.f[own.lo : own.hi]), red.norm(e.gap[own.mult])) or 1.0
-    res = _residual(e, own, red, u, lam, scale)
-    history, damped, k = [res], 0, 0
-    converged = res <= tol
-    nloc = own.hi - own.lo
-    while not converged and k < max_iter:
-        k += 1
-        y = lam + e.B @ u - e.gap  # (m,)
-        p = Lam.project(y)
-        J = sp.csr_matrix(Lam.jacobian(y))  # (m, m) block diagonal
-        W = sp.identity(e.m, format="csr") - J
-        rhs_c = p - J @ y - J @ e.gap
-        # owned slave rows: Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)
-        solver.set_rows(own.rows_S, own.pattern_S, own.slave_rows(e, J, W))
-        rhs_S = own.Dt @ (W @ (cond.Dt_inv @ own.f_S) - rhs_c)  # (k_m,)
-        rhs = np.concatenate([own.rhs_R, rhs_S])[own.order]  # (k,) in local row order
-        x = solver.solve(rhs, u[own.lo : own.hi])
-        u_new = red.gather(own.dofs, x, e.n)
-        lam_own = own.Dt_inv @ (own.f_S - own.A_S @ u_new)  # (k_m,)
-        lam_new = red.gather(own.mult, lam_own, e.m)
-        u, lam, t, res = damped_step(
-            lambda u, lam: _residual(e, own, red, u, lam, scale), u, lam, u_new, lam_new, res,
-            damping,
-        )  # fmt: skip
-        damped += t < 1.0
-        history.append(res)
+    lo, hi = _ownership(PETSc, comm, e.n)
+    A_S = vi.equilibrated_rows(cond.S)  # (m, n) the slave rows of A', wherever they are owned
+    # vi.A (canonical since equilibrated_rows) keeps this rank's rows only until the solve
+    # ends, the others freed (if nothing else holds them): no rank holds the whole A meanwhile
+    whole = weakref.ref(vi.A)
+    vi.A = _rows_only(vi.A, lo, hi)
+    try:
+        own = _Owned(vi, e, cond, A_S, lo, hi)
+        kind = "gamg" if linear_solver == "amg" else "mumps"
+        solver = LinearSolve(PETSc, comm, kind, e, own.lo, own.first())
+        memory = {"set_up": red.comm.allgather(peak_mb())}
+        u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
+        lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
+        Lam = e.Lambda
+        scale = max(red.norm(e.f[own.lo : own.hi]), red.norm(e.gap[own.mult])) or 1.0
+        res = _residual(e, own, red, u, lam, scale)
+        history, damped, k = [res], 0, 0
         converged = res <= tol
-        if on_step is not None:
-            active = int((p == y).sum())
-            slip = int(((p != y) & (p != 0.0)).sum())
-            on_step(
-                dict(
-                    step=k,
-                    residual=res,
-                    active=active,
-                    slip=slip,
-                    done=True,
-                    krylov_iterations=solver.iterations if solver.kind == "gamg" else None,
+        nloc = own.hi - own.lo
+        while not converged and k < max_iter:
+            k += 1
+            y = lam + e.B @ u - e.gap  # (m,)
+            p = Lam.project(y)
+            J = sp.csr_matrix(Lam.jacobian(y))  # (m, m) block diagonal
+            W = sp.identity(e.m, format="csr") - J
+            rhs_c = p - J @ y - J @ e.gap
+            # owned slave rows: Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)
+            solver.set_rows(own.rows_S, own.pattern_S, own.slave_rows(e, J, W))
+            rhs_S = own.Dt @ (W @ (cond.Dt_inv @ own.f_S) - rhs_c)  # (k_m,)
+            rhs = np.concatenate([own.rhs_R, rhs_S])[own.order]  # (k,) in local row order
+            x = solver.solve(rhs, u[own.lo : own.hi])
+            u_new = red.gather(own.dofs, x, e.n)
+            lam_own = own.Dt_inv @ (own.f_S - own.A_S @ u_new)  # (k_m,)
+            lam_new = red.gather(own.mult, lam_own, e.m)
+            u, lam, t, res = damped_step(
+                lambda u, lam: _residual(e, own, red, u, lam, scale), u, lam, u_new, lam_new, res,
+                damping,
+            )  # fmt: skip
+            damped += t < 1.0
+            history.append(res)
+            converged = res <= tol
+            if on_step is not None:
+                active = int((p == y).sum())
+                slip = int(((p != y) & (p != 0.0)).sum())
+                on_step(
+                    dict(
+                        step=k,
+                        residual=res,
+                        active=active,
+                        slip=slip,
+                        done=True,
+                        krylov_iterations=solver.iterations if solver.kind == "gamg" else None,
+                    )
                 )
+        sol = finish(
+            e, Lam, sc, u, lam, (res, converged), tol,
+            lambda lam: _residual(e, own, red, u, lam, scale), history, k, t0,
+        )  # fmt: skip
+        res, converged = sol.residual, sol.converged
+        solver.destroy()
+        memory["end"] = red.comm.allgather(peak_mb())
+        sol.info = {
+            "engine": "petsc",
+            "ranks": comm.getSize(),
+            "owned_rows": red.comm.allgather(int(nloc)),
+            "condensed": True,
+            "damped_steps": int(damped),
+            "inside": sol.info["inside"],
+            **solver.info(),
+            "peak_mb": memory,  # per rank: ru_maxrss after the set-up and at the end
+        }
+        if estimate_condition:
+            sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
+        if not converged:
+            sol.warnings.append(
+                f"ssn (petsc): residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"
             )
-    sol = finish(
-        e, Lam, sc, u, lam, (res, converged), tol,
-        lambda lam: _residual(e, own, red, u, lam, scale), history, k, t0,
-    )  # fmt: skip
-    res, converged = sol.residual, sol.converged
-    solver.destroy()
-    memory["end"] = red.comm.allgather(peak_mb())
-    sol.info = {
-        "engine": "petsc",
-        "ranks": comm.getSize(),
-        "owned_rows": red.comm.allgather(int(nloc)),
-        "condensed": True,
-        "damped_steps": int(damped),
-        "inside": sol.info["inside"],
-        **solver.info(),
-        "peak_mb": memory,  # per rank: ru_maxrss after the set-up and at the end
-    }
-    if estimate_condition:
-        sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
-    if not converged:
-        sol.warnings.append(
-            f"ssn (petsc): residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"
-        )
-    return sol
+        return sol
+    finally:
+        # the whole A back: the same object where another holder kept it alive (a load path's
+        # step shares A with the model it came from) on every rank, else gathered from the rows
+        kept = whole()
+        vi.A = kept if red.all_true(kept is not None) else _whole(vi.A, lo, hi, red)
