@@ -12,11 +12,7 @@ from __future__ import annotations
 import textwrap
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
 
 # the sign convention of every tangential quantity, printed under the contact plots
 TAU_NOTE = (
@@ -38,6 +34,17 @@ BOUNDS = {
     "tresca": r"friction bound $\pm g$",
     "coulomb": r"friction bound $\pm F\lambda_n$",
 }
+
+
+def pyplot():
+    """matplotlib.pyplot on the Agg backend, imported on first use: commands that draw
+    nothing (validate, a solve without figures) do not pay its ~0.6 s import."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 def _label(state: dict, key: str) -> str:
@@ -168,6 +175,7 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
     """λ·τ with the friction bound (±g; Coulomb, `state["friction"]`: ±F·λ_n) and the
     tangential jump along Γ3 (one PNG), and u·τ (another); the title counts the nodes by their
     labels (`state_counts`)."""
+    plt = pyplot()
     s, slip = state["s"], state["slip"]
     fig, ax = plt.subplots(figsize=(7, 4))
     _shade_slip(ax, s, slip)
@@ -209,6 +217,7 @@ def potential_plot(
 ) -> str:
     """φ along a boundary part against its arc length `s` (a vertical side is a curve, not a
     vertical line); the ends' coordinates in the title. points (k, 2), s and phi (k,)."""
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(s, phi, "o-", ms=3)
     ax.set_xlabel(f"arc length along {where} [m]")
@@ -248,6 +257,7 @@ def sweep_figure(panels: list, draw, path: Path, title: str = "") -> list[str]:
     """One panel per (heading, model, sol) of `panels`, each drawn by draw(ax, model, sol),
     which returns a note appended to the heading; the same quantity on one scale across the
     panels (`share_scales`); returns the panels' titles."""
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4.3), squeeze=False)
     titles = []
     for ax, (heading, model, sol) in zip(axes[0], panels, strict=True):
