@@ -46,7 +46,7 @@ def _state(labels, friction=None):
 def _figures(monkeypatch) -> list:
     """The figures plots closes (recorded instead of dropped)."""
     seen = []
-    monkeypatch.setattr(plots.plt, "close", seen.append)
+    monkeypatch.setattr(plots.pyplot(), "close", seen.append)
     return seen
 
 

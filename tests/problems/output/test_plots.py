@@ -23,7 +23,7 @@ def _sweep(monkeypatch, tmp_path, plugin_name, scene, key, values):
         model = plugin.build(load_scene(scene, [f"{key}={v!r}"]), 0)
         panels.append((panel_heading("friction bound g [Pa]", v), model, solve(model.vi, "ssn")))
     figs = []
-    monkeypatch.setattr(plots.plt, "close", figs.append)  # keep the figure
+    monkeypatch.setattr(plots.pyplot(), "close", figs.append)  # keep the figure
     plots.sweep_figure(panels, plugin.draw, tmp_path / "f.png", title="t")
     assert (tmp_path / "f.png").is_file()
     return figs[0]
