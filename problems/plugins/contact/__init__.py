@@ -24,12 +24,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import ValidationInfo, model_validator
-
-from problems.scene import Scene, SceneModel
+from problems.scene import Scene
 
 from . import plane, solid
 from .dimension import scene_dimension
+from .scene_model import ContactScene
 
 NAME = "contact"
 CONTRACT = 2
@@ -46,27 +45,7 @@ def front(scene: Scene) -> Any:
     return FRONTS[scene_dimension(scene.data, scene.path)]
 
 
-class ContactScene(SceneModel):
-    """A contact scene: validated by the scene model of its dimension's front
-    (`plane.SCENE_MODEL` or `solid.SCENE_MODEL`), whose instance it returns."""
-
-    @model_validator(mode="wrap")
-    @classmethod
-    def _by_dimension(cls, data: Any, handler: Any, info: ValidationInfo) -> Any:
-        file = (info.context or {}).get("file")
-        model = FRONTS[scene_dimension(data, file)].SCENE_MODEL
-        return model.model_validate(data, context={"file": file, "dimension": model.DIMENSION})
-
-    @classmethod
-    def __get_pydantic_json_schema__(cls, core_schema: Any, handler: Any) -> dict:
-        return {
-            "anyOf": [
-                handler(m.__pydantic_core_schema__) for m in (plane.SCENE_MODEL, solid.SCENE_MODEL)
-            ]
-        }
-
-
-SCENE_MODEL = ContactScene
+SCENE_MODEL = ContactScene  # one scene model, 2D and 3D (`scene_model`)
 
 
 def build(scene: Scene, level: int | None = None) -> Any:
