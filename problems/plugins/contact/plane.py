@@ -26,7 +26,7 @@ from . import model as contact_model
 from .bodies import Body
 from .curve_contact import Contact, slave_contact
 from .model import BodiesModel, build_bodies
-from .scene_model import ContactScene
+from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
 DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
@@ -278,8 +278,6 @@ def draw(ax, model: Model, sol: Solution) -> str:
     return plots.friction_panel(ax, contact_state(model, sol))
 
 
-count = partial(contact_model.count, SCENE_MODEL)
-update = partial(contact_model.update_scene, SCENE_MODEL)
 incremental = contact_model.incremental
 
 

@@ -105,15 +105,17 @@ def _unilateral_summary(contact: Any, state: dict) -> dict:
 
 def contact_table(model: Any, sol: Solution) -> ContactTable:
     """One row per slave node of Γ3 (problems.output.results): λ_n, λ_t, the tangential
-    mortar jump and stick/slip; NaN and state 'no_multiplier' where a node carries none."""
+    mortar jump, the friction radius g and stick/slip; NaN and state 'no_multiplier' where a
+    node carries none."""
     c = model.contact
     tr = c.tr
     st = model.contact_state(sol)
     k = tr.size
-    lam_n, lam_t, jump_t = np.full(k, np.nan), np.full(k, np.nan), np.full(k, np.nan)
+    lam_n, lam_t, jump_t, g = (np.full(k, np.nan) for _ in range(4))
     lam_n[c.rows_n] = st["lam_n"]
     lam_t[c.rows_t] = st["lam_t"]
     jump_t[c.rows_t] = st["jump_t"]
+    g[c.rows_t] = st["g"]
     state = np.full(k, "no_multiplier", dtype=object)
     state[c.rows_t] = st["state"]
     gap = None
@@ -131,6 +133,7 @@ def contact_table(model: Any, sol: Solution) -> ContactTable:
         state=state.astype(str),
         gap=gap,
         friction=c.friction,
+        bound=g,
     )
 
 

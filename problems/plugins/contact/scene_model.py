@@ -6,6 +6,7 @@ vectors, tensors and expressions against it); the 2D-only keys ([contact.electri
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
@@ -18,6 +19,7 @@ from problems.scene.model import head, refuse
 
 from . import electrical as electrical_contact
 from . import law as contact_law
+from . import model as contact_model
 from .bodies import BodySection
 from .dimension import ALIASES, scene_dimension
 from .model import interface_references, reference
@@ -120,3 +122,8 @@ class ContactScene(SceneModel):
                 "0 (absent) with a piezoelectric master body: the charge flows into "
                 "the master, whose potential takes the foundation's place",
             )
+
+
+# the contract's `count` and `update` of both fronts (the dimension is the scene's)
+count = partial(contact_model.count, ContactScene)
+update = partial(contact_model.update_scene, ContactScene)

@@ -23,7 +23,7 @@ from . import model as contact_model
 from . import solid_output as contact3d_output
 from .bodies import Body
 from .model import BodiesModel, build_bodies
-from .scene_model import ContactScene
+from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
 from .surface_contact import mortar_coupling, slave_contact
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
@@ -85,12 +85,6 @@ def _build(scene: Scene, level: int | None) -> Model:
     )
     bodies_ = list(bodies.values())
     return Model(scene, level, bodies_, contact, vi, free, values, spec.options(), rhs=rhs)
-
-
-update = partial(contact_model.update_scene, SCENE_MODEL)
-
-
-count = partial(contact_model.count, SCENE_MODEL)
 
 
 incremental = contact_model.incremental
