@@ -93,16 +93,6 @@ def closed_gap_warning(model: Any, sol: Solution) -> list[str]:
     ]
 
 
-def _unilateral_summary(contact: Any, state: dict) -> dict:
-    """The summary entries only unilateral contact has: open nodes, the law and friction."""
-    return {
-        "open": int(np.sum(state["normal_state"] == "open")),
-        "law": contact.law,
-        "friction": contact.friction,
-        "min_gap": float((state["gap"] - state["u_n"]).min(initial=np.inf)),
-    }
-
-
 def contact_table(model: Any, sol: Solution) -> ContactTable:
     """One row per slave node of Γ3 (problems.output.results): λ_n, λ_t, the tangential
     mortar jump, the friction radius g and stick/slip; NaN and state 'no_multiplier' where a
@@ -158,7 +148,11 @@ def postprocess(model: Any, sol: Solution, outdir: Path) -> dict:
             "slip": int(np.sum(labels == "slip")),
             "ambiguous": int(np.sum(labels == "ambiguous")),
             **(
-                _unilateral_summary(model.contact, state)
+                interface.unilateral_summary(
+                    model.contact,
+                    np.sum(state["normal_state"] == "open"),
+                    state["gap"] - state["u_n"],
+                )
                 if model.contact.law != "bilateral"
                 else {}
             ),

@@ -177,15 +177,6 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     the stick/slip map into `outdir`; return the summary entries."""
     summary = contact3d_output.write(model, sol, outdir, contact_state)
     summary["checks"] = checks.solution_checks(model, sol)
-    c = model.contact
-    if c is not None and c.law == "unilateral":
-        st = contact_state(model, sol)
-        summary["contact"].update(
-            law=c.law,
-            friction=c.friction,
-            open=int((st["state"] == "open").sum()),
-            min_gap=float(np.nanmin(st["gap"], initial=np.inf)),
-        )
     return summary
 
 
