@@ -33,8 +33,10 @@ import scipy.sparse as sp
 from fem.facets import Trace, dual_mass, facet_integrals, multiplier_basis, trace
 from fem.mesh import Mesh
 from problems.errors import SceneError
+from problems.scene.imported import require_curve
 from vi_core import Box, Free, NonNegative, product
 
+from ..contract import check_meshed
 from . import interface, separation
 from . import law as contact_law
 from .bodies import Body
@@ -120,6 +122,22 @@ class Contact:
         rows = np.empty(self.B_full.shape[0], dtype=int)  # trace index of each row of B_full
         rows[self.idx_n], rows[self.idx_t] = self.rows_n, self.rows_t
         return self.tr.node_sizes()[rows] * self.tr.weights[rows]
+
+
+def from_scene(bodies: dict[str, Body], ct: ContactSection, n_full: int, level: int) -> Contact:
+    """The contact of a [contact] table between the built `bodies` (by name): its boundaries
+    checked (meshed, curves), then `slave_contact`."""
+    sname, slave_part = ct.slave.split(".", 1)
+    slave, master, mpart = bodies[sname], None, None
+    refs = [(ct.key("slave"), slave, slave_part)]
+    if ct.master != "rigid":
+        mname, mpart = ct.master.split(".", 1)
+        master = bodies[mname]
+        refs.append((ct.key("master"), master, mpart))
+    for key, b, part in refs:
+        check_meshed(b.mesh, [(key, part)])
+        require_curve(b.mesh, part, key, f"{b.name}.{part}")
+    return slave_contact(slave, slave_part, master, mpart, ct, n_full, level)
 
 
 def carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray]:

@@ -112,6 +112,33 @@ def built(build: Callable[[Scene, int | None], Any], scene: Scene, level: int | 
         raise (err if err.file else err.in_file(scene.path)) from None
 
 
+def assemble(
+    spec: Any,
+    scene: Scene,
+    level: int | None,
+    interface: Callable[[dict[str, Any], Any, int, int], Any],
+    model_class: type[BodiesModel],
+    options: dict | None = None,
+) -> Any:
+    """The built `model_class` of a validated scene model `spec` (of `scene`) at `level` (None:
+    the scene's), 2D and 3D alike: its bodies, the contact interface
+    `interface(bodies by name, spec.contact, n_full, level)` of its [contact] table (None
+    without one) and the mixed VI (`mixed_vi`, the data checked by `checks.finite_data`);
+    `options` (the front's) come before the scene's solver options."""
+    from .checks import finite_data
+
+    level = spec.scene.level if level is None else level
+    bodies = build_bodies(spec, level)
+    n_full = sum(b.size for b in bodies.values())
+    contact = None if spec.contact is None else interface(bodies, spec.contact, n_full, level)
+    info = {"scene": scene.name, "level": level}
+    check = partial(finite_data, contact=contact)
+    vi, free, values, rhs = mixed_vi(list(bodies.values()), contact, info, check=check)
+    options = {**(options or {}), **spec.options()}
+    bodies_ = list(bodies.values())
+    return model_class(scene, level, bodies_, contact, vi, free, values, options, rhs=rhs)
+
+
 def mixed_vi(
     bodies: list[Any],
     contact: Any,

@@ -19,13 +19,12 @@ from vi_core import MixedVI, Solution
 from vi_core import states as node_states
 
 from ..contract import check_meshed
-from . import checks, errors, interface, plane_output, warm_starts
 from . import electrical as electrical_contact
+from . import errors, interface, plane_output, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
-from .bodies import Body
-from .curve_contact import Contact, slave_contact
-from .model import BodiesModel, build_bodies
+from .curve_contact import Contact, from_scene
+from .model import BodiesModel
 from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
@@ -79,42 +78,19 @@ def build_model(
 ) -> Model:
     """The Model (of `model_class`, a subclass of Model) of a validated scene model `spec`
     (of `scene`); signorini builds its scenes through it."""
-    level = spec.scene.level if level is None else level
-    bodies: dict[str, Body] = build_bodies(spec, level)
-    n_full = sum(b.size for b in bodies.values())
-    contact = None
-    ct = spec.contact
-    if ct is not None:
-        sname, slave_part = ct.slave.split(".", 1)
-        slave, master, mpart = bodies[sname], None, None
-        refs = [(ct.key("slave"), slave, slave_part)]
-        if ct.master != "rigid":
-            mname, mpart = ct.master.split(".", 1)
-            master = bodies[mname]
-            refs.append((ct.key("master"), master, mpart))
-        for key, b, part in refs:
-            check_meshed(b.mesh, [(key, part)])
-            require_curve(b.mesh, part, key, f"{b.name}.{part}")
-        contact = slave_contact(slave, slave_part, master, mpart, ct, n_full, level)
-    options = {"potential_along": None, **spec.options()}
-    if spec.output is not None and spec.output.potential_along is not None:
-        bname, part = spec.output.potential_along.split(".", 1)
+    options = {"potential_along": None}
+    model = contact_model.assemble(spec, scene, level, from_scene, model_class, options)
+    ct, contact, vi = spec.contact, model.contact, model.vi
+    along = None if spec.output is None else spec.output.potential_along
+    if along is not None:
+        bname, part = along.split(".", 1)
         key = spec.output.key("potential_along")
-        check_meshed(bodies[bname].mesh, [(key, part)])
-        require_curve(bodies[bname].mesh, part, key, spec.output.potential_along)
-        options["potential_along"] = (bname, part)
-
-    vi, free, values, rhs = contact_model.mixed_vi(
-        list(bodies.values()),
-        contact,
-        {"scene": scene.name, "level": level},
-        check=partial(checks.finite_data, contact=contact),
-    )
-    model = model_class(
-        scene, level, list(bodies.values()), contact, vi, free, values, options, rhs=rhs
-    )
+        mesh = next(b.mesh for b in model.bodies if b.name == bname)
+        check_meshed(mesh, [(key, part)])
+        require_curve(mesh, part, key, along)
+        model.options["potential_along"] = (bname, part)
     if ct is not None and ct.electrical is not None:
-        model.electrical = _electrical(ct.electrical, contact, vi, free, values)
+        model.electrical = _electrical(ct.electrical, contact, vi, model.free, model.values)
     if contact is not None:
         model.warnings += plane_output.interface_warnings(contact)
     for b in model.bodies:

@@ -16,15 +16,13 @@ from problems.scene import Scene
 from vi_core import Solution
 from vi_core import states as node_states
 
-from ..contract import check_meshed
 from . import checks, errors, interface, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from . import solid_output as contact3d_output
-from .bodies import Body
-from .model import BodiesModel, build_bodies
+from .model import BodiesModel
 from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
-from .surface_contact import mortar_coupling, slave_contact
+from .surface_contact import from_scene
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
 ALIAS = "contact3d"  # its former name, still accepted (registry.ALIASES)
@@ -63,28 +61,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
 def _build(scene: Scene, level: int | None) -> Model:
     spec = scene.validated(SCENE_MODEL, DIMENSION)
-    level = spec.scene.level if level is None else level
-    bodies: dict[str, Body] = build_bodies(spec, level)
-    n_full = sum(b.size for b in bodies.values())
-    contact = None
-    if spec.contact is not None:
-        ct = spec.contact
-        sname, part = ct.slave.split(".", 1)
-        check_meshed(bodies[sname].mesh, [("contact.slave", part)])
-        master = None
-        if ct.master != "rigid":
-            mname, mpart = ct.master.split(".", 1)
-            check_meshed(bodies[mname].mesh, [("contact.master", mpart)])
-            master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
-        contact = slave_contact(bodies[sname], part, ct, n_full, master, level)
-    vi, free, values, rhs = contact_model.mixed_vi(
-        list(bodies.values()),
-        contact,
-        {"scene": scene.name, "level": level},
-        check=partial(checks.finite_data, contact=contact),
-    )
-    bodies_ = list(bodies.values())
-    return Model(scene, level, bodies_, contact, vi, free, values, spec.options(), rhs=rhs)
+    return contact_model.assemble(spec, scene, level, from_scene, Model)
 
 
 incremental = contact_model.incremental

@@ -56,6 +56,7 @@ from fem.facets import Trace, dual_mass, facet_integrals, frames, multiplier_bas
 from problems.errors import SceneError
 from vi_core import Ball, Box, Free, NonNegative, product
 
+from ..contract import check_meshed
 from . import interface, separation
 from . import law as contact_law
 from .bodies import Body
@@ -183,6 +184,21 @@ class SolidContact:
         sets.append(contact_law.pair_set(self.friction, bound[self.line], 2))
         sets.append(NonNegative(self.rows_n.size - self.disc.size - self.line.size))
         return product(*sets)
+
+
+def from_scene(
+    bodies: dict[str, Body], ct: ContactSection, n_full: int, level: int
+) -> SolidContact:
+    """The contact of a [contact] table between the built `bodies` (by name): its boundaries
+    checked (meshed), the master's mortar (`mortar_coupling`), then `slave_contact`."""
+    sname, part = ct.slave.split(".", 1)
+    check_meshed(bodies[sname].mesh, [("contact.slave", part)])
+    master = None
+    if ct.master != "rigid":
+        mname, mpart = ct.master.split(".", 1)
+        check_meshed(bodies[mname].mesh, [("contact.master", mpart)])
+        master = mortar_coupling(bodies[sname], part, bodies[mname], mpart)
+    return slave_contact(bodies[sname], part, ct, n_full, master, level)
 
 
 def row_nodes(c: SolidContact) -> np.ndarray:
