@@ -195,9 +195,6 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             },
             "frames": frame_checks(model),
         }
-        if c.law == "unilateral":
-            open_nodes = np.sum(st["state"] == "open")
-            summary["contact"] |= interface.unilateral_summary(c, open_nodes, st["gap"])
         summary["lemma_4_2"] = st["lemma_4_2"]
         has_t = st["has_t"]
         summary["warnings"] = interface.friction_warnings(
@@ -214,6 +211,9 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
                     f"{len(missing)} node(s) of {c.slave.name}.{c.slave_part} have no master "
                     "behind their whole support and carry no multiplier (contact.uncovered_nodes)"
                 )
+        if c.law == "unilateral":
+            open_nodes = np.sum(st["state"] == "open")
+            summary["contact"] |= interface.unilateral_summary(c, open_nodes, st["gap"])
     summary["files"] = sorted(files)
     return summary
 
