@@ -19,17 +19,20 @@ import numpy as np
 STATES = ("stick", "slip", "open", "no_multiplier", "ambiguous")
 CSV_TITLE = "mixvi contact results, one row per node of the slave contact boundary"
 AXES = "xyz"
-UNITS = {"lambda_n": "Pa", "lambda_t": "Pa", "jump_t": "m", "gap": "m", "state": "-"}
+UNITS = {"lambda_n": "Pa", "lambda_t": "Pa", "jump_t": "m", "g": "Pa", "gap": "m", "state": "-"}
 MEANING = {
     "x": "node position",
     "normal_x": "outward unit normal n of the slave body",
     "tangent_x": "unit tangent t of the multiplier lambda_t",
+    "tangent1_x": "unit tangent t1 of the multiplier lambda_t (t1, t2, n right-handed)",
     "tangent2_x": "second unit tangent t2 of the multiplier lambda_t2 (t2 = n x t)",
     "lambda_n": "normal multiplier (contact traction on the slave is -lambda; "
     "lambda_n > 0: compression); empty where the node carries none",
     "lambda_t": "tangential multiplier along tau = (-n_y, n_x); |lambda_t| <= {bound}",
     "jump_t": "tangential jump [u].tau (slave minus master; slave displacement for a rigid "
     "foundation)",
+    "g": "friction radius of the solution at the node ({bound}; 0 where open); empty where the "
+    "node carries no tangential multiplier",
     "gap": "remaining normal gap to the obstacle, gap0 - u.n (0 in contact)",
     "state": "stick (|lambda_t| < {bound}), slip (|lambda_t| = {bound}), open (not touching; "
     "unilateral only), no_multiplier (crosspoint or uncovered node), ambiguous (not settled at the "
@@ -39,7 +42,8 @@ MEANING = {
 BOUNDS = {"tresca": "g", "coulomb": "F lambda_n"}
 # with explicit tangent columns the tangential quantities are along them, not along τ
 MEANING_WITH_TANGENTS = {
-    "lambda_t": "tangential multiplier along t (the tangent_* columns); |lambda_t| <= {bound}",
+    "lambda_t": "tangential multiplier along the first tangent (tangent_* or tangent1_*); "
+    "|lambda_t| <= {bound}",
     "lambda_t2": "tangential multiplier along t2 (the tangent2_* columns)",
     "jump_t": "tangential jump [u].t (slave minus master; slave displacement for a rigid "
     "foundation)",
@@ -58,8 +62,11 @@ class ContactTable:
     lambda_n : (k,) or None (a law without a normal multiplier, e.g. antiplane friction).
     lambda_t, jump_t : (k,) or (k, d_t) per tangent; NaN where the node carries none.
     tangents : None (2D: τ = (−n_y, n_x), no columns) or (k, d_t, D) unit tangents, D ≥ d
-        (D = 3 with d = 2: antiplane, whose tangent is e_z), written as tangent_*, tangent2_*.
+        (D = 3 with d = 2: antiplane, whose tangent is e_z), written as tangent_* (one) or
+        tangent1_*, tangent2_* (two: a 3D surface).
     state : (k,) one of STATES.  gap : (k,) or None (bilateral contact has none).
+    bound : (k,) or None: the friction radius of the solution per node (column g, Pa; NaN
+        where the node carries no tangential multiplier).
     meanings : column name → meaning, replacing MEANING's line for a plug-in's own law.
     friction : "tresca" (bound g) or "coulomb" (bound F λ_n): the bound the meanings name.
     """
@@ -76,6 +83,7 @@ class ContactTable:
     tangents: np.ndarray | None = None
     meanings: dict[str, str] = field(default_factory=dict)
     friction: str = "tresca"
+    bound: np.ndarray | None = None
 
     @property
     def tangent_frame(self) -> np.ndarray:
@@ -84,6 +92,11 @@ class ContactTable:
             return self.tangents
         n = self.normals
         return np.stack([-n[:, 1], n[:, 0]], axis=1)[:, None, :]
+
+    def tangent_names(self) -> list[str]:
+        """The names of the explicit tangents: tangent (one), tangent1, tangent2 (two)."""
+        n = 0 if self.tangents is None else self.tangents.shape[1]
+        return ["tangent"] if n == 1 else [f"tangent{j + 1}" for j in range(n)]
 
     @staticmethod
     def _split(name: str, v: np.ndarray) -> dict[str, np.ndarray]:
@@ -94,20 +107,22 @@ class ContactTable:
 
     @property
     def columns(self) -> dict[str, np.ndarray]:
-        """The CSV columns, in order: x, y[, z], normal_*, [tangent_*, tangent2_*,] lambda_n,
-        lambda_t[, lambda_t2], jump_t[, jump_t2][, gap], state (those that apply)."""
+        """The CSV columns, in order: x, y[, z], normal_*, [tangent_* | tangent1_*, tangent2_*,]
+        lambda_n, lambda_t[, lambda_t2], jump_t[, jump_t2][, g][, gap], state (those that
+        apply)."""
         d = self.points.shape[1]
         cols = {AXES[i]: self.points[:, i] for i in range(d)}
         cols |= {f"normal_{AXES[i]}": self.normals[:, i] for i in range(d)}
         if self.tangents is not None:
             dim = self.tangents.shape[2]
-            for j in range(self.tangents.shape[1]):
-                name = "tangent" if j == 0 else f"tangent{j + 1}"
+            for j, name in enumerate(self.tangent_names()):
                 cols |= {f"{name}_{AXES[i]}": self.tangents[:, j, i] for i in range(dim)}
         if self.lambda_n is not None:
             cols["lambda_n"] = self.lambda_n
         cols |= self._split("lambda_t", self.lambda_t)
         cols |= self._split("jump_t", self.jump_t)
+        if self.bound is not None:
+            cols["g"] = self.bound
         if self.gap is not None:
             cols["gap"] = self.gap
         cols["state"] = self.state
@@ -216,13 +231,14 @@ def write_contact_vtu(path: Path, table: ContactTable) -> None:
 
     code = np.array([STATES.index(s) for s in table.state], dtype=np.int32)
     point_data = {"normal": _pad3(table.normals)}
-    if table.tangents is not None:
-        for j in range(table.tangents.shape[1]):
-            point_data["tangent" if j == 0 else f"tangent{j + 1}"] = _pad3(table.tangents[:, j])
+    for j, name in enumerate(table.tangent_names()):
+        point_data[name] = _pad3(table.tangents[:, j])
     if table.lambda_n is not None:
         point_data["lambda_n"] = table.lambda_n
     point_data |= table._split("lambda_t", table.lambda_t)
     point_data |= table._split("jump_t", table.jump_t)
+    if table.bound is not None:
+        point_data["g"] = table.bound
     point_data["state"] = code
     point_data |= {f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)}
     if table.gap is not None:

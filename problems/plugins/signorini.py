@@ -28,6 +28,7 @@ import numpy as np
 from pydantic import field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
+from problems.errors import SceneError
 from problems.output import plots
 from problems.scene import Scene, SceneModel
 from problems.scene.fields import NonNegativeExpr, Text
@@ -36,6 +37,7 @@ from problems.scene.model import head
 from vi_core import Solution
 
 from .contact import plane as pc
+from .contact import scene_model
 from .contact.bodies import BodySection
 from .contact.law import FrictionLaw
 from .contract import ExtremeRow, Sweep, check_boundaries, expect
@@ -94,11 +96,11 @@ SCENE_MODEL = SignoriniScene
 BODY = "body"  # the body's name in the piezo_contact model
 
 
-def piezo_spec(spec: SignoriniScene) -> pc.PlaneScene:
+def piezo_spec(spec: SignoriniScene) -> scene_model.ContactScene:
     """The piezo_contact scene model of a validated signorini scene (module docstring); its
     expressions keep their signorini field paths for the errors of the build."""
     ct = spec.contact
-    contact = pc.ContactSection.model_construct(
+    contact = scene_model.ContactSection.model_construct(
         slave=f"{BODY}.{ct.boundary}",
         master="rigid",
         law="unilateral",
@@ -109,7 +111,7 @@ def piezo_spec(spec: SignoriniScene) -> pc.PlaneScene:
         ends="keep",
     )
     contact._path = "contact"
-    return pc.PlaneScene.model_construct(
+    return scene_model.ContactScene.model_construct(
         format=2,
         scene=spec.scene,
         solver=spec.solver,
@@ -125,9 +127,9 @@ def build(scene: Scene, level: int | None = None) -> Model:
     spec = scene.validated(SCENE_MODEL)
     try:
         return pc.build_model(piezo_spec(spec), scene, level, Model)
-    except pc.SceneError as err:
+    except SceneError as err:
         if err.key == "contact.slave":  # the preset's slave is signorini's contact.boundary
-            err = pc.SceneError("contact.boundary", spec.contact.boundary, err.allowed, err.file)
+            err = SceneError("contact.boundary", spec.contact.boundary, err.allowed, err.file)
         raise (err if err.file else err.in_file(scene.path)) from None
 
 

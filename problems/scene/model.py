@@ -159,14 +159,21 @@ class LoadPath(Section):
 
 class SceneModel(Section):
     """The root of a scene: format, [scene], [solver], [load_path]; plug-ins add their
-    sections. DIMENSION: that of the scene's geometries (an expression may use z only in 3D)."""
+    sections. DIMENSION: that of the scene's geometries (an expression may use z only in 3D);
+    None where the geometries tell it at validation (`dimension`)."""
 
-    DIMENSION: ClassVar[int] = 2
+    DIMENSION: ClassVar[int | None] = 2
 
     format: Literal[2] = Field(description="the scene format (2)")
     scene: Head
     solver: Solver | None = None
     load_path: LoadPath | None = None
+
+    @property
+    def dimension(self) -> int:
+        """The scene's dimension (2 or 3): DIMENSION (a scene model whose geometries tell it
+        overrides this)."""
+        return self.DIMENSION
 
     def options(self) -> dict:
         """Solver options from the scene (only the keys it gives)."""
@@ -185,12 +192,15 @@ def validate(
     file: str | None = None,
     overrides: dict[str, str] | None = None,
     prefix: tuple[str | int, ...] = (),
+    dimension: int | None = None,
 ) -> Section:
     """`data` validated by `cls`, every expression told its field path (SceneError naming the
     field, the value, what is allowed and the override that caused it, if one did). `prefix`:
-    where `data` sits in the scene when `cls` is one section (e.g. ("exact",))."""
+    where `data` sits in the scene when `cls` is one section (e.g. ("exact",)); `dimension`:
+    the scene's, told to its bodies (default `cls.DIMENSION`)."""
     try:
-        dimension = getattr(cls, "DIMENSION", None)  # a scene's, told to its bodies
+        if dimension is None:
+            dimension = getattr(cls, "DIMENSION", None)
         model = cls.model_validate(data, context={"file": file, "dimension": dimension})
     except ValidationError as err:
         e = err.errors()[0]
@@ -226,7 +236,7 @@ def _variables(model: SceneModel, file: str | None, overrides: dict[str, str]) -
     t_end = path.values()[-1] if path is not None else None
     for e in expressions(model):
         for used, allowed in (
-            (e.uses_z and model.DIMENSION == 2, Z_IN_2D),
+            (e.uses_z and model.dimension == 2, Z_IN_2D),
             (e.uses_t and path is None, NO_LOAD_PATH),
         ):
             if used:

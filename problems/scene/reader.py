@@ -56,14 +56,15 @@ class Scene:
     notices: list[str] = field(default_factory=list)
     _cache: tuple | None = field(default=None, repr=False, compare=False)
 
-    def validated(self, cls: type[SceneModel]) -> SceneModel:
-        """The scene validated by `cls` (SceneError naming the field); cached while `data`
-        is unchanged, revalidated after any edit of it."""
+    def validated(self, cls: type[SceneModel], dimension: int | None = None) -> SceneModel:
+        """The scene validated by `cls` (SceneError naming the field), in `dimension` if given
+        (else `cls.DIMENSION`, or its geometries' where that is None); cached while `data` is
+        unchanged, revalidated after any edit of it."""
         c = self._cache
-        if c is not None and c[0] is cls and c[1] == self.data:
+        if c is not None and c[0] == (cls, dimension) and c[1] == self.data:
             return c[2]
-        model = validate(cls, self.data, self.path, self.overrides)
-        self._cache = (cls, copy.deepcopy(self.data), model)
+        model = validate(cls, self.data, self.path, self.overrides, dimension=dimension)
+        self._cache = ((cls, dimension), copy.deepcopy(self.data), model)
         return model
 
     def files(self) -> list[tuple[str, Path]]:
@@ -92,7 +93,7 @@ class Scene:
         """A scene made from a validated model (the Python API): its data is the model's."""
         data = model.model_dump(mode="json", by_alias=True, exclude_none=True)
         scene = cls(data=data, path=f"<{name}>", name=name)
-        scene._cache = (type(model), copy.deepcopy(data), model)
+        scene._cache = ((type(model), None), copy.deepcopy(data), model)
         return scene
 
 

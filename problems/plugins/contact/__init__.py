@@ -1,20 +1,22 @@
 """Plug-in `contact`: elastic or piezoelectric bodies in bilateral Tresca or unilateral
 Tresca/Coulomb contact with dual mortar multipliers, in 2D and in 3D (issue 30).
 
-One plug-in, one registered name, one scene language: `[scene] plugin = "contact"`, the
-dimension taken from the bodies' geometries (`dimension.scene_dimension`). Its two fronts are
-the modules `plane` (2D: a contact node carries a normal and one tangential multiplier, the
-friction interval [−g, g]) and `solid` (3D: a normal and up to two tangential ones, the
-friction disc |λ_t| ≤ g); they share the bodies and their assembly (`bodies`, `fields`,
-`body_output`), the model and its mixed VI (`model`), the contact law's scene keys and sets
-(`law`), the layout-free contact state and warnings (`interface`), the error norms (`errors`),
-the checks (`checks`), the electrical contact (`electrical`), the load-path and warm-start
-transfers (`problems.plugins.transfer`, `warm_starts`), the two-body geometry checks
-(`separation`) and the manufactured balance (`balance`); `plane_output` and `solid_output`
-write each front's files. Each front declares
-the whole contract v2 with NAME = "contact"; `registry.for_scene` hands a scene the front of
-its dimension (`front`), and this module answers for the plug-in as a whole where no scene is
-at hand (`mixvi schema`, `mixvi extremes`, listings).
+One plug-in, one registered name, one scene language: `[scene] plugin = "contact"`, one scene
+model (`scene_model.ContactScene`) whose dimension is the bodies' geometries'
+(`dimension.scene_dimension`). Its two fronts are the modules `plane` (2D: a contact node
+carries a normal and one tangential multiplier, the friction interval [−g, g]; the interface on
+a boundary curve is `curve_contact`'s) and `solid` (3D: a normal and up to two tangential ones,
+the friction disc |λ_t| ≤ g; the interface on a surface is `surface_contact`'s); they share the
+bodies and their assembly (`bodies`, `fields`, `body_output`), the model and its mixed VI
+(`model`), the contact law's scene keys and sets (`law`), the layout-free contact state,
+warnings and unilateral summary (`interface`), the error norms (`errors`), the checks
+(`checks`), the electrical contact (`electrical`), the load-path and warm-start transfers
+(`problems.plugins.transfer`, `warm_starts`), the two-body geometry checks (`separation`), the
+manufactured balance (`balance`) and the contact.csv writer (`problems.output.results`
+.ContactTable, fed by `plane_output` and `solid_output`, which write each front's other files).
+Each front declares the whole contract v2 with NAME = "contact"; `registry.for_scene` hands a
+scene the front of its dimension (`front`), and this module answers for the plug-in as a whole
+where no scene is at hand (`mixvi schema`, `mixvi extremes`, listings).
 
 The former names `piezo_contact` (2D) and `contact3d` (3D) stay accepted in scenes
 (`registry.ALIASES`, with a one-line notice on stderr) and fix the dimension.
@@ -24,12 +26,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import ValidationInfo, model_validator
-
-from problems.scene import Scene, SceneModel
+from problems.scene import Scene
 
 from . import plane, solid
 from .dimension import scene_dimension
+from .scene_model import ContactScene
 
 NAME = "contact"
 CONTRACT = 2
@@ -46,27 +47,7 @@ def front(scene: Scene) -> Any:
     return FRONTS[scene_dimension(scene.data, scene.path)]
 
 
-class ContactScene(SceneModel):
-    """A contact scene: validated by the scene model of its dimension's front
-    (`plane.SCENE_MODEL` or `solid.SCENE_MODEL`), whose instance it returns."""
-
-    @model_validator(mode="wrap")
-    @classmethod
-    def _by_dimension(cls, data: Any, handler: Any, info: ValidationInfo) -> Any:
-        file = (info.context or {}).get("file")
-        model = FRONTS[scene_dimension(data, file)].SCENE_MODEL
-        return model.model_validate(data, context={"file": file, "dimension": model.DIMENSION})
-
-    @classmethod
-    def __get_pydantic_json_schema__(cls, core_schema: Any, handler: Any) -> dict:
-        return {
-            "anyOf": [
-                handler(m.__pydantic_core_schema__) for m in (plane.SCENE_MODEL, solid.SCENE_MODEL)
-            ]
-        }
-
-
-SCENE_MODEL = ContactScene
+SCENE_MODEL = ContactScene  # one scene model, 2D and 3D (`scene_model`)
 
 
 def build(scene: Scene, level: int | None = None) -> Any:

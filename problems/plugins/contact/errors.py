@@ -16,7 +16,8 @@ the coarse solution evaluated at the reference nodes (`transfer.nodal_reference_
 for nested meshes, an O(h²) transfer for mapped curved blocks) and λ_h of the coarse level at
 Gauss points of the reference Γ3 located by normalised arc length, weighted by the coarse h_E;
 in 3D the relative RMS differences at the coarse nodes (nested: each is a fine node) of u, φ
-(``u_nodes``, ``phi_nodes``) and of λ over the contact nodes weighted by W_k (``lam_nodes``).
+(``u_nodes``, ``phi_nodes``: pooled over the bodies, Σ_b Σ |u_h − u_ref|² / Σ_b Σ |u_ref|²)
+and of λ over the contact nodes weighted by W_k (``lam_nodes``).
 """
 
 from __future__ import annotations
@@ -166,14 +167,16 @@ def _nodal_differences(
     model: Any, sol: Solution, ref: Any, ref_sol: Solution, state: State
 ) -> dict[str, float]:
     """u_nodes, phi_nodes, lam_nodes of the module docstring (3D)."""
-    out = {}
+    sums: dict[str, list[float]] = {}  # norm → [Σ w d², Σ w r²] over every body
 
     def matched(points_c: np.ndarray, points_f: np.ndarray) -> np.ndarray:
         at = {tuple(np.round(p, 10)): i for i, p in enumerate(points_f)}
         return np.array([at[tuple(np.round(p, 10))] for p in points_c])
 
-    def relative(d: np.ndarray, r: np.ndarray, w: Any = 1.0) -> float:
-        return float(np.sqrt(np.sum(w * d**2) / max(np.sum(w * r**2), 1e-300)))
+    def add(norm: str, d: np.ndarray, r: np.ndarray, w: Any = 1.0) -> None:
+        s = sums.setdefault(norm, [0.0, 0.0])
+        s[0] += float(np.sum(w * d**2))
+        s[1] += float(np.sum(w * r**2))
 
     coarse = {b.name: (b, disp, phi) for b, disp, phi in _fields(model, sol.u)}
     for bf, *fine in _fields(ref, ref_sol.u):
@@ -181,10 +184,10 @@ def _nodal_differences(
         idx = matched(b.mesh.points, bf.mesh.points)
         for norm, c, f in zip(("u_nodes", "phi_nodes"), fc, fine, strict=True):
             if c is not None:
-                out[norm] = relative(c - f[idx], f[idx])
+                add(norm, c - f[idx], f[idx])
     if model.contact is not None:
         c, cf = model.contact, ref.contact
         idx = matched(c.slave.mesh.points[c.surf.nodes], cf.slave.mesh.points[cf.surf.nodes])
         r = _nodal_lam(state(ref, ref_sol), cf.normals)[idx]
-        out["lam_nodes"] = relative(_nodal_lam(state(model, sol), c.normals) - r, r, c.W[:, None])
-    return out
+        add("lam_nodes", _nodal_lam(state(model, sol), c.normals) - r, r, c.W[:, None])
+    return {k: float(np.sqrt(d / max(r, 1e-300))) for k, (d, r) in sums.items()}

@@ -165,3 +165,15 @@ def friction_warnings(
             "bound, so the problem is tied (g above every tangential stress)"
         )
     return out
+
+
+def unilateral_summary(contact: Any, open_nodes: int, remaining: np.ndarray) -> dict:
+    """summary.json's contact entries only unilateral contact has, 2D and 3D alike: the law,
+    the friction, the number of open nodes and the smallest remaining gap (`remaining` per
+    node or normal row, NaN where a node has none)."""
+    return {
+        "law": contact.law,
+        "friction": contact.friction,
+        "open": int(open_nodes),
+        "min_gap": float(np.nanmin(remaining, initial=np.inf)),
+    }

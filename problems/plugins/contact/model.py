@@ -11,7 +11,9 @@ of a full vector into displacement (N, d) and potential (N,) or None.
 
 from __future__ import annotations
 
+import importlib
 import re
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
@@ -108,6 +110,33 @@ def built(build: Callable[[Scene, int | None], Any], scene: Scene, level: int | 
             return build(scene, level)
     except SceneError as err:
         raise (err if err.file else err.in_file(scene.path)) from None
+
+
+def assemble(
+    spec: Any,
+    scene: Scene,
+    level: int | None,
+    interface: Callable[[dict[str, Any], Any, int, int], Any],
+    model_class: type[BodiesModel],
+    options: dict | None = None,
+) -> Any:
+    """The built `model_class` of a validated scene model `spec` (of `scene`) at `level` (None:
+    the scene's), 2D and 3D alike: its bodies, the contact interface
+    `interface(bodies by name, spec.contact, n_full, level)` of its [contact] table (None
+    without one) and the mixed VI (`mixed_vi`, the data checked by `checks.finite_data`);
+    `options` (the front's) come before the scene's solver options."""
+    from .checks import finite_data
+
+    level = spec.scene.level if level is None else level
+    bodies = build_bodies(spec, level)
+    n_full = sum(b.size for b in bodies.values())
+    contact = None if spec.contact is None else interface(bodies, spec.contact, n_full, level)
+    info = {"scene": scene.name, "level": level}
+    check = partial(finite_data, contact=contact)
+    vi, free, values, rhs = mixed_vi(list(bodies.values()), contact, info, check=check)
+    options = {**(options or {}), **spec.options()}
+    bodies_ = list(bodies.values())
+    return model_class(scene, level, bodies_, contact, vi, free, values, options, rhs=rhs)
 
 
 def mixed_vi(
@@ -295,3 +324,19 @@ def friction_sweep(g_file: str, F_file: str) -> Sweep:
             "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file=F_file
         ),
     )
+
+
+def moved_names(module: str, moved: dict[str, tuple[str, str]]) -> Callable[[str], Any]:
+    """A module `__getattr__` for names that moved out of `module` (kept one release): name →
+    (its module, its name there), returned with a DeprecationWarning naming the new place."""
+
+    def __getattr__(name: str) -> Any:
+        if name not in moved:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        where, new = moved[name]
+        warnings.warn(
+            f"{module}.{name} is deprecated: use {where}.{new}", DeprecationWarning, stacklevel=2
+        )
+        return getattr(importlib.import_module(where), new)
+
+    return __getattr__

@@ -93,27 +93,19 @@ def closed_gap_warning(model: Any, sol: Solution) -> list[str]:
     ]
 
 
-def _unilateral_summary(contact: Any, state: dict) -> dict:
-    """The summary entries only unilateral contact has: open nodes, the law and friction."""
-    return {
-        "open": int(np.sum(state["normal_state"] == "open")),
-        "law": contact.law,
-        "friction": contact.friction,
-        "min_gap": float((state["gap"] - state["u_n"]).min(initial=np.inf)),
-    }
-
-
 def contact_table(model: Any, sol: Solution) -> ContactTable:
     """One row per slave node of Γ3 (problems.output.results): λ_n, λ_t, the tangential
-    mortar jump and stick/slip; NaN and state 'no_multiplier' where a node carries none."""
+    mortar jump, the friction radius g and stick/slip; NaN and state 'no_multiplier' where a
+    node carries none."""
     c = model.contact
     tr = c.tr
     st = model.contact_state(sol)
     k = tr.size
-    lam_n, lam_t, jump_t = np.full(k, np.nan), np.full(k, np.nan), np.full(k, np.nan)
+    lam_n, lam_t, jump_t, g = (np.full(k, np.nan) for _ in range(4))
     lam_n[c.rows_n] = st["lam_n"]
     lam_t[c.rows_t] = st["lam_t"]
     jump_t[c.rows_t] = st["jump_t"]
+    g[c.rows_t] = st["g"]
     state = np.full(k, "no_multiplier", dtype=object)
     state[c.rows_t] = st["state"]
     gap = None
@@ -131,6 +123,7 @@ def contact_table(model: Any, sol: Solution) -> ContactTable:
         state=state.astype(str),
         gap=gap,
         friction=c.friction,
+        bound=g,
     )
 
 
@@ -155,7 +148,11 @@ def postprocess(model: Any, sol: Solution, outdir: Path) -> dict:
             "slip": int(np.sum(labels == "slip")),
             "ambiguous": int(np.sum(labels == "ambiguous")),
             **(
-                _unilateral_summary(model.contact, state)
+                interface.unilateral_summary(
+                    model.contact,
+                    np.sum(state["normal_state"] == "open"),
+                    state["gap"] - state["u_n"],
+                )
                 if model.contact.law != "bilateral"
                 else {}
             ),

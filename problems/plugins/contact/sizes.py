@@ -5,11 +5,11 @@ both fronts: nothing finer than level 0 is meshed, nothing is assembled.
 entity (`bodies.free_per_entity`, `fem.refined_counts`: exact for triangles, quadrilaterals
 and hexahedra; tetrahedra's entries within its stated bound) and, for m, the free displacement
 components of the slave boundary's nodes: the crosspoint rules give a contact node d − p rows
-(d the dimension, p its prescribed components; `plane._carrying`, `solid.carrying`). A 2D
-two-body interface also leaves the slave nodes whose support the master does not cover
-without rows (`plane._contact`); those are not counted here, so m is then over-counted by
-them (none in the shipped scenes: every 2D shipped scene's count equals its built sizes at
-levels 0 and 1, tests/problems/plugins/contact/test_plugin.py)."""
+(d the dimension, p its prescribed components; `curve_contact.carrying`,
+`surface_contact.carrying`). A 2D two-body interface also leaves the slave nodes whose support
+the master does not cover without rows (`curve_contact.slave_contact`); those are not counted
+here, so m is then over-counted by them (none in the shipped scenes: every 2D shipped scene's
+count equals its built sizes at levels 0 and 1, tests/problems/plugins/contact/test_plugin.py)."""
 
 from __future__ import annotations
 

@@ -7,22 +7,23 @@
   normal, tangent1, tangent2, lambda_n, lambda_t (along t1), lambda_t2, jump_t, jump_t2 (the
   names of contact.csv and of the 2D contact.vtu), lambda_t_vec and jump_t_vec (the tangential
   multiplier and jump as 3-vectors), g, state (index into STATES) and is_STATE (0/1).
-- `contact.csv`: one row per surface node, `#` lines with units; columns x, y, z, normal_*,
-  tangent1_*, tangent2_*, lambda_n, lambda_t (along t1), lambda_t2, jump_t, jump_t2, g, state.
+- `contact.csv`: one row per surface node, `#` lines with units and meanings, written as the
+  2D front's (`results.ContactTable`, `contact_table`); columns x, y, z, normal_*, tangent1_*,
+  tangent2_*, lambda_n, lambda_t (along t1), lambda_t2, jump_t, jump_t2, g, gap (unilateral
+  only), state.
 - `contact_map.png`: the stick/slip map on the contact surface and |λ_t|/g.
 (`mixvi solve` collects the .vtu files into `results.pvd`.)
 """
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from fem.facets import frames
-from problems.output.results import BOUNDS, write_csv
+from problems.output.results import BOUNDS, ContactTable, write_contact_csv
 
 from . import interface
 from .body_output import write_bodies
@@ -30,41 +31,37 @@ from .body_output import write_bodies
 # "ambiguous" (vi_core.states: not settled at the achieved residual) is the last code, so the
 # others keep theirs
 STATES = ("stick", "slip", "normal_only", "open", "no_multiplier", "ambiguous")
-UNITS = {"x": "m", "normal": "1", "tangent": "1", "lambda": "Pa", "jump": "m", "g": "Pa"}
-CSV_TITLE = "mixvi contact3d results, one row per node of the slave contact surface"
-CSV_NOTES = [
-    "x, y, z [m]: node position",
-    "normal_* [1]: outward unit normal n of the slave body; tangent1_*, tangent2_* [1]: the "
-    "tangent frame (t1, t2, n right-handed); a node keeping one tangent only has its lambda in "
-    "one of the two columns",
-    "lambda_n [Pa]: normal multiplier (the traction on the slave is -lambda; lambda_n > 0: "
-    "compression); lambda_t, lambda_t2 [Pa]: tangential multiplier along t1, t2, "
-    "|(lambda_t, lambda_t2)| <= g; empty where the node carries none",
-    "jump_t, jump_t2 [m]: tangential jump along t1, t2 (slave displacement for a rigid foundation)",
-    "g [Pa]: friction bound g_k = int g phi_k / int phi_k",
-    "state: stick (|lambda_t| < g), slip (|lambda_t| = g), normal_only (tangents prescribed), "
-    "no_multiplier (clamped node), ambiguous (not settled at the achieved residual: neither "
-    "the stress margin nor the gap/slip decides it; solve with a smaller --tol)",
-]
+# the 3D state line of contact.csv (normal_only: a node whose tangents are prescribed)
+STATE_MEANING = (
+    "stick (|lambda_t| < {bound}), slip (|lambda_t| = {bound}), normal_only (tangents "
+    "prescribed), open (not touching; unilateral only), no_multiplier (clamped node), "
+    "ambiguous (not settled at the achieved residual: neither the stress margin nor the "
+    "gap/slip decides it; solve with a smaller --tol)"
+)
 
 
-def table(model, st: dict) -> dict[str, np.ndarray]:
-    """The contact.csv columns, in order."""
+def contact_table(model, st: dict) -> ContactTable:
+    """contact.csv's rows, one per surface node, in the 2D front's columns
+    (`results.ContactTable`): the frame as tangent1_*, tangent2_*, λ_t and the tangential jump
+    along t1, t2 (lambda_t, lambda_t2, jump_t, jump_t2), g, the remaining gap (unilateral)."""
     c = model.contact
-    P = c.slave.mesh.points[c.surf.nodes]
-    cols = {a: P[:, i] for i, a in enumerate("xyz")}
-    for name, v in (("normal", c.normals), ("tangent1", c.t1), ("tangent2", c.t2)):
-        cols |= {f"{name}_{a}": v[:, i] for i, a in enumerate("xyz")}
-    cols |= {
-        "lambda_n": st["lam_n"],
-        "lambda_t": st["lam_t1"],
-        "lambda_t2": st["lam_t2"],
-        "jump_t": st["jump_t1"],
-        "jump_t2": st["jump_t2"],
-        "g": st["g"],
-        "state": st["state"],
-    }
-    return cols
+    gap = np.maximum(st["gap"], 0.0) if c.law == "unilateral" else None  # NaN stays NaN
+    bound = BOUNDS[c.friction]
+    return ContactTable(
+        points=c.slave.mesh.points[c.surf.nodes],
+        normals=c.normals,
+        weights=c.W,
+        segments=c.surf.facets,
+        lambda_n=st["lam_n"],
+        lambda_t=np.stack([st["lam_t1"], st["lam_t2"]], axis=1),  # (k, 2)
+        jump_t=np.stack([st["jump_t1"], st["jump_t2"]], axis=1),  # (k, 2)
+        state=st["state"],
+        gap=gap,
+        tangents=np.stack([c.t1, c.t2], axis=1),  # (k, 2, 3)
+        meanings={"state": STATE_MEANING.replace("{bound}", bound)},
+        friction=c.friction,
+        bound=st["g"],
+    )
 
 
 def write_surface_vtu(path: Path, model, st: dict) -> None:
@@ -73,7 +70,7 @@ def write_surface_vtu(path: Path, model, st: dict) -> None:
 
     c = model.contact
     code = np.array([STATES.index(s) for s in st["state"]], dtype=np.int32)
-    cols = table(model, st)
+    cols = contact_table(model, st).columns
     point = {
         **{k: v for k, v in cols.items() if k.startswith(("lambda", "jump")) or k == "g"},
         **{"normal": c.normals, "tangent1": c.t1, "tangent2": c.t2},
@@ -173,10 +170,7 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
     if model.contact is not None:
         c = model.contact
         st = contact_state(model, sol)
-        cols = table(model, st)
-        bound = BOUNDS[c.friction]  # g, or Coulomb's F lambda_n
-        notes = [re.sub(r"(<=|<|=) g\b(?! phi)", rf"\1 {bound}", n) for n in CSV_NOTES]
-        write_csv(outdir / "contact.csv", [CSV_TITLE, *notes], cols)
+        write_contact_csv(outdir / "contact.csv", contact_table(model, st))
         write_surface_vtu(outdir / "contact.vtu", model, st)
         contact_map(outdir / "contact_map.png", model, st, title=model.scene.name)
         files += ["contact.csv", "contact.vtu", "contact_map.png"]
@@ -217,6 +211,9 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
                     f"{len(missing)} node(s) of {c.slave.name}.{c.slave_part} have no master "
                     "behind their whole support and carry no multiplier (contact.uncovered_nodes)"
                 )
+        if c.law == "unilateral":
+            open_nodes = np.sum(st["state"] == "open")
+            summary["contact"] |= interface.unilateral_summary(c, open_nodes, st["gap"])
     summary["files"] = sorted(files)
     return summary
 

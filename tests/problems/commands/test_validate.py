@@ -208,7 +208,7 @@ def test_mutation_validate_without_the_build_misses_a_misspelt_group(tmp_path, c
     ("case", "module"),
     [
         ("antiplane friction boundary of two pieces", "antiplane"),
-        ("signorini contact boundary of two pieces", "contact.plane"),  # signorini: its preset
+        ("signorini contact boundary of two pieces", "contact.curve_contact"),  # its preset
     ],
 )
 def test_mutation_without_the_curve_check_two_pieces_are_not_refused(

@@ -71,6 +71,7 @@ def test_contact_csv_matches_the_summary_and_the_vtu(rigid):
         "lambda_n",
         "lambda_t",
         "jump_t",
+        "g",  # added with the one 2D/3D writer (the friction radius, 3D's column)
         "state",
     ]
     assert any("lambda_n [Pa]" in c for c in comments) and any("x [m]" in c for c in comments)

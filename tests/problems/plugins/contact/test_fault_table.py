@@ -15,16 +15,15 @@ import scipy.sparse
 import fem.assembly
 import fem.mortar
 from problems.commands.main import main
-from problems.plugins.contact import bodies
-from problems.plugins.contact import plane as pc
+from problems.plugins.contact import bodies, curve_contact
 
 from . import checks
 
 # ------------------------------------------------------------------ the faults
 _coupling = fem.assembly.coupling_matrix
 _mortar = fem.mortar.mortar_coupling
-_friction = pc._friction_local
-_dual_mass = pc.dual_mass
+_friction = curve_contact.friction_local
+_dual_mass = curve_contact.dual_mass
 
 
 def coupling_sign(mp):
@@ -68,7 +67,7 @@ def mortar_dropped_entry(mp):
 
 def friction_bound(mp):
     """∫gφ_i × 1.5: the friction bound of every node 50 % too high."""
-    mp.setattr(pc, "_friction_local", lambda *a, **k: 1.5 * _friction(*a, **k))
+    mp.setattr(curve_contact, "friction_local", lambda *a, **k: 1.5 * _friction(*a, **k))
 
 
 def dual_weight(mp):
@@ -79,7 +78,7 @@ def dual_weight(mp):
         D.data[[0, -1]] *= 2.0
         return D
 
-    mp.setattr(pc, "dual_mass", faulty)
+    mp.setattr(curve_contact, "dual_mass", faulty)
 
 
 # ------------------------------------------------------------------ the checks

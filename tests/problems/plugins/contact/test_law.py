@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from problems.errors import SceneError
 from problems.plugins.contact import law as contact_law
 from problems.plugins.contact import plane as piezo_contact
+from problems.plugins.contact import scene_model
 from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
 
@@ -35,8 +36,8 @@ BAD = [
 
 
 def test_one_law_table_for_both_fronts():
-    assert issubclass(piezo_contact.ContactSection, contact_law.ContactLaw)
-    assert issubclass(contact3d.ContactSection, contact_law.ContactLaw)
+    assert issubclass(scene_model.ContactSection, contact_law.ContactLaw)
+    assert piezo_contact.SCENE_MODEL is contact3d.SCENE_MODEL is scene_model.ContactScene
 
 
 @pytest.mark.parametrize("plugin", sorted(SCENES))

@@ -8,7 +8,7 @@ import pytest
 
 from problems.errors import SceneError
 from problems.plugins import contact, registry
-from problems.plugins.contact import dimension, plane, solid
+from problems.plugins.contact import dimension, plane, scene_model, solid
 from problems.scene import SCENES_DIR, load_scene
 from problems.scene.model import validate
 
@@ -141,3 +141,37 @@ def test_the_default_components_are_every_axis_of_the_body():
         assert "components" not in scene.data["bodies"]["block"]["displacement"][0]
         spec = scene.validated(contact.SCENE_MODEL)
         assert spec.bodies["block"].displacement[0].components == axes
+
+
+@pytest.mark.parametrize(
+    "front,old,new",
+    [
+        (plane, "PlaneScene", "ContactScene"),
+        (solid, "SolidScene", "ContactScene"),
+        (plane, "ContactSection", "ContactSection"),
+        (solid, "ContactSection", "ContactSection"),
+    ],
+)
+def test_the_former_scene_model_names_still_work_with_a_deprecation_warning(front, old, new):
+    """One scene model for 2D and 3D (`scene_model`); the fronts' former names return it for
+    one release and say where it is now (mutation: a name returned silently fails)."""
+    with pytest.warns(DeprecationWarning, match=f"scene_model.{new}"):
+        assert getattr(front, old) is getattr(scene_model, new)
+    with pytest.raises(AttributeError):
+        front.NoSuchName  # noqa: B018
+
+
+@pytest.mark.parametrize("name", ["block3d", "rigid_foundation"])
+def test_one_scene_model_knows_its_dimension(name):
+    """The scene model tells the dimension from the geometries (block3d 3, rigid_foundation 2)
+    and refuses the 2D-only electrical contact in 3D."""
+    scene = load_scene(name)
+    spec = validate(contact.SCENE_MODEL, scene.data)
+    assert spec.dimension == (3 if name == "block3d" else 2)
+    for where, value, key in (
+        (("contact", "electrical"), {"kind": "insulating"}, "contact.electrical"),
+        (("output",), {"potential_along": "block.top"}, "output.potential_along"),
+    ):
+        if name == "block3d":  # 2D only; mutation: the dimension check removed fails
+            err = _refused(name, _set(*where, value))
+            assert err.key == key and "absent in a 3D scene" in str(err)

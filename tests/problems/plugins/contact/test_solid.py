@@ -20,7 +20,7 @@ from fem.refined_counts import Skeleton
 from problems.commands import main as cli
 from problems.commands.resources import Sizes
 from problems.errors import SceneError
-from problems.plugins.contact import bodies
+from problems.plugins.contact import bodies, surface_contact
 from problems.plugins.contact import checks as contact3d_checks
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact import solid as contact3d
@@ -88,9 +88,9 @@ def _transposed_coupling(monkeypatch):
 
 
 def _flipped_t1(monkeypatch):
-    real = contact3d.frames
+    real = surface_contact.frames
     monkeypatch.setattr(
-        contact3d,
+        surface_contact,
         "frames",
         lambda n, a=None: tuple(s * v for s, v in zip((-1, 1), real(n, a), strict=True)),
     )
@@ -215,8 +215,10 @@ def test_independent_row_and_kernel_checks_hold_and_catch_each_fault(monkeypatch
     assert contact3d_checks.rigid_body_defect(m.bodies[0]) > 1e-3
     monkeypatch.setattr(bodies.assembly, "elasticity_matrix", real_K)
     # a wrong sign in the tangent frame (t2 = t1 × n): the handedness check
-    real = contact3d.frames
-    monkeypatch.setattr(contact3d, "frames", lambda n, a=None: (real(n, a)[0], -real(n, a)[1]))
+    real = surface_contact.frames
+    monkeypatch.setattr(
+        surface_contact, "frames", lambda n, a=None: (real(n, a)[0], -real(n, a)[1])
+    )
     m = contact3d.build(scene, 0)
     assert contact3d_checks.contact_row_defects(m)["handedness"] > 0.1
     assert frame_checks(m)["handedness_defect"] > 0.1
@@ -251,7 +253,7 @@ def test_crosspoint_rules_keep_exactly_the_unprescribed_directions(seed):
     from fem.facets import frames
 
     t1, t2 = frames(normals, np.array([1.0, 2.0, 3.0]) / np.sqrt(14))
-    carry_n, n_tan, a, b, slot, bad = contact3d.carrying(fixed, normals, t1, t2)
+    carry_n, n_tan, a, b, slot, bad = surface_contact.carrying(fixed, normals, t1, t2)
     assert bad == []
     for i in range(k):
         tangents = {2: [a[i], b[i]], 1: [[a[i], b[i]][slot[i]]], 0: []}[int(n_tan[i])]
@@ -266,7 +268,7 @@ def test_crosspoint_rules_keep_exactly_the_unprescribed_directions(seed):
     tilted /= np.linalg.norm(tilted, axis=1)[:, None]
     partial = (fixed.sum(axis=1) > 0) & (fixed.sum(axis=1) < 3)
     t1, t2 = frames(tilted, np.array([1.0, 2.0, 3.0]) / np.sqrt(14))
-    *_, bad = contact3d.carrying(fixed, tilted, t1, t2)
+    *_, bad = surface_contact.carrying(fixed, tilted, t1, t2)
     assert set(bad) == set(np.flatnonzero(partial))
 
 

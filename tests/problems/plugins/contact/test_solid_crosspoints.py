@@ -21,6 +21,7 @@ from problems.commands.main import main
 from problems.plugins.contact import checks as contact3d_checks
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact import solid as contact3d
+from problems.plugins.contact import surface_contact
 from problems.scene import load_scene
 from vi_core.ssn import Condensation
 
@@ -63,7 +64,7 @@ def test_merge_reproduces_the_2d_solution_with_a_clamped_end_and_keep_does_not()
 
 def _one_class(monkeypatch, cls: str):
     """The merge dropped in one class: that class's basis is built with "keep"."""
-    real = contact3d.class_blocks
+    real = surface_contact.class_blocks
     calls = []
 
     def faulty(surf, carry, covered, ends, M_loc=None):
@@ -71,7 +72,7 @@ def _one_class(monkeypatch, cls: str):
         which = "normal" if len(calls) % 2 == 1 else "tangential"  # slave_contact's order
         return real(surf, carry, covered, "keep" if which == cls else ends, M_loc)
 
-    monkeypatch.setattr(contact3d, "class_blocks", faulty)
+    monkeypatch.setattr(surface_contact, "class_blocks", faulty)
 
 
 def _wrong_share(monkeypatch):
@@ -82,18 +83,18 @@ def _wrong_share(monkeypatch):
         Q, K = real(s, carry, ends), real(s, carry, "keep")
         return K + 2.0 * (Q - K)
 
-    monkeypatch.setattr(contact3d, "multiplier_basis", faulty)
+    monkeypatch.setattr(surface_contact, "multiplier_basis", faulty)
 
 
 def _wrong_weight(monkeypatch):
     """The class weights left at W_k (g_k = ∫gφ̃_k / W_k, jumps (B u)_k / W_k)."""
-    real = contact3d.class_blocks
+    real = surface_contact.class_blocks
 
     def faulty(surf, *args):
         S, M, _, Q = real(surf, *args)
         return S, M, surf.weights, Q
 
-    monkeypatch.setattr(contact3d, "class_blocks", faulty)
+    monkeypatch.setattr(surface_contact, "class_blocks", faulty)
 
 
 def test_merge_with_a_constant_bound_reproduces_2d_where_the_merged_node_slips():
@@ -182,14 +183,14 @@ def test_the_merged_separation_check_sees_a_dropped_row_and_an_unmerged_class(mo
     """A normal row of the first pressed node zeroed, or the normal class built with "keep"
     (the pressed edge's share lost from its neighbours' rows)."""
     if fault == "dropped row":
-        real = contact3d.contact_rows
+        real = surface_contact.contact_rows
 
         def faulty(*args):
             B = real(*args).tolil()
             B[0, :] = 0.0
             return B.tocsr()
 
-        monkeypatch.setattr(contact3d, "contact_rows", faulty)
+        monkeypatch.setattr(surface_contact, "contact_rows", faulty)
     else:
         _one_class(monkeypatch, "normal")
     m = contact3d.build(_pressed_liftoff(), 1)
@@ -240,7 +241,7 @@ def test_two_bodies_with_merge_keep_exact_rows_and_the_condensation(tmp_path):
     assert abs(m.vi.B - k.vi.B).max() > 1e-3 * abs(k.vi.B).max()  # the master rows moved
     cond, cond_keep = Condensation.detect(m.vi.B), Condensation.detect(k.vi.B)
     assert cond is not None and np.array_equal(cond.S, cond_keep.S)  # the same private columns
-    node = contact3d.row_nodes(c)  # (m,) the surface node of each row
+    node = surface_contact.row_nodes(c)  # (m,) the surface node of each row
     i, j = cond.D.nonzero()
     assert (node[i] == node[j]).all()  # D block diagonal by node
     sol = vi_core.solve(m.vi, method="ssn", tol=1e-12)

@@ -19,7 +19,7 @@ import pytest
 import vi_core
 from problems.errors import SceneError
 from problems.plugins.contact import checks as contact3d_checks
-from problems.plugins.contact import interface
+from problems.plugins.contact import interface, surface_contact
 from problems.plugins.contact import solid as contact3d
 from problems.scene import SCENES_DIR, load_scene
 
@@ -154,23 +154,25 @@ def test_separation_check_sees_a_wrong_sign_of_the_gap(monkeypatch):
 
 
 def test_separation_check_sees_a_dropped_complementarity_row(monkeypatch):
-    real = contact3d.contact_rows
+    real = surface_contact.contact_rows
 
     def dropped(*args, **kwargs):  # the normal row of the first (pressed) node is lost
         B = real(*args, **kwargs).tolil()
         B[0, :] = 0.0
         return B.tocsr()
 
-    monkeypatch.setattr(contact3d, "contact_rows", dropped)
+    monkeypatch.setattr(surface_contact, "contact_rows", dropped)
     bad = _model("block3d_liftoff", 0)
     sep = contact3d_checks.separation(bad, _solve(bad))
     assert sep["penetration"] > 1e-3, sep
 
 
 def test_separation_check_sees_a_wrong_scaling_of_F(monkeypatch):
-    real = contact3d.facet_integrals
+    real = surface_contact.facet_integrals
     monkeypatch.setattr(  # F_k = ∫Fφ_k instead of ∫Fφ_k / W_k
-        contact3d, "facet_integrals", lambda mesh, surf, f, order: real(mesh, surf, f, order) ** 2
+        surface_contact,
+        "facet_integrals",
+        lambda mesh, surf, f, order: real(mesh, surf, f, order) ** 2,
     )
     bad = _model("coulomb_strip3d", 0)
     sep = contact3d_checks.separation(bad, _solve(bad))
@@ -260,8 +262,8 @@ def test_two_bodies_that_start_apart(tmp_path):
 
 
 def test_the_geometric_gap_sees_a_wrong_sign_of_the_two_body_gap(tmp_path, monkeypatch):
-    real = contact3d._positions
-    monkeypatch.setattr(contact3d, "_positions", lambda *a: -real(*a))
+    real = surface_contact._positions
+    monkeypatch.setattr(surface_contact, "_positions", lambda *a: -real(*a))
     model = _two_bodies(tmp_path)
     sol = _solve(model)
     d = _geometric_gap(model, sol)

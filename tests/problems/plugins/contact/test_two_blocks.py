@@ -13,6 +13,7 @@ import pytest
 import vi_core
 from problems.plugins.contact import checks as contact3d_checks
 from problems.plugins.contact import solid as contact3d
+from problems.plugins.contact import surface_contact
 from problems.scene import load_scene
 
 from .test_solid_unilateral import _geometric_gap
@@ -45,8 +46,8 @@ def test_two_blocks3d(level):
 
 
 def test_a_wrong_sign_of_the_gap_is_seen(monkeypatch):
-    real = contact3d._positions
-    monkeypatch.setattr(contact3d, "_positions", lambda *a: -real(*a))
+    real = surface_contact._positions
+    monkeypatch.setattr(surface_contact, "_positions", lambda *a: -real(*a))
     model, sol = solved(0)
     d = _geometric_gap(model, sol)
     touch = contact3d.contact_state(model, sol)["touch"]
