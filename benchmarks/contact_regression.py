@@ -70,8 +70,9 @@ def _solve(name: str, level: int):
 
 
 def _columns(path: Path) -> list[str]:
-    if path.suffix == ".csv":
-        return path.read_text().splitlines()[0].split(",")
+    if path.suffix == ".csv":  # the first line that is not a "# …" comment
+        lines = (ln for ln in path.read_text().splitlines() if not ln.startswith("#"))
+        return next(lines, "").split(",")
     if path.suffix in (".vtu", ".vtp", ".pvd"):
         return sorted(set(re.findall(r'Name="([^"]+)"', path.read_text(errors="replace"))))
     return []
