@@ -14,6 +14,8 @@ energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
   ("jump"), or η_k² = h² r_k² / c_u with the roughness r_k = λ_n,k − (h_r λ_n,k−1 +
   h_l λ_n,k+1)/(h_l + h_r) (the nodal pressure against its neighbours' line, "rough"),
   split half and half between the two segments' cells;
+- "surface_red": the cells on touching segments are split only red (`surface_red`);
+  "fan_red": the same for every cell at a touching node;
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of
@@ -124,6 +126,36 @@ def multiplier(model: Any, sol: Any, meshes: dict, marked: dict, kind: str) -> d
     return {name: marked[name] | dorfler_mark(np.sqrt(eta2), 0.5)}
 
 
+def surface_red(
+    model: Any, sol: Any, meshes: dict, marked: dict, fans: bool = False
+) -> dict[str, np.ndarray]:
+    """ "surface_red": every slave cell on a contact segment with a touching end that the
+    refinement would split at all (a marked edge after the conformity closure of
+    `fem.bisection`) is marked, i.e. split red into four similar triangles instead of by
+    bisections, until none is left to split otherwise."""
+    from fem.bisection import _closure, _edge_cells, _edges
+
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    touch = _touch(model, sol)
+    if fans:  # (n_cells,) cells at a touching node
+        zone = _cells_at(mesh, c.tr.nodes[touch])
+    else:  # (n_cells,) cells on a touching segment
+        zone = np.zeros(mesh.n_cells, dtype=bool)
+        zone[facet_cells(mesh, c.tr.nodes[c.tr.facets[touch[c.tr.facets].any(axis=1)]])] = True
+    codes, cell_edges = _edges(mesh.cells, mesh.n_nodes)  # (n_edges,), (n_cells, 3)
+    edge_cells = _edge_cells(cell_edges, codes.size)
+    m = marked[c.slave.name].copy()
+    while True:
+        edges = np.zeros(codes.size, dtype=bool)
+        edges[cell_edges[m].ravel()] = True
+        split = _closure(cell_edges, edge_cells, edges)[cell_edges].any(axis=1)  # (n_cells,)
+        add = split & zone & ~m
+        if not add.any():
+            return {c.slave.name: m}
+        m |= add
+
+
 def graded_chain(
     h: np.ndarray, halved: np.ndarray, pairs: np.ndarray, ratio: float = 2.0
 ) -> np.ndarray:
@@ -167,6 +199,8 @@ MARKS = {
     "edge_peak": lambda *a: edge(*a, peak=True),
     "jump": lambda *a: multiplier(*a, "jump"),
     "rough": lambda *a: multiplier(*a, "rough"),
+    "surface_red": surface_red,
+    "fan_red": lambda *a: surface_red(*a, fans=True),
 }
 MARKS.update({f"{k}_graded": graded(v) for k, v in list(MARKS.items())})
 MARKS["graded"] = graded(lambda model, sol, meshes, marked: {})
