@@ -7,6 +7,7 @@ energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
   `mixvi solve --accuracy X --contact-zone` does);
 - "edge": only the cells at the zone's edge: the nodes of each segment whose ends differ in
   touch (the last touching and the first open node) and their neighbours along the surface;
+- "touching_edge": "touching" and "edge" (the first open nodes' cells too);
 - "edge_peak": "edge" plus the node of the largest λ_n and its neighbours (the peak pressure);
 - "jump", "rough": a multiplier indicator on its own Dörfler set (θ = 0.5), added to the
   energy's: per surface node k between segments of lengths h_l, h_r (h = (h_l + h_r)/2),
@@ -199,6 +200,7 @@ MARKS = {
     "edge_peak": lambda *a: edge(*a, peak=True),
     "jump": lambda *a: multiplier(*a, "jump"),
     "rough": lambda *a: multiplier(*a, "rough"),
+    "touching_edge": lambda m, s, ms, mk: edge(m, s, ms, touching_cells(m, s, ms, mk)),
     "surface_red": surface_red,
     "fan_red": lambda *a: surface_red(*a, fans=True),
 }

@@ -89,3 +89,32 @@ def test_multiplier_indicators(hertz):
     assert scale > 0 and eta2(1e6 * (1 + x), "rough").max() < 1e-12 * scale
     scale = eta2(1e6 * x, "jump").max()
     assert scale > 0 and eta2(np.full(x.size, 1e6), "jump").max() < 1e-12 * scale
+
+
+@pytest.mark.parametrize("name", ["fan_red", "surface_red"])
+def test_red_zone_cells_are_split_only_red(hertz, name):
+    """One marked cell at the centre of the zone: after the marking, the conformity closure
+    of the marks splits no cell of the zone that is not marked (so split red); the marks
+    grew from the one cell (a mutation stopping after one pass leaves a zone cell split by
+    bisection)."""
+    from fem.bisection import _closure, _edge_cells, _edges
+
+    model, sol, meshes = hertz
+    mesh = meshes["body"]
+    c = model.contact
+    start = np.zeros(mesh.n_cells, dtype=bool)
+    start[
+        np.flatnonzero(zm._cells_at(mesh, c.tr.nodes[np.argmin(np.abs(c.tr.points[:, 0]))]))[0]
+    ] = True
+    m = zm.MARKS[name](model, sol, meshes, {"body": start})["body"]
+    codes, cell_edges = _edges(mesh.cells, mesh.n_nodes)
+    edges = np.zeros(codes.size, dtype=bool)
+    edges[cell_edges[m].ravel()] = True
+    split = _closure(cell_edges, _edge_cells(cell_edges, codes.size), edges)[cell_edges].any(axis=1)
+    touch = zm._touch(model, sol)
+    zone = zm._cells_at(mesh, c.tr.nodes[touch])
+    if name == "surface_red":
+        zone = np.zeros(mesh.n_cells, dtype=bool)
+        zone[zm.facet_cells(mesh, c.tr.nodes[c.tr.facets[touch[c.tr.facets].any(axis=1)]])] = True
+    assert (m >= start).all() and m.sum() > 1
+    assert not (split & zone & ~m).any()
