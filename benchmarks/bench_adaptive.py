@@ -1,7 +1,7 @@
 """Adaptive against uniform refinement (issue 32, part 4).
 
     python benchmarks/bench_adaptive.py [--uniform L] [--max-unknowns N] [--zone-levels Z]
-        [--contact-zone] [--json FILE] [SCENE ...]
+        [--contact-zone | --zone NAME ...] [--json FILE] [SCENE ...]
     python benchmarks/bench_adaptive.py --mutations [--uniform L] [--cycles C] [--json FILE]
         [SCENE ...]
 
@@ -14,9 +14,13 @@ form (`problems.plugins.hertz`: a_err, p0_err). These contain the finite block's
 error against the half-plane (~1e-3, the floor the uniform levels level off at); with
 --zone-levels Z also its discretisation part a_dis, p0_dis: the distance to the finite
 block's limit, computed once on a mesh refined Z times more around the contact zone
-(`hertz_limit`). Prints the table, then per measure the first adaptive cycle that reaches the
-finest uniform level's value: its unknowns and CPU time against the uniform level's. Writes
-all rows as JSON (default bench_adaptive.json) with the peak memory.
+(`hertz_limit`), and the signed errors a, p0 in the JSON. With --zone NAME ... one adaptive
+run per NAME: "energy" (the Dörfler marks alone, the default) or a candidate contact-zone
+marking of `benchmarks/zone_marks.py` (--contact-zone is --zone touching). Prints the table,
+then per run and measure the first adaptive cycle that reaches the finest uniform level's
+value: its unknowns and CPU time against the uniform level's, and on Hertz the first cycle
+that reaches both a_dis and p0_dis. Writes all rows as JSON (default bench_adaptive.json)
+with the peak memory.
 
 With --mutations (for the exact-solution scenes, e.g. manufactured curved_manufactured):
 per uniform level 0..L (and with --cycles C per adaptive cycle 0..C − 1) the efficiency index
