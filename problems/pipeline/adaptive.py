@@ -38,6 +38,23 @@ def estimate_output(plugin: Any, model: Any, sol: Solution, outdir: Path) -> dic
     return {"estimate": {**totals(indicators), "bodies": bodies}, "files": files}
 
 
+ZoneMarks = Callable[[Any, Solution, dict[str, Any], dict[str, np.ndarray]], dict[str, np.ndarray]]
+"""(model, solution, the meshes it was built on, the Dörfler marks, each by body name) →
+{body name: (n_cells,) bool, its marks ⊇ Dörfler's} for the bodies whose marks it changes
+(`adapt`'s `contact_zone`)."""
+
+
+def touching_cells(
+    model: Any, sol: Solution, meshes: dict[str, Any], marked: dict[str, np.ndarray]
+) -> dict[str, np.ndarray]:
+    """`adapt`'s `contact_zone=True`: the slave body's marks and its cells with a vertex at a
+    touching contact node."""
+    c = model.contact
+    touching = c.tr.nodes[c.rows_n][model.contact_state(sol)["touch"]]  # (n_touch,)
+    zone = np.isin(meshes[c.slave.name].cells, touching).any(axis=1)  # (n_cells,)
+    return {c.slave.name: marked[c.slave.name] | zone}
+
+
 def adapt(
     plugin: Any,
     scene: Any,
@@ -48,7 +65,7 @@ def adapt(
     max_cycles: int = 30,
     solve_options: dict | None = None,
     on_cycle: Callable[[dict], None] | None = None,
-    contact_zone: bool = False,
+    contact_zone: bool | ZoneMarks = False,
 ) -> tuple[Any, Solution, list[dict], str]:
     """The adaptive loop: solve → estimate → Dörfler mark (θ, over all bodies' cells at once)
     → newest-vertex bisection (`fem.bisection.refine_marked`) → rebuild the scene on the refined
@@ -59,10 +76,13 @@ def adapt(
     into triangles: `fem.bisection.prepared`). New boundary nodes of a curved part go onto its true
     curve (the indicators' `curves`, from the geometry), others onto the coarse segments.
 
-    `contact_zone`: each cycle also marks every cell of the slave body with a vertex at a
-    touching contact node, so the multiplier's support is refined as a whole (the energy
-    estimate alone leaves it graded irregularly, and the nodal multiplier, e.g. the Hertz peak
-    pressure, oscillates by ~1 % across the size jumps: docs/benchmarks.md).
+    `contact_zone`: True, each cycle also marks every cell of the slave body with a vertex at
+    a touching contact node (`touching_cells`), so the multiplier's support is refined as a
+    whole, red, into similar triangles (the energy estimate alone leaves it graded irregularly
+    with green/blue closure cells at the surface, and the nodal multiplier, e.g. the Hertz
+    peak pressure, oscillates by ~1 % there: docs/benchmarks.md); or a `ZoneMarks` function
+    that extends the Dörfler marks (the benchmarks' other candidate markings:
+    `benchmarks/zone_marks.py`).
 
     Returns (model, solution, cycles, why it stopped); each cycle is {"cycle", "unknowns",
     "estimate", "relative", "contact_nodes", "time_s"} plus the plug-in's exact errors where
@@ -104,17 +124,22 @@ def adapt(
             return model, sol, cycles, f"the next mesh could pass {max_unknowns} unknowns"
         names = list(indicators)
         eta = np.concatenate([indicators[n].eta for n in names])  # (Σ n_cells,)
-        marked = np.split(
-            dorfler_mark(eta, theta), np.cumsum([indicators[n].eta.size for n in names])[:-1]
+        marked = dict(
+            zip(
+                names,
+                np.split(
+                    dorfler_mark(eta, theta),
+                    np.cumsum([indicators[n].eta.size for n in names])[:-1],
+                ),
+                strict=True,
+            )
         )
-        if contact_zone and model.contact is not None:
-            c = model.contact
-            touching = c.tr.nodes[c.rows_n][model.contact_state(sol)["touch"]]  # (n_touch,)
-            i = names.index(c.slave.name)
-            marked[i] = marked[i] | np.isin(meshes[c.slave.name].cells, touching).any(axis=1)
+        zone = touching_cells if contact_zone is True else contact_zone or None
+        if zone is not None and model.contact is not None:
+            marked.update(zone(model, sol, meshes, marked))
         meshes = {
-            n: refine_marked(meshes[n], m, project=indicators[n].curves or None)[0]
-            for n, m in zip(names, marked, strict=True)
+            n: refine_marked(meshes[n], marked[n], project=indicators[n].curves or None)[0]
+            for n in names
         }
         prev = (model, sol)
     return model, sol, cycles, f"{max_cycles} cycles"

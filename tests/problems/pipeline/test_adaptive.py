@@ -218,3 +218,31 @@ def test_cli_contact_zone_reaches_the_loop(tmp_path, monkeypatch, zone):
     assert main(["solve", "manufactured", "--accuracy", "0.7", *zone, "--out", str(out)]) != 0
     assert seen["contact_zone"] is bool(zone)
     assert not out.exists()  # the interrupted run left nothing behind
+
+
+@pytest.mark.parametrize("hook", [True, False])
+def test_contact_zone_function_extends_the_marks(hook):
+    """contact_zone=FUNCTION: the function sees the Dörfler marks and its marks are the ones
+    refined: marking every cell of every body gives cycle 1 the nodes of one uniform
+    refinement of cycle 0's mesh; without the hook (the mutation) Dörfler alone gives fewer."""
+    seen = []
+
+    def everything(model, sol, meshes, marked):
+        seen.append({n: m.copy() for n, m in marked.items()})
+        return {n: np.ones(meshes[n].n_cells, dtype=bool) for n in marked}
+
+    plugin = Keeping(pc)
+    adaptive.adapt(
+        plugin,
+        load_scene(SCENES / "manufactured.toml"),
+        1e-9,
+        solve_options=OPTIONS,
+        max_cycles=2,
+        contact_zone=everything if hook else False,
+    )
+    (m0, _), (m1, _) = plugin.solved
+    full = m0.bodies[0].mesh.refined_nodes(1) == m1.bodies[0].mesh.points.shape[0]
+    assert full == hook
+    if hook:  # it was given Dörfler's marks: a proper subset of the cells
+        marks = seen[0][m0.bodies[0].name]
+        assert 0 < marks.sum() < marks.size
