@@ -49,6 +49,7 @@ from vi_core.problem import MixedVI
 from vi_core.solution import Solution
 from vi_core.ssn import (
     Condensation,
+    NewtonSteps,
     _block_structure,
     _on_pattern,
     _structure,
@@ -240,10 +241,9 @@ def solve_ssn_petsc(
         Lam = e.Lambda
         scale = max(red.norm(e.f[own.lo : own.hi]), red.norm(e.gap[own.mult])) or 1.0
         res = _residual(e, own, red, u, lam, scale)
-        history, damped, k = [res], 0, 0
-        converged = res <= tol
+        steps, k = NewtonSteps(tol, [res]), 0
         nloc = own.hi - own.lo
-        while not converged and k < max_iter:
+        while not steps.converged and k < max_iter:
             k += 1
             y = lam + e.B @ u - e.gap  # (m,)
             p = Lam.project(y)
@@ -262,9 +262,7 @@ def solve_ssn_petsc(
                 lambda u, lam: _residual(e, own, red, u, lam, scale), u, lam, u_new, lam_new, res,
                 damping,
             )  # fmt: skip
-            damped += t < 1.0
-            history.append(res)
-            converged = res <= tol
+            steps.record(t, res)
             if on_step is not None:
                 active = int((p == y).sum())
                 slip = int(((p != y) & (p != 0.0)).sum())
@@ -279,8 +277,8 @@ def solve_ssn_petsc(
                     )
                 )
         sol = finish(
-            e, Lam, sc, u, lam, (res, converged), tol,
-            lambda lam: _residual(e, own, red, u, lam, scale), history, k, t0,
+            e, Lam, sc, u, lam, (res, steps.converged), tol,
+            lambda lam: _residual(e, own, red, u, lam, scale), steps.history, k, t0,
         )  # fmt: skip
         res, converged = sol.residual, sol.converged
         solver.destroy()
@@ -290,7 +288,7 @@ def solve_ssn_petsc(
             "ranks": comm.getSize(),
             "owned_rows": red.comm.allgather(int(nloc)),
             "condensed": True,
-            "damped_steps": int(damped),
+            "damped_steps": steps.damped,
             "inside": sol.info["inside"],
             **solver.info(),
             "peak_mb": memory,  # per rank: ru_maxrss after the set-up and at the end
