@@ -98,14 +98,14 @@ def _rows_only(A: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
 
 def _whole(A: sp.csr_matrix, lo: int, hi: int, red: Reductions) -> sp.csr_matrix:
     """A whole again from the ranks' rows-only copies (`_rows_only`, rows [lo, hi) here): the
-    same values, indices and pattern as before (rows concatenated in rank order)."""
+    same values, indices and pattern as before (rows concatenated in rank order), received
+    straight into the whole arrays (`Reductions.gatherv`): no second copy of A meanwhile."""
     p0, p1 = A.indptr[lo], A.indptr[hi]
-    parts = red.comm.allgather((A.data[p0:p1], A.indices[p0:p1], np.diff(A.indptr[lo : hi + 1])))
-    data = np.concatenate([d for d, _, _ in parts])  # (nnz,)
-    indices = np.concatenate([i for _, i, _ in parts])  # (nnz,)
-    counts = np.concatenate([c for _, _, c in parts])  # (n,)
+    counts = red.gatherv(np.diff(A.indptr[lo : hi + 1]))  # (n,) entries per row
     indptr = np.zeros(A.shape[0] + 1, A.indptr.dtype)
     np.cumsum(counts, out=indptr[1:])
+    data = red.gatherv(A.data[p0:p1])  # (nnz,)
+    indices = red.gatherv(A.indices[p0:p1])  # (nnz,)
     whole = sp.csr_matrix((data, indices, indptr), shape=A.shape)
     whole.has_sorted_indices = True  # each row as it was: canonical (`_canonical_A`)
     whole.has_canonical_format = True
