@@ -1,6 +1,9 @@
-"""The linear solves of the condensed Newton steps on PETSc: one `mpiaij` matrix and one KSP per
-Newton loop, the fixed rows written once and the slave rows rewritten at every step (MUMPS LU, or
-GMRES preconditioned by GAMG with the near-null space, with a MUMPS fallback).
+"""The linear solves of the condensed Newton steps on PETSc: one `mpiaij` matrix per Newton
+loop, the fixed rows written once and the slave rows rewritten at every step, solved by MUMPS LU
+(one KSP for the loop: the symbolic analysis is kept) or by GMRES(15) preconditioned by GAMG
+with the near-null space, with a MUMPS fallback (a KSP per step, freed after its solve: its
+preconditioner is set up again at each step anyway, and its hierarchies and Krylov basis were
+a rank's peak during the step's damping; the near-null spaces are made once).
 
 Preconditioners of the iterative path (``linear_solver="amg"``), chosen by the PETSc option
 ``-mixvi_amg_pc`` (PETSC_OPTIONS; default ``fieldsplit`` where the problem has several fields):

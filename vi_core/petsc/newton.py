@@ -23,9 +23,10 @@ What is distributed and what is not (issue 33, docs/distributed.md):
   (`MixedVI.equilibrated_parts`: B', f', gap', Λ'; A' read by rows, `MixedVI.equilibrated_rows`:
   the slave rows, then the owned fixed rows); vi.A itself keeps only the rank's rows [lo, hi)
   from then until the solve ends (`_rows_only`; the equilibrium residual reads them, scaled:
-  s_u ⊙ (A (s_u ⊙ u'))), and is made whole again at the end (`_whole`, one allgather of the
-  rows: the serial post-processing reads it), or given back its own A where another holder
-  kept that alive (a load path's step shares A with its model: no second copy).
+  s_u ⊙ (A (s_u ⊙ u'))), and is made whole again at the end (`_whole`, the rows gathered by
+  MPI_Allgatherv straight into the whole arrays: the serial post-processing reads it), or
+  given back its own A where another holder kept that alive (a load path's step shares A
+  with its model: no second copy).
 
 Not yet distributed (what remains, stated in docs/distributed.md): the model is built whole on
 every rank (the plug-in assembles A and B whole; each rank then keeps its rows of A during the
