@@ -377,9 +377,7 @@ def _solve_ssn(
     Lam = e.Lambda
 
     res = natural_residual(e, u, lam).relative
-    history = [res]
-    damped = 0
-    converged = res <= tol
+    steps = NewtonSteps(tol, [res])
     k = 0
     eta = None  # forcing term of the last inexact step (iterative path)
     linear = all(isinstance(b, Free) for b in Lam.blocks())
@@ -393,7 +391,7 @@ def _solve_ssn(
             on_step(dict(progress, done=False))
 
         stepper.krylov.on_iteration = on_iteration
-    while not converged and k < max_iter:
+    while not steps.converged and k < max_iter:
         k += 1
         y = lam + e.B @ u - e.gap
         p = Lam.project(y)
@@ -405,7 +403,7 @@ def _solve_ssn(
         W = sp.identity(e.m, format="csr") - J
         rhs_c = p - J @ y - J @ e.gap
         if stepper.krylov is not None:
-            eta = forcing_term(res, history[-2] if k > 1 else None, tol, eta_max)
+            eta = forcing_term(res, steps.history[-2] if k > 1 else None, tol, eta_max)
             if linear:  # Λ = Rᵐ: the first Newton step is the solution, solve it to tol at once
                 eta = min(eta, 0.1 * tol / res)
         u_new, lam_new = stepper.step(J, W, rhs_c, guess=u, forcing=eta)
@@ -413,9 +411,7 @@ def _solve_ssn(
             lambda u, lam: natural_residual(e, u, lam).relative, u, lam, u_new, lam_new, res,
             damping,
         )  # fmt: skip
-        damped += t < 1.0
-        history.append(res)
-        converged = res <= tol
+        steps.record(t, res)
         if on_step is not None:
             if stepper.krylov is not None:
                 done_before[0] = sum(s["iterations"] for s in stepper.krylov.steps)
@@ -423,13 +419,13 @@ def _solve_ssn(
             on_step(dict(progress, residual=res, done=True))
 
     sol = finish(
-        e, Lam, sc, u, lam, (res, converged), tol, lambda lam: natural_residual(e, u, lam).relative,
-        history, k, t0,
+        e, Lam, sc, u, lam, (res, steps.converged), tol,
+        lambda lam: natural_residual(e, u, lam).relative, steps.history, k, t0,
     )  # fmt: skip
     res, converged = sol.residual, sol.converged
     sol.info = {
         "condensed": stepper.cond is not None,
-        "damped_steps": damped,
+        "damped_steps": steps.damped,
         "inside": sol.info["inside"],
         "linear_solver": linear_solver
         if stepper.krylov is not None
@@ -453,6 +449,27 @@ def _solve_ssn(
             f"ssn: residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"
         )
     return sol
+
+
+@dataclass
+class NewtonSteps:
+    """The bookkeeping of a semismooth Newton loop, serial (`solve_ssn`) or on PETSc: the
+    residual after each step (`history`, the starting residual first), how many steps were
+    damped (t < 1: `damped_step`) and whether the last residual is within `tol`."""
+
+    tol: float
+    history: list[float]
+    damped: int = 0
+
+    @property
+    def converged(self) -> bool:
+        """Whether the last residual is within tol."""
+        return self.history[-1] <= self.tol
+
+    def record(self, t: float, res: float) -> None:
+        """One step taken with step length t, its residual res."""
+        self.damped += int(t < 1.0)
+        self.history.append(res)
 
 
 def damped_step(

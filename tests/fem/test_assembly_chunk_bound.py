@@ -33,3 +33,23 @@ def test_chunks_hold_at_most_local_entries_and_sum_the_same(monkeypatch, element
     monkeypatch.setattr(asm, "_geometry", recording)
     assert same_matrix(elasticity_matrix(mesh, PIEZO.C), reference)
     assert max(sizes) == 3 and sum(sizes) == mesh.n_cells
+
+
+@pytest.mark.parametrize("fault", [None, "first point dropped", "points reversed"])
+def test_sum_points_is_the_sum_over_points_bit_for_bit(fault):
+    """`fem.assembly._sum_points` (the kernels' Σ_q left_q @ right_q without the per-point
+    array) gives `(left @ right).sum(axis=1)` exactly, so A is the same bit for bit as before
+    it. Mutations: the first point dropped, the points summed in reverse order (the same sum
+    in another order: caught by the exact comparison)."""
+    import numpy as np
+
+    rng = np.random.default_rng(7)
+    left = rng.standard_normal((5, 8, 24, 6))  # (k, n_qp, r, s)
+    right = rng.standard_normal((5, 8, 6, 24))  # (k, n_qp, s, c)
+    if fault == "first point dropped":
+        got = asm._sum_points(left[:, 1:], right[:, 1:])
+    elif fault == "points reversed":
+        got = asm._sum_points(left[:, ::-1], right[:, ::-1])
+    else:
+        got = asm._sum_points(left, right)
+    assert np.array_equal(got, (left @ right).sum(axis=1)) == (fault is None)

@@ -467,3 +467,18 @@ def test_damped_step_halves_to_the_best_trial(fault):
     got.append(step(late, z, z, one, z, 0.05, True)[2])  # no trial meets Armijo
     got.append(step(residual, z, z, one, z, 0.3, False)[2])
     assert (got == [(0.25, 0.15, 0.25, 0.0), 1 / 32, 1.0]) == (fault is None), got
+
+
+def test_newton_steps_count_damped_steps_and_test_the_last_residual():
+    """`ssn.NewtonSteps`, the bookkeeping of the serial and PETSc loops: a full step (t = 1)
+    is not counted as damped, a shorter one is; converged reads the last residual only
+    (against tol, inclusive), the history keeps the starting residual first."""
+    from vi_core.ssn import NewtonSteps
+
+    steps = NewtonSteps(1e-3, [1.0])
+    assert not steps.converged
+    steps.record(1.0, 0.1)
+    steps.record(0.5, 1e-3)
+    assert (steps.damped, steps.converged, steps.history) == (1, True, [1.0, 0.1, 1e-3])
+    steps.record(0.25, 2e-3)
+    assert (steps.damped, steps.converged) == (2, False)

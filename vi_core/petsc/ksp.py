@@ -1,6 +1,9 @@
-"""The linear solves of the condensed Newton steps on PETSc: one `mpiaij` matrix and one KSP per
-Newton loop, the fixed rows written once and the slave rows rewritten at every step (MUMPS LU, or
-GMRES preconditioned by GAMG with the near-null space, with a MUMPS fallback).
+"""The linear solves of the condensed Newton steps on PETSc: one `mpiaij` matrix per Newton
+loop, the fixed rows written once and the slave rows rewritten at every step, solved by MUMPS LU
+(one KSP for the loop: the symbolic analysis is kept) or by GMRES(15) preconditioned by GAMG
+with the near-null space, with a MUMPS fallback (a KSP per step, freed after its solve: its
+preconditioner is set up again at each step anyway, and its hierarchies and Krylov basis were
+a rank's peak during the step's damping; the near-null spaces are made once).
 
 Preconditioners of the iterative path (``linear_solver="amg"``), chosen by the PETSc option
 ``-mixvi_amg_pc`` (PETSC_OPTIONS; default ``fieldsplit`` where the problem has several fields):
@@ -18,6 +21,8 @@ overrides the defaults set here.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
 from typing import Any, Protocol
 
 import numpy as np
@@ -29,6 +34,10 @@ KINDS = ("mumps", "gamg")
 AMG_PCS = ("fieldsplit", "gamg")
 GMRES_RTOL = 1e-12  # relative residual of a GMRES solve (an inexact step moves u by ~rtol·|u|)
 GMRES_MAX_IT = 500
+# GMRES(15), not PETSc's GMRES(30): its Krylov basis is a rank's largest array after the
+# preconditioner (15 vectors of the owned rows fewer: paper_two_body level 4 on 2 ranks, 118 →
+# 112 MiB per rank above the imports, 45 → 49 iterations; docs/benchmarks.md)
+GMRES_RESTART = 15
 
 
 class Fields(Protocol):
@@ -40,14 +49,20 @@ class Fields(Protocol):
 
 
 def orthonormal(local: np.ndarray, red: Reductions) -> np.ndarray:
-    """(k, d) this rank's rows of an orthonormal basis of the columns whose rows the ranks
-    hold (`local`, (k, d) here): Cholesky QR, twice (CholeskyQR2: orthonormal to rounding for
-    the rigid-body modes' conditioning), one d × d allreduce each."""
-    Q = local
+    """(k, r) this rank's rows of an orthonormal basis of the span of the columns whose rows
+    the ranks hold (`local`, (k, d) here), r ≤ d: the directions that are dependent (singular
+    values below 1e-6 of the largest: rounding in the Gram matrix's eigenvalues is ~1e-16 of
+    the largest) are dropped first (the rigid-body modes restricted to the free
+    dofs of a coarse, much-constrained mesh: paper_two_body_extruded level 0), then Cholesky QR
+    twice (CholeskyQR2: orthonormal to rounding), one d × d allreduce each."""
+    G = red.comm.allreduce(local.T @ local)  # (d, d) the global Gram matrix
+    w, V = np.linalg.eigh(G)  # ascending
+    keep = w > 1e-12 * max(w[-1], 0.0)  # σ_i > 1e-6 σ_max
+    Q = local @ (V[:, keep] / np.sqrt(w[keep]))  # (k, r) orthonormal up to rounding
     for _ in range(2):
-        G = red.comm.allreduce(Q.T @ Q)  # (d, d) the global Gram matrix
+        G = red.comm.allreduce(Q.T @ Q)  # (r, r)
         L = np.linalg.cholesky(G)
-        Q = np.linalg.solve(L, Q.T).T  # (k, d) Q L^{-T}
+        Q = np.linalg.solve(L, Q.T).T  # (k, r) Q L^{-T}
     return Q
 
 
@@ -91,8 +106,9 @@ class LinearSolve:
         self.K.setOption(PETSc.Mat.Option.NEW_NONZERO_LOCATION_ERR, True)  # the pattern is fixed
         self.K.assemble()
         self.b, self.x = self.K.createVecs()
+        self.e = e
         self.pc = self._amg_pc(e) if kind == "gamg" else None
-        self._nullspaces: list[Any] = []  # kept alive with the KSP
+        self._nullspaces: dict[str, Any] = {}  # by field ("" for the whole matrix), made once
         self.ksp = self._ksp(kind, e)
         self.iterations = 0  # GMRES iterations so far
         self.steps: list[dict] = []  # per solve: its KSP, iterations, reason
@@ -107,18 +123,31 @@ class LinearSolve:
             raise ValueError(f"-mixvi_amg_pc {asked!r} unknown; allowed: {', '.join(AMG_PCS)}")
         return asked
 
-    def _nullspace(self, local: np.ndarray) -> Any:
-        """A PETSc near-null space of the vectors whose rows this rank holds (`local`, (k, d))."""
+    def _nullspace(self, key: str, local: Callable[[], np.ndarray]) -> Any:
+        """The PETSc near-null space `key` (a field, "" for the whole matrix) of the vectors
+        whose rows this rank holds (`local()`, (k, d)), made at the first call and kept."""
+        if key in self._nullspaces:
+            return self._nullspaces[key]
         PETSc = self.PETSc
-        Q = orthonormal(local, self.red)  # MatNullSpace asks for orthonormal vectors
+        Q = orthonormal(local(), self.red)  # MatNullSpace asks for orthonormal vectors
         vecs = []
         for j in range(Q.shape[1]):
             v = PETSc.Vec().createMPI((Q.shape[0], PETSc.DECIDE), comm=self.comm)
             v.setArray(Q[:, j])
             vecs.append(v)
         space = PETSc.NullSpace().create(vectors=vecs, comm=self.comm)
-        self._nullspaces.append(space)
+        self._nullspaces[key] = space
         return space
+
+    def _whole_near_null(self, e: Fields) -> np.ndarray:
+        """(k, Σ d_f) each field's near-null vectors on its owned rows, 0 on the others."""
+        cols = []
+        for name, mask in e.fields.items():
+            N = near_null_rows(e, name, self.lo, self.hi)  # (k_f, d)
+            Z = np.zeros((self.hi - self.lo, N.shape[1]))
+            Z[mask[self.lo : self.hi]] = N
+            cols.append(Z)
+        return np.hstack(cols)
 
     def _ksp(self, kind: str, e: Fields | None = None) -> Any:
         PETSc = self.PETSc
@@ -133,19 +162,14 @@ class LinearSolve:
         else:
             ksp.setType("gmres")
             ksp.setTolerances(rtol=GMRES_RTOL, atol=0.0, max_it=GMRES_MAX_IT)
+            ksp.setGMRESRestart(GMRES_RESTART)
             ksp.setInitialGuessNonzero(True)
             if self.pc == "fieldsplit":
                 self._fieldsplit(pc, e)
             else:
                 pc.setType("gamg")
                 if e.fields:
-                    cols = []
-                    for name, mask in e.fields.items():
-                        N = near_null_rows(e, name, self.lo, self.hi)  # (k_f, d)
-                        Z = np.zeros((self.hi - self.lo, N.shape[1]))
-                        Z[mask[self.lo : self.hi]] = N
-                        cols.append(Z)
-                    self.K.setNearNullSpace(self._nullspace(np.hstack(cols)))
+                    self.K.setNearNullSpace(self._nullspace("", lambda: self._whole_near_null(e)))
         ksp.setFromOptions()
         return ksp
 
@@ -161,8 +185,8 @@ class LinearSolve:
             index = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=self.comm)
             if (e.near_null or {}).get(name) is not None:
                 # PCFIELDSPLIT hands a "nearnullspace" composed on the IS to its block
-                near = near_null_rows(e, name, self.lo, self.hi)  # (k_f, d)
-                index.compose("nearnullspace", self._nullspace(near))
+                near = self._nullspace(name, partial(near_null_rows, e, name, self.lo, self.hi))
+                index.compose("nearnullspace", near)
             pc.setFieldSplitIS((name, index))
             for key, value in (("ksp_type", "preonly"), ("pc_type", "gamg")):
                 if not opts.hasName(f"mixvi_fieldsplit_{name}_{key}"):
@@ -183,6 +207,8 @@ class LinearSolve:
         b, x = self.b, self.x
         b.setArray(rhs)
         x.setArray(guess)
+        if self.ksp is None:
+            self.ksp = self._ksp(self.kind, self.e)
         self.ksp.solve(b, x)
         record = {
             "ksp": self.kind,
@@ -197,12 +223,18 @@ class LinearSolve:
                 direct.solve(b, x)
                 direct.destroy()
                 record["fallback"] = "mumps"
+            # the preconditioner is set up again at the next step anyway (its matrix changes):
+            # its hierarchies, fieldsplit's blocks and GMRES's basis are freed now, before the
+            # step's damping and multiplier recovery run (they were the peak after the solve)
+            self.ksp.destroy()
+            self.ksp = None
         self.steps.append(record)
         return x.getArray().copy()
 
     def destroy(self) -> None:
         """Free the PETSc objects (collective)."""
-        for obj in (self.ksp, self.K, self.b, self.x, *self._nullspaces):
+        kept = [self.ksp] if self.ksp is not None else []
+        for obj in (*kept, self.K, self.b, self.x, *self._nullspaces.values()):
             obj.destroy()
 
     def info(self) -> dict:

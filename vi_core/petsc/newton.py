@@ -23,9 +23,10 @@ What is distributed and what is not (issue 33, docs/distributed.md):
   (`MixedVI.equilibrated_parts`: B', f', gap', Λ'; A' read by rows, `MixedVI.equilibrated_rows`:
   the slave rows, then the owned fixed rows); vi.A itself keeps only the rank's rows [lo, hi)
   from then until the solve ends (`_rows_only`; the equilibrium residual reads them, scaled:
-  s_u ⊙ (A (s_u ⊙ u'))), and is made whole again at the end (`_whole`, one allgather of the
-  rows: the serial post-processing reads it), or given back its own A where another holder
-  kept that alive (a load path's step shares A with its model: no second copy).
+  s_u ⊙ (A (s_u ⊙ u'))), and is made whole again at the end (`_whole`, the rows gathered by
+  MPI_Allgatherv straight into the whole arrays: the serial post-processing reads it), or
+  given back its own A where another holder kept that alive (a load path's step shares A
+  with its model: no second copy).
 
 Not yet distributed (what remains, stated in docs/distributed.md): the model is built whole on
 every rank (the plug-in assembles A and B whole; each rank then keeps its rows of A during the
@@ -49,6 +50,7 @@ from vi_core.problem import MixedVI
 from vi_core.solution import Solution
 from vi_core.ssn import (
     Condensation,
+    NewtonSteps,
     _block_structure,
     _on_pattern,
     _structure,
@@ -97,14 +99,14 @@ def _rows_only(A: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
 
 def _whole(A: sp.csr_matrix, lo: int, hi: int, red: Reductions) -> sp.csr_matrix:
     """A whole again from the ranks' rows-only copies (`_rows_only`, rows [lo, hi) here): the
-    same values, indices and pattern as before (rows concatenated in rank order)."""
+    same values, indices and pattern as before (rows concatenated in rank order), received
+    straight into the whole arrays (`Reductions.gatherv`): no second copy of A meanwhile."""
     p0, p1 = A.indptr[lo], A.indptr[hi]
-    parts = red.comm.allgather((A.data[p0:p1], A.indices[p0:p1], np.diff(A.indptr[lo : hi + 1])))
-    data = np.concatenate([d for d, _, _ in parts])  # (nnz,)
-    indices = np.concatenate([i for _, i, _ in parts])  # (nnz,)
-    counts = np.concatenate([c for _, _, c in parts])  # (n,)
+    counts = red.gatherv(np.diff(A.indptr[lo : hi + 1]))  # (n,) entries per row
     indptr = np.zeros(A.shape[0] + 1, A.indptr.dtype)
     np.cumsum(counts, out=indptr[1:])
+    data = red.gatherv(A.data[p0:p1])  # (nnz,)
+    indices = red.gatherv(A.indices[p0:p1])  # (nnz,)
     whole = sp.csr_matrix((data, indices, indptr), shape=A.shape)
     whole.has_sorted_indices = True  # each row as it was: canonical (`_canonical_A`)
     whole.has_canonical_format = True
@@ -240,10 +242,9 @@ def solve_ssn_petsc(
         Lam = e.Lambda
         scale = max(red.norm(e.f[own.lo : own.hi]), red.norm(e.gap[own.mult])) or 1.0
         res = _residual(e, own, red, u, lam, scale)
-        history, damped, k = [res], 0, 0
-        converged = res <= tol
+        steps, k = NewtonSteps(tol, [res]), 0
         nloc = own.hi - own.lo
-        while not converged and k < max_iter:
+        while not steps.converged and k < max_iter:
             k += 1
             y = lam + e.B @ u - e.gap  # (m,)
             p = Lam.project(y)
@@ -262,9 +263,7 @@ def solve_ssn_petsc(
                 lambda u, lam: _residual(e, own, red, u, lam, scale), u, lam, u_new, lam_new, res,
                 damping,
             )  # fmt: skip
-            damped += t < 1.0
-            history.append(res)
-            converged = res <= tol
+            steps.record(t, res)
             if on_step is not None:
                 active = int((p == y).sum())
                 slip = int(((p != y) & (p != 0.0)).sum())
@@ -279,8 +278,8 @@ def solve_ssn_petsc(
                     )
                 )
         sol = finish(
-            e, Lam, sc, u, lam, (res, converged), tol,
-            lambda lam: _residual(e, own, red, u, lam, scale), history, k, t0,
+            e, Lam, sc, u, lam, (res, steps.converged), tol,
+            lambda lam: _residual(e, own, red, u, lam, scale), steps.history, k, t0,
         )  # fmt: skip
         res, converged = sol.residual, sol.converged
         solver.destroy()
@@ -290,7 +289,7 @@ def solve_ssn_petsc(
             "ranks": comm.getSize(),
             "owned_rows": red.comm.allgather(int(nloc)),
             "condensed": True,
-            "damped_steps": int(damped),
+            "damped_steps": steps.damped,
             "inside": sol.info["inside"],
             **solver.info(),
             "peak_mb": memory,  # per rank: ru_maxrss after the set-up and at the end

@@ -98,6 +98,15 @@ class Reductions:
             out[idx] = val
         return out
 
+    def gatherv(self, local: np.ndarray) -> np.ndarray:
+        """The ranks' `local` arrays (1-D, one dtype on every rank) concatenated in rank order
+        on every rank, received into one array (MPI_Allgatherv: no per-rank copies)."""
+        local = np.ascontiguousarray(local)
+        counts = self.comm.allgather(local.size)
+        out = np.empty(sum(counts), local.dtype)
+        self.comm.Allgatherv(local, [out, counts])  # the type from the buffers' format
+        return out
+
     def all_true(self, flag: bool) -> bool:
         """Whether `flag` holds on every rank."""
         return bool(self.comm.allreduce(int(bool(flag)), op=_min()) == 1)

@@ -32,19 +32,24 @@ def serial(scene: str, level: int) -> dict:
     return solved(scene, level, "auto")
 
 
-def launch(tmp_path, ranks: int, cases=CASES, mutation: str = "") -> dict[str, dict]:
+def launch(
+    tmp_path, ranks: int, cases=CASES, mutation: str = "", linear: str = "auto"
+) -> dict[str, dict]:
     """Every case of `cases` solved on `ranks` ranks in one mpiexec launch: scene → record."""
-    args = [sys.executable, "-m", MPI_SCENE, "--many", str(tmp_path), "auto"]
+    args = [sys.executable, "-m", MPI_SCENE, "--many", str(tmp_path), linear]
     args += [f"{s}:{lev}" for s, lev in cases]
     done = mpiexec(ranks, [*args, *(["--mutation", mutation] if mutation else [])], timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     return {s: dict(np.load(tmp_path / f"{s}.npz")) for s, _ in cases}
 
 
-def mismatches(got: dict[str, dict], ranks: int, cases=CASES) -> dict[str, dict]:
+def mismatches(
+    got: dict[str, dict], ranks: int, cases=CASES, undecided: bool = False
+) -> dict[str, dict]:
     """scene → its differences from the serial solution, for each scene that differs by more
     than 1e-8, did not converge, took other Newton steps than the serial loop (the engine
-    takes the same iterates) or did not run on the engine's `ranks` ranks."""
+    takes the same iterates) or did not run on the engine's `ranks` ranks. undecided: a node
+    the serial solution calls "ambiguous" may have any state (the iterative path's)."""
     out = {}
     for scene, level in cases:
         g, ref = got[scene], serial(scene, level)
@@ -53,6 +58,8 @@ def mismatches(got: dict[str, dict], ranks: int, cases=CASES) -> dict[str, dict]
             out[scene] = {"steps": (int(g["steps"]), int(ref["steps"])), "ran": ran}
             continue
         d = differences(ref, g)
+        if undecided and g["state"].shape == ref["state"].shape:
+            d["states"] = bool(((g["state"] == ref["state"]) | (ref["state"] == "ambiguous")).all())
         newton = g["iterations"].tolist(), ref["iterations"].tolist()
         if not (ran and bool(g["converged"]) and equal(d) and newton[0] == newton[1]):
             out[scene] = {**d, "ran": ran, "converged": bool(g["converged"]), "newton": newton}
@@ -71,6 +78,19 @@ def test_every_scene_equals_serial(tmp_path, ranks):
     need_petsc()
     got = launch(tmp_path, ranks)
     assert not mismatches(got, ranks)
+
+
+@pytest.mark.slow
+def test_every_scene_on_gamg_equals_serial(tmp_path):
+    """The iterative path (GMRES + GAMG, `--linear-solver amg`) on 2 ranks gives the serial
+    solution too: its KSP is made again at every Newton step (`ksp.LinearSolve.solve` frees
+    it after each solve), the near-null spaces made once. The states are read with thresholds
+    scaled by the achieved residual (`vi_core.states`), which GMRES (rtol 1e-12) does not
+    reproduce: a node the direct serial solve (residual ~1e-17) leaves "ambiguous" may be
+    decided here (hertz's node 8: slip at residual 2.6e-14)."""
+    need_petsc()
+    got = launch(tmp_path, 2, linear="amg")
+    assert not mismatches(got, 2, undecided=True)
 
 
 # the faults of mpi_scene._mutate; each must make the comparison above fail on 2 ranks

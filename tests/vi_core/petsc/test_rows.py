@@ -20,13 +20,19 @@ def _ranks(A: sp.csr_matrix, cuts: list[int]) -> list[tuple[int, int, sp.csr_mat
 
 
 def _gathered(ranks: list[tuple[int, int, sp.csr_matrix]], lo: int, hi: int, mine):
-    """`_whole` on one rank, the allgather answered with every rank's part (in rank order)."""
+    """`_whole` on one rank, each of its gathers (`Reductions.gatherv`: the rows' counts, then
+    the data, then the indices) answered with every rank's part concatenated in rank order."""
     parts = []
     for lo_r, hi_r, A_r in ranks:
         p0, p1 = A_r.indptr[lo_r], A_r.indptr[hi_r]
-        parts.append((A_r.data[p0:p1], A_r.indices[p0:p1], np.diff(A_r.indptr[lo_r : hi_r + 1])))
-    red = SimpleNamespace(comm=SimpleNamespace(allgather=lambda _: parts))
-    return _whole(mine, lo, hi, red)
+        parts.append((np.diff(A_r.indptr[lo_r : hi_r + 1]), A_r.data[p0:p1], A_r.indices[p0:p1]))
+    calls = iter(range(3))
+
+    def gatherv(local: np.ndarray) -> np.ndarray:
+        k = next(calls)
+        return np.concatenate([p[k] for p in parts])
+
+    return _whole(mine, lo, hi, SimpleNamespace(gatherv=gatherv))
 
 
 @settings(max_examples=10)
