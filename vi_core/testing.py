@@ -388,14 +388,7 @@ def vi_strategy(
     spread: float = 0.0,
 ):
     """Hypothesis strategy of `random_vi` problems (a seed and parameters are drawn)."""
-    from hypothesis import strategies as st
-
-    @st.composite
-    def strategy(draw):
-        p = _params(draw, structures, sets, n_range, rho_range, cond_range)
-        return random_vi(**p, spread=spread)
-
-    return strategy()
+    return _strategy(random_vi, None, spread, structures, sets, n_range, rho_range, cond_range)
 
 
 def manufactured_strategy(
@@ -408,13 +401,22 @@ def manufactured_strategy(
     spread: float = 0.0,
 ):
     """Hypothesis strategy of `manufactured_vi` problems (with their exact solutions)."""
+    return _strategy(
+        manufactured_vi, degenerate, spread, structures, sets, n_range, rho_range, cond_range
+    )
+
+
+def _strategy(build, degenerate, spread, *ranges):
+    """Hypothesis strategy of `build(**params, spread=spread)`, the common parameters drawn
+    by `_params(draw, *ranges)`; with a `degenerate` range, then its share and the active one."""
     from hypothesis import strategies as st
 
     @st.composite
     def strategy(draw):
-        p = _params(draw, structures, sets, n_range, rho_range, cond_range)
-        deg = draw(st.floats(*degenerate))
-        act = draw(st.floats(0.0, 1.0 - deg))
-        return manufactured_vi(**p, active=act, degenerate=deg, spread=spread)
+        p = _params(draw, *ranges)
+        if degenerate is not None:
+            p["degenerate"] = deg = draw(st.floats(*degenerate))
+            p["active"] = draw(st.floats(0.0, 1.0 - deg))
+        return build(**p, spread=spread)
 
     return strategy()
