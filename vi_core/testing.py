@@ -126,6 +126,19 @@ def _variables(
     return s[:, None] * A * s[None, :], B * s[None, :], s * f, s
 
 
+def _operators(rng, n, m, sets, structure, rho, cond, ball_dim) -> tuple:
+    """A (n, n) from `_operator`, the layout of Λ (`_layout`) and B (m', n), m' the size the
+    layout keeps, random in the columns B may act on."""
+    A, n_first = _operator(rng, n, structure, rho, cond)
+    layout = _layout(sets, m, ball_dim)
+    m = sum(k for _, k in layout)
+    if m > n_first:
+        raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
+    B = np.zeros((m, n))
+    B[:, :n_first] = rng.standard_normal((m, n_first))
+    return A, B, layout
+
+
 def random_vi(
     seed: int,
     n: int = 20,
@@ -147,13 +160,8 @@ def random_vi(
         the multiplier of the equality-constrained problem so that about half are active.
     """
     rng = np.random.default_rng(seed)
-    A, n_first = _operator(rng, n, structure, rho, cond)
-    layout = _layout(sets, m, ball_dim)
-    m = sum(k for _, k in layout)
-    if m > n_first:
-        raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
-    B = np.zeros((m, n))
-    B[:, :n_first] = rng.standard_normal((m, n_first))
+    A, B, layout = _operators(rng, n, m, sets, structure, rho, cond, ball_dim)
+    m = B.shape[0]
     f = rng.standard_normal(n)
     gap = 0.5 * rng.standard_normal(m)
     # multiplier of the equality-constrained problem: sizes the bounds
@@ -208,13 +216,8 @@ def manufactured_vi(
     if not (0 <= active and 0 <= degenerate and active + degenerate <= 1):
         raise ValueError("need active, degenerate ≥ 0 and active + degenerate ≤ 1")
     rng = np.random.default_rng(seed)
-    A, n_first = _operator(rng, n, structure, rho, cond)
-    layout = _layout(sets, m, ball_dim)
-    m = sum(k for _, k in layout)
-    if m > n_first:
-        raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
-    B = np.zeros((m, n))
-    B[:, :n_first] = rng.standard_normal((m, n_first))
+    A, B, layout = _operators(rng, n, m, sets, structure, rho, cond, ball_dim)
+    m = B.shape[0]
     u = rng.standard_normal(n)
     lam, z = np.zeros(m), np.zeros(m)  # z = B u* − gap ∈ N_Λ(λ*)
     kind = np.empty(m, dtype=object)
