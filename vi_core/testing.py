@@ -127,8 +127,7 @@ def _variables(
 
 
 def _operators(rng, n, m, sets, structure, rho, cond, ball_dim) -> tuple:
-    """A (n, n) from `_operator`, the layout of Λ (`_layout`) and B (m', n), m' the size the
-    layout keeps, random in the columns B may act on."""
+    """A (`_operator`), the layout of Λ (`_layout`) and B (m, n) random where it may act."""
     A, n_first = _operator(rng, n, structure, rho, cond)
     layout = _layout(sets, m, ball_dim)
     m = sum(k for _, k in layout)
@@ -410,8 +409,7 @@ def manufactured_strategy(
 
 
 def _strategy(build, degenerate, spread, *ranges):
-    """Hypothesis strategy of `build(**params, spread=spread)`, the common parameters drawn
-    by `_params(draw, *ranges)`; with a `degenerate` range, then its share and the active one."""
+    """Strategy of `build(**params, spread)`: `_params`, then (given `degenerate`) the shares."""
     from hypothesis import strategies as st
 
     @st.composite

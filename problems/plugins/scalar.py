@@ -8,7 +8,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 
 from fem import assembly
 from fem.dirichlet import expand, reduce_dirichlet
@@ -21,8 +20,8 @@ from .transfer import nodal_reference_errors
 
 
 def check_parts(spec: SceneModel, keys: Sequence[str]) -> None:
-    """Scene check (in a model validator): every boundary part of the list tables `keys`
-    (each entry has `boundary`) is one the geometry has, and no [[dirichlet]] part twice."""
+    """Scene check: the geometry has the boundary parts of the list tables `keys`, and no
+    [[dirichlet]] part is given twice."""
     names = spec.domain.geometry.BOUNDARIES
     for key in keys:
         for i, d in enumerate(getattr(spec, key)):
@@ -30,11 +29,9 @@ def check_parts(spec: SceneModel, keys: Sequence[str]) -> None:
     prescribed_once("dirichlet", [(d.boundary, "") for d in spec.dirichlet])
 
 
-def meshed(
-    spec: SceneModel, level: int, keys: Sequence[str], extra: Sequence[tuple[str, str]] = ()
-) -> Mesh:
-    """The scene's mesh at `level`; from a mesh file, every part of the list tables `keys` and
-    every (field path, boundary name) of `extra` checked to be one of its boundary groups."""
+def meshed(spec: SceneModel, level: int, keys: Sequence[str], extra: Sequence = ()) -> Mesh:
+    """The mesh at `level`; from a file, checked to have the parts of the list tables `keys` and
+    each (field path, boundary name) of `extra`."""
     mesh = spec.domain.geometry.mesh(level)
     if spec.domain.geometry.BOUNDARIES is None:
         refs = [(d.key("boundary"), b) for k in keys for d in getattr(spec, k) for b in d.boundary]
@@ -44,7 +41,7 @@ def meshed(
 
 def reduced(
     mesh: Mesh, F: np.ndarray, fixed: np.ndarray, values: np.ndarray, mu: float = 1.0
-) -> tuple[np.ndarray, sp.csr_matrix, np.ndarray, sp.csr_matrix]:
+) -> tuple:
     """−μΔu = F, u = values on `fixed` (n_nodes,) reduced (fem.dirichlet): free, A = μK_ff,
     f = F_f − μK_fD u_D and X = (M + K)_ff, the H¹ Gram matrix (K stiffness, M mass)."""
     K = assembly.stiffness_matrix(mesh)
