@@ -120,9 +120,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     level = spec.scene.level if level is None else level
     friction = (spec.friction.key("boundary"), spec.friction.boundary)
     mesh = scalar.meshed(spec, level, ("dirichlet", "traction"), [friction])
-    require_curve(
-        mesh, spec.friction.boundary, spec.friction.key("boundary"), spec.friction.boundary
-    )
+    require_curve(mesh, friction[1], *friction)
     mu = spec.domain.shear_modulus
     F = assembly.volume_load(mesh, spec.domain.load, 1)  # (n_nodes,)
     fixed, values = dirichlet(spec.dirichlet, mesh)
