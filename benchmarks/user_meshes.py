@@ -94,6 +94,24 @@ def _polyline(*pts) -> list[tuple]:
     return [("line", p, q) for p, q in zip(pts[:-1], pts[1:], strict=True)]
 
 
+def _grade(gmsh, near: str, tags: list[int], sizes: tuple, **distance: float) -> None:
+    """The only mesh size: a Threshold field of the Distance (options `distance`) to the
+    entities `tags` of kind `near` ("CurvesList", "PointsList"); `sizes` are its (SizeMin,
+    SizeMax, DistMin, DistMax)."""
+    field = gmsh.model.mesh.field
+    dist = field.add("Distance")
+    field.setNumbers(dist, near, tags)
+    for key, value in distance.items():
+        field.setNumber(dist, key, value)
+    th = field.add("Threshold")
+    field.setNumber(th, "InField", dist)
+    for key, value in zip(("SizeMin", "SizeMax", "DistMin", "DistMax"), sizes, strict=True):
+        field.setNumber(th, key, value)
+    field.setAsBackgroundMesh(th)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+
+
 def _write(gmsh, path: Path, dim: int) -> None:
     gmsh.model.mesh.generate(dim)
     gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
@@ -256,17 +274,7 @@ def punch_graded(gmsh, path: Path) -> str:
         for _, t in gmsh.model.getBoundary([(2, surf)], oriented=False)
         if gmsh.model.getType(1, t) == "Circle"
     ]
-    field = gmsh.model.mesh.field
-    dist = field.add("Distance")
-    field.setNumbers(dist, "CurvesList", arcs)
-    field.setNumber(dist, "Sampling", 40)
-    th = field.add("Threshold")
-    field.setNumber(th, "InField", dist)
-    for key, value in (("SizeMin", 3e-4), ("SizeMax", 2e-3), ("DistMin", 3e-4), ("DistMax", 6e-3)):
-        field.setNumber(th, key, value)
-    field.setAsBackgroundMesh(th)
-    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+    _grade(gmsh, "CurvesList", arcs, (3e-4, 2e-3, 3e-4, 6e-3), Sampling=40)
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
     _write(gmsh, path, 2)
     return f"""\
@@ -342,18 +350,9 @@ def cylinder_on_block(gmsh, path: Path) -> str:
         0.004,
     )
     # grade both bodies towards the first touching point (0, 0): 0.4 mm there
-    field = gmsh.model.mesh.field
     touch = gmsh.model.geo.addPoint(0.0, 0.0, 0.0)
     gmsh.model.geo.synchronize()
-    dist = field.add("Distance")
-    field.setNumbers(dist, "PointsList", [touch])
-    th = field.add("Threshold")
-    field.setNumber(th, "InField", dist)
-    for key, value in (("SizeMin", 4e-4), ("SizeMax", 4e-3), ("DistMin", 2e-3), ("DistMax", 0.03)):
-        field.setNumber(th, key, value)
-    field.setAsBackgroundMesh(th)
-    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+    _grade(gmsh, "PointsList", [touch], (4e-4, 4e-3, 2e-3, 0.03))
     _write(gmsh, path, 2)
     return f"""\
 # A steel half cylinder (radius 20 mm) pressed down and sideways onto an aluminium block

@@ -126,6 +126,18 @@ def _variables(
     return s[:, None] * A * s[None, :], B * s[None, :], s * f, s
 
 
+def _operators(rng, n, m, sets, structure, rho, cond, ball_dim) -> tuple:
+    """A (`_operator`), the layout of Λ (`_layout`) and B (m, n) random where it may act."""
+    A, n_first = _operator(rng, n, structure, rho, cond)
+    layout = _layout(sets, m, ball_dim)
+    m = sum(k for _, k in layout)
+    if m > n_first:
+        raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
+    B = np.zeros((m, n))
+    B[:, :n_first] = rng.standard_normal((m, n_first))
+    return A, B, layout
+
+
 def random_vi(
     seed: int,
     n: int = 20,
@@ -147,13 +159,8 @@ def random_vi(
         the multiplier of the equality-constrained problem so that about half are active.
     """
     rng = np.random.default_rng(seed)
-    A, n_first = _operator(rng, n, structure, rho, cond)
-    layout = _layout(sets, m, ball_dim)
-    m = sum(k for _, k in layout)
-    if m > n_first:
-        raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
-    B = np.zeros((m, n))
-    B[:, :n_first] = rng.standard_normal((m, n_first))
+    A, B, layout = _operators(rng, n, m, sets, structure, rho, cond, ball_dim)
+    m = B.shape[0]
     f = rng.standard_normal(n)
     gap = 0.5 * rng.standard_normal(m)
     # multiplier of the equality-constrained problem: sizes the bounds
@@ -208,13 +215,8 @@ def manufactured_vi(
     if not (0 <= active and 0 <= degenerate and active + degenerate <= 1):
         raise ValueError("need active, degenerate ≥ 0 and active + degenerate ≤ 1")
     rng = np.random.default_rng(seed)
-    A, n_first = _operator(rng, n, structure, rho, cond)
-    layout = _layout(sets, m, ball_dim)
-    m = sum(k for _, k in layout)
-    if m > n_first:
-        raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
-    B = np.zeros((m, n))
-    B[:, :n_first] = rng.standard_normal((m, n_first))
+    A, B, layout = _operators(rng, n, m, sets, structure, rho, cond, ball_dim)
+    m = B.shape[0]
     u = rng.standard_normal(n)
     lam, z = np.zeros(m), np.zeros(m)  # z = B u* − gap ∈ N_Λ(λ*)
     kind = np.empty(m, dtype=object)
@@ -388,14 +390,7 @@ def vi_strategy(
     spread: float = 0.0,
 ):
     """Hypothesis strategy of `random_vi` problems (a seed and parameters are drawn)."""
-    from hypothesis import strategies as st
-
-    @st.composite
-    def strategy(draw):
-        p = _params(draw, structures, sets, n_range, rho_range, cond_range)
-        return random_vi(**p, spread=spread)
-
-    return strategy()
+    return _strategy(random_vi, None, spread, structures, sets, n_range, rho_range, cond_range)
 
 
 def manufactured_strategy(
@@ -408,13 +403,21 @@ def manufactured_strategy(
     spread: float = 0.0,
 ):
     """Hypothesis strategy of `manufactured_vi` problems (with their exact solutions)."""
+    return _strategy(
+        manufactured_vi, degenerate, spread, structures, sets, n_range, rho_range, cond_range
+    )
+
+
+def _strategy(build, degenerate, spread, *ranges):
+    """Strategy of `build(**params, spread)`: `_params`, then (given `degenerate`) the shares."""
     from hypothesis import strategies as st
 
     @st.composite
     def strategy(draw):
-        p = _params(draw, structures, sets, n_range, rho_range, cond_range)
-        deg = draw(st.floats(*degenerate))
-        act = draw(st.floats(0.0, 1.0 - deg))
-        return manufactured_vi(**p, active=act, degenerate=deg, spread=spread)
+        p = _params(draw, *ranges)
+        if degenerate is not None:
+            p["degenerate"] = deg = draw(st.floats(*degenerate))
+            p["active"] = draw(st.floats(0.0, 1.0 - deg))
+        return build(**p, spread=spread)
 
     return strategy()

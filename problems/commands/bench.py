@@ -275,13 +275,7 @@ def _scenes(text: str) -> list[str]:
 
 
 def _timeout(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = -1.0
-    if not 0 < v < float("inf"):
-        raise argparse.ArgumentTypeError(f"{text!r}: a time in seconds, > 0")
-    return v
+    return options.number(text, float, lambda v: 0 < v < float("inf"), "a time in seconds, > 0")
 
 
 HEAD = (

@@ -13,6 +13,8 @@ import io
 
 import numpy as np
 
+from problems.output.plots import pyplot
+
 QUANTITIES = {  # JSON key of the fit → record key
     "time_nonlinear": "time_nonlinear_s",
     "time_linear": "time_linear_s",
@@ -58,11 +60,7 @@ def fits(records: list[dict]) -> list[dict]:
 
 def figure_svg(records: list[dict]) -> str:
     """The scaling figure (time and memory against unknowns, log-log) as SVG text."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fitted = {(f["scene"], f["linear_solver"]): f["exponent"] for f in fits(records)}
     fig, (ax_t, ax_m) = plt.subplots(1, 2, figsize=(11, 4.5))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]

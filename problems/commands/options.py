@@ -6,6 +6,8 @@ Each parser raises SceneError naming the option, the value and what is allowed (
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from typing import Any
 
 from problems.errors import SceneError
 
@@ -24,16 +26,23 @@ def solver_options(args: argparse.Namespace) -> dict:
     }
 
 
+def number(text: str, kind: type, ok: Callable[[Any], bool], what: str) -> Any:
+    """argparse type body: `kind(text)` where it converts and `ok` holds, else
+    argparse.ArgumentTypeError "'text': what"."""
+    try:
+        v = kind(text)
+    except ValueError:
+        v = None
+    if v is None or not ok(v):
+        raise argparse.ArgumentTypeError(f"{text!r}: {what}")
+    return v
+
+
 def level(text: str) -> int:
     """argparse type: a refinement level, an integer 0 … MAX_LEVEL (the scene's own cap, from
     its memory estimate, is checked once the scene is read: `resources.check_levels`)."""
-    try:
-        v = int(text)
-    except ValueError:
-        v = -1
-    if not 0 <= v <= MAX_LEVEL:
-        raise argparse.ArgumentTypeError(f"{text!r}: a level is an integer from 0 to {MAX_LEVEL}")
-    return v
+    what = f"a level is an integer from 0 to {MAX_LEVEL}"
+    return number(text, int, lambda v: 0 <= v <= MAX_LEVEL, what)
 
 
 # --accuracy presets: (level, tol); measured time and error on the paper scene in the README
@@ -45,26 +54,13 @@ def accuracy(text: str) -> str | float:
     in (0, 1) for the adaptive loop (`problems.commands.adapt`)."""
     if text in ACCURACY:
         return text
-    try:
-        v = float(text)
-    except ValueError:
-        v = -1.0
-    if not 0.0 < v < 1.0:
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: one of {', '.join(ACCURACY)}, or a relative error estimate in (0, 1)"
-        )
-    return v
+    what = f"one of {', '.join(ACCURACY)}, or a relative error estimate in (0, 1)"
+    return number(text, float, lambda v: 0.0 < v < 1.0, what)
 
 
 def tol(text: str) -> float:
     """argparse type: a relative residual tolerance in (0, 1)."""
-    try:
-        v = float(text)
-    except ValueError:
-        v = -1.0
-    if not 0.0 < v < 1.0:
-        raise argparse.ArgumentTypeError(f"{text!r}: a tolerance is a number in (0, 1)")
-    return v
+    return number(text, float, lambda v: 0.0 < v < 1.0, "a tolerance is a number in (0, 1)")
 
 
 def level_range(text: str, option: str = "--levels") -> tuple[int, int]:

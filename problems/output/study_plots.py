@@ -4,13 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .plots import share_scales  # noqa: E402
+from .plots import pyplot, share_scales
 
 LABELS = {
     "u_H1": r"$\|u-u_h\|_{H^1(\Omega)}$ [m]",
@@ -44,6 +40,7 @@ def plot_errors_vs_h(result: dict, path: Path) -> None:
     norms = result["norms"]
     cols = min(len(norms), 2)
     rows_ = -(-len(norms) // cols)
+    plt = pyplot()
     fig, axes = plt.subplots(
         rows_, cols, figsize=(5 * cols, 4 * rows_), constrained_layout=True, squeeze=False
     )
@@ -83,6 +80,7 @@ def plot_errors_vs_time(result: dict, path: Path) -> None:
     solvers = list(dict.fromkeys(r["solver"] for r in result["records"]))
     tols = sorted({r["tol"] for r in result["records"]}, reverse=True)
     shown = list(dict.fromkeys([result["norms"][0], result["norms"][-1]]))
+    plt = pyplot()
     fig, axes = plt.subplots(
         1, len(shown), figsize=(5.5 * len(shown), 4.5), constrained_layout=True, squeeze=False
     )

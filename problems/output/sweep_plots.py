@@ -6,10 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from .plots import pyplot
 
 
 def _number(x) -> bool:
@@ -24,6 +21,7 @@ def plot_output(result: dict, key: str, path: Path) -> None:
     xs = result["parameters"][x_key]
     numeric = all(_number(v) for v in xs)
     pos = {repr(v): (v if numeric else i) for i, v in enumerate(xs)}
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4.5), constrained_layout=True)
     lines: dict[tuple, list[tuple]] = {}
     for r in result["cases"]:

@@ -46,11 +46,9 @@ from .contract import (
     ScalarExact,
     Sweep,
     check_boundaries,
-    check_meshed,
     complementarity_defect,
     dirichlet,
     expect,
-    prescribed_once,
 )
 from .scalar import ScalarModel
 
@@ -107,12 +105,9 @@ class AntiplaneScene(SceneModel):
 
     @model_validator(mode="after")
     def _references(self) -> AntiplaneScene:
+        scalar.check_parts(self, ("dirichlet", "traction"))
         names = self.domain.geometry.BOUNDARIES
-        for key in ("dirichlet", "traction"):
-            for i, d in enumerate(getattr(self, key)):
-                check_boundaries([key, i, "boundary"], d.boundary, names)
         check_boundaries(["friction", "boundary"], [self.friction.boundary], names)
-        prescribed_once("dirichlet", [(d.boundary, "") for d in self.dirichlet])
         return self
 
 
@@ -123,18 +118,9 @@ def build(scene: Scene, level: int | None = None) -> Model:
     """Scene → Model: mesh, μK, loads, Dirichlet reduction, friction rows on Γ3."""
     spec = scene.validated(SCENE_MODEL)
     level = spec.scene.level if level is None else level
-    mesh = spec.domain.geometry.mesh(level)
-    if spec.domain.geometry.BOUNDARIES is None:
-        refs = [
-            (d.key("boundary"), b)
-            for k in ("dirichlet", "traction")
-            for d in getattr(spec, k)
-            for b in d.boundary
-        ]
-        check_meshed(mesh, [*refs, (spec.friction.key("boundary"), spec.friction.boundary)])
-    require_curve(
-        mesh, spec.friction.boundary, spec.friction.key("boundary"), spec.friction.boundary
-    )
+    friction = (spec.friction.key("boundary"), spec.friction.boundary)
+    mesh = scalar.meshed(spec, level, ("dirichlet", "traction"), [friction])
+    require_curve(mesh, friction[1], *friction)
     mu = spec.domain.shear_modulus
     F = assembly.volume_load(mesh, spec.domain.load, 1)  # (n_nodes,)
     fixed, values = dirichlet(spec.dirichlet, mesh)
@@ -152,8 +138,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     rows = np.flatnonzero(~fixed[tr.nodes])  # (m,) Γ3 nodes with unknown w
     if rows.size == 0:
         raise SceneError("friction.boundary", part, "a boundary not entirely under [[dirichlet]]")
-    free = np.flatnonzero(~fixed)
-    K = mu * assembly.stiffness_matrix(mesh)
+    free, A, f, X = scalar.reduced(mesh, F, fixed, values, mu)
     col = np.full(mesh.n_nodes, -1)
     col[free] = np.arange(free.size)
     m = rows.size
@@ -162,11 +147,11 @@ def build(scene: Scene, level: int | None = None) -> Model:
     )  # (m, n_free): D_i at the Γ3 node i
     g_i = gw[rows] / tr.weights[rows]  # (m,)
     vi = MixedVI(
-        A=K[free][:, free],
+        A=A,
         B=B,
-        f=F[free] - K[free][:, fixed] @ values[fixed],
+        f=f,
         Lambda=Box(-g_i, g_i),
-        X=(assembly.mass_matrix(mesh) + assembly.stiffness_matrix(mesh))[free][:, free],
+        X=X,
         info={"scene": scene.name, "level": level},
     )
     return Model(

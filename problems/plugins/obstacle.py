@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from pydantic import BeforeValidator, Field, model_validator
 
 from fem import assembly
+from problems.output import plots
 from problems.scene import Scene, SceneModel, Section
 from problems.scene.fields import Expression
 from problems.scene.geometry import PlaneGeometry
@@ -36,12 +37,9 @@ from .contract import (
     ExtremeRow,
     ScalarExact,
     Sweep,
-    check_boundaries,
-    check_meshed,
     complementarity_defect,
     dirichlet,
     expect,
-    prescribed_once,
     triangles,
 )
 from .scalar import ScalarModel
@@ -80,10 +78,7 @@ class ObstacleScene(SceneModel):
 
     @model_validator(mode="after")
     def _references(self) -> ObstacleScene:
-        names = self.domain.geometry.BOUNDARIES
-        for i, d in enumerate(self.dirichlet):
-            check_boundaries(["dirichlet", i, "boundary"], d.boundary, names)
-        prescribed_once("dirichlet", [(d.boundary, "") for d in self.dirichlet])
+        scalar.check_parts(self, ("dirichlet",))
         return self
 
 
@@ -94,9 +89,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
     """Scene → Model: mesh, stiffness, load, Dirichlet reduction, one constraint per free node."""
     spec = scene.validated(SCENE_MODEL)
     level = spec.scene.level if level is None else level
-    mesh = spec.domain.geometry.mesh(level)
-    if spec.domain.geometry.BOUNDARIES is None:
-        check_meshed(mesh, [(d.key("boundary"), b) for d in spec.dirichlet for b in d.boundary])
+    mesh = scalar.meshed(spec, level, ("dirichlet",))
     f_fun, psi_fun = spec.domain.load, spec.domain.obstacle
     fixed, values = dirichlet(spec.dirichlet, mesh)
     exact = None if spec.exact is None else spec.exact.compiled()
@@ -104,13 +97,9 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
     x, y = mesh.points.T  # (n_nodes,) each
     psi = psi_fun(x, y)  # (n_nodes,)
-    K = assembly.stiffness_matrix(mesh)
     F = assembly.volume_load(mesh, f_fun, 1)  # (n_nodes,)
-    free = np.flatnonzero(~fixed)
-    A = K[free][:, free]
-    f = F[free] - K[free][:, fixed] @ values[fixed]
+    free, A, f, X = scalar.reduced(mesh, F, fixed, values)
     n = free.size
-    X = (assembly.mass_matrix(mesh) + K)[free][:, free]
     vi = MixedVI(
         A=A,
         B=-sp.identity(n, format="csr"),
@@ -171,12 +160,16 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
     return summary
 
 
+def _mid_line(P: np.ndarray) -> tuple[float, np.ndarray]:
+    """The node row nearest the median height of the points P (n_nodes, 2): (its y, (k,) its
+    nodes from left to right)."""
+    ymid = P[np.argmin(np.abs(P[:, 1] - np.median(P[:, 1]))), 1]
+    row = np.flatnonzero(np.isclose(P[:, 1], ymid))
+    return ymid, row[np.argsort(P[row, 0])]
+
+
 def _plot(model: Model, u: np.ndarray, touch: np.ndarray, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = plots.pyplot()
     P = model.mesh.points  # (n_nodes, 2)
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.5))
     tpc = a0.tripcolor(P[:, 0], P[:, 1], triangles(model.mesh), u, shading="gouraud")
@@ -184,9 +177,7 @@ def _plot(model: Model, u: np.ndarray, touch: np.ndarray, path: Path) -> None:
     a0.set_aspect("equal")
     a0.legend(loc="upper right", fontsize=8)
     fig.colorbar(tpc, ax=a0, label="u")
-    ymid = P[np.argmin(np.abs(P[:, 1] - np.median(P[:, 1]))), 1]
-    row = np.flatnonzero(np.isclose(P[:, 1], ymid))
-    row = row[np.argsort(P[row, 0])]  # (k,) nodes on the mid line, left to right
+    ymid, row = _mid_line(P)
     a1.plot(P[row, 0], u[row], "o-", ms=3, label="$u_h$")
     a1.plot(P[row, 0], model.psi[row], "k--", lw=1, label=r"obstacle $\psi$")
     if model.exact is not None:
@@ -225,9 +216,7 @@ def _touching(model: Model, sol: Solution) -> np.ndarray:
 def draw(ax, model: Model, sol: Solution) -> str:
     """A panel of `mixvi figures`: u and ψ along the mid line, contact nodes marked."""
     P, u = model.mesh.points, model.full(sol.u)  # (n_nodes, 2), (n_nodes,)
-    ymid = P[np.argmin(np.abs(P[:, 1] - np.median(P[:, 1]))), 1]
-    row = np.flatnonzero(np.isclose(P[:, 1], ymid))
-    row = row[np.argsort(P[row, 0])]  # (k,) mid-line nodes, left to right
+    ymid, row = _mid_line(P)
     touch = np.zeros(model.mesh.n_nodes, dtype=bool)
     touch[model.free[_touching(model, sol)]] = True
     ax.plot(P[row, 0], u[row], "o-", ms=2, label="$u_h$")

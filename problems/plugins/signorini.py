@@ -165,8 +165,7 @@ def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
 
 
 def _normal_plot(st: dict, outdir: Path, title: str) -> str:
-    import matplotlib.pyplot as plt  # backend Agg, set by `plots`
-
+    plt = plots.pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(st["s_n"], st["lam_n"], "o-", ms=3, label=r"pressure $\lambda_n$")
     ax.set_xlabel("arc length along $\\Gamma_3$ [m]")

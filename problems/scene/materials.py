@@ -53,10 +53,6 @@ class Material:
     def piezoelectric(self) -> bool:
         return self.e is not None
 
-    @property
-    def stiffness_scale(self) -> float:
-        return float(np.max(np.abs(self.C)))
-
 
 def plane_strain(m: Material3D) -> Material:
     """The 2D plane-strain material in the x–y plane of the 3D material `m`: its in-plane

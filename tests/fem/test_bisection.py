@@ -188,16 +188,6 @@ def similarity_floor(mesh: Mesh, depth: int = 6) -> float:
     return floor
 
 
-def random_cycles(mesh: Mesh, rng, cycles: int, fraction: float, check: bool = True) -> Mesh:
-    for _ in range(cycles):
-        marked = rng.random(mesh.n_cells) < fraction
-        fine, P = refine_marked(mesh, marked)
-        if check:
-            check_all(fine, P, mesh, marked, rng)
-        mesh = fine
-    return mesh
-
-
 def local_marks(mesh: Mesh, rng, near: int = 40) -> np.ndarray:
     """Adaptive-like marks: the `near` cells closest to a random cell (repeated, this drives
     deep local refinement with bounded growth), and a few random cells elsewhere."""

@@ -25,10 +25,6 @@ from tests import optional
 FORMATS = ("gmsh22", "gmsh")  # meshio's names of gmsh v2.2 and v4.1
 
 
-def _edge_set(edges: np.ndarray) -> set[tuple[int, int]]:
-    return {(int(a), int(b)) for a, b in edges}
-
-
 @pytest.mark.parametrize("fmt", FORMATS)
 @pytest.mark.parametrize(
     "mesh",

@@ -6,6 +6,7 @@ meshes with holes and notches and on structured boxes, with weights drawn per bo
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cache
 from pathlib import Path
 from tempfile import TemporaryDirectory
@@ -58,49 +59,58 @@ def _built(mesh: Mesh, w: np.ndarray) -> tuple[int, int]:
     return int(w.sum()), int(w @ (P @ w))
 
 
-def _gmsh_2d(element: str) -> Mesh:
-    """A plate with a hole and a V notch, gmsh-meshed in triangles or quadrilaterals; parts
-    left, right, notch, hole, rest."""
+def _gmsh_mesh(build: Callable, name: str, dim: int) -> Mesh:
+    """Body `name` of the mesh `build(gmsh)` sets up, generated in `dim` dimensions."""
     gmsh = optional.gmsh()
     gmsh.initialize(["-noenv"])
     gmsh.option.setNumber("General.Terminal", 0)
     with TemporaryDirectory() as tmp:
         try:
-            occ = gmsh.model.occ
-            plate = occ.addRectangle(0, 0, 0, 2.0, 1.0)
-            hole = occ.addDisk(1.3, 0.5, 0, 0.2, 0.2)
-            cut = occ.addRectangle(0.6, -0.1, 0, 0.08, 0.5)
-            occ.rotate([(2, cut)], 0.64, 0.0, 0, 0, 0, 1, 0.3)
-            out, _ = occ.cut([(2, plate)], [(2, hole), (2, cut)])
-            occ.synchronize()
-            gmsh.model.addPhysicalGroup(2, [t for _, t in out], name="plate")
-            groups: dict[str, list[int]] = {k: [] for k in ("left", "right", "notch", "hole")}
-            rest = []
-            for _, t in gmsh.model.getEntities(1):
-                x0, y0, _, x1, y1, _ = gmsh.model.getBoundingBox(1, t)
-                if x1 < 1e-9:
-                    groups["left"].append(t)
-                elif x0 > 2.0 - 1e-9:
-                    groups["right"].append(t)
-                elif x0 > 1.05 and x1 < 1.55 and y0 > 0.25:
-                    groups["hole"].append(t)
-                elif 0.4 < x0 and x1 < 0.9 and y1 < 0.6:
-                    groups["notch"].append(t)
-                else:
-                    rest.append(t)
-            for name, tags in {**groups, "rest": rest}.items():
-                gmsh.model.addPhysicalGroup(1, tags, name=name)
-            gmsh.option.setNumber("Mesh.CharacteristicLengthMax", 0.3)
-            if element == "quad":
-                gmsh.option.setNumber("Mesh.RecombineAll", 1)
-                gmsh.option.setNumber("Mesh.Algorithm", 8)
-                gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 1)  # all quadrilaterals
-            gmsh.model.mesh.generate(2)
-            path = Path(tmp) / "plate.msh"
+            build(gmsh)
+            gmsh.model.mesh.generate(dim)
+            path = Path(tmp) / f"{name}.msh"
             gmsh.write(str(path))
         finally:
             gmsh.finalize()
-        mesh = body_mesh(read_mesh(path), "plate")
+        return body_mesh(read_mesh(path, planar=dim == 2), name)
+
+
+def _gmsh_2d(element: str) -> Mesh:
+    """A plate with a hole and a V notch, gmsh-meshed in triangles or quadrilaterals; parts
+    left, right, notch, hole, rest."""
+
+    def build(gmsh) -> None:
+        occ = gmsh.model.occ
+        plate = occ.addRectangle(0, 0, 0, 2.0, 1.0)
+        hole = occ.addDisk(1.3, 0.5, 0, 0.2, 0.2)
+        cut = occ.addRectangle(0.6, -0.1, 0, 0.08, 0.5)
+        occ.rotate([(2, cut)], 0.64, 0.0, 0, 0, 0, 1, 0.3)
+        out, _ = occ.cut([(2, plate)], [(2, hole), (2, cut)])
+        occ.synchronize()
+        gmsh.model.addPhysicalGroup(2, [t for _, t in out], name="plate")
+        groups: dict[str, list[int]] = {k: [] for k in ("left", "right", "notch", "hole")}
+        rest = []
+        for _, t in gmsh.model.getEntities(1):
+            x0, y0, _, x1, y1, _ = gmsh.model.getBoundingBox(1, t)
+            if x1 < 1e-9:
+                groups["left"].append(t)
+            elif x0 > 2.0 - 1e-9:
+                groups["right"].append(t)
+            elif x0 > 1.05 and x1 < 1.55 and y0 > 0.25:
+                groups["hole"].append(t)
+            elif 0.4 < x0 and x1 < 0.9 and y1 < 0.6:
+                groups["notch"].append(t)
+            else:
+                rest.append(t)
+        for name, tags in {**groups, "rest": rest}.items():
+            gmsh.model.addPhysicalGroup(1, tags, name=name)
+        gmsh.option.setNumber("Mesh.CharacteristicLengthMax", 0.3)
+        if element == "quad":
+            gmsh.option.setNumber("Mesh.RecombineAll", 1)
+            gmsh.option.setNumber("Mesh.Algorithm", 8)
+            gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 1)  # all quadrilaterals
+
+    mesh = _gmsh_mesh(build, "plate", 2)
     assert mesh.cell_type == element
     return mesh
 
@@ -108,38 +118,31 @@ def _gmsh_2d(element: str) -> Mesh:
 def _gmsh_3d() -> Mesh:
     """A block with a cylindrical hole and a notch, gmsh-meshed in tetrahedra; parts by the
     faces' positions."""
-    gmsh = optional.gmsh()
-    gmsh.initialize(["-noenv"])
-    gmsh.option.setNumber("General.Terminal", 0)
-    with TemporaryDirectory() as tmp:
-        try:
-            occ = gmsh.model.occ
-            block = occ.addBox(0, 0, 0, 2.0, 1.0, 0.6)
-            hole = occ.addCylinder(1.3, 0.5, -0.1, 0, 0, 0.8, 0.2)
-            notch = occ.addBox(0.5, -0.1, 0.3, 0.1, 1.2, 0.4)
-            out, _ = occ.cut([(3, block)], [(3, hole), (3, notch)])
-            occ.synchronize()
-            gmsh.model.addPhysicalGroup(3, [t for _, t in out], name="block")
-            groups: dict[str, list[int]] = {k: [] for k in ("left", "bottom", "hole", "rest")}
-            for _, t in gmsh.model.getEntities(2):
-                x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(2, t)
-                if x1 < 1e-9:
-                    groups["left"].append(t)
-                elif z1 < 1e-9:
-                    groups["bottom"].append(t)
-                elif x0 > 1.05 and x1 < 1.55 and y0 > 0.25 and y1 < 0.75:
-                    groups["hole"].append(t)
-                else:
-                    groups["rest"].append(t)
-            for name, tags in groups.items():
-                gmsh.model.addPhysicalGroup(2, tags, name=name)
-            gmsh.option.setNumber("Mesh.CharacteristicLengthMax", 0.45)
-            gmsh.model.mesh.generate(3)
-            path = Path(tmp) / "block.msh"
-            gmsh.write(str(path))
-        finally:
-            gmsh.finalize()
-        mesh = body_mesh(read_mesh(path, planar=False), "block")
+
+    def build(gmsh) -> None:
+        occ = gmsh.model.occ
+        block = occ.addBox(0, 0, 0, 2.0, 1.0, 0.6)
+        hole = occ.addCylinder(1.3, 0.5, -0.1, 0, 0, 0.8, 0.2)
+        notch = occ.addBox(0.5, -0.1, 0.3, 0.1, 1.2, 0.4)
+        out, _ = occ.cut([(3, block)], [(3, hole), (3, notch)])
+        occ.synchronize()
+        gmsh.model.addPhysicalGroup(3, [t for _, t in out], name="block")
+        groups: dict[str, list[int]] = {k: [] for k in ("left", "bottom", "hole", "rest")}
+        for _, t in gmsh.model.getEntities(2):
+            x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(2, t)
+            if x1 < 1e-9:
+                groups["left"].append(t)
+            elif z1 < 1e-9:
+                groups["bottom"].append(t)
+            elif x0 > 1.05 and x1 < 1.55 and y0 > 0.25 and y1 < 0.75:
+                groups["hole"].append(t)
+            else:
+                groups["rest"].append(t)
+        for name, tags in groups.items():
+            gmsh.model.addPhysicalGroup(2, tags, name=name)
+        gmsh.option.setNumber("Mesh.CharacteristicLengthMax", 0.45)
+
+    mesh = _gmsh_mesh(build, "block", 3)
     assert mesh.cell_type == "tetra"
     return mesh
 

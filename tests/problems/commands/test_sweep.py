@@ -26,6 +26,7 @@ def test_ranges_lists_and_the_grid():
     assert sweep.override("a.b", "x") == 'a.b="x"' and sweep.override("a", 0.5) == "a=0.5"
 
 
+TWO_LOADS = ["sweep", "obstacle", "--level", "0", "--set-list", "domain.load=0,-2"]
 BAD = [
     (["--set-range", "contact.Fx=0.1:1:3"], "--set-range contact.Fx", "unknown key"),
     (["--set-range", "contact.g=a:1:3"], "--set-range", "START:STOP:N"),
@@ -72,16 +73,7 @@ def test_a_refused_value_is_named_by_its_case_not_by_set(tmp_path, monkeypatch, 
 
 def test_a_bad_plot_key_after_the_first_case_leaves_the_folder_as_it_was(tmp_path, capsys):
     out = tmp_path / "o"
-    argv = [
-        "sweep",
-        "obstacle",
-        "--level",
-        "0",
-        "--set-list",
-        "domain.load=0,-2",
-        "--out",
-        str(out),
-    ]
+    argv = [*TWO_LOADS, "--out", str(out)]
     assert main([*argv, "--no-progress"]) == 0
     before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
     assert {"sweep.json", "sweep.csv", "case_0/summary.json", "case_1/summary.json"} <= {
@@ -117,16 +109,7 @@ def test_a_failed_case_is_a_row_and_exit_1(tmp_path, monkeypatch, capsys):
 
     monkeypatch.setattr(sweep, "solve_case", failing)
     out = tmp_path / "o"
-    argv = [
-        "sweep",
-        "obstacle",
-        "--level",
-        "0",
-        "--set-list",
-        "domain.load=0,-2",
-        "--out",
-        str(out),
-    ]
+    argv = [*TWO_LOADS, "--out", str(out)]
     assert main([*argv, "--no-progress"]) == 1
     res = json.loads((out / "sweep.json").read_text())
     assert [c["converged"] for c in res["cases"]] == [True, False]

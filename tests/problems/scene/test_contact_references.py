@@ -53,15 +53,20 @@ def test_integral_and_eigenvector_forms_agree(name, electric):
     assert np.allclose(L, _stroh_eigen_L(*args), rtol=1e-9, atol=1e-9 * np.abs(L).max())
 
 
-@given(seed=st.integers(0, 2**31))
-def test_integral_form_on_drawn_transversely_isotropic_piezo_materials(seed):
-    """Random perturbations of BaTiO3 (moduli ×[0.7, 1.3]): the two routes agree."""
+def _perturbed_batio3(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """BaTiO3's (C, e, κ) with each modulus scaled by a factor drawn in [0.7, 1.3] (C kept
+    symmetric, κ diagonal)."""
     rng = np.random.default_rng(seed)
     C, e, k = _piezo("BaTiO3")
     C = C * rng.uniform(0.7, 1.3, (3, 3))
-    C = 0.5 * (C + C.T)
     e = e * rng.uniform(0.7, 1.3, e.shape)
-    k = np.diag(np.diag(k) * rng.uniform(0.7, 1.3, 2))
+    return 0.5 * (C + C.T), e, np.diag(np.diag(k) * rng.uniform(0.7, 1.3, 2))
+
+
+@given(seed=st.integers(0, 2**31))
+def test_integral_form_on_drawn_transversely_isotropic_piezo_materials(seed):
+    """Random perturbations of BaTiO3 (moduli ×[0.7, 1.3]): the two routes agree."""
+    C, e, k = _perturbed_batio3(seed)
     L = cr.barnett_lothe_L(C, e, k)
     assert np.allclose(L, _stroh_eigen_L(C, e, k), rtol=1e-8, atol=1e-8 * np.abs(L).max())
 
@@ -114,12 +119,7 @@ def test_conducting_indenter_modulus_is_one_over_L_yy_and_below_the_insulating(s
     """Drawn perturbations of BaTiO3: the Schur-complement form equals 2 L_yy (the two routes
     agree through L⁻¹), lies between the elastic and the charge-free moduli here, and the
     insulating one is never below it (2/(L⁻¹)_yy = 2(L_yy + L_yφ²/|L_φφ|), L_φφ < 0)."""
-    rng = np.random.default_rng(seed)
-    C, e, k = _piezo("BaTiO3")
-    C = C * rng.uniform(0.7, 1.3, (3, 3))
-    C = 0.5 * (C + C.T)
-    e = e * rng.uniform(0.7, 1.3, e.shape)
-    k = np.diag(np.diag(k) * rng.uniform(0.7, 1.3, 2))
+    C, e, k = _perturbed_batio3(seed)
     L = cr.barnett_lothe_L(C, e, k)
     conducting = cr.hertz_modulus(C, e, k, conducting=True)
     assert conducting == pytest.approx(2 * L[1, 1], rel=1e-10)

@@ -24,6 +24,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from problems.commands.main import main
+from problems.commands.schema import toml_literal
 from problems.scene import SCENES_DIR
 
 SHIPPED = {
@@ -32,28 +33,9 @@ SHIPPED = {
 }
 
 
-def toml_value(v) -> str:
-    """A TOML literal (inline tables and arrays) for a parsed TOML value."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    return "{" + ", ".join(f"{json.dumps(k)} = {toml_value(x)}" for k, x in v.items()) + "}"
-
-
 def toml_text(data: dict) -> str:
     """A whole scene: each top-level key as an inline value."""
-    return "".join(f"{json.dumps(k)} = {toml_value(v)}\n" for k, v in data.items())
+    return "".join(f"{json.dumps(k)} = {toml_literal(v)}\n" for k, v in data.items())
 
 
 def run_invalid(text: str, needles: tuple[str, ...] = ()) -> str:
