@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from fem.io import write_vtu
+from problems.output import plots
 from problems.plugins.contract import Indicator
 from vi_core import Solution
 
@@ -148,11 +149,7 @@ def adapt(
 def convergence_plot(path: Path, cycles: list[dict], uniform: list[dict], title: str) -> None:
     """Estimate (and the first exact error norm, where there is one) against unknowns, for the
     adaptive cycles and the uniform levels, log-log."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = plots.pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     err_ax = None
     for rows, style, label in ((cycles, "o-", "adaptive"), (uniform, "s--", "uniform")):
