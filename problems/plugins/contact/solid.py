@@ -82,7 +82,7 @@ def contact_state(model: Model, sol: Solution) -> dict:
     load path: `incremental`) and its relative defect (unilateral: relative
     to the larger of Σρ W|[u]_t| and the pressure scale times Σ|B u − gap₀|)."""
     c = model.contact
-    k = c.surf.size
+    k = c.tr.size
     idx_n, idx_b, idx_l = c.rows()
     lam = sol.lam
     radius = c.bound(lam)  # (k,) the friction radius at λ
