@@ -552,6 +552,27 @@ def friction_warnings(
     return out
 
 
+def interface_summary(c: Interface) -> dict:
+    """summary.json's interface entries, 2D and 3D alike: the master, the mortar patch defect,
+    the crosspoint basis, the multipliers per kind (2D: normal, tangential; 3D: normal, disc,
+    line), the crosspoint nodes (covered nodes without every multiplier component) and the
+    uncovered ones (no master behind their whole support: no multiplier)."""
+    full_t = c.line if c.dim == 2 else c.disc  # the nodes with every tangential component
+    dropped = np.setdiff1d(np.arange(c.tr.size), np.intersect1d(c.rows_n, full_t))
+    dropped = np.setdiff1d(dropped, c.uncovered)
+    kinds = (
+        {"tangential": c.line.size} if c.dim == 2 else {"disc": c.disc.size, "line": c.line.size}
+    )
+    return {
+        "master": "rigid" if c.master is None else c.master.name,
+        "mortar_patch_defect": c.patch_defect,
+        "ends": c.ends,
+        "multipliers": {"normal": int(c.rows_n.size), **{k: int(v) for k, v in kinds.items()}},
+        "crosspoint_nodes": c.tr.nodes[dropped].tolist(),
+        "uncovered_nodes": c.tr.nodes[c.uncovered].tolist(),
+    }
+
+
 def unilateral_summary(contact: Any, open_nodes: int, remaining: np.ndarray) -> dict:
     """summary.json's contact entries only unilateral contact has, 2D and 3D alike: the law,
     the friction, the number of open nodes and the smallest remaining gap (`remaining` per

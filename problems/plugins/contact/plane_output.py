@@ -23,21 +23,6 @@ from .body_output import write_bodies
 PATCH_DEFECT_LIMIT = 1e-8  # above it `mixvi solve` warns and exits 1 (unless --allow-defect)
 
 
-def interface_summary(contact: Any) -> dict:
-    """The interface entries of summary.json["contact"]: patch defect, crosspoints, coverage."""
-    tr = contact.tr
-    dropped = np.setdiff1d(np.arange(tr.size), np.intersect1d(contact.rows_n, contact.rows_t))
-    dropped = np.setdiff1d(dropped, contact.uncovered)
-    return {
-        "master": "rigid" if contact.master is None else contact.master.name,
-        "mortar_patch_defect": contact.patch_defect,
-        "ends": contact.ends,
-        "multipliers": {"normal": int(contact.rows_n.size), "tangential": int(contact.rows_t.size)},
-        "crosspoint_nodes": tr.nodes[dropped].tolist(),
-        "uncovered_nodes": tr.nodes[contact.uncovered].tolist(),
-    }
-
-
 def interface_warnings(contact: Any) -> list[str]:
     """Console warnings about the interface: uncovered slave nodes and the patch defect."""
     out = []
@@ -157,7 +142,7 @@ def postprocess(model: Any, sol: Solution, outdir: Path) -> dict:
                 else {}
             ),
             **table.totals(),
-            **interface_summary(model.contact),
+            **interface.interface_summary(model.contact),
             **closed_gap_summary(model, sol),
             "table": table.records(),
         }

@@ -186,13 +186,7 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             **{f"{s}_area": a for s, a in zip(STATES, areas(c, st), strict=True)},
             "force_on_slave": force.tolist(),
             "force_units": "N",
-            "master": "rigid" if c.master is None else c.master.name,
-            "mortar_patch_defect": c.patch_defect,
-            "multipliers": {
-                "normal": int(c.rows_n.size),
-                "disc": int(c.disc.size),
-                "line": int(c.line.size),
-            },
+            **interface.interface_summary(c),
             "frames": frame_checks(model),
         }
         summary["lemma_4_2"] = st["lemma_4_2"]
@@ -204,13 +198,12 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             st["slip"][has_t],
             st["touch"],
         )
-        if c.master is not None:
-            summary["contact"]["uncovered_nodes"] = missing = uncovered(c)
-            if missing:
-                summary["warnings"].append(
-                    f"{len(missing)} node(s) of {c.slave.name}.{c.slave_part} have no master "
-                    "behind their whole support and carry no multiplier (contact.uncovered_nodes)"
-                )
+        missing = summary["contact"]["uncovered_nodes"]
+        if missing:
+            summary["warnings"].append(
+                f"{len(missing)} node(s) of {c.slave.name}.{c.slave_part} have no master "
+                "behind their whole support and carry no multiplier (contact.uncovered_nodes)"
+            )
         if c.law == "unilateral":
             open_nodes = np.sum(st["state"] == "open")
             summary["contact"] |= interface.unilateral_summary(c, open_nodes, st["gap"])
@@ -231,8 +224,3 @@ def areas(c, st: dict) -> list[float]:
         float(c.W[~carried].sum()) - given if s == "no_multiplier" else float(w[state == s].sum())
         for s in STATES
     ]
-
-
-def uncovered(c) -> list[int]:
-    """Slave node ids without the master behind their whole support (no multiplier)."""
-    return [int(n) for n in c.tr.nodes[~c.covered]]
