@@ -132,7 +132,7 @@ def slave_contact(
         covered = np.ones(tr.size, dtype=bool)  # the master behind every segment at the node
         covered[tr.facets[mort.coverage < 1.0 - COVER_TOL].ravel()] = False
         mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
-        coupling = interface.Coupling(master, mpart, mort.M, mdofs, covered, n_cells=mort.n_cells)
+        coupling = interface.Coupling(master, mpart, mort.M, mdofs, covered)
     else:
         gap_nodes = interface.rigid_gap(ct.gap, slave.mesh.points[tr.nodes])
     bfun = ct.g if ct.friction == "tresca" else ct.F

@@ -83,7 +83,6 @@ class Coupling:
     dofs: np.ndarray
     covered: np.ndarray
     patch_defect: float = np.nan
-    n_cells: int = 0  # integration cells of the mortar (3D)
 
 
 @dataclass

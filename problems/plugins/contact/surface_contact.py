@@ -140,7 +140,7 @@ def mortar_coupling(slave: Body, part: str, master: Body, mpart: str) -> Couplin
         ) from None
     dofs = master.u_dofs(mo.master.nodes)  # (k_m, 3)
     covered = dual_mortar.covered_nodes(mo)
-    return Coupling(master, mpart, mo.M, dofs, covered, np.nan, mo.n_cells)
+    return Coupling(master, mpart, mo.M, dofs, covered)
 
 
 def _positions(bodies: list[Body], n_full: int) -> np.ndarray:
