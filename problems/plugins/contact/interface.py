@@ -572,6 +572,30 @@ def interface_summary(c: Interface) -> dict:
     }
 
 
+PATCH_DEFECT_LIMIT = 1e-8  # above it `mixvi solve` warns and exits 1 (unless --allow-defect)
+
+
+def interface_warnings(contact: Interface) -> list[str]:
+    """Console warnings about the interface: uncovered slave nodes and the patch defect."""
+    out = []
+    tr = contact.tr
+    if contact.uncovered.size:
+        where = ", ".join(node_at(contact.slave, tr, int(i)) for i in contact.uncovered[:6])
+        more = f" and {contact.uncovered.size - 6} more" if contact.uncovered.size > 6 else ""
+        out.append(
+            f"contact: {contact.uncovered.size} slave node(s) of {contact.slave.name}."
+            f"{contact.slave_part} have no master behind their whole support and carry no "
+            f"multiplier (left free): {where}{more}"
+        )
+    if contact.patch_defect > PATCH_DEFECT_LIMIT:
+        out.append(
+            f"contact: mortar patch defect {contact.patch_defect:.3g} > {PATCH_DEFECT_LIMIT:g}: "
+            "a rigid translation of both bodies is not transferred across the interface — the "
+            "mortar projection is wrong for this geometry; results are not trustworthy"
+        )
+    return out
+
+
 def unilateral_summary(contact: Any, open_nodes: int, remaining: np.ndarray) -> dict:
     """summary.json's contact entries only unilateral contact has, 2D and 3D alike: the law,
     the friction, the number of open nodes and the smallest remaining gap (`remaining` per

@@ -13,7 +13,7 @@ from pathlib import Path
 from problems.scene import Scene
 from vi_core import Solution
 
-from . import checks, errors, warm_starts
+from . import checks, errors, interface, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from . import solid_output as contact3d_output
@@ -59,7 +59,10 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
 def _build(scene: Scene, level: int | None) -> Model:
     spec = scene.validated(SCENE_MODEL, DIMENSION)
-    return contact_model.assemble(spec, scene, level, from_scene, Model)
+    model = contact_model.assemble(spec, scene, level, from_scene, Model)
+    if model.contact is not None:
+        model.warnings += interface.interface_warnings(model.contact)
+    return model
 
 
 incremental = contact_model.incremental

@@ -198,12 +198,6 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             st["slip"][has_t],
             st["touch"],
         )
-        missing = summary["contact"]["uncovered_nodes"]
-        if missing:
-            summary["warnings"].append(
-                f"{len(missing)} node(s) of {c.slave.name}.{c.slave_part} have no master "
-                "behind their whole support and carry no multiplier (contact.uncovered_nodes)"
-            )
         if c.law == "unilateral":
             open_nodes = np.sum(st["state"] == "open")
             summary["contact"] |= interface.unilateral_summary(c, open_nodes, st["gap"])
