@@ -77,7 +77,7 @@ def of_model(model, sol, R: float) -> LineContact:
     if c is None:
         raise ValueError("no contact interface: no Hertz reference")
     # the normal rows where they sit in λ, their weights ∫φ̃_k, the touching nodes
-    body, nodes, w, lam_n = c.slave, c.tr.nodes[c.rows_n], c.W_n, c.normal(sol.lam)
+    body, nodes, w, lam_n = c.slave, c.tr.nodes[c.rows_n], c.W_n[c.rows_n], c.normal(sol.lam)
     touch = model.contact_state(sol)["touch"]
     mat = body.material
     x = body.mesh.points[nodes, 0]

@@ -4,12 +4,13 @@ Tresca/Coulomb contact with dual mortar multipliers, in 2D and in 3D (issue 30).
 One plug-in, one registered name, one scene language: `[scene] plugin = "contact"`, one scene
 model (`scene_model.ContactScene`) whose dimension is the bodies' geometries'
 (`dimension.scene_dimension`). Its two fronts are the modules `plane` (2D: a contact node
-carries a normal and one tangential multiplier, the friction interval [−g, g]; the interface on
-a boundary curve is `curve_contact`'s) and `solid` (3D: a normal and up to two tangential ones,
-the friction disc |λ_t| ≤ g; the interface on a surface is `surface_contact`'s); they share the
+carries a normal and one tangential multiplier, the friction interval [−g, g]; the trace of a
+boundary curve is `curve_contact`'s) and `solid` (3D: a normal and up to two tangential ones,
+the friction disc |λ_t| ≤ g; the trace of a surface is `surface_contact`'s); they share the
 bodies and their assembly (`bodies`, `fields`, `body_output`), the model and its mixed VI
-(`model`), the contact law's scene keys and sets (`law`), the layout-free contact state,
-warnings and unilateral summary (`interface`), the error norms (`errors`), the checks
+(`model`), the contact law's scene keys and sets (`law`), the contact interface itself (one
+`Interface` for 2D and 3D: its rows, Λ, the layout-free contact state, warnings and
+unilateral summary: `interface`), the error norms (`errors`), the checks
 (`checks`), the electrical contact (`electrical`), the load-path and warm-start transfers
 (`problems.plugins.transfer`, `warm_starts`), the two-body geometry checks (`separation`), the
 manufactured balance (`balance`) and the contact.csv writer (`problems.output.results`

@@ -83,7 +83,7 @@ def _independent_weights(mesh, part: str) -> tuple[np.ndarray, np.ndarray]:
 def contact_row_defects(model) -> dict[str, float]:
     """The relative defects of the contact rows (module docstring)."""
     c = model.contact
-    body, surf = c.slave, c.surf
+    body, surf = c.slave, c.tr
     W_ind, N_ind = _independent_weights(body.mesh, c.slave_part)
     W, nrm = W_ind[surf.nodes], N_ind[surf.nodes]
     nrm = nrm / np.linalg.norm(nrm, axis=1)[:, None]
@@ -217,7 +217,7 @@ def separation(model, sol) -> dict[str, float]:
     dropped complementarity row or a wrong scaling of F makes one O(1)
     (tests/problems/plugins/contact/test_solid_unilateral.py injects each)."""
     c = model.contact
-    body, surf = c.slave, c.surf
+    body, surf = c.slave, c.tr
     nodes = surf.nodes[c.rows_n]  # (N_n,) mesh nodes carrying λ_n
     x_full = model.full(sol.u)
     u_all = x_full[body.u_dofs(np.arange(body.n_nodes))]  # (N, 3) the slave's displacement
@@ -250,7 +250,7 @@ def separation(model, sol) -> dict[str, float]:
         ut = np.linalg.norm(jump, axis=1)[c.rows_n]  # (N_n,) tangential mortar jump
         scale = float(np.abs(u_all).max())
         if c.master is not None:
-            u_m = x_full[c.master.body.u_dofs(np.arange(c.master.body.n_nodes))]
+            u_m = x_full[c.master.u_dofs(np.arange(c.master.n_nodes))]
             scale = max(scale, float(np.abs(u_m).max()))
         length = max(float(np.abs(c.gap0 / W).max(initial=0.0)), scale, 1e-300)
     idx_n, idx_b, idx_l = c.rows()
@@ -266,7 +266,7 @@ def separation(model, sol) -> dict[str, float]:
         tan = np.zeros(surf.size, dtype=bool)
         tan[c.disc] = tan[c.line] = True
         if c.master is not None:
-            tan |= ~c.master.covered
+            tan |= ~c.covered
         carry = np.isin(np.arange(body.mesh.n_nodes), surf.nodes[tan])
     bound = _nodal_means(body.mesh, c.slave_part, c.bound_field, carry)[nodes]  # (N_n,)
     # Tresca acts where the node is not open by the contact states (vi_core.states: λ_n and

@@ -76,7 +76,7 @@ def _lam_solid(model: Any, sol: Solution, exact: Exact, state: State) -> float:
     """Σ_k W_k |λ_k − λ(x_k)|² over the 3D contact nodes carrying multipliers."""
     c, st = model.contact, state(model, sol)
     carried = np.isfinite(st["lam_n"]) | st["has_t"]  # (k,)
-    P = c.slave.mesh.points[c.surf.nodes]  # (k, 3)
+    P = c.slave.mesh.points[c.tr.nodes]  # (k, 3)
     d = _nodal_lam(st, c.normals) - exact.lam(P[:, 0], P[:, 1], P[:, 2])  # (k, 3)
     return float(np.sum((c.W[:, None] * d**2)[carried]))
 
@@ -187,7 +187,7 @@ def _nodal_differences(
                 add(norm, c - f[idx], f[idx])
     if model.contact is not None:
         c, cf = model.contact, ref.contact
-        idx = matched(c.slave.mesh.points[c.surf.nodes], cf.slave.mesh.points[cf.surf.nodes])
+        idx = matched(c.slave.mesh.points[c.tr.nodes], cf.slave.mesh.points[cf.tr.nodes])
         r = _nodal_lam(state(ref, ref_sol), cf.normals)[idx]
         add("lam_nodes", _nodal_lam(state(model, sol), c.normals) - r, r, c.W[:, None])
     return {k: float(np.sqrt(d / max(r, 1e-300))) for k, (d, r) in sums.items()}

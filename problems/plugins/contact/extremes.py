@@ -98,7 +98,7 @@ def locking(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
     for lev in (row.level, row.level + 1, row.level + 2):
         m = model if lev == row.level else plugin.build(row.load(), lev)
         s = sol if lev == row.level else plugin.solve(m, method="ssn")
-        forces.append(float(np.sum(m.contact.normal(s.lam) * m.contact.W_n)))
+        forces.append(float(np.sum(m.contact.normal(s.lam) * m.contact.W_n[m.contact.rows_n])))
     over = forces[0] / forces[-1] - 1.0
     note = (
         f"locking: normal force {100 * over:.1f}% above the level {row.level + 2} value "

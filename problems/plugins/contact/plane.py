@@ -16,14 +16,15 @@ from problems.output import plots
 from problems.scene import Scene
 from problems.scene.imported import require_curve
 from vi_core import MixedVI, Solution
-from vi_core import states as node_states
 
 from ..contract import check_meshed
 from . import electrical as electrical_contact
 from . import errors, interface, plane_output, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
-from .curve_contact import Contact, from_scene
+from .contact_state import contact_state as one_contact_state
+from .curve_contact import from_scene
+from .interface import Interface
 from .model import BodiesModel
 from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
 
@@ -92,7 +93,7 @@ def build_model(
     if ct is not None and ct.electrical is not None:
         model.electrical = _electrical(ct.electrical, contact, vi, model.free, model.values)
     if contact is not None:
-        model.warnings += plane_output.interface_warnings(contact)
+        model.warnings += interface.interface_warnings(contact)
     for b in model.bodies:
         ev = np.linalg.eigvalsh(b.material.C)
         if ev[-1] / ev[0] > LOCKING_RATIO:
@@ -106,7 +107,7 @@ def build_model(
 
 def _electrical(
     e: electrical_contact.ElectricalSection,
-    contact: Contact,
+    contact: Interface,
     vi: MixedVI,
     free: np.ndarray,
     values: np.ndarray | None = None,
@@ -169,67 +170,7 @@ warm_start = warm_starts.along_curve  # nested iteration (`warm_start`)
 
 
 # ------------------------------------------------------------------ post-processing
-def contact_state(model: Model, sol: Solution) -> dict:
-    """Per-node contact quantities along Γ3 and the Lemma 4.2 check.
-
-    The arrays "s", "points", "lam_t", "g", "jump_t", "ut_slave", "slip", "touch_t" (and
-    "ut_master") are per tangential multiplier row (`Contact.rows_t`), "s_n", "lam_n",
-    "touch", "u_n", "gap" per normal row. "g" is the friction radius of the solution (g; unilateral
-    Tresca: g where the node is not open, 0 elsewhere; Coulomb: F·λ_n). States follow from the
-    answer by one rule (`vi_core.states`: multiplier margin and gap/slip, thresholds scaled by
-    the achieved residual): "state" per tangential row (stick, slip, open or ambiguous),
-    "normal_state" per normal row (touch, open or ambiguous); "slip" marks the slip nodes,
-    "touch" ("touch_t") the nodes with touch evidence (every node for bilateral contact);
-    "u_n" and "gap" (unilateral
-    only) are the normal jump [u]_n and the initial gap gap₀ (the remaining gap is their
-    difference), "pressure" the pressure scale (largest λ_n or elastic stress). Lemma 4.2
-    reads λᵀ(B u − gap₀) = Σ_k ρ_k W_k|[u]_τ,k| (normal complementarity makes the normal part
-    0).
-    """
-    c = model.contact
-    lam_n, lam_t = c.normal(sol.lam), c.tangential(sol.lam)
-    radius = c.bound(sol.lam)  # (N_t,) the friction radius at λ
-    j = interface.jumps(model, sol, radius, lambda: c.W_n.min())
-    Bu, th = j.Bu, j.th  # Bu: W_k·[u]_n, W_k·[u]_τ in B_full's row order
-    jump_t = c.tangential(Bu) / c.W_t  # nodal tangential (mortar) jump
-    nodes = c.tr.nodes[c.rows_t]
-    u_s = j.x_full[c.slave.u_dofs(nodes)]  # (N_t, 2)
-    ut_s = np.einsum("ij,ij->i", u_s, c.tr.tangents[c.rows_t])
-    normal = np.full(c.tr.size, "touch", dtype=object)  # bilateral: every node touches
-    if c.law == "unilateral":
-        normal[c.rows_n] = node_states.normal_states(lam_n, (c.gap0 - c.normal(Bu)) / c.W_n, th)
-    touch = normal[c.rows_n] == "touch"  # (N_n,)
-    touch_t = normal[c.rows_t] == "touch"  # (N_t,)
-    rho = radius * (normal[c.rows_t] != "open")  # (N_t,); an open node has no friction
-    tang = node_states.tangential_states(lam_t, rho, c.tangential(j.Bi) / c.W_t, th)
-    labels = node_states.node_states(normal[c.rows_t], tang)  # (N_t,)
-    slip = labels == "slip"
-    weights = rho * c.W_t  # (N_t,) ∫ρφ̃_k (bilateral: g_weights)
-    g_abs = float(np.sum(weights * np.abs(c.tangential(j.Bi) / c.W_t)))
-    state = {
-        "s": c.tr.s[c.rows_t],
-        "points": c.slave.mesh.points[nodes],
-        "s_n": c.tr.s[c.rows_n],
-        "lam_n": lam_n,
-        "lam_t": lam_t,
-        "g": rho,
-        "jump_t": jump_t,
-        "ut_slave": ut_s,
-        "slip": slip,
-        "state": labels,
-        "touch": touch,
-        "touch_t": touch_t,
-        "normal_state": normal[c.rows_n],
-        **interface.lemma_4_2(sol.lam, j, g_abs, float(np.sum(weights))),
-        "friction": c.friction,  # the bound's name in plots and tables (tresca: g, coulomb: Fλ_n)
-    }
-    if c.law == "unilateral":
-        state["pressure"] = j.pressure  # the pressure scale
-        state["u_n"] = c.normal(Bu) / c.W_n  # (N_n,) normal (mortar) jump [u]_n
-        state["gap"] = c.gap0 / c.W_n  # (N_n,) initial gap
-    if c.master_proj is not None:
-        state["ut_master"] = c.master_proj @ j.x_full
-    return state
+contact_state = one_contact_state  # the state of a solution (`contact_state`), 2D layout
 
 
 # ------------------------------------------------------------------ contract v2 declarations

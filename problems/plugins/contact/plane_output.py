@@ -19,47 +19,7 @@ from . import balance as piezo_balance
 from . import electrical as electrical_contact
 from . import interface
 from .body_output import write_bodies
-
-PATCH_DEFECT_LIMIT = 1e-8  # above it `mixvi solve` warns and exits 1 (unless --allow-defect)
-
-
-def interface_summary(contact: Any) -> dict:
-    """The interface entries of summary.json["contact"]: patch defect, crosspoints, coverage."""
-    tr = contact.tr
-    dropped = np.setdiff1d(np.arange(tr.size), np.intersect1d(contact.rows_n, contact.rows_t))
-    dropped = np.setdiff1d(dropped, contact.uncovered)
-    return {
-        "master": "rigid" if contact.master is None else contact.master.name,
-        "mortar_patch_defect": contact.patch_defect,
-        "ends": contact.ends,
-        "multipliers": {"normal": int(contact.rows_n.size), "tangential": int(contact.rows_t.size)},
-        "crosspoint_nodes": tr.nodes[dropped].tolist(),
-        "uncovered_nodes": tr.nodes[contact.uncovered].tolist(),
-    }
-
-
-def interface_warnings(contact: Any) -> list[str]:
-    """Console warnings about the interface: uncovered slave nodes and the patch defect."""
-    out = []
-    tr = contact.tr
-    if contact.uncovered.size:
-        where = ", ".join(
-            interface.node_at(contact.slave, tr, int(i)) for i in contact.uncovered[:6]
-        )
-        more = f" and {contact.uncovered.size - 6} more" if contact.uncovered.size > 6 else ""
-        out.append(
-            f"contact: {contact.uncovered.size} slave node(s) of {contact.slave.name}."
-            f"{contact.slave_part} have no master behind their whole support and carry no "
-            f"multiplier (left free): {where}{more}"
-        )
-    if contact.patch_defect > PATCH_DEFECT_LIMIT:
-        out.append(
-            f"contact: mortar patch defect {contact.patch_defect:.3g} > {PATCH_DEFECT_LIMIT:g}: "
-            "a rigid translation of both bodies is not transferred across the interface — the "
-            "mortar projection is wrong for this geometry; results are not trustworthy"
-        )
-    return out
-
+from .interface import PATCH_DEFECT_LIMIT  # noqa: F401 (`mixvi solve` reads it here)
 
 # a bilateral interface of two bodies that stands apart by more than this fraction of the
 # largest displacement of the slave's contact nodes is warned of: closing it changes the answer
@@ -157,7 +117,7 @@ def postprocess(model: Any, sol: Solution, outdir: Path) -> dict:
                 else {}
             ),
             **table.totals(),
-            **interface_summary(model.contact),
+            **interface.interface_summary(model.contact),
             **closed_gap_summary(model, sol),
             "table": table.records(),
         }

@@ -48,10 +48,10 @@ def contact_table(model, st: dict) -> ContactTable:
     gap = np.maximum(st["gap"], 0.0) if c.law == "unilateral" else None  # NaN stays NaN
     bound = BOUNDS[c.friction]
     return ContactTable(
-        points=c.slave.mesh.points[c.surf.nodes],
+        points=c.slave.mesh.points[c.tr.nodes],
         normals=c.normals,
         weights=c.W,
-        segments=c.surf.facets,
+        segments=c.tr.facets,
         lambda_n=st["lam_n"],
         lambda_t=np.stack([st["lam_t1"], st["lam_t2"]], axis=1),  # (k, 2)
         jump_t=np.stack([st["jump_t1"], st["jump_t2"]], axis=1),  # (k, 2)
@@ -78,7 +78,7 @@ def write_surface_vtu(path: Path, model, st: dict) -> None:
         **{f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)},
     }
     meshio.Mesh(
-        c.slave.mesh.points[c.surf.nodes], [(c.surf.facet_type, c.surf.facets)], point_data=point
+        c.slave.mesh.points[c.tr.nodes], [(c.tr.facet_type, c.tr.facets)], point_data=point
     ).write(str(path), file_format="vtu")
 
 
@@ -88,7 +88,7 @@ def chart(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     c = model.contact
     n = c.normals.sum(axis=0)
     a, b = frames(n[None, :] / np.linalg.norm(n))
-    P = c.slave.mesh.points[c.surf.nodes]
+    P = c.slave.mesh.points[c.tr.nodes]
     return np.stack([P @ a[0], P @ b[0]], axis=1), a[0], b[0]
 
 
@@ -105,7 +105,7 @@ def contact_map(path: Path, model, st: dict, title: str = "") -> None:
 
     c = model.contact
     uv, a, b = chart(model)
-    faces = c.surf.facets
+    faces = c.tr.facets
     tris = (
         faces if faces.shape[1] == 3 else np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
     )
@@ -113,7 +113,7 @@ def contact_map(path: Path, model, st: dict, title: str = "") -> None:
     ratio = np.divide(
         np.linalg.norm(st["lam_t_vec"], axis=1),
         st["g"],
-        out=np.zeros(c.surf.size),
+        out=np.zeros(c.tr.size),
         where=st["g"] > 0,
     )
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
@@ -156,7 +156,7 @@ def frame_checks(model) -> dict:
     F = np.stack([c.t1, c.t2, c.normals], axis=1)  # (k, 3, 3)
     ortho = float(np.abs(F @ F.transpose(0, 2, 1) - np.eye(3)).max())
     hand = float(np.abs(np.cross(c.t1, c.t2) - c.normals).max())
-    e = c.surf.edges()
+    e = c.tr.edges()
     interior = np.isin(e, c.disc).all(axis=1)
     cosang = np.einsum("ij,ij->i", c.t1[e[interior, 0]], c.t1[e[interior, 1]])
     jump = float(np.degrees(np.arccos(np.clip(cosang, -1, 1))).max(initial=0.0))
@@ -186,13 +186,7 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             **{f"{s}_area": a for s, a in zip(STATES, areas(c, st), strict=True)},
             "force_on_slave": force.tolist(),
             "force_units": "N",
-            "master": "rigid" if c.master is None else c.master.body.name,
-            "mortar_patch_defect": 0.0 if c.master is None else c.master.patch_defect,
-            "multipliers": {
-                "normal": int(c.rows_n.size),
-                "disc": int(c.disc.size),
-                "line": int(c.line.size),
-            },
+            **interface.interface_summary(c),
             "frames": frame_checks(model),
         }
         summary["lemma_4_2"] = st["lemma_4_2"]
@@ -204,13 +198,6 @@ def write(model, sol, outdir: Path, contact_state: Callable) -> dict:
             st["slip"][has_t],
             st["touch"],
         )
-        if c.master is not None:
-            summary["contact"]["uncovered_nodes"] = missing = uncovered(c)
-            if missing:
-                summary["warnings"].append(
-                    f"{len(missing)} node(s) of {c.slave.name}.{c.slave_part} have no master "
-                    "behind their whole support and carry no multiplier (contact.uncovered_nodes)"
-                )
         if c.law == "unilateral":
             open_nodes = np.sum(st["state"] == "open")
             summary["contact"] |= interface.unilateral_summary(c, open_nodes, st["gap"])
@@ -231,8 +218,3 @@ def areas(c, st: dict) -> list[float]:
         float(c.W[~carried].sum()) - given if s == "no_multiplier" else float(w[state == s].sum())
         for s in STATES
     ]
-
-
-def uncovered(c) -> list[int]:
-    """Slave node ids without the master behind their whole support (no multiplier)."""
-    return [int(n) for n in c.surf.nodes[~c.master.covered]]

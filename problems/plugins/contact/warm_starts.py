@@ -40,7 +40,7 @@ def along_curve(coarse: Any, coarse_sol: Solution, fine: Any) -> dict:
     sc, sf = cc.tr.s / cc.tr.s[-1], fc.tr.s / fc.tr.s[-1]
     lam_c = coarse_sol.lam
     lam_n = np.interp(sf[fc.rows_n], sc[cc.rows_n], cc.normal(lam_c))
-    rc = cc.bound(lam_c)
+    rc = cc.bound(lam_c)[cc.rows_t]  # (N_t,)
     ratio_c = np.divide(cc.tangential(lam_c), rc, out=np.zeros(rc.size), where=rc > 0)
     ratio = np.clip(np.interp(sf[fc.rows_t], sc[cc.rows_t], ratio_c), -1.0, 1.0)
     on_bound = (np.abs(ratio) >= 1.0 - transfer.ON_BOUND) | _slip_ahead(
@@ -49,7 +49,7 @@ def along_curve(coarse: Any, coarse_sol: Solution, fine: Any) -> dict:
     ratio[on_bound] = np.sign(ratio[on_bound])
     lam0 = np.zeros(fc.B_full.shape[0])
     lam0[fc.idx_n] = lam_n
-    lam0[fc.idx_t] = ratio * fc.bound(lam0)
+    lam0[fc.idx_t] = ratio * fc.bound(lam0)[fc.rows_t]
     return transfer.carried_start(coarse, coarse_sol, fine, lam0)
 
 
@@ -111,7 +111,7 @@ def over_surface(contact_state: Callable, coarse: Any, coarse_sol: Solution, fin
     cc, fc = coarse.contact, fine.contact
     st = contact_state(coarse, coarse_sol)
     uv_c, a, b = chart(coarse)  # (k_c, 2) chart coordinates
-    uv_f = fc.slave.mesh.points[fc.surf.nodes] @ np.stack([a, b], axis=1)  # (k_f, 2)
+    uv_f = fc.slave.mesh.points[fc.tr.nodes] @ np.stack([a, b], axis=1)  # (k_f, 2)
 
     def interp(vals: np.ndarray, known: np.ndarray) -> np.ndarray:
         pts, v = uv_c[known], vals[known]
@@ -124,13 +124,13 @@ def over_surface(contact_state: Callable, coarse: Any, coarse_sol: Solution, fin
             out[miss] = NearestNDInterpolator(pts, v)(uv_f[miss])
         return out
 
-    lam_n_c = np.zeros(cc.surf.size)
+    lam_n_c = np.zeros(cc.tr.size)
     lam_n_c[cc.rows_n] = st["lam_n"][cc.rows_n]
-    lam_n = interp(lam_n_c, np.isin(np.arange(cc.surf.size), cc.rows_n))[fc.rows_n]
-    has_t = np.isin(np.arange(cc.surf.size), np.concatenate([cc.disc, cc.line]))
+    lam_n = interp(lam_n_c, np.isin(np.arange(cc.tr.size), cc.rows_n))[fc.rows_n]
+    has_t = np.isin(np.arange(cc.tr.size), np.concatenate([cc.disc, cc.line]))
     rho = st["g"]  # (k_c,) the friction radius of the coarse solution
     ratio_c = np.divide(
-        st["lam_t_vec"], rho[:, None], out=np.zeros((cc.surf.size, 3)), where=rho[:, None] > 0
+        st["lam_t_vec"], rho[:, None], out=np.zeros((cc.tr.size, 3)), where=rho[:, None] > 0
     )
     mag = interp(np.linalg.norm(ratio_c, axis=1), has_t)  # (k_f,) |r|
     r = interp(ratio_c, has_t)  # (k_f, 3) its direction

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import importlib
+
 import pytest
 
 from problems.errors import SceneError
 from problems.plugins import registry
+from problems.plugins.contact import interface
 from problems.scene import load_scene
 
 
@@ -41,3 +44,13 @@ def test_friction_warnings_say_apart_frictionless_or_tied():
     assert any("frictionless" in w for w in free)
     tied = friction_warnings(states, g, np.array([-1.0, 0.5]), np.zeros(2, bool), np.ones(2, bool))
     assert any("uses at most 0.5 of the friction bound" in w and "tied" in w for w in tied)
+
+
+@pytest.mark.parametrize(
+    "module, name", [("curve_contact", "Contact"), ("surface_contact", "SolidContact")]
+)
+def test_the_former_interface_classes_are_deprecated_names_of_interface(module, name):
+    """2D `Contact` and 3D `SolidContact` became the one `interface.Interface` (issue 30)."""
+    mod = importlib.import_module(f"problems.plugins.contact.{module}")
+    with pytest.warns(DeprecationWarning, match=f"{name} is deprecated"):
+        assert getattr(mod, name) is interface.Interface

@@ -393,7 +393,7 @@ def _wrong_states(model, st, h: float) -> tuple[np.ndarray, int]:
     state (slip or stick) is not the exact one, and the number of contact nodes within h of
     the interface."""
     c = model.contact
-    P = c.slave.mesh.points[c.surf.nodes]
+    P = c.slave.mesh.points[c.tr.nodes]
     r = np.hypot(P[:, 0] - CENTRE[0], P[:, 1] - CENTRE[1])  # (k,)
     d = np.abs(r - np.sqrt(S0))  # (k,)
     wrong = st["slip"] != (r**2 > S0)
@@ -413,7 +413,7 @@ def test_clamped_sides_keep_the_rates(ends):
     h, errs, states = _errors(scene, "hexahedron")
     model, _ = states[-1]
     c = model.contact
-    assert c.rows_n.size < c.surf.size  # crosspoint nodes without multipliers
+    assert c.rows_n.size < c.tr.size  # crosspoint nodes without multipliers
     assert slope_failures(slopes(h, errs)) == []
 
 

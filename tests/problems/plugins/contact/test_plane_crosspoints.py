@@ -18,7 +18,7 @@ import pytest
 import fem.mortar as fm
 from problems.commands.main import main
 from problems.errors import SceneError
-from problems.plugins.contact import errors, plane_output
+from problems.plugins.contact import errors, interface
 from problems.plugins.contact import plane as pc
 from problems.scene import load_scene
 from problems.scene.exact import split_exact
@@ -75,7 +75,7 @@ def test_shear_strip_is_exact_with_clamped_and_roller_corners(name, variant, end
         assert sol.converged and sol.info["condensed"], sol.history
         c = model.contact
         N = c.tr.size
-        n_n, n_t = c.sizes
+        n_n, _, n_t = c.sizes
         # corners: clamped drops both, roller-y drops the normal, roller-x the tangential one
         expected = {"shipped": (N - 2, N - 1), "roller-x": (N - 1, N - 1)}
         assert (n_n, n_t) == expected.get(variant, (N - 2, N - 1))
@@ -152,13 +152,13 @@ def test_clamped_end_on_the_curved_paper_interface(ends):
     disp += [{"boundary": p, "value": [0.0, 0.0]} for p in ("free_left", "free_right")]
     model = pc.build(scene, 1)
     c = model.contact
-    assert c.sizes == (c.tr.size - 2, c.tr.size - 2)
+    assert c.sizes == (c.tr.size - 2, 0, c.tr.size - 2)
     sol = solve(model.vi, "ssn", tol=1e-11)
     assert sol.converged and sol.info["condensed"]
     assert c.patch_defect <= 1e-12
     st = pc.contact_state(model, sol)
     assert st["slip"].sum() > 4 and st["lemma_4_2"] <= 1e-10  # g lowered: some nodes slip
-    summary = plane_output.interface_summary(c)
+    summary = interface.interface_summary(c)
     assert summary["crosspoint_nodes"] == c.tr.nodes[[0, -1]].tolist()
 
 

@@ -47,7 +47,7 @@ def _against_2d(m2, s2, m3, s3) -> dict[str, float]:
     st2, st3 = pc.contact_state(m2, s2), contact3d.contact_state(m3, s3)
     c2, c3 = m2.contact, m3.contact
     on = {round(x, 9): i for i, (x, _) in enumerate(c2.slave.mesh.points[c2.tr.nodes])}
-    j = np.array([on[round(x, 9)] for x, _, _ in c3.slave.mesh.points[c3.surf.nodes]])
+    j = np.array([on[round(x, 9)] for x, _, _ in c3.slave.mesh.points[c3.tr.nodes]])
     ln2, lt2 = np.full(c2.tr.size, np.nan), np.full(c2.tr.size, np.nan)
     ln2[c2.rows_n], lt2[c2.rows_t] = st2["lam_n"], st2["lam_t"]
     lam = np.nanmax(np.abs(ln2))
@@ -171,7 +171,7 @@ def test_table_of_the_extruded_scene_against_2d_level_4():
 def _transpose_node_blocks(model):
     """The fault: each contact node's 3×3 frame block of B written transposed."""
     c = model.contact
-    dofs = c.slave.u_dofs(c.surf.nodes)
+    dofs = c.slave.u_dofs(c.tr.nodes)
     B = c.B_full.tolil()
     full = np.intersect1d(c.rows_n, c.disc)
     for i in full:
@@ -362,12 +362,12 @@ def test_warm_start_predicts_slip_between_two_coarse_slip_nodes(bracket_warm):
     coarse, cs, fine, warm = bracket_warm
     cc, fc = coarse.contact, fine.contact
     slip_c = contact3d.contact_state(coarse, cs)["slip"]  # (k_c,)
-    F = cc.surf.facets  # (n_f, 3)
+    F = cc.tr.facets  # (n_f, 3)
     E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), 1), axis=0)
     both = E[slip_c[E[:, 0]] & slip_c[E[:, 1]]]  # (n_e, 2) edges slipping at both ends
-    mid = cc.surf.points[both].mean(axis=1)  # (n_e, 3)
-    at = np.argmin(np.linalg.norm(fc.surf.points[None] - mid[:, None], axis=2), axis=1)
-    pos = np.full(fc.surf.size, -1)
+    mid = cc.tr.points[both].mean(axis=1)  # (n_e, 3)
+    at = np.argmin(np.linalg.norm(fc.tr.points[None] - mid[:, None], axis=2), axis=1)
+    pos = np.full(fc.tr.size, -1)
     pos[fc.disc] = np.arange(fc.disc.size)  # surface node → disc row
     assert both.shape[0] >= 20 and (pos[at] >= 0).all()
     assert _predicted_slip(fine, warm["lam0"])[pos[at]].all()

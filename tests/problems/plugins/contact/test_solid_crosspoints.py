@@ -19,9 +19,9 @@ import vi_core
 from problems.commands import check
 from problems.commands.main import main
 from problems.plugins.contact import checks as contact3d_checks
+from problems.plugins.contact import interface
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact import solid as contact3d
-from problems.plugins.contact import surface_contact
 from problems.scene import load_scene
 from vi_core.ssn import Condensation
 
@@ -52,7 +52,7 @@ def _pair(level: int, ends: str, g: tuple[str, ...] = (G,)):
 def test_merge_reproduces_the_2d_solution_with_a_clamped_end_and_keep_does_not():
     m2, s2, m3, s3 = _pair(0, "merge")
     c = m3.contact
-    assert c.ends == "merge" and c.surf.size - c.rows_n.size == 3  # the left edge's nodes
+    assert c.ends == "merge" and c.tr.size - c.rows_n.size == 3  # the left edge's nodes
     d = _against_2d(m2, s2, m3, s3)
     assert max(d.values()) < 1e-11, d
     st = contact3d.contact_state(m3, s3)
@@ -62,17 +62,25 @@ def test_merge_reproduces_the_2d_solution_with_a_clamped_end_and_keep_does_not()
     assert max(_against_2d(m2, s2, k3, t3).values()) > 1e-6
 
 
+# The faults below hit the 3D build only (a trace with 3D normals): the 2D and 3D fronts share
+# `interface.assemble`, so a fault in both would leave the 2D reproduction intact.
+def _in_3d(surf) -> bool:
+    return surf.normals.shape[1] == 3
+
+
 def _one_class(monkeypatch, cls: str):
     """The merge dropped in one class: that class's basis is built with "keep"."""
-    real = surface_contact.class_blocks
+    real = interface.class_blocks
     calls = []
 
     def faulty(surf, carry, covered, ends, M_loc=None):
+        if not _in_3d(surf):
+            return real(surf, carry, covered, ends, M_loc)
         calls.append(ends)
         which = "normal" if len(calls) % 2 == 1 else "tangential"  # slave_contact's order
         return real(surf, carry, covered, "keep" if which == cls else ends, M_loc)
 
-    monkeypatch.setattr(surface_contact, "class_blocks", faulty)
+    monkeypatch.setattr(interface, "class_blocks", faulty)
 
 
 def _wrong_share(monkeypatch):
@@ -80,21 +88,23 @@ def _wrong_share(monkeypatch):
     real = ff.multiplier_basis
 
     def faulty(s, carry, ends="merge"):
+        if not _in_3d(s):
+            return real(s, carry, ends)
         Q, K = real(s, carry, ends), real(s, carry, "keep")
         return K + 2.0 * (Q - K)
 
-    monkeypatch.setattr(surface_contact, "multiplier_basis", faulty)
+    monkeypatch.setattr(interface, "multiplier_basis", faulty)
 
 
 def _wrong_weight(monkeypatch):
     """The class weights left at W_k (g_k = ∫gφ̃_k / W_k, jumps (B u)_k / W_k)."""
-    real = surface_contact.class_blocks
+    real = interface.class_blocks
 
     def faulty(surf, *args):
-        S, M, _, Q = real(surf, *args)
-        return S, M, surf.weights, Q
+        S, M, W, Q = real(surf, *args)
+        return S, M, surf.weights if _in_3d(surf) else W, Q
 
-    monkeypatch.setattr(surface_contact, "class_blocks", faulty)
+    monkeypatch.setattr(interface, "class_blocks", faulty)
 
 
 def test_merge_with_a_constant_bound_reproduces_2d_where_the_merged_node_slips():
@@ -102,7 +112,7 @@ def test_merge_with_a_constant_bound_reproduces_2d_where_the_merged_node_slips()
     ∫gφ̃_k / W_t,k is read by the answer (the weight fault below needs this)."""
     m2, s2, m3, s3 = _pair(0, "merge", g=())
     c = m3.contact
-    nxt = np.flatnonzero(np.isclose(c.slave.mesh.points[c.surf.nodes, 0], 0.25))
+    nxt = np.flatnonzero(np.isclose(c.slave.mesh.points[c.tr.nodes, 0], 0.25))
     assert contact3d.contact_state(m3, s3)["slip"][nxt].all()
     assert max(_against_2d(m2, s2, m3, s3).values()) < 1e-11
 
@@ -145,7 +155,7 @@ def test_mixvi_check_agrees_with_merge_on_clamped_manufactured3d_and_bracket3d()
     for s, level in ((scene, 1), (load_scene("bracket3d", ["contact.ends=merge"]), 0)):
         m = contact3d.build(s, level)
         c = m.contact
-        assert c.rows_n.size < c.surf.size and np.abs(c.W_t - c.W).max() > 0.1 * c.W.max()
+        assert c.rows_n.size < c.tr.size and np.abs(c.W_t - c.W).max() > 0.1 * c.W.max()
         st = contact3d.contact_state(m, vi_core.solve(m.vi, method="ssn", tol=1e-12))
         assert st["lemma_4_2"] < 1e-12 and st["slip"].any() and (st["state"] == "stick").any()
     assert main(["check", "bracket3d", "--set", "contact.ends=merge", "--level", "0"]) == 0
@@ -172,7 +182,7 @@ def test_unilateral_coulomb_with_merge_passes_the_separation_check():
     m = contact3d.build(_pressed_liftoff(), 1)
     sol = vi_core.solve(m.vi, method="ssn", tol=1e-12)
     c, st = m.contact, contact3d.contact_state(m, sol)
-    assert sol.converged and c.rows_n.size < c.surf.size
+    assert sol.converged and c.rows_n.size < c.tr.size
     assert max(contact3d_checks.separation(m, sol).values()) <= 1e-12
     assert st["lemma_4_2"] < 1e-12
     assert {"stick", "slip", "open"} <= set(st["state"])
@@ -183,14 +193,14 @@ def test_the_merged_separation_check_sees_a_dropped_row_and_an_unmerged_class(mo
     """A normal row of the first pressed node zeroed, or the normal class built with "keep"
     (the pressed edge's share lost from its neighbours' rows)."""
     if fault == "dropped row":
-        real = surface_contact.contact_rows
+        real = interface.contact_rows
 
         def faulty(*args):
             B = real(*args).tolil()
             B[0, :] = 0.0
             return B.tocsr()
 
-        monkeypatch.setattr(surface_contact, "contact_rows", faulty)
+        monkeypatch.setattr(interface, "contact_rows", faulty)
     else:
         _one_class(monkeypatch, "normal")
     m = contact3d.build(_pressed_liftoff(), 1)
@@ -237,11 +247,11 @@ def test_two_bodies_with_merge_keep_exact_rows_and_the_condensation(tmp_path):
     models = {e: contact3d.build(load_scene(str(path), [f"contact.ends={e}"]), 0) for e in ENDS}
     m, k = models["merge"], models["keep"]
     c = m.contact
-    assert c.rows_n.size < c.surf.size and c.master.patch_defect <= 1e-12
+    assert c.rows_n.size < c.tr.size and c.patch_defect <= 1e-12
     assert abs(m.vi.B - k.vi.B).max() > 1e-3 * abs(k.vi.B).max()  # the master rows moved
     cond, cond_keep = Condensation.detect(m.vi.B), Condensation.detect(k.vi.B)
     assert cond is not None and np.array_equal(cond.S, cond_keep.S)  # the same private columns
-    node = surface_contact.row_nodes(c)  # (m,) the surface node of each row
+    node = interface.row_nodes(c)  # (m,) the surface node of each row
     i, j = cond.D.nonzero()
     assert (node[i] == node[j]).all()  # D block diagonal by node
     sol = vi_core.solve(m.vi, method="ssn", tol=1e-12)

@@ -42,7 +42,7 @@ def _extruded_against_2d(level: int, layers: int) -> dict[str, float]:
     c3, c2 = r3.model.contact, r3.contact
     n2d = r2.model.bodies[0].mesh.n_nodes
     slave2 = r2.model.contact.tr.nodes  # 2D trace nodes (global ids of the disc)
-    k = np.searchsorted(np.sort(slave2), c3.surf.nodes % n2d)
+    k = np.searchsorted(np.sort(slave2), c3.tr.nodes % n2d)
     where = np.argsort(slave2)[k]  # 3D surface node → 2D trace index
     lam_n2, lam_t2 = r2.contact["lambda_n"][where], r2.contact["lambda_t"][where]
     tau = r2.model.contact.tr.tangents[where]  # (k, 2) the 2D tangent of each 3D node
@@ -51,7 +51,7 @@ def _extruded_against_2d(level: int, layers: int) -> dict[str, float]:
     out["lam_n"] = float(np.abs(c2["lambda_n"] - lam_n2).max() / scale)
     out["lam_t"] = float(np.abs(lam_t3 - lam_t2).max() / scale)
     out["slip"] = float(((c2["state"] == "slip") != (r2.contact["state"][where] == "slip")).sum())
-    out["patch_defect"] = c3.master.patch_defect
+    out["patch_defect"] = c3.patch_defect
     return out
 
 
@@ -101,8 +101,8 @@ def test_mutation_dropped_cell_is_seen(monkeypatch):
 
     monkeypatch.setattr(fc, "cells", drop)
     m = contact3d.build(load_scene(CAP), 0)
-    assert (~m.contact.master.covered).sum() >= 3  # the nodes of one face
-    assert m.contact.master.patch_defect <= 1e-12
+    assert (~m.contact.covered).sum() >= 3  # the nodes of one face
+    assert m.contact.patch_defect <= 1e-12
 
 
 def test_master_must_be_another_body():

@@ -154,14 +154,14 @@ def test_separation_check_sees_a_wrong_sign_of_the_gap(monkeypatch):
 
 
 def test_separation_check_sees_a_dropped_complementarity_row(monkeypatch):
-    real = surface_contact.contact_rows
+    real = interface.contact_rows
 
     def dropped(*args, **kwargs):  # the normal row of the first (pressed) node is lost
         B = real(*args, **kwargs).tolil()
         B[0, :] = 0.0
         return B.tocsr()
 
-    monkeypatch.setattr(surface_contact, "contact_rows", dropped)
+    monkeypatch.setattr(interface, "contact_rows", dropped)
     bad = _model("block3d_liftoff", 0)
     sep = contact3d_checks.separation(bad, _solve(bad))
     assert sep["penetration"] > 1e-3, sep
@@ -233,7 +233,7 @@ def _geometric_gap(model, sol) -> np.ndarray:
 
     f = contact3d.fields(model, sol)
     top, base = model.bodies
-    sn = model.contact.surf.nodes
+    sn = model.contact.tr.nodes
     xs = top.mesh.points[sn] + f["top.displacement"][sn]  # (k, 3)
     mn = np.unique(base.mesh.boundaries["top"])
     xm = base.mesh.points[mn] + f["base.displacement"][mn]

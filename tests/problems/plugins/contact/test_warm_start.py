@@ -84,7 +84,7 @@ def _predicted_and_final(level: int, slip_ahead) -> tuple[np.ndarray, np.ndarray
     c = fine.contact
 
     def on_bound(lam):
-        return np.abs(c.tangential(lam)) >= c.bound(lam) * (1 - 1e-9)
+        return np.abs(c.tangential(lam)) >= c.bound(lam)[c.rows_t] * (1 - 1e-9)
 
     return on_bound(lam0), on_bound(sol.lam)
 
