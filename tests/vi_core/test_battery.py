@@ -1,12 +1,16 @@
 """Cross-solver battery: every applicable solver on gallery problems.
 
 Counts (hypothesis, derandomised profile "ci"): see the `settings` of each test; the sum of
-drawn problems over this file is ≥ 200 and covers every set type and the structures
-symmetric, skew-coupled and general with ρ ∈ [0.1, 3]. The homotopy at large ρ costs
-hundreds of oracle calls, so it runs on smaller problems than semismooth Newton.
+drawn problems over this file is ≥ 200 in the CI tier (274) and covers every set type and the
+structures symmetric, skew-coupled and general with ρ ∈ [0.1, 3]. The three batteries that
+solve with the homotopy (its oracle calls make them the slowest) draw fewer problems in the CI
+tier; their `_full` twins in the slow tier (`-m slow`) draw the full counts (327 in all). The
+homotopy at large ρ costs hundreds of oracle calls, so it runs on smaller problems than
+semismooth Newton.
 """
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -15,7 +19,24 @@ from vi_core.testing import manufactured_strategy, vi_strategy
 
 from .helpers import ACCEPT, AGREE, FAST, TOL, agree, applicable, record
 
-N_SSN, N_CONIC, N_HOMOTOPY, N_PAIRS, N_UNIQUE, N_STABLE = 150, 40, 12, 40, 25, 60
+N_SSN, N_CONIC, N_STABLE = 150, 40, 60
+# (CI tier, slow tier) draws of the batteries that solve with the homotopy
+N_HOMOTOPY, N_PAIRS, N_UNIQUE = (4, 12), (12, 40), (8, 25)
+
+
+def tiers(counts: tuple[int, int], *strategies):
+    """A battery `body` as two tests: `counts[0]` draws in the CI tier and `counts[1]` in the
+    slow tier (the same derandomised draws first)."""
+
+    def make(body):
+        ci, full = counts
+        draw = given(*strategies)
+        return (
+            settings(max_examples=ci)(draw(body)),
+            pytest.mark.slow(settings(max_examples=full)(draw(body))),
+        )
+
+    return make
 
 
 def _check_exact(mf, method, **options):
@@ -42,16 +63,19 @@ def test_conic_recovers_manufactured_solution(mf):
     assert sol.info["status"] in ("optimal", "optimal_inaccurate")
 
 
-@settings(max_examples=N_HOMOTOPY)
-@given(manufactured_strategy(n_range=(6, 20), degenerate=(0.0, 0.5)))
-def test_homotopy_recovers_manufactured_solution(mf):
+def homotopy_recovers_manufactured_solution(mf):
     sol = _check_exact(mf, "homotopy", report_constants=False)
     assert sol.info["rate_bound"] <= 0.7
 
 
-@settings(max_examples=N_PAIRS)
-@given(vi_strategy(n_range=(6, 24), rho_range=(0.1, 2.0)))
-def test_solvers_agree_pairwise(vi):
+test_homotopy_recovers_manufactured_solution, test_homotopy_recovers_manufactured_solution_full = (
+    tiers(N_HOMOTOPY, manufactured_strategy(n_range=(6, 20), degenerate=(0.0, 0.5)))(
+        homotopy_recovers_manufactured_solution
+    )
+)
+
+
+def solvers_agree_pairwise(vi):
     record(vi)
     sols = {m: solve(vi, m, tol=TOL, **FAST) for m in applicable(vi)}
     sols["auto"] = solve(vi, "auto", tol=TOL, **FAST)
@@ -64,9 +88,12 @@ def test_solvers_agree_pairwise(vi):
             assert du <= AGREE and dlam <= AGREE, (a, b, du, dlam)
 
 
-@settings(max_examples=N_UNIQUE)
-@given(vi_strategy(n_range=(6, 24), rho_range=(0.1, 2.0)), st.integers(0, 2**32 - 1))
-def test_uniqueness_from_different_initial_guesses(vi, seed):
+test_solvers_agree_pairwise, test_solvers_agree_pairwise_full = tiers(
+    N_PAIRS, vi_strategy(n_range=(6, 24), rho_range=(0.1, 2.0))
+)(solvers_agree_pairwise)
+
+
+def uniqueness_from_different_initial_guesses(vi, seed):
     """Theorem 3.1: one solution; two far-apart initial guesses must reach it."""
     record(vi)
     rng = np.random.default_rng(seed)
@@ -80,6 +107,14 @@ def test_uniqueness_from_different_initial_guesses(vi, seed):
     for s in (b, c):
         du, dlam = agree(vi, s, a)
         assert du <= AGREE and dlam <= AGREE, (s.method, du, dlam)
+
+
+(
+    test_uniqueness_from_different_initial_guesses,
+    test_uniqueness_from_different_initial_guesses_full,
+) = tiers(N_UNIQUE, vi_strategy(n_range=(6, 24), rho_range=(0.1, 2.0)), st.integers(0, 2**32 - 1))(
+    uniqueness_from_different_initial_guesses
+)
 
 
 def _gram(rng, k):

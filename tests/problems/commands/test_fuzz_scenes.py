@@ -8,7 +8,7 @@ hostile one at a random place in the tree (numbers at the extremes, NaN, wrong t
 lists and tables, expressions from a small grammar with wrong arities and unknown names, text),
 a key deleted or added, or the TOML text itself cut or spliced with random bytes.
 
-    CI tier (100 examples):  .venv/bin/pytest tests/problems/commands/test_fuzz_scenes.py
+    CI tier (40 examples):   .venv/bin/pytest tests/problems/commands/test_fuzz_scenes.py
     fuzz tier (1000):        .venv/bin/pytest -m fuzz
 """
 
@@ -145,7 +145,7 @@ def run_fuzzed(text: bytes) -> None:
             assert (out / ".mixvi-run.json").is_file() and (out / "summary.json").is_file()
 
 
-@settings(max_examples=100, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=40, suppress_health_check=[HealthCheck.too_slow])
 @given(fuzzed_scene())
 def test_fuzzed_scene_files(text):
     run_fuzzed(text)

@@ -43,24 +43,18 @@ def _on_a_terminal(argv, cwd, **env) -> str:
 
 
 STUDY = ["study", "obstacle", "--levels", "0..0", "--solvers", "ssn", "--tols", "1e-6"]
-COMMANDS = pytest.mark.parametrize(
-    ("argv", "bar"),
-    [
-        (["solve", "rigid_foundation", "--level", "2", "--out", "o"], "3/3"),
-        (["figures", "rigid_foundation", "--level", "0", "--out", "o"], "3/3"),
-        (["solve", "shear_strip_path", "--level", "0", "--out", "o"], "30/30"),
-        ([*STUDY, "--out", "o"], "1/1"),
-    ],
-    ids=[
-        "solve: levels of the nested iteration",
-        "figures: one solve per value",
-        "solve: steps of a load path",
-        "study: one bar over the solves",
-    ],
-)
+COMMANDS = [  # (argv, the bar's count), id
+    pytest.param(["solve", "rigid_foundation", "--level", "2", "--out", "o"], "3/3",
+                 id="solve: levels of the nested iteration"),
+    pytest.param(["figures", "rigid_foundation", "--level", "0", "--out", "o"], "3/3",
+                 id="figures: one solve per value"),
+    pytest.param(["solve", "shear_strip_path", "--level", "0", "--out", "o"], "30/30",
+                 id="solve: steps of a load path"),
+    pytest.param([*STUDY, "--out", "o"], "1/1", id="study: one bar over the solves"),
+]  # fmt: skip
 
 
-@COMMANDS
+@pytest.mark.parametrize(("argv", "bar"), COMMANDS)
 def test_a_terminal_gets_a_progress_bar_and_a_pipe_does_not(tmp_path, argv, bar):
     (tmp_path / "tty").mkdir()
     (tmp_path / "pipe").mkdir()
@@ -70,7 +64,18 @@ def test_a_terminal_gets_a_progress_bar_and_a_pipe_does_not(tmp_path, argv, bar)
     assert run.returncode == 0 and "%|" not in run.stderr and bar not in run.stderr
 
 
-@COMMANDS
+# TQDM_DISABLE is read by the one helper (test_the_helper_draws_only_on_a_terminal_...): one
+# command in the CI tier (study, the quickest), every one in the slow tier
+TQDM_CI = "study: one bar over the solves"
+
+
+@pytest.mark.parametrize(
+    ("argv", "bar"),
+    [
+        pytest.param(*p.values, id=p.id, marks=[pytest.mark.slow] * (p.id != TQDM_CI))
+        for p in COMMANDS
+    ],
+)
 def test_tqdm_disable_turns_the_bar_off_on_a_terminal(tmp_path, argv, bar):
     text = _on_a_terminal(argv, tmp_path, TQDM_DISABLE="1")
     assert "%|" not in text and f"| {bar} [" not in text

@@ -87,7 +87,13 @@ def check_clean_interrupt(proc, sig, out: Path, before: dict) -> None:
     assert sorted(f for f in before if f != ".mixvi-run.json") == marker["files"]
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+# each signal in each phase; in the CI tier SIGINT during the solve and SIGTERM while writing
+SLOW = pytest.mark.slow
+
+
+@pytest.mark.parametrize(
+    "sig", [signal.SIGINT, pytest.param(signal.SIGTERM, marks=SLOW)], ids=NAMES.get
+)
 def test_signal_during_the_solve(tmp_path, sig):
     out = tmp_path / "o"
     before = previous_run(out)
@@ -99,7 +105,9 @@ def test_signal_during_the_solve(tmp_path, sig):
     check_clean_interrupt(proc, sig, out, before)
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize(
+    "sig", [pytest.param(signal.SIGINT, marks=SLOW), signal.SIGTERM], ids=NAMES.get
+)
 def test_signal_while_writing(tmp_path, sig):
     out = tmp_path / "o"
     before = previous_run(out)
