@@ -135,7 +135,9 @@ def adapt(
                 strict=True,
             )
         )
-        zone = touching_cells if contact_zone is True else contact_zone or None
+        zone = (
+            contact_zone if callable(contact_zone) else (touching_cells if contact_zone else None)
+        )
         if zone is not None and model.contact is not None:
             marked.update(zone(model, sol, meshes, marked))
         meshes = {

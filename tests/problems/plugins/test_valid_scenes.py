@@ -227,8 +227,8 @@ def test_check_catches_a_perturbed_solution(name):
     moved = dataclasses.replace(sol, u=sol.u + 1e-8 * abs(sol.u).max() * z)
     with pytest.raises(AssertionError):
         _check(model, moved)
-    N = model.contact.g.size
-    i = N + int(np.flatnonzero(pc.contact_state(model, sol)["slip"])[0])
+    j = int(np.flatnonzero(pc.contact_state(model, sol)["slip"])[0])  # a slipping tangential row
+    i = model.contact.idx_t[j]  # its row of λ
     lam = sol.lam.copy()
     lam[i] = -lam[i]
     with pytest.raises(AssertionError):
