@@ -96,11 +96,11 @@ def _search_ball(
     xr = _invert(mesh, pts[retry][owner], cand[:, None])[:, 0]  # (P, d)
     outr = outside(mesh.cell_type, xr)  # (P,)
     order = np.lexsort((outr, owner))  # by point, least outside first
-    first = order[np.searchsorted(owner[order], np.arange(retry.size))]  # (M_r,) best pair
-    has = sizes > 0
-    better = has & (outr[first] < out[retry])  # (M_r,)
-    idx = retry[better]
-    cell[idx], xi[idx], out[idx] = cand[first[better]], xr[first[better]], outr[first[better]]
+    has = np.flatnonzero(sizes)  # (M_h,) the points with a cell in reach (others keep theirs)
+    first = order[np.searchsorted(owner[order], has)]  # (M_h,) each one's best pair
+    better = outr[first] < out[retry[has]]  # (M_h,)
+    idx, pick = retry[has[better]], first[better]
+    cell[idx], xi[idx], out[idx] = cand[pick], xr[pick], outr[pick]
 
 
 def _invert(mesh: Mesh, pts: np.ndarray, cand: np.ndarray) -> np.ndarray:

@@ -150,3 +150,34 @@ def test_small_solves_agree_with_lapack_and_flag_singular_matrices(seed, d):
     assert not np.isfinite(x[0]).any()
     expect = np.linalg.solve(J[1:], r[1:, :, None])[:, :, 0]
     assert np.allclose(x[1:], expect, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("element", ELEMENTS)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_points_far_from_every_cell_keep_a_candidate_in_any_order(element, seed):
+    """Points farther from every centroid than any cell's radius (none within `_search_ball`'s
+    reach), mixed in any order with points inside and just outside, each get a valid cell: the
+    inside ones a cell that holds them, the far ones the candidate they are least outside of,
+    and an affine field is extrapolated to them exactly. (The last point of the search having
+    no cell in reach indexed one past the end: IndexError on cylinder_on_block's estimate.)"""
+    rng = np.random.default_rng(seed)
+    mesh = _nested(element, graded=True)[0]
+    lo, hi = mesh.points.min(axis=0), mesh.points.max(axis=0)  # (d,) each
+    n_far = int(rng.integers(1, 6))
+    inside = rng.uniform(lo, hi, (int(rng.integers(0, 20)), lo.size))  # (m, d)
+    near = hi + rng.uniform(0.01, 0.2, (int(rng.integers(0, 5)), lo.size))  # just outside
+    far = hi + rng.uniform(10.0, 1e3, (n_far, lo.size))  # (n_far, d) beyond every reach
+    pts = np.concatenate([inside, near, far])
+    perm = rng.permutation(len(pts))
+    cell, xi, out = locate.locate(mesh, pts[perm])
+    assert ((cell >= 0) & (cell < mesh.n_cells)).all()
+    rank = np.argsort(perm)  # position of each original point in pts[perm]
+    assert (out[rank[: len(inside)]] <= locate.OUTSIDE_TOL).all()
+    assert (out[rank[len(inside) :]] > locate.OUTSIDE_TOL).all()
+    coef = np.array([1.0, -2.0, 0.5])[: lo.size]
+    vals = locate.evaluate(mesh, (mesh.points @ coef)[:, None], pts)[:, 0]  # (M,)
+    np.testing.assert_allclose(vals[:-n_far], (pts @ coef)[:-n_far], atol=1e-12)
+    # up to 1e3 cell sizes away the value is a sum of terms of size |coef| |p| that cancel:
+    # rounding relative to that size (measured ≤ 3e-9 of it on hexahedra)
+    scale = np.abs(coef).sum() * np.abs(pts[-n_far:]).max(axis=1)  # (n_far,)
+    assert (np.abs(vals[-n_far:] - (pts @ coef)[-n_far:]) <= 1e-7 * scale).all()

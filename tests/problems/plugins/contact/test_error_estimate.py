@@ -231,3 +231,78 @@ def test_volume_term_is_the_loads():
         (g.w * f2).sum(axis=1) / c_u + (g.w * q2).sum(axis=1) / c_phi
     )
     assert _eta2(model, sol) - _eta2(unloaded, sol) == pytest.approx(want.sum(), rel=1e-9)
+
+
+PRESSED = """
+format = 2
+[scene]
+title = "a block pressed onto a base from a gap"
+plugin = "contact"
+[bodies.block]
+material = {{ kind = "isotropic", E = 2.6e9, nu = 0.3 }}
+[bodies.block.geometry]
+kind = "rectangle"
+x = [0.0, 2.0]
+y = [{d}, {top}]
+cells = [8, 4]
+element = "quad"
+[[bodies.block.displacement]]
+boundary = "top"
+value = [2.0e-4, {down}]
+[bodies.base]
+material = {{ kind = "isotropic", E = 5.2e9, nu = 0.3 }}
+[bodies.base.geometry]
+kind = "rectangle"
+x = [0.0, 2.0]
+y = [-0.5, 0.0]
+cells = [5, 2]
+element = "quad"
+[[bodies.base.displacement]]
+boundary = "bottom"
+value = [0.0, 0.0]
+[contact]
+slave = "block.bottom"
+master = "base.top"
+law = "unilateral"
+{friction}
+"""
+
+
+def _pressed(tmp_path: Path, d: float, friction: str) -> dict[str, np.ndarray]:
+    """η_T per body of a block [0, 2] × [d, 1 + d] whose top moves by (2e-4, −1e-3 − d) onto
+    a base [0, 2] × [−0.5, 0] (non-matching meshes, unilateral contact)."""
+    path = tmp_path / f"pressed_{d:g}.toml"
+    text = PRESSED.format(d=d, top=1.0 + d, down=-1e-3 - d, friction=friction)
+    path.write_text(text)
+    model = pc.build(load_scene(str(path)), 0)
+    return ce.indicators(pc.SCENE_MODEL, model, solve_model(pc, model, method="ssn", tol=1e-12))
+
+
+@pytest.mark.parametrize(
+    "friction", ['friction = "tresca"\ng = 1.0e5', 'friction = "coulomb"\nF = 0.05']
+)
+def test_a_gap_closed_by_a_rigid_motion_leaves_the_estimate(tmp_path, friction):
+    """Two bodies that start apart by d and are pressed by d more have the solution of the
+    bodies that start touching, moved rigidly (the strain, λ and the penetration u_n − gap are
+    the same), so the same η_T, to rounding. The estimate once took the master's displacement
+    at the slave point itself and no gap: it read the gap d as a penetration (and crashed on
+    cylinder_on_block, whose slave points lie off the master mesh)."""
+    touching = _pressed(tmp_path, 0.0, friction)
+    for d in (1e-3, 0.05):
+        apart = _pressed(tmp_path, d, friction)
+        for name, eta in touching.items():
+            assert np.abs(apart[name] - eta).max() <= 1e-10 * eta.max(), (d, name)
+
+
+def test_gap_check_sees_a_gap_read_as_penetration(tmp_path, monkeypatch):
+    """Mutation: with the initial gap taken as 0 (the old estimate) the check above fails."""
+    side = ce._master_side
+
+    def no_gap(*args):
+        gap, behind = side(*args)
+        return np.zeros_like(gap), behind
+
+    monkeypatch.setattr(ce, "_master_side", no_gap)
+    touching = _pressed(tmp_path, 0.0, 'friction = "coulomb"\nF = 0.05')
+    apart = _pressed(tmp_path, 1e-3, 'friction = "coulomb"\nF = 0.05')
+    assert np.abs(apart["block"] - touching["block"]).max() > 1e-2 * touching["block"].max()
