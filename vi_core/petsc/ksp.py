@@ -237,6 +237,14 @@ class LinearSolve:
         for obj in (*kept, self.K, self.b, self.x, *self._nullspaces.values()):
             obj.destroy()
 
+    def accuracy(self) -> float:
+        """The relative accuracy of the last solve beyond what its residual shows: GMRES_RTOL
+        where GMRES solved it (its relative residual; the step, and so u and λ, are no more
+        accurate than that), 0 after a direct solve (MUMPS, or the fallback: exact to
+        rounding). The states' thresholds read it (`vi_core.states.solution_thresholds`)."""
+        last = self.steps[-1] if self.steps else {}
+        return GMRES_RTOL if last.get("ksp") == "gamg" and "fallback" not in last else 0.0
+
     def info(self) -> dict:
         """What the solves did, for Solution.info (the serial amg path's keys where they mean
         the same: krylov_iterations per step and the steps that fell back to a direct solve)."""

@@ -294,6 +294,8 @@ def solve_ssn_petsc(
             **solver.info(),
             "peak_mb": memory,  # per rank: ru_maxrss after the set-up and at the end
         }
+        if solver.accuracy():  # the last step solved by GMRES: the states read its accuracy
+            sol.info["states"] = {"accuracy": solver.accuracy()}
         if estimate_condition:
             sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
         if not converged:
