@@ -43,13 +43,10 @@ def launch(
     return {s: dict(np.load(tmp_path / f"{s}.npz")) for s, _ in cases}
 
 
-def mismatches(
-    got: dict[str, dict], ranks: int, cases=CASES, undecided: bool = False
-) -> dict[str, dict]:
+def mismatches(got: dict[str, dict], ranks: int, cases=CASES) -> dict[str, dict]:
     """scene → its differences from the serial solution, for each scene that differs by more
     than 1e-8, did not converge, took other Newton steps than the serial loop (the engine
-    takes the same iterates) or did not run on the engine's `ranks` ranks. undecided: a node
-    the serial solution calls "ambiguous" may have any state (the iterative path's)."""
+    takes the same iterates) or did not run on the engine's `ranks` ranks."""
     out = {}
     for scene, level in cases:
         g, ref = got[scene], serial(scene, level)
@@ -58,8 +55,6 @@ def mismatches(
             out[scene] = {"steps": (int(g["steps"]), int(ref["steps"])), "ran": ran}
             continue
         d = differences(ref, g)
-        if undecided and g["state"].shape == ref["state"].shape:
-            d["states"] = bool(((g["state"] == ref["state"]) | (ref["state"] == "ambiguous")).all())
         newton = g["iterations"].tolist(), ref["iterations"].tolist()
         if not (ran and bool(g["converged"]) and equal(d) and newton[0] == newton[1]):
             out[scene] = {**d, "ran": ran, "converged": bool(g["converged"]), "newton": newton}
