@@ -64,8 +64,11 @@ class Geometry:
     grad: np.ndarray
 
 
-def _geometry(mesh: Mesh, pts: np.ndarray, wts: np.ndarray, cells: slice = slice(None)) -> Geometry:
-    """Quadrature data of the cells mesh.cells[cells] (a slice), not checked for inversion."""
+def _geometry(
+    mesh: Mesh, pts: np.ndarray, wts: np.ndarray, cells: slice | np.ndarray = slice(None)
+) -> Geometry:
+    """Quadrature data of the cells mesh.cells[cells] (a slice or indices), not checked for
+    inversion."""
     ref = reference_element(mesh.cell_type)
     X = mesh.points[mesh.cells[cells]]  # (n_cells, n_loc, d)
     phi = ref.values(pts)  # (n_qp, n_loc)
@@ -102,39 +105,64 @@ def _keys(rows: np.ndarray, cols: np.ndarray, ncol: int) -> np.ndarray:
     return rows[:, :, None].astype(np.int64) * ncol + cols[:, None, :]
 
 
-def _pattern(rows: np.ndarray, cols: np.ndarray, shape, chunk: int) -> sp.csr_matrix:
-    """The sparsity pattern (sorted csr, int8 ones) of all cells' (rows, cols) dof pairs."""
+def _pattern(
+    rows: np.ndarray, cols: np.ndarray, shape, chunk: int, keep: np.ndarray | None = None
+) -> sp.csr_matrix:
+    """The sparsity pattern (sorted csr, int8 ones) of all cells' (rows, cols) dof pairs (those
+    in rows where `keep` (shape[0],) holds, if given)."""
     P = sp.csr_matrix(shape, dtype=np.float32)
     for lo in range(0, rows.shape[0], chunk):
         R, C = rows[lo : lo + chunk], cols[lo : lo + chunk]  # (k, r), (k, c)
-        k = _keys(R, C, shape[1]).ravel()  # (k r c,)
+        k = _keys(R, C, shape[1])  # (k, r, c)
+        k = (k if keep is None else k[keep[R]]).ravel()  # (k r c,) or the kept rows' entries
         one = np.ones(k.size, dtype=np.float32)  # positive: no cancellation in the sum
         P = P + sp.csr_matrix((one, (k // shape[1], k % shape[1])), shape=shape)
     P.sort_indices()
     return P
 
 
+def touching(rows: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """(k,) increasing: the cells with a dof among the rows where `keep` holds (rows
+    (n_cells, r) the cells' row dofs, keep (n_rows,) bool): the cells an owned-rows assembly
+    sums."""
+    return np.flatnonzero(keep[rows].any(axis=1))
+
+
 def _assemble_chunks(
-    local_of: Callable[[slice], np.ndarray],
+    local_of: Callable[[slice | np.ndarray], np.ndarray],
     rows: np.ndarray,
     cols: np.ndarray,
     shape: tuple[int, int],
     chunk: int = CHUNK,
+    keep: np.ndarray | None = None,
 ) -> sp.csr_matrix:
     """Σ over cells of the local matrices local_of(cells) (k, r, c) of each chunk `cells` of k
-    cells, at the dofs rows (n_cells, r) × cols (n_cells, c), summed into the final pattern."""
+    cells, at the dofs rows (n_cells, r) × cols (n_cells, c), summed into the final pattern.
+
+    keep : (shape[0],) bool or None. Given, only the rows where it holds are assembled (the
+    others empty), from the cells touching them only (`touching`, in increasing order): each
+    entry of those rows receives the same terms in the same order as in the whole assembly
+    (`np.add.at` sums in cell order), so the rows are the whole matrix's bit for bit, pattern
+    included, with no other row computed (a rank's owned rows: docs/distributed.md)."""
     if chunk < 1:
         raise ValueError(f"chunk must be ≥ 1 cell, got {chunk}")
-    P = _pattern(rows, cols, shape, chunk)
+    cells_of = None if keep is None else touching(rows, keep)  # (k_c,) increasing
+    if cells_of is not None:
+        rows, cols = rows[cells_of], cols[cells_of]  # (k_c, r), (k_c, c)
+    P = _pattern(rows, cols, shape, chunk, keep)
     keys = np.repeat(np.arange(shape[0], dtype=np.int64), np.diff(P.indptr))  # (nnz,)
     keys *= shape[1]
     keys += P.indices  # (nnz,) increasing (sorted csr)
     data = np.zeros(P.nnz)  # (nnz,)
     for lo in range(0, rows.shape[0], chunk):
         cells = slice(lo, lo + chunk)
-        local = local_of(cells)  # (k, r, c)
+        local = local_of(cells if cells_of is None else cells_of[cells])  # (k, r, c)
         pos = np.searchsorted(keys, _keys(rows[cells], cols[cells], shape[1]))  # (k, r, c)
-        np.add.at(data, pos.ravel(), local.ravel())
+        if keep is None:
+            np.add.at(data, pos.ravel(), local.ravel())
+        else:  # the kept rows' entries, in the same (cell, r, c) order
+            mine = keep[rows[cells]]  # (k, r)
+            np.add.at(data, pos[mine].ravel(), local[mine].ravel())
     del keys
     return sp.csr_matrix((data, P.indices, P.indptr), shape=shape)
 
@@ -147,15 +175,17 @@ def _assemble_forms(
     cols: np.ndarray,
     shape: tuple[int, int],
     chunk: int,
+    keep: np.ndarray | None = None,
 ) -> sp.csr_matrix:
     """Σ over cells of kernel(g) (k, r, c), g the quadrature data (rule of `order`) of a chunk
-    of k cells, computed chunk by chunk; the cells are checked once first (`check_cells`)."""
+    of k cells, computed chunk by chunk; the cells are checked once first (`check_cells`).
+    keep: only those rows, from the cells touching them (`_assemble_chunks`)."""
     check_cells(mesh)
     pts, wts = reference_element(mesh.cell_type).quadrature(order)
     per_cell = wts.size * rows.shape[1] * cols.shape[1]  # entries of a cell's (n_qp, r, c)
     chunk = min(chunk, max(1, LOCAL_ENTRIES // per_cell))  # chunk < 1 is refused below
     return _assemble_chunks(
-        lambda cells: kernel(_geometry(mesh, pts, wts, cells)), rows, cols, shape, chunk
+        lambda cells: kernel(_geometry(mesh, pts, wts, cells)), rows, cols, shape, chunk, keep
     )
 
 
@@ -198,8 +228,12 @@ def _sizes(mesh: Mesh) -> tuple[int, int]:
     return d, d * (d + 1) // 2
 
 
-def elasticity_matrix(mesh: Mesh, C: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
-    """(dN × dN) ∫ C ε(u)·ε(v), C the v×v Voigt matrix; `chunk` cells at a time."""
+def elasticity_matrix(
+    mesh: Mesh, C: np.ndarray, chunk: int = CHUNK, rows: np.ndarray | None = None
+) -> sp.csr_matrix:
+    """(dN × dN) ∫ C ε(u)·ε(v), C the v×v Voigt matrix; `chunk` cells at a time. rows (dN,)
+    bool: only those rows (the others empty), bit for bit the whole matrix's, from the cells
+    touching them (`_assemble_chunks`)."""
     d, v = _sizes(mesh)
     C = _check_matrix("C", C, (v, v))
 
@@ -211,29 +245,46 @@ def elasticity_matrix(mesh: Mesh, C: np.ndarray, chunk: int = CHUNK) -> sp.csr_m
     ref = reference_element(mesh.cell_type)
     dofs = vector_dofs(mesh)  # (n_cells, d n_loc)
     n = d * mesh.n_nodes
-    return _assemble_forms(mesh, kernel, ref.form_order, dofs, dofs, (n, n), chunk)
+    return _assemble_forms(mesh, kernel, ref.form_order, dofs, dofs, (n, n), chunk, rows)
 
 
-def coupling_matrix(mesh: Mesh, e: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
+def coupling_matrix(
+    mesh: Mesh, e: np.ndarray, chunk: int = CHUNK, rows: np.ndarray | None = None
+) -> sp.csr_matrix:
     """(N × dN) G[θ, u] = ∫ ∇θ · (e ε(u)), e the d×v piezoelectric matrix (rows D_x, D_y(, D_z));
-    `chunk` cells at a time."""
+    `chunk` cells at a time. rows (N,) bool: only those rows (`elasticity_matrix`)."""
+    return _coupling(mesh, e, chunk, rows, transposed=False)
+
+
+def _coupling(
+    mesh: Mesh, e: np.ndarray, chunk: int, rows: np.ndarray | None, transposed: bool
+) -> sp.csr_matrix:
+    """G (`coupling_matrix`), or Gᵀ (dN × N) assembled as such (transposed: each entry the same
+    terms in the same cell order as G's, so Gᵀ's rows where `rows` (dN,) holds are G.T's bit
+    for bit without G's other columns)."""
     d, v = _sizes(mesh)
     e = _check_matrix("e", e, (d, v))
 
     def kernel(g: Geometry) -> np.ndarray:
         B = strain_operator(g.grad)  # (k, n_qp, v, d n_loc)
         wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, d)
-        return _sum_points(wgrad, e @ B)  # (k, n_loc, d n_loc)
+        G = _sum_points(wgrad, e @ B)  # (k, n_loc, d n_loc)
+        return G.transpose(0, 2, 1) if transposed else G
 
     ref = reference_element(mesh.cell_type)
+    nodes, dofs = mesh.cells, vector_dofs(mesh)  # (n_cells, n_loc), (n_cells, d n_loc)
+    if transposed:
+        shape = (d * mesh.n_nodes, mesh.n_nodes)
+        return _assemble_forms(mesh, kernel, ref.form_order, dofs, nodes, shape, chunk, rows)
     shape = (mesh.n_nodes, d * mesh.n_nodes)
-    return _assemble_forms(
-        mesh, kernel, ref.form_order, mesh.cells, vector_dofs(mesh), shape, chunk
-    )
+    return _assemble_forms(mesh, kernel, ref.form_order, nodes, dofs, shape, chunk, rows)
 
 
-def permittivity_matrix(mesh: Mesh, kappa: np.ndarray, chunk: int = CHUNK) -> sp.csr_matrix:
-    """(N × N) ∫ κ∇φ·∇θ, κ a d×d symmetric positive definite matrix; `chunk` cells at a time."""
+def permittivity_matrix(
+    mesh: Mesh, kappa: np.ndarray, chunk: int = CHUNK, rows: np.ndarray | None = None
+) -> sp.csr_matrix:
+    """(N × N) ∫ κ∇φ·∇θ, κ a d×d symmetric positive definite matrix; `chunk` cells at a time.
+    rows (N,) bool: only those rows (`elasticity_matrix`)."""
     d, _ = _sizes(mesh)
     kappa = _check_matrix("kappa", kappa, (d, d))
 
@@ -243,7 +294,7 @@ def permittivity_matrix(mesh: Mesh, kappa: np.ndarray, chunk: int = CHUNK) -> sp
 
     ref = reference_element(mesh.cell_type)
     shape = (mesh.n_nodes, mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, ref.form_order, mesh.cells, mesh.cells, shape, chunk)
+    return _assemble_forms(mesh, kernel, ref.form_order, mesh.cells, mesh.cells, shape, chunk, rows)
 
 
 def stiffness_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
@@ -251,12 +302,24 @@ def stiffness_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
     return permittivity_matrix(mesh, np.eye(mesh.points.shape[1]), chunk)
 
 
-def piezo_matrix(mesh: Mesh, C: np.ndarray, e: np.ndarray, kappa: np.ndarray) -> sp.csr_matrix:
-    """The coupled operator [[K, Gᵀ], [−G, P]] on (u interleaved, then φ): ((d+1)N × (d+1)N)."""
-    K = elasticity_matrix(mesh, C)
-    G = coupling_matrix(mesh, e)
-    P = permittivity_matrix(mesh, kappa)
-    return sp.bmat([[K, G.T], [-G, P]], format="csr")
+def piezo_matrix(
+    mesh: Mesh, C: np.ndarray, e: np.ndarray, kappa: np.ndarray, rows: np.ndarray | None = None
+) -> sp.csr_matrix:
+    """The coupled operator [[K, Gᵀ], [−G, P]] on (u interleaved, then φ): ((d+1)N × (d+1)N).
+    rows ((d+1)N,) bool: only those rows, from the cells touching them (`elasticity_matrix`;
+    Gᵀ's assembled as such, `_coupling`), each row's entries in the whole matrix's order."""
+    if rows is None:
+        K = elasticity_matrix(mesh, C)
+        G = coupling_matrix(mesh, e)
+        P = permittivity_matrix(mesh, kappa)
+        return sp.bmat([[K, G.T], [-G, P]], format="csr")
+    n_u = mesh.points.shape[1] * mesh.n_nodes
+    r_u, r_phi = rows[:n_u], rows[n_u:]  # (dN,), (N,)
+    K = elasticity_matrix(mesh, C, rows=r_u)
+    Gt = _coupling(mesh, e, CHUNK, r_u, transposed=True)  # (dN, N) Gᵀ's rows r_u
+    G = coupling_matrix(mesh, e, rows=r_phi)
+    P = permittivity_matrix(mesh, kappa, rows=r_phi)
+    return sp.bmat([[K, Gt], [-G, P]], format="csr")
 
 
 def mass_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
