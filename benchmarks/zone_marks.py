@@ -27,7 +27,14 @@ energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
   touching node, plus "fan_red" (`near_zone`); "zone_weighted", "zone_weighted1",
   "zone_weighted_t7" the Dörfler set of η_T min(1, ℓ/d_T)^p (p = 2, 1; θ = 0.5, 0.7) added,
   plus "fan_red" (`zone_weighted`: a goal-oriented weight, the decay of a contact-load
-  functional's dual solution away from the zone);
+  functional's dual solution away from the zone); "near_level", "near_level4" a minimum
+  level: cells within ℓ of a touching node coarser than 2×, 4× the longest touching segment,
+  plus "fan_red" (`near_level`); "dual" the goal-oriented (dual-weighted residual) marks:
+  per goal (the peak pressure p0, the half-width's second moment a) the Dörfler set of
+  η_T(u_h) η_T(z_h) with z_h the discrete dual solution (`dual_solution`,
+  `dual_indicators`, `dual_weighted`), added; "dual_red" and "dual_a_red" (a only) plus
+  "fan_red", "dual_red_t8" with θ = 0.8 on the goal sets, "dual_union" / "dual_union_red"
+  the Dörfler sets of η_T(z_h) itself, "dual_peak_red" plus "peak_red";
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of
