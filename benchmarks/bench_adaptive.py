@@ -94,9 +94,10 @@ def run(
     max_unknowns: int,
     zone_levels: int = 0,
     zones: tuple[str, ...] = ("energy",),
+    theta: float = 0.5,
 ) -> dict:
     """Uniform levels 0..levels, then one adaptive run per entry of `zones` ("energy": the
-    Dörfler marks alone; else a name of `zone_marks.MARKS` added to them)."""
+    Dörfler marks alone; else a name of `zone_marks.MARKS` added to them), Dörfler θ = `theta`."""
     from problems import pipeline
     from problems.plugins.contract import nested_start, solve_model
 
@@ -115,7 +116,8 @@ def run(
         uniform.append({"level": level, "cpu_s": cpu, **row})
         prev = (model, sol)
     runs = {
-        zone: _adaptive(name, plugin, scene, max_unknowns, options, limit, zone) for zone in zones
+        zone: _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta)
+        for zone in zones
     }
     return {
         "scene": name,
@@ -126,7 +128,7 @@ def run(
     }
 
 
-def _adaptive(name, plugin, scene, max_unknowns, options, limit, zone) -> list[dict]:
+def _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta=0.5) -> list[dict]:
     """The adaptive loop's cycles with the measures and the CPU time summed over cycles."""
     from problems.pipeline import adaptive
 
@@ -160,6 +162,7 @@ def _adaptive(name, plugin, scene, max_unknowns, options, limit, zone) -> list[d
         Measuring(),
         scene,
         1e-9,
+        theta=theta,
         max_unknowns=max_unknowns,
         solve_options=options,
         on_cycle=record,
@@ -268,7 +271,14 @@ def main() -> None:
         metavar="NAME",
         help="one adaptive run per NAME: energy (the Dörfler marks alone) or a candidate "
         "contact-zone marking of benchmarks/zone_marks.py (touching, edge, edge_peak, jump, "
-        "rough, graded, NAME_graded)",
+        "rough, graded, NAME_graded, fan_red, peak_red, core_red, contact_w10, near_zone, "
+        "zone_weighted, ...; the list: zone_marks.MARKS)",
+    )
+    ap.add_argument(
+        "--theta",
+        type=float,
+        default=0.5,
+        help="the adaptive loops' Dörfler bulk fraction (default 0.5, what mixvi solve uses)",
     )
     ap.add_argument(
         "--mutations",
@@ -314,7 +324,7 @@ def main() -> None:
             ap.error(f"--zone: unknown marking {z!r}; known: energy, {', '.join(MARKS)}")
     results = []
     for name in args.scenes:
-        res = run(name, args.uniform, args.max_unknowns, args.zone_levels, tuple(zones))
+        res = run(name, args.uniform, args.max_unknowns, args.zone_levels, tuple(zones), args.theta)
         results.append(res)
         print(f"\n{name}")
         keys = [k for k in KEYS if k in res["uniform"][0]]

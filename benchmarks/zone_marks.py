@@ -17,6 +17,24 @@ energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
   split half and half between the two segments' cells;
 - "surface_red": the cells on touching segments are split only red (`surface_red`);
   "fan_red": the same for every cell at a touching node;
+- fourth pass (docs/benchmarks.md, "Adaptivity on Hertz, fourth pass"): "peak_red" red
+  fans only at the node of the largest λ_n and its neighbours (the support of the peak
+  pressure's dual function); "core_red", "core50_red" red fans at the touching nodes with
+  λ_n ≥ 0.8, 0.5 × its maximum;
+  "contact_w10", "contact_w100" the Dörfler set (θ = 0.5) of the estimate with its contact
+  terms' share of η_T² scaled by 10 or 100, added (`contact_weighted`); "near_zone",
+  "near_zone50", "near_zone25" every cell within 1, 0.5, 0.25 × the zone's half-length of a
+  touching node, plus "fan_red" (`near_zone`); "zone_weighted", "zone_weighted1",
+  "zone_weighted_t7" the Dörfler set of η_T min(1, ℓ/d_T)^p (p = 2, 1; θ = 0.5, 0.7) added,
+  plus "fan_red" (`zone_weighted`: a goal-oriented weight, the decay of a contact-load
+  functional's dual solution away from the zone); "near_level", "near_level4" a minimum
+  level: cells within ℓ of a touching node coarser than 2×, 4× the longest touching segment,
+  plus "fan_red" (`near_level`); "dual" the goal-oriented (dual-weighted residual) marks:
+  per goal (the peak pressure p0, the half-width's second moment a) the Dörfler set of
+  η_T(u_h) η_T(z_h) with z_h the discrete dual solution (`dual_solution`,
+  `dual_indicators`, `dual_weighted`), added; "dual_red" and "dual_a_red" (a only) plus
+  "fan_red", "dual_red_t8" with θ = 0.8 on the goal sets, "dual_union" / "dual_union_red"
+  the Dörfler sets of η_T(z_h) itself, "dual_peak_red" plus "peak_red";
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of
@@ -127,23 +145,15 @@ def multiplier(model: Any, sol: Any, meshes: dict, marked: dict, kind: str) -> d
     return {name: marked[name] | dorfler_mark(np.sqrt(eta2), 0.5)}
 
 
-def surface_red(
-    model: Any, sol: Any, meshes: dict, marked: dict, fans: bool = False
-) -> dict[str, np.ndarray]:
-    """ "surface_red": every slave cell on a contact segment with a touching end that the
-    refinement would split at all (a marked edge after the conformity closure of
-    `fem.bisection`) is marked, i.e. split red into four similar triangles instead of by
-    bisections, until none is left to split otherwise."""
+def red_split(model: Any, meshes: dict, marked: dict, zone: np.ndarray) -> dict[str, np.ndarray]:
+    """The slave's marks with every cell of `zone` (n_cells,) bool that the refinement would
+    split at all (a marked edge after the conformity closure of `fem.bisection`) marked, i.e.
+    split red into four similar triangles instead of by bisections, until none is left to
+    split otherwise."""
     from fem.bisection import _closure, _edge_cells, _edges
 
     c = model.contact
     mesh = meshes[c.slave.name]
-    touch = _touch(model, sol)
-    if fans:  # (n_cells,) cells at a touching node
-        zone = _cells_at(mesh, c.tr.nodes[touch])
-    else:  # (n_cells,) cells on a touching segment
-        zone = np.zeros(mesh.n_cells, dtype=bool)
-        zone[facet_cells(mesh, c.tr.nodes[c.tr.facets[touch[c.tr.facets].any(axis=1)]])] = True
     codes, cell_edges = _edges(mesh.cells, mesh.n_nodes)  # (n_edges,), (n_cells, 3)
     edge_cells = _edge_cells(cell_edges, codes.size)
     m = marked[c.slave.name].copy()
@@ -155,6 +165,211 @@ def surface_red(
         if not add.any():
             return {c.slave.name: m}
         m |= add
+
+
+def red_fans(model: Any, meshes: dict, marked: dict, sel: np.ndarray) -> dict[str, np.ndarray]:
+    """`red_split` of the cells at the trace nodes of `sel` (k,) bool (their fans)."""
+    c = model.contact
+    return red_split(model, meshes, marked, _cells_at(meshes[c.slave.name], c.tr.nodes[sel]))
+
+
+def peak_red(model: Any, sol: Any, meshes: dict, marked: dict, rings: int = 1) -> dict:
+    """ "peak_red": red fans (`red_fans`) only at the node of the largest λ_n and its
+    `rings` neighbours on each side along the surface."""
+    c = model.contact
+    sel = np.zeros(c.tr.nodes.size, dtype=bool)
+    sel[c.rows_n[np.argmax(c.normal(sol.lam))]] = True
+    for _ in range(rings):
+        sel = _ring(sel, c.tr.facets)
+    return red_fans(model, meshes, marked, sel)
+
+
+def core_red(model: Any, sol: Any, meshes: dict, marked: dict, fraction: float = 0.8) -> dict:
+    """ "core_red": red fans (`red_fans`) at the touching nodes whose λ_n is at least
+    `fraction` of the largest (the zone's core, away from its edge)."""
+    c = model.contact
+    lam = c.normal(sol.lam)  # (n_rows,)
+    sel = np.zeros(c.tr.nodes.size, dtype=bool)
+    sel[c.rows_n[lam >= fraction * lam.max()]] = True
+    return red_fans(model, meshes, marked, sel & _touch(model, sol))
+
+
+def near_zone(
+    model: Any, sol: Any, meshes: dict, marked: dict, radius: float = 1.0, red: bool = True
+) -> dict:
+    """ "near_zone": every slave cell with a vertex within `radius` × the zone's half-length
+    (half the largest distance between touching nodes) of a touching node, marked; with
+    `red` then the touching nodes' fans red (`red_fans`)."""
+    from scipy.spatial import cKDTree
+
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    touch = _touch(model, sol)
+    p = mesh.points[c.tr.nodes[touch]]  # (n_touch, 2)
+    half = 0.5 * float(np.max(np.linalg.norm(p[:, None] - p[None], axis=-1)))
+    d = cKDTree(p).query(mesh.points)[0]  # (n_nodes,) distance to the nearest touching node
+    near = (d[mesh.cells] < radius * half).any(axis=1)  # (n_cells,)
+    out = {c.slave.name: marked[c.slave.name] | near}
+    return red_fans(model, meshes, out, touch) if red else out
+
+
+def _slave_eta(model: Any, sol: Any, drop: str | None = None) -> np.ndarray:
+    """(n_cells,) η_T of the slave body (`error_estimate.indicators`, with `drop`), for a
+    piezo_contact or a signorini model."""
+    from problems.plugins import signorini
+    from problems.plugins.contact import error_estimate as ce
+    from problems.plugins.contact import plane as pc
+
+    if "bodies" in model.scene.data:  # a piezo_contact scene
+        spec = pc.SCENE_MODEL
+    else:
+
+        def spec(scene):
+            return signorini.piezo_spec(scene.validated(signorini.SCENE_MODEL))
+
+    return ce.indicators(spec, model, sol, drop=drop)[model.contact.slave.name]
+
+
+def zone_weighted(
+    model: Any, sol: Any, meshes: dict, marked: dict, theta: float = 0.5, power: float = 2.0
+) -> dict:
+    """ "zone_weighted": the Dörfler set (θ) of η_T w_T, w_T = min(1, ℓ / d_T)^power with ℓ the
+    zone's half-length and d_T the distance of T's centroid to the nearest touching node (the
+    decay of a contact-load functional's dual solution away from the zone), added to the
+    marks, then the touching nodes' fans red (`red_fans`)."""
+    from scipy.spatial import cKDTree
+
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    eta = _slave_eta(model, sol)  # (n_cells,)
+    touch = _touch(model, sol)
+    p = mesh.points[c.tr.nodes[touch]]  # (n_touch, 2)
+    half = 0.5 * float(np.max(np.linalg.norm(p[:, None] - p[None], axis=-1)))
+    d = cKDTree(p).query(mesh.points[mesh.cells].mean(axis=1))[0]  # (n_cells,)
+    w = np.minimum(1.0, half / np.maximum(d, 1e-300)) ** power  # (n_cells,)
+    out = {c.slave.name: marked[c.slave.name] | dorfler_mark(eta * w, theta)}
+    return red_fans(model, meshes, out, touch)
+
+
+def dual_solution(model: Any, sol: Any, goal: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The discrete dual solution of a goal functional of the normal multiplier, linearised
+    at the solution's touching set R (frictionless: the tangential rows carry no
+    constraint): [A B_Rᵀ; B_R 0] [z; μ] = [0; j], j = ∂J/∂λ_R (Becker and Rannacher's
+    dual-weighted residual; for contact, Blum, Schröder and Suttmeier; Rademacher). goal
+    "p0": J = λ_n at the touching node nearest x = 0; "a": J = Σ w_k λ_k x_k² / Σ w_k λ_k
+    (the Hertz half-width's second moment), j_k = w_k (x_k² − J) / J. Returns z (n,) over
+    the unknowns, μ (m,) over the rows of B (zero off R) and j (m,) likewise. Then
+    j·λ_h = f·z + gap·μ (A symmetric, B_R u_h = gap_R)."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    c = model.contact
+    touch = model.contact_state(sol)["touch"]  # (N_n,)
+    rows = c.idx_n[touch]  # (n_R,) rows of B
+    x = c.slave.mesh.points[c.tr.nodes[c.rows_n], 0][touch]  # (n_R,)
+    j = np.zeros(rows.size)
+    if goal == "p0":
+        j[np.argmin(np.abs(x))] = 1.0
+    else:
+        w = c.W_n[c.rows_n][touch]  # (n_R,)
+        lam = c.normal(sol.lam)[touch]
+        J = float((w * lam * x**2).sum() / (w * lam).sum())
+        j = w * (x**2 - J) / J
+    A, B = model.vi.A, model.vi.B[rows]  # (n, n), (n_R, n)
+    K = sp.bmat([[A, B.T], [B, None]], format="csc")
+    zm = spla.spsolve(K, np.concatenate([np.zeros(A.shape[0]), j]))  # (n + n_R,)
+    mu, jm = np.zeros(model.vi.B.shape[0]), np.zeros(model.vi.B.shape[0])
+    mu[rows], jm[rows] = zm[A.shape[0] :], j
+    return zm[: A.shape[0]], mu, jm
+
+
+def dual_indicators(model: Any, sol: Any, goal: str) -> np.ndarray:
+    """(n_cells,) the residual indicators η_T(z_h) of the slave body for the dual solution
+    z_h of `dual_solution`: the primal's estimator with zero Dirichlet values and without
+    the normal defect (z_h's constraint data is j, not the gap)."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    z, mu, _ = dual_solution(model, sol, goal)
+    dual = dataclasses.replace(model, values=np.zeros_like(model.values))
+    return _slave_eta(dual, SimpleNamespace(u=z, lam=mu), drop="normal")
+
+
+def dual_weighted(
+    model: Any,
+    sol: Any,
+    meshes: dict,
+    marked: dict,
+    goals: tuple[str, ...] = ("p0", "a"),
+    theta: float = 0.5,
+    red: bool = True,
+    union: bool = False,
+) -> dict:
+    """ "dual_weighted": per goal of `dual_indicators` the Dörfler set (θ) of the product
+    η_T(u_h) η_T(z_h) (goal-oriented marking: Mommer and Stevenson; Feischl, Praetorius and
+    van der Zee), all added to the marks; with `red` then the touching nodes' fans red
+    (`red_fans`)."""
+    c = model.contact
+    eta = _slave_eta(model, sol)  # (n_cells,)
+    m = marked[c.slave.name].copy()
+    for goal in goals:
+        zeta = dual_indicators(model, sol, goal)  # (n_cells,)
+        m |= dorfler_mark(zeta if union else eta * zeta, theta)
+    out = {c.slave.name: m}
+    return red_fans(model, meshes, out, _touch(model, sol)) if red else out
+
+
+def near_level(
+    model: Any, sol: Any, meshes: dict, marked: dict, factor: float = 2.0, radius: float = 1.0
+) -> dict:
+    """ "near_level": a minimum level around the zone: every slave cell whose centroid lies
+    within `radius` × the zone's half-length ℓ of a touching node and whose longest edge is
+    more than `factor` × the longest touching contact segment is marked (the near field
+    kept as fine as the zone's surface, as the box of `bench_adaptive.hertz_limit`), then
+    the touching nodes' fans red (`red_fans`)."""
+    from scipy.spatial import cKDTree
+
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    touch = _touch(model, sol)
+    p = mesh.points[c.tr.nodes[touch]]  # (n_touch, 2)
+    half = 0.5 * float(np.max(np.linalg.norm(p[:, None] - p[None], axis=-1)))
+    h_zone = float(c.tr.measures[touch[c.tr.facets].all(axis=1)].max())
+    P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
+    h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)  # (n_cells,)
+    d = cKDTree(p).query(P.mean(axis=1))[0]  # (n_cells,)
+    out = {c.slave.name: marked[c.slave.name] | ((d < radius * half) & (h > factor * h_zone))}
+    return red_fans(model, meshes, out, touch)
+
+
+def contact_weighted(
+    model: Any, sol: Any, meshes: dict, marked: dict, weight: float = 10.0, theta: float = 0.5
+) -> dict:
+    """ "contact_w10": the Dörfler set (θ) of the estimate with its contact terms' share of η_T²
+    scaled by `weight`, added to the marks."""
+    from problems.plugins.contact import error_estimate as ce
+
+    name = model.contact.slave.name
+    e2 = _slave_eta(model, sol) ** 2  # (n_cells,)
+    share = sum(e2 - _slave_eta(model, sol, drop=t) ** 2 for t in ce.TERMS)  # contact terms
+    w2 = e2 + (weight - 1.0) * share
+    return {name: marked[name] | dorfler_mark(np.sqrt(np.maximum(w2, 0.0)), theta)}
+
+
+def surface_red(
+    model: Any, sol: Any, meshes: dict, marked: dict, fans: bool = False
+) -> dict[str, np.ndarray]:
+    """ "surface_red": the slave cells on a contact segment with a touching end split only red
+    (`red_split`); with `fans` ("fan_red") every cell at a touching node."""
+    c = model.contact
+    touch = _touch(model, sol)
+    if fans:
+        return red_fans(model, meshes, marked, touch)
+    zone = np.zeros(meshes[c.slave.name].n_cells, dtype=bool)  # cells on a touching segment
+    zone[facet_cells(meshes[c.slave.name], c.tr.nodes[c.tr.facets[touch[c.tr.facets].any(1)]])] = (
+        True
+    )
+    return red_split(model, meshes, marked, zone)
 
 
 def graded_chain(
@@ -203,6 +418,28 @@ MARKS = {
     "touching_edge": lambda m, s, ms, mk: edge(m, s, ms, touching_cells(m, s, ms, mk)),
     "surface_red": surface_red,
     "fan_red": lambda *a: surface_red(*a, fans=True),
+    "peak_red": peak_red,
+    "core_red": core_red,
+    "core50_red": lambda *a: core_red(*a, fraction=0.5),
+    "near_zone": near_zone,
+    "near_zone50": lambda *a: near_zone(*a, radius=0.5),
+    "near_zone25": lambda *a: near_zone(*a, radius=0.25),
+    "zone_weighted": zone_weighted,
+    "zone_weighted1": lambda *a: zone_weighted(*a, power=1.0),
+    "zone_weighted_t7": lambda *a: zone_weighted(*a, theta=0.7),
+    "dual": lambda *a: dual_weighted(*a, red=False),
+    "dual_red": dual_weighted,
+    "dual_a_red": lambda *a: dual_weighted(*a, goals=("a",)),
+    "dual_red_t8": lambda *a: dual_weighted(*a, theta=0.8),
+    "dual_union_red": lambda *a: dual_weighted(*a, union=True),
+    "dual_union": lambda *a: dual_weighted(*a, union=True, red=False),
+    "dual_peak_red": lambda m, s, ms, mk: peak_red(
+        m, s, ms, dual_weighted(m, s, ms, mk, red=False)
+    ),
+    "near_level": near_level,
+    "near_level4": lambda *a: near_level(*a, factor=4.0),
+    "contact_w10": contact_weighted,
+    "contact_w100": lambda *a: contact_weighted(*a, weight=100.0),
 }
 MARKS.update({f"{k}_graded": graded(v) for k, v in list(MARKS.items())})
 MARKS["graded"] = graded(lambda model, sol, meshes, marked: {})

@@ -118,3 +118,50 @@ def test_red_zone_cells_are_split_only_red(hertz, name):
         zone[zm.facet_cells(mesh, c.tr.nodes[c.tr.facets[touch[c.tr.facets].any(axis=1)]])] = True
     assert (m >= start).all() and m.sum() > 1
     assert not (split & zone & ~m).any()
+
+
+@pytest.mark.parametrize("goal", ["p0", "a"])
+def test_dual_solution_represents_its_goal(hertz, goal):
+    """The dual solution of the goal-oriented candidates reproduces the goal's value through
+    the data, j·λ_h = f·z + gap·μ (A symmetric, B_R u_h = gap on the touching rows); for
+    "p0", j·λ_h is λ_n at the centre node, for "a" it is 0. A dual with the constraint
+    block dropped or transposed wrongly (−B_Rᵀ) breaks the identity."""
+    model, sol, _ = hertz
+    z, mu, j = zm.dual_solution(model, sol, goal)
+    vi = model.vi
+    gap = np.zeros(vi.B.shape[0]) if vi.gap is None else np.asarray(vi.gap)
+    lhs, fz, gm = j @ sol.lam, vi.f @ z, gap @ mu
+    scale = max(abs(fz), abs(gm))  # "a": j ⟂ λ_h (J'(λ_h)·λ_h = 0), the two terms cancel
+    assert scale > 0 and abs(fz + gm - lhs) <= 1e-7 * scale
+    if goal == "p0":
+        c = model.contact
+        x = c.tr.points[c.rows_n, 0]
+        assert lhs == pytest.approx(c.normal(sol.lam)[np.argmin(np.abs(x))], rel=1e-12)
+
+
+def test_dual_indicators_locate_their_goal(hertz):
+    """The peak pressure's dual indicator is largest in a cell at the centre node; the
+    half-width's in the outer half of the zone (its weight x² − J grows to the edge)."""
+    model, sol, meshes = hertz
+    mesh, c = meshes["body"], model.contact
+    centre = c.tr.nodes[np.argmin(np.abs(c.tr.points[:, 0]))]
+    assert centre in mesh.cells[np.argmax(zm.dual_indicators(model, sol, "p0"))]
+    touch = zm._touch(model, sol)
+    half = np.abs(c.tr.points[touch, 0]).max()
+    x = mesh.points[mesh.cells].mean(axis=1)[:, 0]  # (n_cells,)
+    assert abs(x[np.argmax(zm.dual_indicators(model, sol, "a"))]) > 0.5 * half
+
+
+@pytest.mark.parametrize("name", ["peak_red", "near_level", "dual_red", "zone_weighted"])
+def test_fourth_pass_marks_split_the_centre_fan_red(hertz, name):
+    """One marked cell at the centre node: the fourth pass's candidates keep it, add marks,
+    and mark the centre node's whole fan (split red: each puts red fans there; "near_level"
+    marks the near field too)."""
+    model, sol, meshes = hertz
+    mesh, c = meshes["body"], model.contact
+    centre = c.tr.nodes[np.argmin(np.abs(c.tr.points[:, 0]))]
+    fan = (mesh.cells == centre).any(axis=1)  # (n_cells,)
+    start = np.zeros(mesh.n_cells, dtype=bool)
+    start[np.flatnonzero(fan)[0]] = True
+    m = zm.MARKS[name](model, sol, meshes, {"body": start})["body"]
+    assert (m >= start).all() and m[fan].all()
