@@ -13,7 +13,7 @@ import pytest
 import problems
 from problems.output.results import write_contact_csv
 from problems.plugins import registry
-from problems.plugins.contact import plane_output, solid_output
+from problems.plugins.contact import output
 
 OLD_2D = ["x", "y", "normal_x", "normal_y", "lambda_n", "lambda_t", "jump_t", "state"]
 OLD_3D = ["x", "y", "z", *(f"{v}_{a}" for v in ("normal", "tangent1", "tangent2") for a in "xyz")]
@@ -25,10 +25,7 @@ def _csv(name: str, tmp_path) -> tuple[dict[str, np.ndarray], dict, object]:
     res = problems.solve_scene(name, level=0)
     front = registry.for_scene(res.model.scene)
     st = front.contact_state(res.model, res.solution)
-    if res.model.dimension == 2:  # the tables the fronts' postprocess writes
-        table = plane_output.contact_table(res.model, res.solution)
-    else:
-        table = solid_output.contact_table(res.model, st)
+    table = output.contact_table(res.model, res.solution)  # the table postprocess writes
     write_contact_csv(tmp_path / "contact.csv", table)
     lines = [x for x in (tmp_path / "contact.csv").read_text().splitlines() if x[:1] != "#"]
     head, rows = lines[0].split(","), [x.split(",") for x in lines[1:]]
