@@ -166,33 +166,14 @@ class ContactTable:
         v = np.nan_to_num(getattr(self, name)).reshape(t.shape[0], -1)  # (k, d_t)
         return np.einsum("kj,kjd->kd", v, t)
 
-    def measures(self) -> np.ndarray:
-        """(len(STATES),) the length (2D) or area (3D) per state: a node with a multiplier
-        counts with its class weight (weights_t where it has a tangential one, weights_n
-        where a normal one only); no_multiplier gets the nodes without one less what they
-        gave their neighbours, so that the measures add up to the boundary's."""
-        W = self.weights
-        w_n = W if self.weights_n is None else self.weights_n
-        w_t = W if self.weights_t is None else self.weights_t
-        has_t = ~np.isnan(self.lambda_t.reshape(W.size, -1)).all(axis=1)  # (k,)
-        w = np.where(has_t, w_t, w_n)  # (k,)
-        carried = self.state != "no_multiplier"
-        given = float((w[carried] - W[carried]).sum())
-        return np.array(
-            [
-                float(W[~carried].sum()) - given
-                if s == "no_multiplier"
-                else float(w[self.state == s].sum())
-                for s in STATES
-            ]
-        )
-
     def totals(self) -> dict:
         """Contact force on the slave body −∫λ_h = −Σ_k (w_n,k λ_n,k n_k + w_t,k λ_t,k t_k)
         with the class weights (the resultant of its nodal contact forces −Bᵀλ; N/m in 2D, N
         in 3D), with the components of the tangents' space (x, y in plane; x, y, z for
-        antiplane and 3D), the length (2D, m) or area (3D, m²) per state (`measures`) and the
-        nodes per state."""
+        antiplane and 3D), the length (2D, m) or area (3D, m²) per state and the nodes per
+        state. The measures sum the nodal weights ∫φ_k, a partition of the boundary (the class
+        weights are not: where a node keeps one class's multiplier and gives the other's dual
+        function to its neighbour, its share would count twice)."""
         W = self.weights
         w_n = W if self.weights_n is None else self.weights_n
         w_t = W if self.weights_t is None else self.weights_t
@@ -207,7 +188,7 @@ class ContactTable:
         return {
             "force_on_slave": force.tolist(),
             "force_units": "N/m (per unit thickness)" if plane else "N",
-            **{f"{s}_{measure}": m for s, m in zip(STATES, self.measures(), strict=True)},
+            **{f"{s}_{measure}": float(W[self.state == s].sum()) for s in STATES},
             "counts": {s: int((self.state == s).sum()) for s in STATES},
         }
 

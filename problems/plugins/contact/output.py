@@ -21,7 +21,8 @@ dimensions: λ_h = Σ_k λ_k ψ̃_k, so Σ_k λ_k ∫ψ̃_k is its integral, the
 nodal contact forces −Bᵀλ (the row sums of a class's slave block are its W_c), and the force
 the independent 2D balance integrates. Where the crosspoint rule "merge" hands a dropped node's
 dual function to its neighbours, W_c exceeds the nodal ∫φ_k there; the nodal weights would
-lose the dropped node's share.
+lose the dropped node's share. The length (2D) or area (3D) per state sums the nodal weights
+∫φ_k (`ContactTable.totals`): they partition Γ3, the class weights do not.
 """
 
 from __future__ import annotations
