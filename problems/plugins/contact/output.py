@@ -43,7 +43,6 @@ from . import checks, interface
 from . import electrical as electrical_contact
 from .body_output import write_bodies
 from .contact_state import contact_state
-from .interface import PATCH_DEFECT_LIMIT  # noqa: F401 (`mixvi solve` reads it here)
 
 # a bilateral interface of two bodies that stands apart by more than this fraction of the
 # largest displacement of the slave's contact nodes is warned of: closing it changes the answer
@@ -77,10 +76,8 @@ def node_view(model: Any, st: dict) -> dict:
         rows_n, rows_t = c.rows_n, c.rows_t  # rows_t: the 2D tangential rows, in their order
         lam_t, jump_t = np.full((k, 1), np.nan), np.full((k, 1), np.nan)
         lam_t[rows_t, 0], jump_t[rows_t, 0] = st["lam_t"], st["jump_t"]
-        normal = np.full(k, "open", dtype=object)
-        normal[rows_n] = st["normal_state"]
         state = np.full(k, "no_multiplier", dtype=object)
-        state[rows_n] = node_states.node_states(normal[rows_n], None)  # normal row only
+        state[rows_n] = node_states.node_states(st["normal_state"], None)  # normal row only
         state[rows_t] = st["state"]
         out = {"lam_n": np.full(k, np.nan), "state": state.astype(str), "touch": np.zeros(k, bool)}
         out["lam_n"][rows_n] = st["lam_n"]
