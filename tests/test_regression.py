@@ -107,7 +107,9 @@ def test_the_flux_of_an_insulated_contact_is_a_residue_of_a_conducting_one_an_an
     its flux_max moved by 1e-6 relative is a difference."""
     insulated = regression.baseline("hertz_piezo")["0"]
     moved = json.loads(json.dumps(insulated))
-    moved["summary"]["electrical"]["flux_max"] *= 0.8
+    assert insulated["summary"]["electrical"]["kind"] == "none"
+    # a rerun's rounding of the zero (a baseline written since stores the summary stripped)
+    moved["summary"]["electrical"]["flux_max"] = 6.1e-16
     moved["summary"] = regression._strip(moved["summary"])  # as run_case returns it
     assert regression.check_case("hertz_piezo", 0, insulated, moved) == []
     conducting = regression.baseline("electrical_block")["0"]

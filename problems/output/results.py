@@ -16,7 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-STATES = ("stick", "slip", "open", "no_multiplier", "ambiguous")
+# the node states (vi_core.states); contact.vtu's `state` is the index here (normal_only last,
+# so the others keep their codes)
+STATES = ("stick", "slip", "open", "no_multiplier", "ambiguous", "normal_only")
 CSV_TITLE = "mixvi contact results, one row per node of the slave contact boundary"
 AXES = "xyz"
 UNITS = {"lambda_n": "Pa", "lambda_t": "Pa", "jump_t": "m", "g": "Pa", "gap": "m", "state": "-"}
@@ -58,7 +60,10 @@ class ContactTable:
 
     points : (k, d) positions, d = 2 or 3.  normals : (k, d) outward unit normals of the slave.
     weights : (k,) ∫φ_k ds (the node's share of the boundary's length or area).
-    segments : (n_seg, 2) row indices of the boundary's segments (for the polyline VTU).
+    weights_n, weights_t : (k,) or None (= weights): the class weights ∫ψ̃_k of the normal and
+        the tangential multipliers (dual mortar: ∫φ_k plus what merged crosspoint nodes gave).
+    segments : (n_f, v) row indices of the boundary's facets: segments (cell_type "line", a
+        curve) or faces ("triangle", "quad": a surface), the cells of contact.vtu.
     lambda_n : (k,) or None (a law without a normal multiplier, e.g. antiplane friction).
     lambda_t, jump_t : (k,) or (k, d_t) per tangent; NaN where the node carries none.
     tangents : None (2D: τ = (−n_y, n_x), no columns) or (k, d_t, D) unit tangents, D ≥ d
@@ -84,6 +89,9 @@ class ContactTable:
     meanings: dict[str, str] = field(default_factory=dict)
     friction: str = "tresca"
     bound: np.ndarray | None = None
+    weights_n: np.ndarray | None = None
+    weights_t: np.ndarray | None = None
+    cell_type: str = "line"
 
     @property
     def tangent_frame(self) -> np.ndarray:
@@ -151,26 +159,37 @@ class ContactTable:
             text = MEANING.get(column, "")
         return text.replace("{bound}", BOUNDS[self.friction])
 
-    def totals(self) -> dict:
-        """Contact force on the slave body −∫λ ds (N/m; 3D: N), with the components of the
-        tangents' space (x, y in plane; x, y, z for antiplane and 3D), and the lengths per
-        state (m)."""
+    def vectors(self, name: str) -> np.ndarray:
+        """(k, D) lambda_t or jump_t as a vector Σ_j v_j t_j of the tangents' space (0 where
+        the node carries none)."""
         t = self.tangent_frame  # (k, d_t, D)
-        dim = t.shape[2]
-        n = np.zeros((self.normals.shape[0], dim))  # (k, D) the normal, padded to D
-        n[:, : self.normals.shape[1]] = self.normals
-        lam_t = np.nan_to_num(self.lambda_t).reshape(t.shape[0], -1)  # (k, d_t)
-        lam = np.einsum("kj,kjd->kd", lam_t, t)  # (k, D)
+        v = np.nan_to_num(getattr(self, name)).reshape(t.shape[0], -1)  # (k, d_t)
+        return np.einsum("kj,kjd->kd", v, t)
+
+    def totals(self) -> dict:
+        """Contact force on the slave body −∫λ_h = −Σ_k (w_n,k λ_n,k n_k + w_t,k λ_t,k t_k)
+        with the class weights (the resultant of its nodal contact forces −Bᵀλ; N/m in 2D, N
+        in 3D), with the components of the tangents' space (x, y in plane; x, y, z for
+        antiplane and 3D), the length (2D, m) or area (3D, m²) per state and the nodes per
+        state. The measures sum the nodal weights ∫φ_k, a partition of the boundary (the class
+        weights are not: where a node keeps one class's multiplier and gives the other's dual
+        function to its neighbour, its share would count twice)."""
+        W = self.weights
+        w_n = W if self.weights_n is None else self.weights_n
+        w_t = W if self.weights_t is None else self.weights_t
+        lam = w_t[:, None] * self.vectors("lambda_t")  # (k, D)
         if self.lambda_n is not None:
-            lam = lam + np.nan_to_num(self.lambda_n)[:, None] * n
-        force = -(self.weights[:, None] * lam).sum(axis=0)  # (D,)
-        lengths = {f"{s}_length": float(self.weights[self.state == s].sum()) for s in STATES}
-        counts = {s: int((self.state == s).sum()) for s in STATES}
+            n = np.zeros_like(lam)  # (k, D) the normal, padded to D
+            n[:, : self.normals.shape[1]] = self.normals
+            lam = lam + (w_n * np.nan_to_num(self.lambda_n))[:, None] * n
+        force = -lam.sum(axis=0)  # (D,)
+        plane = self.points.shape[1] == 2
+        measure = "length" if plane else "area"
         return {
             "force_on_slave": force.tolist(),
-            "force_units": "N/m (per unit thickness)" if self.points.shape[1] == 2 else "N",
-            **lengths,
-            "counts": counts,
+            "force_units": "N/m (per unit thickness)" if plane else "N",
+            **{f"{s}_{measure}": float(W[self.state == s].sum()) for s in STATES},
+            "counts": {s: int((self.state == s).sum()) for s in STATES},
         }
 
     def records(self) -> list[dict]:
@@ -225,27 +244,26 @@ def _pad3(v: np.ndarray) -> np.ndarray:
 
 
 def write_contact_vtu(path: Path, table: ContactTable) -> None:
-    """The contact boundary as a polyline VTU with λ, the jump, the state (code: index in
-    STATES, and per state a 0/1 field), the normal and the explicit tangents as point data."""
+    """The contact boundary (its segments or faces, `cell_type`) as a VTU with the table's
+    λ, jump, g and gap columns, λ_t and [u]_t as vectors (lambda_t_vec, jump_t_vec), the
+    state (code: index in STATES, and per state a 0/1 field), the normal and the explicit
+    tangents as point data."""
     import meshio
 
     code = np.array([STATES.index(s) for s in table.state], dtype=np.int32)
     point_data = {"normal": _pad3(table.normals)}
     for j, name in enumerate(table.tangent_names()):
         point_data[name] = _pad3(table.tangents[:, j])
-    if table.lambda_n is not None:
-        point_data["lambda_n"] = table.lambda_n
-    point_data |= table._split("lambda_t", table.lambda_t)
-    point_data |= table._split("jump_t", table.jump_t)
-    if table.bound is not None:
-        point_data["g"] = table.bound
+    cols = table.columns
+    point_data |= {
+        k: v for k, v in cols.items() if k.startswith(("lambda", "jump")) or k in ("g", "gap")
+    }
+    point_data |= {f"{k}_vec": _pad3(table.vectors(k)) for k in ("lambda_t", "jump_t")}
     point_data["state"] = code
     point_data |= {f"is_{s}": (code == i).astype(np.int32) for i, s in enumerate(STATES)}
-    if table.gap is not None:
-        point_data["gap"] = table.gap
-    meshio.Mesh(_pad3(table.points), [("line", table.segments)], point_data=point_data).write(
-        str(path), file_format="vtu"
-    )
+    meshio.Mesh(
+        _pad3(table.points), [(table.cell_type, table.segments)], point_data=point_data
+    ).write(str(path), file_format="vtu")
 
 
 def write_contact(outdir: Path, table: ContactTable) -> tuple[list[str], dict]:

@@ -13,8 +13,8 @@ bodies and their assembly (`bodies`, `fields`, `body_output`), the model and its
 unilateral summary: `interface`), the error norms (`errors`), the checks
 (`checks`), the electrical contact (`electrical`), the load-path and warm-start transfers
 (`problems.plugins.transfer`, `warm_starts`), the two-body geometry checks (`separation`), the
-manufactured balance (`balance`) and the contact.csv writer (`problems.output.results`
-.ContactTable, fed by `plane_output` and `solid_output`, which write each front's other files).
+manufactured balance (`balance`) and the result files (`output`: one writer for both
+dimensions, one contact table per slave node, `problems.output.results.ContactTable`).
 Each front declares the whole contract v2 with NAME = "contact"; `registry.for_scene` hands a
 scene the front of its dimension (`front`), and this module answers for the plug-in as a whole
 where no scene is at hand (`mixvi schema`, `mixvi extremes`, listings).

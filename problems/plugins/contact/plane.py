@@ -19,7 +19,7 @@ from vi_core import MixedVI, Solution
 
 from ..contract import check_meshed
 from . import electrical as electrical_contact
-from . import errors, interface, plane_output, warm_starts
+from . import errors, interface, output, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from .contact_state import contact_state as one_contact_state
@@ -183,9 +183,9 @@ EXACT_NORMS = errors.EXACT_NORMS  # with u_L2
 exact_errors = partial(errors.exact_errors, SCENE_MODEL, contact_state)
 reference_errors = partial(errors.reference_errors, contact_state)
 extremes = contact_extremes.rows_2d
-postprocess = plane_output.postprocess  # result files and summary entries
-step_output = plane_output.step_output  # one load step's files
-contact_table = plane_output.contact_table  # contact.csv's rows (signorini's too)
+postprocess = output.postprocess  # result files and summary entries (2D and 3D: `output`)
+step_output = output.step_output  # one load step's files
+contact_table = output.contact_table  # contact.csv's rows (signorini's too)
 
 
 def draw(ax, model: Model, sol: Solution) -> str:

@@ -8,15 +8,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import partial
-from pathlib import Path
 
 from problems.scene import Scene
 from vi_core import Solution
 
-from . import checks, errors, interface, warm_starts
+from . import errors, interface, output, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
-from . import solid_output as contact3d_output
 from .contact_state import contact_state as one_contact_state
 from .model import BodiesModel
 from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
@@ -72,12 +70,9 @@ incremental = contact_model.incremental
 contact_state = one_contact_state  # the state of a solution (`contact_state`), 3D layout
 
 
-def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """Write the body VTUs, the contact surface (contact.vtu), contact.csv, results.pvd and
-    the stick/slip map into `outdir`; return the summary entries."""
-    summary = contact3d_output.write(model, sol, outdir, contact_state)
-    summary["checks"] = checks.solution_checks(model, sol)
-    return summary
+postprocess = output.postprocess  # result files and summary entries (2D and 3D: `output`)
+step_output = output.step_output  # one load step's files
+contact_table = output.contact_table  # contact.csv's rows
 
 
 # ------------------------------------------------------------------ contract v2 declarations
@@ -97,7 +92,7 @@ def draw(ax, model: Model, sol: Solution) -> str:
     if model.contact is None:
         return "no contact interface"
     st = contact_state(model, sol)
-    uv, _, _ = contact3d_output.chart(model)
+    uv, _, _ = output.chart(model)
     for s, col in (("stick", "tab:blue"), ("slip", "tab:red")):
         sel = st["state"] == s
         ax.scatter(uv[sel, 0], uv[sel, 1], s=8, color=col, label=f"{s} ({int(sel.sum())})")

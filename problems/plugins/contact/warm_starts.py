@@ -13,7 +13,7 @@ import numpy as np
 from vi_core import Solution
 
 from .. import transfer
-from .solid_output import chart
+from .output import chart
 
 
 def along_curve(coarse: Any, coarse_sol: Solution, fine: Any) -> dict:

@@ -45,6 +45,7 @@ def test_solve_writes_summary_fields_and_plots(tmp_path, capsys):
         "slip_length",
         "open_length",
         "no_multiplier_length",
+        "normal_only_length",
         "counts",
         "table",
     }

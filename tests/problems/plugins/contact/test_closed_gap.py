@@ -9,21 +9,21 @@ import json
 import pytest
 
 import problems
-from problems.plugins.contact import plane_output, separation
+from problems.plugins.contact import output, separation
 
 SCENE = "shear_strip_two_body"  # the base's top at y = 0, touching the block's bottom
 
 
 def _closed(gap: float):
     res = problems.solve_scene(SCENE, level=0, bodies__base__geometry__y=[-0.5, -gap])
-    entry = plane_output.closed_gap_summary(res.model, res.solution)["initial_gap_closed"]
-    return entry, plane_output.closed_gap_warning(res.model, res.solution)
+    entry = output.closed_gap_summary(res.model, res.solution)["initial_gap_closed"]
+    return entry, output.closed_gap_warning(res.model, res.solution)
 
 
 def test_a_real_gap_is_measured_and_warned_of():
     entry, warnings = _closed(1e-3)  # displacements ~1e-3 m: closing 1 mm changes the answer
     assert entry["max"] == pytest.approx(1e-3, rel=1e-9)
-    assert entry["relative_to_displacement"] > plane_output.CLOSED_GAP_TOL
+    assert entry["relative_to_displacement"] > output.CLOSED_GAP_TOL
     assert len(warnings) == 1 and "law = 'unilateral'" in warnings[0] and "0.001 m" in warnings[0]
 
 

@@ -24,7 +24,7 @@ from problems.plugins.contact import bodies, surface_contact
 from problems.plugins.contact import checks as contact3d_checks
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact import solid as contact3d
-from problems.plugins.contact.solid_output import frame_checks
+from problems.plugins.contact.output import frame_checks
 from problems.scene import load_scene
 from vi_core.kkt import Checker
 
