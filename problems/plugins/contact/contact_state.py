@@ -42,11 +42,7 @@ def contact_state(model: Any, sol: Solution) -> dict:
     lam = sol.lam
     radius = c.bound(lam)  # (k,) the friction radius at λ
     rows_t = c.rows_t  # (N_t,) nodes with a tangential row
-    # the scales of the thresholds: the radius of the tangential rows; the area by which the
-    # nodal forces become a pressure is the smallest W_n of a normal row in 2D and the smallest
-    # nodal W in 3D (each front's former rule, kept so that no answer moves; issue 30)
-    w_min = (lambda: c.W_n[c.rows_n].min()) if c.dim == 2 else (lambda: c.W.min())
-    j = interface.jumps(model, sol, radius[rows_t], w_min)
+    j = interface.jumps(model, sol, radius[rows_t])
     Bu, Bi, th = j.Bu, j.Bi, j.th  # (m,) each
     Wt = c.W_t  # (k,) the tangential rows' ∫ψ̃_k
     has_t = np.zeros(k, dtype=bool)

@@ -466,7 +466,8 @@ class Jumps:
     order; Bi (m,) the same since the load path's previous step (`model.incremental`; Bu
     without one); gap_rows (m,) the initial gap on the normal rows (unilateral), 0 elsewhere;
     pressure the pressure scale (unilateral: the largest λ_n or the elastic nodal forces per
-    `w_min`; 0 for bilateral contact); th the state thresholds of `vi_core.states`.
+    smallest normal row weight, `jumps`; 0 for bilateral contact); th the state thresholds of
+    `vi_core.states`.
     """
 
     x_full: np.ndarray
@@ -477,12 +478,21 @@ class Jumps:
     th: Any
 
 
-def jumps(model: Any, sol: Solution, radius: np.ndarray, w_min: Callable[[], float]) -> Jumps:
-    """The `Jumps` of `sol`; radius the friction radius at λ (`contact.bound`), w_min() the
-    area (length) by which the nodal forces become a pressure (asked for unilateral contact
-    only). The states' thresholds scale with the achieved residual, the stress scale (the
-    whole λ: with ρ ≪ λ_n a rounding shortfall of |λ_t| relative to λ is no stick evidence)
-    and the displacement scale."""
+def jumps(model: Any, sol: Solution, radius: np.ndarray) -> Jumps:
+    """The `Jumps` of `sol`; radius the friction radius at λ (`contact.bound`). The states'
+    thresholds scale with the achieved residual, the stress scale (the whole λ: with ρ ≪ λ_n a
+    rounding shortfall of |λ_t| relative to λ is no stick evidence) and the displacement scale.
+
+    The pressure scale (unilateral contact; 0 for bilateral) is the larger of the largest λ_n
+    and the largest elastic nodal force |A u| over the displacement dofs turned into a
+    pressure by the smallest weight W_n,k of a normal row, 2D and 3D alike. A state threshold
+    decides whether a λ_n is zero, so it must be relative to the λ_n the forces could produce:
+    λ_n is conjugate to the row (B u)_k = W_n,k [u]_n,k, so a nodal force f carried by row k is
+    the pressure λ_n,k = f / W_n,k, and the largest is f / min_k W_n,k over the rows that carry
+    a λ_n. It is the same quantity in any dimension (W_n,k a length in 2D, an area in 3D: the
+    row sums of the normal class, `class_blocks`), and it ignores the weights of nodes without
+    a normal row (clamped crosspoints, uncovered nodes), which no force can load as a λ_n. (3D
+    took the smallest nodal W of any trace node before issue 30, those nodes included.)"""
     c = model.contact
     x_full = model.full(sol.u)
     Bu = c.B_full @ x_full  # (m,)
@@ -493,7 +503,8 @@ def jumps(model: Any, sol: Solution, radius: np.ndarray, w_min: Callable[[], flo
         gap_rows[c.idx_n] = c.gap0
         # the elastic nodal forces per area: the pressure scale when the bodies are apart (all
         # of λ is rounding then)
-        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / w_min()
+        w_min = float(c.W_n[c.rows_n].min())  # the smallest normal row weight (docstring)
+        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / w_min
         pressure = max(float(sol.lam[c.idx_n].max(initial=0.0)), force)
     Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
     th = node_states.solution_thresholds(
