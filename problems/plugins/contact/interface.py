@@ -16,6 +16,7 @@ hands them to `assemble`.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -85,6 +86,14 @@ class Coupling:
     patch_defect: float = np.nan
 
 
+# names of the former 2D `Contact` and 3D `SolidContact` that cannot come back, and what to use
+GONE = {
+    "pairs": "the unilateral rows of a node stand side by side, [n, t1, t2] per disc node, "
+    "[n, t] per line node, then the normal-only nodes: use Interface.rows() for the rows of "
+    "each kind (the former 2D pairs [n, τ] are the line nodes, line.size of them)",
+}
+
+
 @dataclass
 class Interface:
     """The contact interface Γ3 of a 2D or 3D scene: slave trace, frames, multiplier rows,
@@ -130,6 +139,35 @@ class Interface:
     closed_gap: float = 0.0
     master_proj: sp.csr_matrix | None = None
     master_phi: sp.csr_matrix | None = None
+
+    def __getattr__(self, name: str) -> Any:
+        """An AttributeError; for a name of the former 2D `Contact` or 3D `SolidContact` that
+        has no counterpart here (`GONE`), it says what to use instead."""
+        if name in GONE:
+            raise AttributeError(f"Interface.{name} is gone (issue 30): {GONE[name]}")
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    @property
+    def surf(self) -> Trace:
+        """Deprecated (3D `SolidContact.surf`): the slave trace `tr`."""
+        warnings.warn(
+            "Interface.surf is deprecated: use Interface.tr (the slave trace, 2D and 3D)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.tr
+
+    @property
+    def g_weights(self) -> np.ndarray:
+        """Deprecated (2D `Contact.g_weights`): (N_t,) ∫gφ̃_k = g_k W_t,k per tangential row in
+        the order of rows_t (0 under Coulomb friction, where g is 0)."""
+        warnings.warn(
+            "Interface.g_weights is deprecated: use Interface.g[rows_t] * Interface.W_t[rows_t] "
+            "(g and W_t are per trace node)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.g[self.rows_t] * self.W_t[self.rows_t]
 
     @property
     def dim(self) -> int:

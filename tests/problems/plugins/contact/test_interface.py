@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import importlib
 
+import numpy as np
 import pytest
 
+from fem.facets import facet_integrals
 from problems.errors import SceneError
 from problems.plugins import registry
 from problems.plugins.contact import interface
@@ -54,3 +56,74 @@ def test_the_former_interface_classes_are_deprecated_names_of_interface(module, 
     mod = importlib.import_module(f"problems.plugins.contact.{module}")
     with pytest.warns(DeprecationWarning, match=f"{name} is deprecated"):
         assert getattr(mod, name) is interface.Interface
+
+
+def _interface(name: str, *overrides: str):
+    scene = load_scene(name, list(overrides))
+    return registry.for_scene(scene).build(scene, 0).contact
+
+
+@pytest.mark.parametrize("name", ["rigid_foundation", "block3d"])
+def test_surf_is_a_deprecated_name_of_the_slave_trace(name):
+    """3D `SolidContact.surf` became `Interface.tr`: it still answers, with a warning naming
+    the new spelling (mutation: drop the warning or return another trace, this fails)."""
+    c = _interface(name)
+    with pytest.warns(
+        DeprecationWarning, match=r"Interface\.surf is deprecated: use Interface\.tr"
+    ):
+        assert c.surf is c.tr
+
+
+@pytest.mark.parametrize(
+    ("name", "override"),
+    [
+        ("rigid_foundation", "contact.g='1e6 + 1e7*x*x'"),
+        ("paper_two_body", "contact.g='2e7 + 1e7*x*x'"),
+        ("block3d", "contact.g='1e6 + 1e7*x*y'"),
+        ("shear_strip", "contact.g='1e6 + 1e7*x*x'"),  # merged ends: W_t ≠ W next to them
+        ("bracket3d", "contact.g='1e6 + 1e7*x*y'"),  # the same in 3D
+    ],
+)
+def test_g_weights_is_the_former_integral_of_g_per_tangential_row(name, override):
+    """2D `Contact.g_weights` was (N_t,) ∫gφ̃_k per tangential row: recomputed here from the
+    scene's g by the slave trace's quadrature and the tangential basis Q_t (mutation: W for W_t,
+    which differs where an end merged its function in, or g per trace node, this fails)."""
+    c = _interface(name, override)
+    order = {} if c.dim == 2 else {"order": interface.SURFACE_ORDER[c.slave.mesh.cell_type]}
+    gloc = facet_integrals(c.slave.mesh, c.tr, c.bound_field, **order)  # (n_f, m)
+    expected = c.Q_t @ gloc.ravel()  # (N_t,) ∫gφ̃_k
+    with pytest.warns(DeprecationWarning, match=r"use Interface\.g\[rows_t\] \* Interface\.W_t"):
+        got = c.g_weights
+    assert got.shape == (c.rows_t.size,)
+    np.testing.assert_allclose(got, expected, rtol=1e-13, atol=0)
+
+
+def test_g_weights_is_zero_under_coulomb_friction():
+    """The former `g_weights` was 0 for Coulomb friction (its bound is F λ_n, not g)."""
+    c = _interface("coulomb_strip")
+    with pytest.warns(DeprecationWarning):
+        assert c.g_weights.shape == (c.rows_t.size,) and not c.g_weights.any()
+
+
+def test_a_name_that_cannot_come_back_says_what_to_use():
+    """`Contact.pairs` has no counterpart (3D nodes have triples): the AttributeError names
+    `rows()`; other missing names keep the plain error, and hasattr stays False."""
+    c = _interface("signorini")
+    with pytest.raises(AttributeError, match=r"Interface\.pairs is gone.*Interface\.rows\(\)"):
+        c.pairs  # noqa: B018
+    with pytest.raises(AttributeError, match=r"^'Interface' object has no attribute 'nope'$"):
+        c.nope  # noqa: B018
+    assert not hasattr(c, "nope")
+
+
+def test_the_3d_master_is_the_body_and_its_former_coupling_names_point_to_coupling():
+    """3D `SolidContact.master` was the `Coupling`; now it is the master Body (2D and 3D
+    alike): the Coupling's names on it raise an AttributeError naming `Interface.coupling`."""
+    c = _interface("two_blocks3d")
+    assert c.master is c.coupling.body
+    for name in ("M_loc", "dofs", "covered", "patch_defect"):
+        assert hasattr(c.coupling, name)
+        with pytest.raises(AttributeError, match=r"is Interface\.coupling"):
+            getattr(c.master, name)
+    with pytest.raises(AttributeError, match=r"^'Body' object has no attribute 'nope'$"):
+        c.master.nope  # noqa: B018
