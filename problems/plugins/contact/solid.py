@@ -13,7 +13,7 @@ from pathlib import Path
 from problems.scene import Scene
 from vi_core import Solution
 
-from . import checks, errors, interface, warm_starts
+from . import checks, errors, reports, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from . import solid_output as contact3d_output
@@ -61,7 +61,7 @@ def _build(scene: Scene, level: int | None) -> Model:
     spec = scene.validated(SCENE_MODEL, DIMENSION)
     model = contact_model.assemble(spec, scene, level, from_scene, Model)
     if model.contact is not None:
-        model.warnings += interface.interface_warnings(model.contact)
+        model.warnings += reports.interface_warnings(model.contact)
     return model
 
 

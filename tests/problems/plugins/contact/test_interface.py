@@ -1,4 +1,5 @@
-"""The pieces both contact fronts share (`problems.plugins.contact.interface`), in 2D and 3D."""
+"""The pieces both contact fronts share (`problems.plugins.contact.interface`, `rows`,
+`reports`), in 2D and 3D."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from problems.scene import load_scene
     ],
 )
 def test_a_friction_bound_negative_somewhere_on_the_contact_is_refused(name, override):
-    """`interface.checked_bound`: an expression ≥ 0 as text but negative at a quadrature point
+    """`rows.checked_bound`: an expression ≥ 0 as text but negative at a quadrature point
     of Γ3 is refused at build, naming the field (mutation: drop the guard, this fails)."""
     scene = load_scene(name, [override])
     with pytest.raises(SceneError) as err:
@@ -31,11 +32,11 @@ def test_a_friction_bound_negative_somewhere_on_the_contact_is_refused(name, ove
 
 
 def test_friction_warnings_say_apart_frictionless_or_tied():
-    """`interface.friction_warnings` (both fronts' summary.json warnings): nothing touches,
+    """`reports.friction_warnings` (both fronts' summary.json warnings): nothing touches,
     g = 0, no node slips (with the share of the bound λ_t uses), and silence otherwise."""
     import numpy as np
 
-    from problems.plugins.contact.interface import friction_warnings
+    from problems.plugins.contact.reports import friction_warnings
 
     states = np.array(["stick", "slip"])
     g, lam_t, slip, touch = np.array([2.0, 2.0]), np.array([1.0, 2.0]), np.array([0, 1]), [1, 1]
