@@ -8,10 +8,11 @@ import importlib
 import numpy as np
 import pytest
 
+import vi_core
 from fem.facets import facet_integrals
 from problems.errors import SceneError
 from problems.plugins import registry
-from problems.plugins.contact import interface
+from problems.plugins.contact import contact_state, interface
 from problems.scene import load_scene
 
 
@@ -128,3 +129,25 @@ def test_the_3d_master_is_the_body_and_its_former_coupling_names_point_to_coupli
             getattr(c.master, name)
     with pytest.raises(AttributeError, match=r"^'Body' object has no attribute 'nope'$"):
         c.master.nope  # noqa: B018
+
+
+@pytest.mark.parametrize("name", ["coulomb_strip", "coulomb_strip3d"])
+def test_the_pressure_scale_is_the_largest_force_per_smallest_normal_row_weight(name):
+    """One rule in 2D and 3D (`contact_state.jumps`): the pressure scale is the larger of the
+    largest λ_n and the largest elastic nodal force |A u| per the smallest weight W_n,k of a row
+    carrying λ_n. coulomb_strip3d's clamped corners carry no row and have 1/8 of that weight at
+    level 0 (mutation: the former 3D rule, the smallest W of any trace node, gives 8 × the
+    scale and fails)."""
+    scene = load_scene(name, [])
+    model = registry.for_scene(scene).build(scene, 0)
+    sol = vi_core.solve(model.vi, "ssn", tol=1e-12)
+    assert sol.converged
+    c = model.contact
+    w_rows = c.W_n[c.rows_n].min()  # the smallest normal-row weight
+    if c.dim == 3:  # the scene tells the rules apart
+        assert c.W.min() < w_rows / 4
+    disp = model.unknown_fields().get("displacement", slice(None))
+    force = np.abs((model.vi.A @ sol.u)[disp]).max()  # the largest elastic nodal force
+    expected = max(sol.lam[c.idx_n].max(), force / w_rows)
+    assert contact_state.jumps(model, sol, np.zeros(0)).pressure == pytest.approx(expected, 1e-14)
+    assert contact_state.contact_state(model, sol)["pressure"] == pytest.approx(expected, 1e-14)
