@@ -16,7 +16,7 @@ from problems.output import signals
 from problems.output.collection import vtu_datasets, write_pvd
 from problems.output.files import output_folder
 from problems.pipeline import written
-from problems.plugins.contact.interface import PATCH_DEFECT_LIMIT
+from problems.plugins.contact.reports import PATCH_DEFECT_LIMIT
 
 from . import engine, load_path, resources
 from .options import ACCURACY, DEFAULT_SCENE, solver_options

@@ -9,8 +9,9 @@ boundary curve is `curve_contact`'s) and `solid` (3D: a normal and up to two tan
 the friction disc |λ_t| ≤ g; the trace of a surface is `surface_contact`'s); they share the
 bodies and their assembly (`bodies`, `fields`, `body_output`), the model and its mixed VI
 (`model`), the contact law's scene keys and sets (`law`), the contact interface itself (one
-`Interface` for 2D and 3D: its rows, Λ, the layout-free contact state, warnings and
-unilateral summary: `interface`), the error norms (`errors`), the checks
+`Interface` for 2D and 3D with its row order and Λ: `interface`; its rows built once:
+`rows`; the contact state of a solution and the Lemma 4.2 identity: `contact_state`; node
+names, summaries and warnings: `reports`), the error norms (`errors`), the checks
 (`checks`), the electrical contact (`electrical`), the load-path and warm-start transfers
 (`problems.plugins.transfer`, `warm_starts`), the two-body geometry checks (`separation`), the
 manufactured balance (`balance`) and the result files (`output`: one writer for both

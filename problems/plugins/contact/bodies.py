@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -48,6 +48,10 @@ def coordinates(mesh: Mesh, nodes: np.ndarray) -> list[np.ndarray]:
     return [mesh.points[nodes, i] for i in range(mesh.points.shape[1])]
 
 
+# the fields of the former 3D `SolidContact.master` (an `interface.Coupling`) that a Body lacks
+COUPLING_NAMES = {"body", "part", "M_loc", "dofs", "covered", "patch_defect", "n_cells"}
+
+
 @dataclass
 class Body:
     """One body (2D or 3D): mesh, material, full-numbering offset and its assembled blocks."""
@@ -63,6 +67,17 @@ class Body:
     f: np.ndarray = None  # (n_b,)
     fixed: np.ndarray = None  # (n_b,) bool
     values: np.ndarray = None  # (n_b,) prescribed values on fixed dofs
+
+    def __getattr__(self, name: str) -> Any:
+        """An AttributeError; for a name of `interface.Coupling` (the 3D `SolidContact.master`
+        before issue 30, now `Interface.master` is the master Body) it names `coupling`."""
+        if name in COUPLING_NAMES:
+            raise AttributeError(
+                f"'Body' object has no attribute {name!r}: Interface.master is the master Body "
+                "since issue 30; the mortar coupling it was in 3D (M_loc, dofs, covered, "
+                "patch_defect) is Interface.coupling"
+            )
+        raise AttributeError(f"'Body' object has no attribute {name!r}")
 
     @property
     def dim(self) -> int:

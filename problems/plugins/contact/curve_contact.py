@@ -1,7 +1,7 @@
 """The contact interface of a 2D scene: the slave trace on a boundary curve, its crosspoint
 rules and the 2D dual mortar of a master body, built into an `interface.Interface` by
 `slave_contact` (a 2D node is a 3D "line" node: its tangent is its line direction; the rows
-themselves: `interface.assemble`).
+themselves: `rows.assemble`).
 
 Dual (biorthogonal) multipliers on the slave side Γ3: λ_h = Σ_k γ_k ψ̃_k n_k + Σ_k α_k ψ̃_k τ_k,
 and Λ_h = product(Free(N_n), Box(−g_k, g_k)) with g_k = ∫g φ̃_k / ∫φ̃_k (docs/design.md §3; φ̃_k = φ_k
@@ -35,9 +35,9 @@ from problems.errors import SceneError
 from problems.scene.imported import require_curve
 
 from ..contract import check_meshed
-from . import interface, model, separation
+from . import model, reports, rows, separation
 from .bodies import Body
-from .interface import Interface
+from .interface import Coupling, Interface
 from .scene_model import ContactSection
 
 # A prescribed displacement component at a contact node counts as along the contact normal or
@@ -80,7 +80,7 @@ def carrying(slave: Body, part: str, tr: Trace) -> tuple[np.ndarray, np.ndarray]
         else:
             angle = np.degrees(np.arccos(min(abs(n[c]), 1.0)))
             bad.append(
-                f"{interface.node_at(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
+                f"{reports.node_at(slave, tr, i)}: only u_{'xy'[c]} is prescribed, a direction "
                 f"{angle:.3g}° off the contact normal n = [{n[0]:.6g}, {n[1]:.6g}]"
             )
     if bad:
@@ -106,7 +106,7 @@ def slave_contact(
     n_full: int,
     level: int = 0,
 ) -> Interface:
-    """The contact rows (`interface.assemble`): normal Σ_j Ds_kj n_kᵀu_s,j − Σ_j M_kj n_kᵀu_m,j
+    """The contact rows (`rows.assemble`): normal Σ_j Ds_kj n_kᵀu_s,j − Σ_j M_kj n_kᵀu_m,j
     (M = 0 for a rigid foundation), then the same with τ_k; with law = "unilateral" the rows of
     a node side by side [n, τ] (vi_core.coulomb) and the initial gap rows Σ_j Ds_kj gap(x_j)
     (gap: the scene's field for a rigid foundation, the distance along n_j to the master
@@ -117,7 +117,7 @@ def slave_contact(
     unilateral = ct.law == "unilateral"
     tr = trace(slave.mesh, part)
     carry_n, carry_t = carrying(slave, part, tr)
-    interface.check_carrying(slave, part, tr, carry_n, carry_t.astype(int), ct.law)
+    rows.check_carrying(slave, part, tr, carry_n, carry_t.astype(int), ct.law)
     gap_nodes = np.zeros(tr.size)  # (N,) initial normal gap at the slave nodes
     closed = 0.0  # the initial gap bilateral contact closes
     coupling = None
@@ -132,17 +132,17 @@ def slave_contact(
         covered = np.ones(tr.size, dtype=bool)  # the master behind every segment at the node
         covered[tr.facets[mort.coverage < 1.0 - COVER_TOL].ravel()] = False
         mdofs = master.u_dofs(mort.master_nodes)  # (nm, 2)
-        coupling = interface.Coupling(master, mpart, mort.M, mdofs, covered)
+        coupling = Coupling(master, mpart, mort.M, mdofs, covered)
     else:
-        gap_nodes = interface.rigid_gap(ct.gap, slave.mesh.points[tr.nodes])
+        gap_nodes = rows.rigid_gap(ct.gap, slave.mesh.points[tr.nodes])
     bfun = ct.g if ct.friction == "tresca" else ct.F
-    c = interface.assemble(
+    c = rows.assemble(
         slave, part, tr, (tr.normals, tr.tangents, None, None), carry_n, carry_t.astype(int), ct,
         friction_local(slave.mesh, tr, bfun), n_full, coupling, gap_nodes if unilateral else None,
     )  # fmt: skip
     c.closed_gap = closed
     if master is not None:  # mortar means over the row's support: u_m·τ_k, (φ_m)
-        M = (c.Q_t @ mort.M).tocoo()  # (N_t, nm)
+        M = coupling.M_t[c.line].tocoo()  # (N_t, nm) Q_t M
         W_t = c.W_t[c.line]
         pv = [M.data * tr.tangents[c.line[M.row], i] / W_t[M.row] for i in range(2)]
         c.master_proj = sp.csr_matrix(
@@ -153,7 +153,7 @@ def slave_contact(
             shape=(c.line.size, n_full),
         )
         if master.has_potential:  # normal rows: Σ_j M_kj φ_m,j / W_k
-            M = (c.Q_n @ mort.M).tocoo()
+            M = coupling.M_n[c.rows_n].tocoo()  # (N_n, nm) Q_n M
             c.master_phi = sp.csr_matrix(
                 (
                     M.data / c.W_n[c.rows_n][M.row],
@@ -165,9 +165,9 @@ def slave_contact(
 
 
 def friction_local(mesh: Mesh, tr: Trace, gfun) -> np.ndarray:
-    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point: `checked_bound`;
+    """(n_seg, 2) ∫_e g φ_{e,a} ds (g ≥ 0 checked at every quadrature point: `rows.checked_bound`;
     g is the Tresca bound or the Coulomb coefficient F)."""
-    return facet_integrals(mesh, tr, interface.checked_bound(gfun))
+    return facet_integrals(mesh, tr, rows.checked_bound(gfun))
 
 
 __getattr__ = model.moved_names(

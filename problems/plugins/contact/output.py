@@ -39,7 +39,7 @@ from vi_core import Solution
 from vi_core import states as node_states
 
 from . import balance as piezo_balance
-from . import checks, interface
+from . import checks, reports
 from . import electrical as electrical_contact
 from .body_output import write_bodies
 from .contact_state import contact_state
@@ -157,17 +157,17 @@ def contact_summary(model: Any, sol: Solution, st: dict, table: ContactTable) ->
         "nodes": int(has_t.sum()),
         **{s: counts[s] for s in ("stick", "slip", "ambiguous")},
         **(
-            interface.unilateral_summary(c, counts["open"], nv["gap"])
+            reports.unilateral_summary(c, counts["open"], nv["gap"])
             if c.law == "unilateral"
             else {}
         ),
         **totals,
-        **interface.interface_summary(c),
+        **reports.interface_summary(c),
         **closed_gap_summary(model, sol),
         **({"frames": frame_checks(model)} if c.dim == 3 else {}),
         "table": table.records(),
     }
-    warnings = interface.friction_warnings(
+    warnings = reports.friction_warnings(
         nv["state"],
         nv["g"][has_t],
         np.linalg.norm(table.vectors("lambda_t")[has_t], axis=1),

@@ -19,7 +19,7 @@ from vi_core import MixedVI, Solution
 
 from ..contract import check_meshed
 from . import electrical as electrical_contact
-from . import errors, interface, output, warm_starts
+from . import errors, output, reports, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from .contact_state import contact_state as one_contact_state
@@ -93,7 +93,7 @@ def build_model(
     if ct is not None and ct.electrical is not None:
         model.electrical = _electrical(ct.electrical, contact, vi, model.free, model.values)
     if contact is not None:
-        model.warnings += interface.interface_warnings(contact)
+        model.warnings += reports.interface_warnings(contact)
     for b in model.bodies:
         ev = np.linalg.eigvalsh(b.material.C)
         if ev[-1] / ev[0] > LOCKING_RATIO:

@@ -12,7 +12,7 @@ from functools import partial
 from problems.scene import Scene
 from vi_core import Solution
 
-from . import errors, interface, output, warm_starts
+from . import errors, output, reports, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from .contact_state import contact_state as one_contact_state
@@ -59,7 +59,7 @@ def _build(scene: Scene, level: int | None) -> Model:
     spec = scene.validated(SCENE_MODEL, DIMENSION)
     model = contact_model.assemble(spec, scene, level, from_scene, Model)
     if model.contact is not None:
-        model.warnings += interface.interface_warnings(model.contact)
+        model.warnings += reports.interface_warnings(model.contact)
     return model
 
 

@@ -1,6 +1,6 @@
 """The contact interface of a 3D scene: the slave surface, its frames and crosspoint classes,
 the master side of a two-body interface (`mortar_coupling`) and its weighted mortar gap, built
-into an `interface.Interface` by `slave_contact` (the rows themselves: `interface.assemble`).
+into an `interface.Interface` by `slave_contact` (the rows themselves: `rows.assemble`).
 
 Per contact node k of the slave surface Γ3 (a boundary part of a 3D body): a normal multiplier
 λ_n,k (free: bilateral contact) and a tangential one λ_t,k in the tangent plane with the
@@ -21,7 +21,7 @@ the tangent n × e_c (a line |λ_t| ≤ g); e_c ∥ n → the two tangents only 
 components with the free one e_f ∥ n → n only; with e_f ⟂ n → the tangent e_f only; anything
 else is refused (SceneError naming the nodes).
 
-Crosspoint basis (`[contact] ends`, `interface.class_blocks`), per class (normal; tangential):
+Crosspoint basis (`[contact] ends`, `rows.class_blocks`), per class (normal; tangential):
 "keep" drops the dual functions of the nodes the rules give no row of the class; "merge"
 (default; Wohlmuth's modification, the 2D default too) gives them to the class's carrying
 neighbours in each face (`fem.facets.multiplier_basis`), so that Σ_k ψ̃_k = 1 on every face
@@ -52,7 +52,7 @@ from fem.facets import facet_integrals, frames, trace
 from problems.errors import SceneError
 
 from ..contract import check_meshed
-from . import interface, model, separation
+from . import model, reports, rows, separation
 from .bodies import Body
 from .interface import SURFACE_ORDER, Coupling, Interface
 from .scene_model import ContactSection
@@ -160,7 +160,7 @@ def slave_contact(
     level: int = 0,
 ) -> Interface:
     """The contact of `slave`'s boundary `part` (a rigid foundation along it, or `master`):
-    surface, frames, crosspoint rules, g_k (or F_k), then the rows (`interface.assemble`);
+    surface, frames, crosspoint rules, g_k (or F_k), then the rows (`rows.assemble`);
     `law` is the [contact] table (`ContactSection`: law, friction, g or F, gap). Unilateral
     contact builds the initial gap rows: Σ_j S_n,kj gap(x_j) for a rigid foundation, the
     weighted mortar gap −(D x_s − M x_m)·n_k of the geometry for two bodies (an overlap beyond
@@ -183,7 +183,7 @@ def slave_contact(
             separation.not_facing(surf, master),
         )
     if bad:
-        where = "; ".join(interface.node_at(slave, surf, i) for i in bad[:6])
+        where = "; ".join(reports.node_at(slave, surf, i) for i in bad[:6])
         raise SceneError(
             key,
             f"{slave.name}.{part}",
@@ -191,14 +191,14 @@ def slave_contact(
             "the tangent plane, or a normal–tangent pair (a roller across or along Γ3); "
             f"{len(bad)} node(s) have a prescribed direction at an angle to the surface: {where}",
         )
-    interface.check_carrying(slave, part, surf, carry_n, n_tan, law.law)
+    rows.check_carrying(slave, part, surf, carry_n, n_tan, law.law)
     gfun = law.g if law.friction == "tresca" else law.F
     order = SURFACE_ORDER[slave.mesh.cell_type]
-    gloc = facet_integrals(slave.mesh, surf, interface.checked_bound(gfun), order)  # (n_f, m)
+    gloc = facet_integrals(slave.mesh, surf, rows.checked_bound(gfun), order)  # (n_f, m)
     gap_nodes = None
     if unilateral and master is None:
-        gap_nodes = interface.rigid_gap(law.gap, slave.mesh.points[surf.nodes])  # (k,)
-    c = interface.assemble(
+        gap_nodes = rows.rigid_gap(law.gap, slave.mesh.points[surf.nodes])  # (k,)
+    c = rows.assemble(
         slave, part, surf, (surf.normals, t1, t2, slot), carry_n, n_tan, law, gloc, n_full,
         master, gap_nodes,
     )  # fmt: skip
@@ -214,7 +214,7 @@ def slave_contact(
                 f"a master surface that does not overlap the slave {slave.name}.{part} in "
                 f"the reference configuration by more than {separation.SEPARATION_TOL:g} × "
                 f"the level-0 node size: it overlaps by {-rel[i] * h0[i]:.3g} ({-rel[i]:.2f} × "
-                f"{h0[i]:.3g}) at {interface.node_at(slave, surf, int(c.rows_n[i]))}",
+                f"{h0[i]:.3g}) at {reports.node_at(slave, surf, int(c.rows_n[i]))}",
             )
     return c
 

@@ -15,7 +15,7 @@ import scipy.sparse
 import fem.assembly
 import fem.mortar
 from problems.commands.main import main
-from problems.plugins.contact import bodies, curve_contact, interface
+from problems.plugins.contact import bodies, curve_contact, rows
 
 from . import checks
 
@@ -23,7 +23,7 @@ from . import checks
 _coupling = fem.assembly.coupling_matrix
 _mortar = fem.mortar.mortar_coupling
 _friction = curve_contact.friction_local
-_dual_mass = interface.dual_mass
+_dual_mass = rows.dual_mass
 
 
 def coupling_sign(mp):
@@ -78,7 +78,7 @@ def dual_weight(mp):
         D.data[[0, -1]] *= 2.0
         return D
 
-    mp.setattr(interface, "dual_mass", faulty)
+    mp.setattr(rows, "dual_mass", faulty)
 
 
 # ------------------------------------------------------------------ the checks

@@ -1,14 +1,18 @@
-"""The pieces both contact fronts share (`problems.plugins.contact.interface`), in 2D and 3D."""
+"""The pieces both contact fronts share (`problems.plugins.contact.interface`, `rows`,
+`reports`), in 2D and 3D."""
 
 from __future__ import annotations
 
 import importlib
 
+import numpy as np
 import pytest
 
+import vi_core
+from fem.facets import facet_integrals
 from problems.errors import SceneError
 from problems.plugins import registry
-from problems.plugins.contact import interface
+from problems.plugins.contact import contact_state, interface
 from problems.scene import load_scene
 
 
@@ -20,7 +24,7 @@ from problems.scene import load_scene
     ],
 )
 def test_a_friction_bound_negative_somewhere_on_the_contact_is_refused(name, override):
-    """`interface.checked_bound`: an expression ≥ 0 as text but negative at a quadrature point
+    """`rows.checked_bound`: an expression ≥ 0 as text but negative at a quadrature point
     of Γ3 is refused at build, naming the field (mutation: drop the guard, this fails)."""
     scene = load_scene(name, [override])
     with pytest.raises(SceneError) as err:
@@ -29,11 +33,11 @@ def test_a_friction_bound_negative_somewhere_on_the_contact_is_refused(name, ove
 
 
 def test_friction_warnings_say_apart_frictionless_or_tied():
-    """`interface.friction_warnings` (both fronts' summary.json warnings): nothing touches,
+    """`reports.friction_warnings` (both fronts' summary.json warnings): nothing touches,
     g = 0, no node slips (with the share of the bound λ_t uses), and silence otherwise."""
     import numpy as np
 
-    from problems.plugins.contact.interface import friction_warnings
+    from problems.plugins.contact.reports import friction_warnings
 
     states = np.array(["stick", "slip"])
     g, lam_t, slip, touch = np.array([2.0, 2.0]), np.array([1.0, 2.0]), np.array([0, 1]), [1, 1]
@@ -54,3 +58,96 @@ def test_the_former_interface_classes_are_deprecated_names_of_interface(module, 
     mod = importlib.import_module(f"problems.plugins.contact.{module}")
     with pytest.warns(DeprecationWarning, match=f"{name} is deprecated"):
         assert getattr(mod, name) is interface.Interface
+
+
+def _interface(name: str, *overrides: str):
+    scene = load_scene(name, list(overrides))
+    return registry.for_scene(scene).build(scene, 0).contact
+
+
+@pytest.mark.parametrize("name", ["rigid_foundation", "block3d"])
+def test_surf_is_a_deprecated_name_of_the_slave_trace(name):
+    """3D `SolidContact.surf` became `Interface.tr`: it still answers, with a warning naming
+    the new spelling (mutation: drop the warning or return another trace, this fails)."""
+    c = _interface(name)
+    with pytest.warns(
+        DeprecationWarning, match=r"Interface\.surf is deprecated: use Interface\.tr"
+    ):
+        assert c.surf is c.tr
+
+
+@pytest.mark.parametrize(
+    ("name", "override"),
+    [
+        ("rigid_foundation", "contact.g='1e6 + 1e7*x*x'"),
+        ("paper_two_body", "contact.g='2e7 + 1e7*x*x'"),
+        ("block3d", "contact.g='1e6 + 1e7*x*y'"),
+        ("shear_strip", "contact.g='1e6 + 1e7*x*x'"),  # merged ends: W_t ≠ W next to them
+        ("bracket3d", "contact.g='1e6 + 1e7*x*y'"),  # the same in 3D
+    ],
+)
+def test_g_weights_is_the_former_integral_of_g_per_tangential_row(name, override):
+    """2D `Contact.g_weights` was (N_t,) ∫gφ̃_k per tangential row: recomputed here from the
+    scene's g by the slave trace's quadrature and the tangential basis Q_t (mutation: W for W_t,
+    which differs where an end merged its function in, or g per trace node, this fails)."""
+    c = _interface(name, override)
+    order = {} if c.dim == 2 else {"order": interface.SURFACE_ORDER[c.slave.mesh.cell_type]}
+    gloc = facet_integrals(c.slave.mesh, c.tr, c.bound_field, **order)  # (n_f, m)
+    expected = c.Q_t @ gloc.ravel()  # (N_t,) ∫gφ̃_k
+    with pytest.warns(DeprecationWarning, match=r"use Interface\.g\[rows_t\] \* Interface\.W_t"):
+        got = c.g_weights
+    assert got.shape == (c.rows_t.size,)
+    np.testing.assert_allclose(got, expected, rtol=1e-13, atol=0)
+
+
+def test_g_weights_is_zero_under_coulomb_friction():
+    """The former `g_weights` was 0 for Coulomb friction (its bound is F λ_n, not g)."""
+    c = _interface("coulomb_strip")
+    with pytest.warns(DeprecationWarning):
+        assert c.g_weights.shape == (c.rows_t.size,) and not c.g_weights.any()
+
+
+def test_a_name_that_cannot_come_back_says_what_to_use():
+    """`Contact.pairs` has no counterpart (3D nodes have triples): the AttributeError names
+    `rows()`; other missing names keep the plain error, and hasattr stays False."""
+    c = _interface("signorini")
+    with pytest.raises(AttributeError, match=r"Interface\.pairs is gone.*Interface\.rows\(\)"):
+        c.pairs  # noqa: B018
+    with pytest.raises(AttributeError, match=r"^'Interface' object has no attribute 'nope'$"):
+        c.nope  # noqa: B018
+    assert not hasattr(c, "nope")
+
+
+def test_the_3d_master_is_the_body_and_its_former_coupling_names_point_to_coupling():
+    """3D `SolidContact.master` was the `Coupling`; now it is the master Body (2D and 3D
+    alike): the Coupling's names on it raise an AttributeError naming `Interface.coupling`."""
+    c = _interface("two_blocks3d")
+    assert c.master is c.coupling.body
+    for name in ("M_loc", "dofs", "covered", "patch_defect"):
+        assert hasattr(c.coupling, name)
+        with pytest.raises(AttributeError, match=r"is Interface\.coupling"):
+            getattr(c.master, name)
+    with pytest.raises(AttributeError, match=r"^'Body' object has no attribute 'nope'$"):
+        c.master.nope  # noqa: B018
+
+
+@pytest.mark.parametrize("name", ["coulomb_strip", "coulomb_strip3d"])
+def test_the_pressure_scale_is_the_largest_force_per_smallest_normal_row_weight(name):
+    """One rule in 2D and 3D (`contact_state.jumps`): the pressure scale is the larger of the
+    largest λ_n and the largest elastic nodal force |A u| per the smallest weight W_n,k of a row
+    carrying λ_n. coulomb_strip3d's clamped corners carry no row and have 1/8 of that weight at
+    level 0 (mutation: the former 3D rule, the smallest W of any trace node, gives 8 × the
+    scale and fails)."""
+    scene = load_scene(name, [])
+    model = registry.for_scene(scene).build(scene, 0)
+    sol = vi_core.solve(model.vi, "ssn", tol=1e-12)
+    assert sol.converged
+    c = model.contact
+    w_rows = c.W_n[c.rows_n].min()  # the smallest normal-row weight
+    if c.dim == 3:  # the scene tells the rules apart
+        assert c.W.min() < w_rows / 4
+    disp = model.unknown_fields().get("displacement", slice(None))
+    force = np.abs((model.vi.A @ sol.u)[disp]).max()  # the largest elastic nodal force
+    expected = max(sol.lam[c.idx_n].max(), force / w_rows)
+    assert contact_state.jumps(model, sol, np.zeros(0)).pressure == pytest.approx(expected, 1e-14)
+    assert contact_state.contact_state(model, sol)["pressure"] == pytest.approx(expected, 1e-14)

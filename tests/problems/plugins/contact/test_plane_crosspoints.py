@@ -18,7 +18,7 @@ import pytest
 import fem.mortar as fm
 from problems.commands.main import main
 from problems.errors import SceneError
-from problems.plugins.contact import errors, interface
+from problems.plugins.contact import errors, reports
 from problems.plugins.contact import plane as pc
 from problems.scene import load_scene
 from problems.scene.exact import split_exact
@@ -158,7 +158,7 @@ def test_clamped_end_on_the_curved_paper_interface(ends):
     assert c.patch_defect <= 1e-12
     st = pc.contact_state(model, sol)
     assert st["slip"].sum() > 4 and st["lemma_4_2"] <= 1e-10  # g lowered: some nodes slip
-    summary = interface.interface_summary(c)
+    summary = reports.interface_summary(c)
     assert summary["crosspoint_nodes"] == c.tr.nodes[[0, -1]].tolist()
 
 

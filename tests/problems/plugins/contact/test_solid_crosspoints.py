@@ -19,7 +19,7 @@ import vi_core
 from problems.commands import check
 from problems.commands.main import main
 from problems.plugins.contact import checks as contact3d_checks
-from problems.plugins.contact import interface
+from problems.plugins.contact import interface, rows
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
@@ -63,14 +63,14 @@ def test_merge_reproduces_the_2d_solution_with_a_clamped_end_and_keep_does_not()
 
 
 # The faults below hit the 3D build only (a trace with 3D normals): the 2D and 3D fronts share
-# `interface.assemble`, so a fault in both would leave the 2D reproduction intact.
+# `rows.assemble`, so a fault in both would leave the 2D reproduction intact.
 def _in_3d(surf) -> bool:
     return surf.normals.shape[1] == 3
 
 
 def _one_class(monkeypatch, cls: str):
     """The merge dropped in one class: that class's basis is built with "keep"."""
-    real = interface.class_blocks
+    real = rows.class_blocks
     calls = []
 
     def faulty(surf, carry, covered, ends, M_loc=None):
@@ -80,7 +80,7 @@ def _one_class(monkeypatch, cls: str):
         which = "normal" if len(calls) % 2 == 1 else "tangential"  # slave_contact's order
         return real(surf, carry, covered, "keep" if which == cls else ends, M_loc)
 
-    monkeypatch.setattr(interface, "class_blocks", faulty)
+    monkeypatch.setattr(rows, "class_blocks", faulty)
 
 
 def _wrong_share(monkeypatch):
@@ -93,18 +93,18 @@ def _wrong_share(monkeypatch):
         Q, K = real(s, carry, ends), real(s, carry, "keep")
         return K + 2.0 * (Q - K)
 
-    monkeypatch.setattr(interface, "multiplier_basis", faulty)
+    monkeypatch.setattr(rows, "multiplier_basis", faulty)
 
 
 def _wrong_weight(monkeypatch):
     """The class weights left at W_k (g_k = ∫gφ̃_k / W_k, jumps (B u)_k / W_k)."""
-    real = interface.class_blocks
+    real = rows.class_blocks
 
     def faulty(surf, *args):
         S, M, W, Q = real(surf, *args)
         return S, M, surf.weights if _in_3d(surf) else W, Q
 
-    monkeypatch.setattr(interface, "class_blocks", faulty)
+    monkeypatch.setattr(rows, "class_blocks", faulty)
 
 
 def test_merge_with_a_constant_bound_reproduces_2d_where_the_merged_node_slips():
@@ -193,14 +193,14 @@ def test_the_merged_separation_check_sees_a_dropped_row_and_an_unmerged_class(mo
     """A normal row of the first pressed node zeroed, or the normal class built with "keep"
     (the pressed edge's share lost from its neighbours' rows)."""
     if fault == "dropped row":
-        real = interface.contact_rows
+        real = rows.contact_rows
 
         def faulty(*args):
             B = real(*args).tolil()
             B[0, :] = 0.0
             return B.tocsr()
 
-        monkeypatch.setattr(interface, "contact_rows", faulty)
+        monkeypatch.setattr(rows, "contact_rows", faulty)
     else:
         _one_class(monkeypatch, "normal")
     m = contact3d.build(_pressed_liftoff(), 1)

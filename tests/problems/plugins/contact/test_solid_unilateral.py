@@ -19,7 +19,7 @@ import pytest
 import vi_core
 from problems.errors import SceneError
 from problems.plugins.contact import checks as contact3d_checks
-from problems.plugins.contact import interface, surface_contact
+from problems.plugins.contact import rows, surface_contact
 from problems.plugins.contact import solid as contact3d
 from problems.scene import SCENES_DIR, load_scene
 
@@ -145,8 +145,8 @@ def test_separation_check_sees_a_wrong_sign_of_the_gap(monkeypatch):
     over = ("contact.gap='2e-7*(1 + x)'",)
     model = _model("block3d_liftoff", 0, *over)
     assert max(contact3d_checks.separation(model, _solve(model)).values()) <= 1e-10
-    real = interface.rigid_gap
-    monkeypatch.setattr(interface, "rigid_gap", lambda *a: -real(*a))
+    real = rows.rigid_gap
+    monkeypatch.setattr(rows, "rigid_gap", lambda *a: -real(*a))
     bad = _model("block3d_liftoff", 0, *over)
     sep = contact3d_checks.separation(bad, _solve(bad))
     # the block now stops short of the foundation and presses on nothing
@@ -154,14 +154,14 @@ def test_separation_check_sees_a_wrong_sign_of_the_gap(monkeypatch):
 
 
 def test_separation_check_sees_a_dropped_complementarity_row(monkeypatch):
-    real = interface.contact_rows
+    real = rows.contact_rows
 
     def dropped(*args, **kwargs):  # the normal row of the first (pressed) node is lost
         B = real(*args, **kwargs).tolil()
         B[0, :] = 0.0
         return B.tocsr()
 
-    monkeypatch.setattr(interface, "contact_rows", dropped)
+    monkeypatch.setattr(rows, "contact_rows", dropped)
     bad = _model("block3d_liftoff", 0)
     sep = contact3d_checks.separation(bad, _solve(bad))
     assert sep["penetration"] > 1e-3, sep
