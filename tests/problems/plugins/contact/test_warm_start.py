@@ -146,9 +146,9 @@ def test_tied_warm_start_keeps_the_predicted_slip_rows():
     the solution's; untied (the mutation), the interpolated jump beside both stick/slip
     transitions calls two stick rows slip."""
     assert _carried(3)[1]
-    original = pc.transfer.tied_start
-    pc.transfer.tied_start = lambda vi, u0, lam0, tied: u0
+    original = warm_starts.transfer.tied_start
+    warm_starts.transfer.tied_start = lambda vi, u0, lam0, tied: u0
     try:
         assert not _carried(3)[1]
     finally:
-        pc.transfer.tied_start = original
+        warm_starts.transfer.tied_start = original
