@@ -49,7 +49,8 @@ def coordinates(mesh: Mesh, nodes: np.ndarray) -> list[np.ndarray]:
 
 
 # the fields of the former 3D `SolidContact.master` (an `interface.Coupling`) that a Body lacks
-COUPLING_NAMES = {"body", "part", "M_loc", "dofs", "covered", "patch_defect", "n_cells"}
+# and `Interface.coupling` still has (its n_cells went in 4587fd3: no hint sends users there)
+COUPLING_NAMES = {"body", "part", "M_loc", "dofs", "covered", "patch_defect"}
 
 
 @dataclass

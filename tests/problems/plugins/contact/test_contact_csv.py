@@ -135,3 +135,14 @@ def test_mutation_a_flipped_tangent_breaks_the_extruded_table(paper_tables, dim,
     )
     d = _extruded_table_differences(*paper_tables)
     assert d["lambda_t"] > 1e-3 and d["jump_t"] > 1e-3, d
+
+
+def test_the_manual_names_every_state_contact_csv_writes():
+    """docs/design.md's contact.csv entry lists every `state` the writer can write
+    (results.STATES: normal_only came with the one writer, and was missing there)."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[4] / "docs" / "design.md").read_text()
+    start = text.index("`state` is `stick`")
+    entry = text[start : text.index("`jump_t` is", start)]
+    assert [s for s in results.STATES if f"`{s}`" not in entry] == []

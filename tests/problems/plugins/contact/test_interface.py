@@ -12,7 +12,7 @@ import vi_core
 from fem.facets import facet_integrals
 from problems.errors import SceneError
 from problems.plugins import registry
-from problems.plugins.contact import contact_state, interface
+from problems.plugins.contact import bodies, contact_state, interface
 from problems.scene import load_scene
 
 
@@ -120,11 +120,13 @@ def test_a_name_that_cannot_come_back_says_what_to_use():
 
 def test_the_3d_master_is_the_body_and_its_former_coupling_names_point_to_coupling():
     """3D `SolidContact.master` was the `Coupling`; now it is the master Body (2D and 3D
-    alike): the Coupling's names on it raise an AttributeError naming `Interface.coupling`."""
+    alike): the Coupling's names on it raise an AttributeError naming `Interface.coupling`,
+    and every name that hint answers is there (n_cells, dropped from the Coupling in 4587fd3,
+    once sent users to a Coupling without it)."""
     c = _interface("two_blocks3d")
     assert c.master is c.coupling.body
-    for name in ("M_loc", "dofs", "covered", "patch_defect"):
-        assert hasattr(c.coupling, name)
+    for name in sorted(bodies.COUPLING_NAMES):
+        assert hasattr(c.coupling, name), name
         with pytest.raises(AttributeError, match=r"is Interface\.coupling"):
             getattr(c.master, name)
     with pytest.raises(AttributeError, match=r"^'Body' object has no attribute 'nope'$"):
