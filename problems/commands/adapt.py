@@ -17,6 +17,7 @@ from problems.pipeline import adaptive
 from problems.plugins.contract import solve_model
 
 from . import resources
+from .options import ACCURACY
 
 UNIFORM_LIMIT = 4  # uniform levels computed beside the adaptive run: 0 … at most this
 
@@ -28,7 +29,12 @@ def run(args: argparse.Namespace, loaded, accuracy: float) -> int:
     scene, plugin = loaded.scene, loaded.plugin
     if not hasattr(plugin, "estimate"):
         raise SceneError(
-            "--accuracy", accuracy, f"a preset name: plug-in {plugin.NAME!r} has no `estimate`"
+            "--accuracy",
+            accuracy,
+            f"a preset name ({', '.join(ACCURACY)}) for scene {scene.name!r}: a number asks for "
+            f"adaptive refinement, which needs an error estimate, and plug-in {plugin.NAME!r} "
+            f"gives none for this scene"
+            + (" (its estimate is 2D only)" if plugin.NAME == "contact" else ""),
         )
     options = {"method": args.solver or "ssn", "tol": args.tol or 1e-10}
     _, available = resources.memory()

@@ -156,6 +156,12 @@ CASES = [
     Case("--tol negative", ["solve", "{d}/scene.toml", "--tol", "-1e-8"], "--tol"),
     Case("--solver unknown", ["solve", "{d}/scene.toml", "--solver", "magic"], "--solver"),
     Case("--accuracy unknown", ["solve", "--accuracy", "turbo"], "--accuracy"),
+    Case("--accuracy number in 3D", ["solve", "block3d", "--accuracy", "0.1"], "2D only"),
+    Case(
+        "--accuracy number, no estimate",
+        ["solve", "obstacle", "--accuracy", "0.1"],
+        "gives none for this scene",
+    ),
     Case("--contact-zone without a number", ["solve", "--contact-zone"], "--contact-zone"),
     Case(
         "--contact-zone with a preset",
