@@ -20,6 +20,7 @@ paper_two_body), which is of the order of its contact stresses.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -365,67 +366,59 @@ def _scaled_block(f: float) -> Callable[[dict], None]:
     return edit
 
 
-def _isotropic(data: dict) -> None:
-    b = data["bodies"]["block"]
-    b["material"] = {"kind": "isotropic", "E": 1e10, "nu": 0.49}
-    b.pop("potential", None)
-
-
 def rows_3d() -> list[ExtremeRow]:
     """The 3D extreme cases (levels 0 and 1: small enough for conic and homotopy)."""
+    row = partial(_row, level=0)  # level 1 where a row says so
     return [
-        _row("3D: g = 0 (frictionless)", BLOCK, ["contact.g=0.0"], level=0),
-        _row(
-            "3D: g = 1e-6 σ_ref (all slip)", BLOCK, ["contact.g=18.0"], slip_count("all"), level=0
-        ),
-        _row("3D: g = 1e6 σ_ref (tied)", BLOCK, ["contact.g=1.8e13"], slip_count("none"), level=0),
-        _row(
+        row("3D: g = 0 (frictionless)", BLOCK, ["contact.g=0.0"]),
+        row("3D: g = 1e-6 σ_ref (all slip)", BLOCK, ["contact.g=18.0"], slip_count("all")),
+        row("3D: g = 1e6 σ_ref (tied)", BLOCK, ["contact.g=1.8e13"], slip_count("none")),
+        row(
             "3D: g varies 1e8 over Γ3",
             BLOCK,
             ["contact.g='1.8e7*exp(log(1e8)*(x + y)/2 - log(1e4))'"],
-            level=0,
         ),
-        _row(
+        row(
             "3D: loads, g × 1e-9",
             BLOCK,
             (),
             homogeneity(1e-9, scaled_by_edit=True),
-            level=0,
             edit=_scaled_block(1e-9),
         ),
-        _row(
+        row(
             "3D: loads, g × 1e3",
             BLOCK,
             (),
             homogeneity(1e3, scaled_by_edit=True),
-            level=0,
             edit=_scaled_block(1e3),
         ),
-        _row("3D: block, level 1", BLOCK, level=1),
-        _row(
+        row("3D: block, level 1", BLOCK, level=1),
+        row(
             "3D: PZT-5H poled along (1, 1, 1)",
             BLOCK,
             ["bodies.block.material={name='PZT-5H', poling=[1.0, 1.0, 1.0]}"],
-            level=0,
         ),
-        _row(
+        row(
             "3D: curved contact surface",
             BLOCK,
             ["bodies.block.geometry.bottom_lift='0.06*sin(3*x)*cos(2*y)'"],
             level=1,
         ),
-        _row("3D: tetrahedra", BLOCK, ["bodies.block.geometry.element='tetra'"], level=1),
-        _row("3D: ν = 0.49 (elastic)", BLOCK, level=0, edit=_isotropic),
-        _row("3D: extruded 2D scene (discs + lines)", EXT, level=0),
-        _row(
+        row("3D: tetrahedra", BLOCK, ["bodies.block.geometry.element='tetra'"], level=1),
+        row(
+            "3D: ν = 0.49 (elastic)",
+            BLOCK,
+            edit=_drop_potential("block", {"kind": "isotropic", "E": 1e10, "nu": 0.49}),
+        ),
+        row("3D: extruded 2D scene (discs + lines)", EXT),
+        row(
             "3D unilateral: Coulomb F = 0 (frictionless)",
             LIFT,
             ["contact.F=0.0"],
             zone_count("stick", "none"),
             zone_count("open", "some"),
-            level=0,
         ),
-        _row(
+        row(
             "3D unilateral: Coulomb F = 0.6",
             LIFT,
             (),
@@ -433,41 +426,34 @@ def rows_3d() -> list[ExtremeRow]:
             zone_count("slip", "some"),
             level=1,
         ),
-        _row(
+        row(
             "3D unilateral: Coulomb F = 1e3 (stick where touching)",
             LIFT,
             ["contact.F=1e3"],
             zone_count("slip", "none"),
-            level=0,
         ),
-        _row(
+        row(
             "3D unilateral: F varies 1e4 over Γ3",
             LIFT,
             ["contact.F='0.01*exp(log(1e4)*(x + y)/2)'"],
-            level=0,
         ),
-        _row(
+        row(
             "3D unilateral: gap 2e-7..4e-7 (partly closed)",
             LIFT,
             ["contact.gap='2e-7*(1 + y)'"],
             zone_count("open", "some"),
-            level=0,
         ),
-        _row(
+        row(
             "3D unilateral: gap 1e-3 (apart, λ = 0)",
             STRIP,
             ["contact.gap=1e-3"],
             zone_count("open", "all"),
-            level=0,
         ),
-        _row(
+        row(
             "3D unilateral: Coulomb strip (closed form)",
             STRIP,
             (),
             zone_count("slip", "all"),
-            level=0,
         ),
-        _row(
-            "3D: extruded, aspect ratio 1e3", EXT, ["bodies.block.geometry.z=[0.0, 1e-3]"], level=0
-        ),
+        row("3D: extruded, aspect ratio 1e3", EXT, ["bodies.block.geometry.z=[0.0, 1e-3]"]),
     ]
