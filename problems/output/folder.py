@@ -28,6 +28,7 @@ from .paths import (
     reason,
     refuse,
     remove_empty,
+    unwritable,
     version,
     write_file,
 )
@@ -147,9 +148,7 @@ class OutputFolder:
             try:
                 fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
             except OSError as err:
-                raise refuse(
-                    self.option, self.path, f"a folder mixvi can write ({reason(err)})"
-                ) from None
+                raise unwritable(self.option, self.path, err) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
@@ -190,9 +189,7 @@ class OutputFolder:
         except OSError as err:
             with suppress(OSError):
                 probe.unlink()
-            raise refuse(
-                self.option, self.path, f"a folder mixvi can write ({reason(err)})"
-            ) from None
+            raise unwritable(self.option, self.path, err) from None
 
     @contextmanager
     def staging(self) -> Iterator[Path]:
@@ -206,9 +203,7 @@ class OutputFolder:
                 try:
                     tmp.mkdir()
                 except OSError as err:
-                    raise refuse(
-                        self.option, self.path, f"a folder mixvi can write ({reason(err)})"
-                    ) from None
+                    raise unwritable(self.option, self.path, err) from None
                 made = True
             try:
                 yield tmp
@@ -257,9 +252,7 @@ class OutputFolder:
             self.earlier = [f for f in self.earlier if f not in new and (self.path / f).exists()]
             self._write_marker(new, complete=True)
         except OSError as err:
-            raise refuse(
-                self.option, self.path, f"a folder mixvi can write ({reason(err)})"
-            ) from None
+            raise unwritable(self.option, self.path, err) from None
         self.committed = True
         self.previous = new
 

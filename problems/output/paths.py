@@ -41,6 +41,12 @@ def refuse(option: str, path: Path, allowed: str) -> SceneError:
     return SceneError(option, str(path), allowed)
 
 
+def unwritable(option: str, path: Path, err: OSError, what: str = "folder") -> SceneError:
+    """The refusal of the output `path` given by `option` that the OS would not let mixvi
+    write (`what`: "folder" or "file"), saying why (`reason`)."""
+    return refuse(option, path, f"a {what} mixvi can write ({reason(err)})")
+
+
 def overwrite_hint(option: str) -> str:
     """How the caller that named its output `option` asks to overwrite: the command line's
     flag for an option (`--out`), the keyword for the Python API (`folder`)."""

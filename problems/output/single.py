@@ -16,9 +16,9 @@ from .paths import (
     clear_stale,
     create_dirs,
     overwrite_hint,
-    reason,
     refuse,
     remove_empty,
+    unwritable,
     version,
 )
 from .signals import deferred
@@ -100,7 +100,7 @@ class OutputFile:
             with suppress(OSError):
                 probe.unlink()
             remove_empty(self.created)
-            raise refuse(option, path, f"a file mixvi can write ({reason(err)})") from None
+            raise unwritable(option, path, err, "file") from None
 
     def write(self, content) -> None:
         """Stage `content` (JSON: a dict; SVG: its text), signed (`_signed`), in a temporary
@@ -116,9 +116,7 @@ class OutputFile:
                 fh.write(text)
         except OSError as err:
             self.discard()
-            raise refuse(
-                self.option, self.path, f"a file mixvi can write ({reason(err)})"
-            ) from None
+            raise unwritable(self.option, self.path, err, "file") from None
 
     def _commit(self) -> None:
         if self.staged is None:
@@ -126,9 +124,7 @@ class OutputFile:
         try:
             os.replace(self.staged, self.path)
         except OSError as err:
-            raise refuse(
-                self.option, self.path, f"a file mixvi can write ({reason(err)})"
-            ) from None
+            raise unwritable(self.option, self.path, err, "file") from None
         self.staged, self.written = None, True
 
     def discard(self) -> None:

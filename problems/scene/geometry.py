@@ -169,6 +169,13 @@ class _Arc(GeometryTable):
 
         return {part: onto_circle(self.center, self.radius) for part in self.ARCS}
 
+    def mesh(self, level: int) -> Mesh:
+        """The mesh at refinement `level` (`fem.shapes`' mesher named as the kind)."""
+        from fem import shapes
+
+        self.check_size(level)
+        return _meshed(self, getattr(shapes, self.kind), *self._args(level))
+
 
 class HalfDisc(_Arc):
     """The paper's half disc (mapped Q1 blocks, boundary nodes on the true arc)."""
@@ -190,13 +197,6 @@ class HalfDisc(_Arc):
         n_r = max(1, round(0.5 / h)) * k  # cells along the spokes
         cells = (n_c + 2 * n_f) * n_r + n_c * n_f
         return cells + (n_r + n_c + n_f) + 1  # B/2: half of top 2n_r + n_c, arcs 2n_f + n_c
-
-    def mesh(self, level: int) -> Mesh:
-        """The mesh at refinement `level`."""
-        from fem import shapes
-
-        self.check_size(level)
-        return _meshed(self, shapes.half_disc, *self._args(level))
 
 
 class Cradle(_Arc):
@@ -221,13 +221,6 @@ class Cradle(_Arc):
         height = 0.5 * (np.hypot(*(Cl - self.p2)) + np.hypot(*(Cr - self.p3)))
         n_y = max(1, round(height / (self.radius * self.angle / self.n_contact)))
         return (self.n_contact * 2**level + 1) * (n_y * 2**level + 1)
-
-    def mesh(self, level: int) -> Mesh:
-        """The mesh at refinement `level`."""
-        from fem import shapes
-
-        self.check_size(level)
-        return _meshed(self, shapes.cradle, *self._args(level))
 
 
 class _File(GeometryTable):

@@ -19,7 +19,8 @@ paper_two_body), which is of the order of its contact stresses.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -31,7 +32,7 @@ from problems.scene.contact_references import (
     uniaxial_electrical_contact,
 )
 
-from ..contract import ExtremeRow, expect, solve_model
+from ..contract import Checks, ExtremeRow, expect, solve_model
 
 SIGMA_REF = {"rigid_foundation": 9.0e6, "paper_two_body": 1.0e8}
 HOMOGENEOUS = 1e-6  # relative deviation from degree-1 homogeneity that fails a row
@@ -218,6 +219,11 @@ def _voltage(v: float) -> str:
 CS, LO = "coulomb_slip", "piezo_liftoff"
 
 
+def _row(name: str, scene: str, overrides: Sequence[str] = (), *checks: Checks, **kw: Any):
+    """An ExtremeRow checked by `contact_checks` and `checks` (kw: its level, edit, huge)."""
+    return ExtremeRow(name, scene, overrides, checks=(contact_checks, *checks), **kw)
+
+
 def unilateral_rows() -> list[ExtremeRow]:
     """Unilateral contact with Coulomb friction: F over the range where Newton and the fixed
     point agree (docs/coulomb.md, "Scenes"), gaps that close, voltages that close and open
@@ -225,35 +231,16 @@ def unilateral_rows() -> list[ExtremeRow]:
     fixed point's conic λ (1e-5 of the answer's size, measured at gap 0.2–10 μm, while u agrees
     to 1e-13) fails the generic agreement check;
     tests/problems/plugins/contact/test_plane_unilateral.py checks that case directly."""
-    C = (contact_checks,)
     return [
-        ExtremeRow("Coulomb F = 0", CS, ["contact.F=0.0"], checks=(*C, expect(counts, stick=0))),
-        ExtremeRow("Coulomb F = 0.3 (partial stick)", CS, ["contact.F=0.3"], checks=C),
-        ExtremeRow(
-            "Coulomb F = 10 (stick)", CS, ["contact.F=10.0"], checks=(*C, expect(counts, slip=0))
-        ),
-        ExtremeRow(
-            "Coulomb F = 1e6 (stick)", CS, ["contact.F=1e6"], checks=(*C, expect(counts, slip=0))
-        ),
-        ExtremeRow("gap = 0", LO, ["contact.gap=0.0"], checks=(*C, expect(counts, open=0))),
-        ExtremeRow(
-            "gap = 1e-8 m (closes)", LO, ["contact.gap=1e-8"], checks=(*C, expect(counts, open=0))
-        ),
-        ExtremeRow(
-            "V = −500 V (pressed)", LO, [_voltage(-500.0)], checks=(*C, expect(counts, open=0))
-        ),
-        ExtremeRow(
-            "V = 700 V (ends lift off)",
-            LO,
-            [_voltage(700.0)],
-            checks=(*C, expect(counts, open="> 0")),
-        ),
-        ExtremeRow(
-            "V = 1000 V (lifted off)",
-            LO,
-            [_voltage(1000.0)],
-            checks=(*C, expect(counts, touching=0)),
-        ),
+        _row("Coulomb F = 0", CS, ["contact.F=0.0"], expect(counts, stick=0)),
+        _row("Coulomb F = 0.3 (partial stick)", CS, ["contact.F=0.3"]),
+        _row("Coulomb F = 10 (stick)", CS, ["contact.F=10.0"], expect(counts, slip=0)),
+        _row("Coulomb F = 1e6 (stick)", CS, ["contact.F=1e6"], expect(counts, slip=0)),
+        _row("gap = 0", LO, ["contact.gap=0.0"], expect(counts, open=0)),
+        _row("gap = 1e-8 m (closes)", LO, ["contact.gap=1e-8"], expect(counts, open=0)),
+        _row("V = −500 V (pressed)", LO, [_voltage(-500.0)], expect(counts, open=0)),
+        _row("V = 700 V (ends lift off)", LO, [_voltage(700.0)], expect(counts, open="> 0")),
+        _row("V = 1000 V (lifted off)", LO, [_voltage(1000.0)], expect(counts, touching=0)),
     ]
 
 
@@ -270,80 +257,70 @@ def electrical_rows() -> list[ExtremeRow]:
     """[contact.electrical] on the uniaxial block: conductances from tiny to the grounded
     limit, and pulled apart (tension: k = 0); the same block on a second one through the dual
     mortar (non-matching meshes); each against its closed form."""
-    E = (contact_checks, electrical_checks)
+    E = electrical_checks
     return [
-        ExtremeRow("electrical: conductive k0 = 2e-12 (≈ insulating)", EB,
-                   ["contact.electrical.k0=2e-12"], checks=E),
-        ExtremeRow("electrical: conductive k0 = 2e-2 (≈ grounded)", EB,
-                   ["contact.electrical.k0=2e-2"], checks=E),
-        ExtremeRow("electrical: grounded", EB, ['contact.electrical.kind="grounded"'], checks=E),
-        ExtremeRow("electrical: pulled apart (k = 0)", EB, edit=_pull_top, checks=E),
-        ExtremeRow("electrical, two bodies: conductive", ET, checks=E),
-        ExtremeRow("electrical, two bodies: k0 = 2e-2", ET, ["contact.electrical.k0=2e-2"],
-                   checks=E),
+        _row("electrical: conductive k0 = 2e-12 (≈ insulating)", EB,
+             ["contact.electrical.k0=2e-12"], E),
+        _row("electrical: conductive k0 = 2e-2 (≈ grounded)", EB,
+             ["contact.electrical.k0=2e-2"], E),
+        _row("electrical: grounded", EB, ['contact.electrical.kind="grounded"'], E),
+        _row("electrical: pulled apart (k = 0)", EB, (), E, edit=_pull_top),
+        _row("electrical, two bodies: conductive", ET, (), E),
+        _row("electrical, two bodies: k0 = 2e-2", ET, ["contact.electrical.k0=2e-2"], E),
         # V = 100 V on top: with 0 V on both outer faces the grounded interface potential is 0
         # by symmetry, and the relative agreement of a zero field would measure rounding.
         # Level 0: the penalty makes est‖J⁻¹‖₁ ≈ 3e8, and at level 1 Clarabel's raw answer
         # differs by 3.4e-5 (above AGREE_OK; `mixvi check` allows it, κ-scaled)
-        ExtremeRow("electrical, two bodies: grounded, V = 100 V", ET,
-                   ['contact.electrical.kind="grounded"',
-                    "bodies.block.potential=[{boundary='top', value=100.0}]"], level=0,
-                   checks=E),
+        _row("electrical, two bodies: grounded, V = 100 V", ET,
+             ['contact.electrical.kind="grounded"',
+              "bodies.block.potential=[{boundary='top', value=100.0}]"], E, level=0),
     ]  # fmt: skip
 
 
 def rows_2d() -> list[ExtremeRow]:
     """The extreme cases, cheapest first within each group."""
-    C = (contact_checks,)
     return [
         *unilateral_rows(),
         *electrical_rows(),
-        ExtremeRow("g = 0 (frictionless)", RF, ["contact.g=0.0"], checks=C),
-        ExtremeRow("g = 1e-6 σ_ref", RF, [f"contact.g={1e-6 * S_RF!r}"], checks=C),
-        ExtremeRow("g = 1e6 σ_ref", RF, [f"contact.g={1e6 * S_RF!r}"], checks=C),
-        ExtremeRow(
-            "g varies 1e8 along Γ3",
-            RF,
-            [f"contact.g='{S_RF!r}*exp(log(1e8)*x/2 - log(1e4))'"],
-            checks=C,
-        ),
-        ExtremeRow("loads, g × 1e-12", RF, list(_scaled(1e-12)), checks=(*C, homogeneity(1e-12))),
-        ExtremeRow("loads, g × 1e3", RF, list(_scaled(1e3)), checks=(*C, homogeneity(1e3))),
-        ExtremeRow("BaTiO3", RF, level=0, checks=C),
-        ExtremeRow("PZT-5H", RF, ["bodies.block.material='PZT-5H'"], level=0, checks=C),
-        ExtremeRow("BaTiO3 coupling × 4 (ρ > 2)", RF, [_coupled(4.0)], level=0, checks=C),
-        ExtremeRow(
+        _row("g = 0 (frictionless)", RF, ["contact.g=0.0"]),
+        _row("g = 1e-6 σ_ref", RF, [f"contact.g={1e-6 * S_RF!r}"]),
+        _row("g = 1e6 σ_ref", RF, [f"contact.g={1e6 * S_RF!r}"]),
+        _row("g varies 1e8 along Γ3", RF, [f"contact.g='{S_RF!r}*exp(log(1e8)*x/2 - log(1e4))'"]),
+        _row("loads, g × 1e-12", RF, list(_scaled(1e-12)), homogeneity(1e-12)),
+        _row("loads, g × 1e3", RF, list(_scaled(1e3)), homogeneity(1e3)),
+        _row("BaTiO3", RF, level=0),
+        _row("PZT-5H", RF, ["bodies.block.material='PZT-5H'"], level=0),
+        _row("BaTiO3 coupling × 4 (ρ > 2)", RF, [_coupled(4.0)], level=0),
+        _row(
             "ν = 0.49",
             RF,
+            (),
+            locking,
             level=1,
             edit=_drop_potential("block", {"kind": "isotropic", "E": 1e10, "nu": 0.49}),
-            checks=(*C, locking),
         ),
-        ExtremeRow(
+        _row(
             "ν = 0.4999",
             RF,
+            (),
+            locking,
             level=1,
             edit=_drop_potential("block", {"kind": "isotropic", "E": 1e10, "nu": 0.4999}),
-            checks=(*C, locking),
         ),
-        ExtremeRow(
-            "aspect ratio 1e3 (thin layer)", RF, ["bodies.block.geometry.y=[0.0, 1e-3]"], checks=C
-        ),
-        ExtremeRow(
+        _row("aspect ratio 1e3 (thin layer)", RF, ["bodies.block.geometry.y=[0.0, 1e-3]"]),
+        _row(
             "slave 10× coarser than master",
             PT,
             ["bodies.disc.geometry.n_contact=4", "bodies.cradle.geometry.n_contact=40"],
             level=0,
-            checks=C,
         ),
-        ExtremeRow(
+        _row(
             "slave 10× finer than master",
             PT,
             ["bodies.disc.geometry.n_contact=40", "bodies.cradle.geometry.n_contact=4"],
             level=0,
-            checks=C,
         ),
-        ExtremeRow("paper scene, level 6 (~1.6M unknowns)", PT, level=6, huge=True, checks=C),
+        _row("paper scene, level 6 (~1.6M unknowns)", PT, level=6, huge=True),
     ]
 
 
@@ -389,124 +366,94 @@ def _scaled_block(f: float) -> Callable[[dict], None]:
     return edit
 
 
-def _isotropic(data: dict) -> None:
-    b = data["bodies"]["block"]
-    b["material"] = {"kind": "isotropic", "E": 1e10, "nu": 0.49}
-    b.pop("potential", None)
-
-
 def rows_3d() -> list[ExtremeRow]:
     """The 3D extreme cases (levels 0 and 1: small enough for conic and homotopy)."""
-    C = (contact_checks,)
+    row = partial(_row, level=0)  # level 1 where a row says so
     return [
-        ExtremeRow("3D: g = 0 (frictionless)", BLOCK, ["contact.g=0.0"], level=0, checks=C),
-        ExtremeRow(
-            "3D: g = 1e-6 σ_ref (all slip)",
-            BLOCK,
-            ["contact.g=18.0"],
-            level=0,
-            checks=(*C, slip_count("all")),
-        ),
-        ExtremeRow(
-            "3D: g = 1e6 σ_ref (tied)",
-            BLOCK,
-            ["contact.g=1.8e13"],
-            level=0,
-            checks=(*C, slip_count("none")),
-        ),
-        ExtremeRow(
+        row("3D: g = 0 (frictionless)", BLOCK, ["contact.g=0.0"]),
+        row("3D: g = 1e-6 σ_ref (all slip)", BLOCK, ["contact.g=18.0"], slip_count("all")),
+        row("3D: g = 1e6 σ_ref (tied)", BLOCK, ["contact.g=1.8e13"], slip_count("none")),
+        row(
             "3D: g varies 1e8 over Γ3",
             BLOCK,
             ["contact.g='1.8e7*exp(log(1e8)*(x + y)/2 - log(1e4))'"],
-            level=0,
-            checks=C,
         ),
-        ExtremeRow(
+        row(
             "3D: loads, g × 1e-9",
             BLOCK,
-            level=0,
+            (),
+            homogeneity(1e-9, scaled_by_edit=True),
             edit=_scaled_block(1e-9),
-            checks=(*C, homogeneity(1e-9, scaled_by_edit=True)),
         ),
-        ExtremeRow(
+        row(
             "3D: loads, g × 1e3",
             BLOCK,
-            level=0,
+            (),
+            homogeneity(1e3, scaled_by_edit=True),
             edit=_scaled_block(1e3),
-            checks=(*C, homogeneity(1e3, scaled_by_edit=True)),
         ),
-        ExtremeRow("3D: block, level 1", BLOCK, level=1, checks=C),
-        ExtremeRow(
+        row("3D: block, level 1", BLOCK, level=1),
+        row(
             "3D: PZT-5H poled along (1, 1, 1)",
             BLOCK,
             ["bodies.block.material={name='PZT-5H', poling=[1.0, 1.0, 1.0]}"],
-            level=0,
-            checks=C,
         ),
-        ExtremeRow(
+        row(
             "3D: curved contact surface",
             BLOCK,
             ["bodies.block.geometry.bottom_lift='0.06*sin(3*x)*cos(2*y)'"],
             level=1,
-            checks=C,
         ),
-        ExtremeRow(
-            "3D: tetrahedra", BLOCK, ["bodies.block.geometry.element='tetra'"], level=1, checks=C
+        row("3D: tetrahedra", BLOCK, ["bodies.block.geometry.element='tetra'"], level=1),
+        row(
+            "3D: ν = 0.49 (elastic)",
+            BLOCK,
+            edit=_drop_potential("block", {"kind": "isotropic", "E": 1e10, "nu": 0.49}),
         ),
-        ExtremeRow("3D: ν = 0.49 (elastic)", BLOCK, level=0, edit=_isotropic, checks=C),
-        ExtremeRow("3D: extruded 2D scene (discs + lines)", EXT, level=0, checks=C),
-        ExtremeRow(
+        row("3D: extruded 2D scene (discs + lines)", EXT),
+        row(
             "3D unilateral: Coulomb F = 0 (frictionless)",
             LIFT,
             ["contact.F=0.0"],
-            level=0,
-            checks=(*C, zone_count("stick", "none"), zone_count("open", "some")),
+            zone_count("stick", "none"),
+            zone_count("open", "some"),
         ),
-        ExtremeRow(
+        row(
             "3D unilateral: Coulomb F = 0.6",
             LIFT,
+            (),
+            zone_count("stick", "some"),
+            zone_count("slip", "some"),
             level=1,
-            checks=(*C, zone_count("stick", "some"), zone_count("slip", "some")),
         ),
-        ExtremeRow(
+        row(
             "3D unilateral: Coulomb F = 1e3 (stick where touching)",
             LIFT,
             ["contact.F=1e3"],
-            level=0,
-            checks=(*C, zone_count("slip", "none")),
+            zone_count("slip", "none"),
         ),
-        ExtremeRow(
+        row(
             "3D unilateral: F varies 1e4 over Γ3",
             LIFT,
             ["contact.F='0.01*exp(log(1e4)*(x + y)/2)'"],
-            level=0,
-            checks=C,
         ),
-        ExtremeRow(
+        row(
             "3D unilateral: gap 2e-7..4e-7 (partly closed)",
             LIFT,
             ["contact.gap='2e-7*(1 + y)'"],
-            level=0,
-            checks=(*C, zone_count("open", "some")),
+            zone_count("open", "some"),
         ),
-        ExtremeRow(
+        row(
             "3D unilateral: gap 1e-3 (apart, λ = 0)",
             STRIP,
             ["contact.gap=1e-3"],
-            level=0,
-            checks=(*C, zone_count("open", "all")),
+            zone_count("open", "all"),
         ),
-        ExtremeRow(
+        row(
             "3D unilateral: Coulomb strip (closed form)",
             STRIP,
-            level=0,
-            checks=(*C, zone_count("slip", "all")),
+            (),
+            zone_count("slip", "all"),
         ),
-        ExtremeRow(
-            "3D: extruded, aspect ratio 1e3",
-            EXT,
-            ["bodies.block.geometry.z=[0.0, 1e-3]"],
-            level=0,
-            checks=C,
-        ),
+        row("3D: extruded, aspect ratio 1e3", EXT, ["bodies.block.geometry.z=[0.0, 1e-3]"]),
     ]
