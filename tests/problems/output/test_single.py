@@ -23,3 +23,27 @@ def test_unwritable_file_is_refused_with_the_reason(tmp_path, monkeypatch):
         single.OutputFile(tmp_path / "out.json", "--out", "json", overwrite=False)
     assert "a file mixvi can write (read-only file system)" in str(err.value)
     assert not list(tmp_path.iterdir())  # nothing left behind
+
+
+def test_unwritable_folder_is_refused_with_the_reason(tmp_path, monkeypatch):
+    """An output folder the OS will not let mixvi write (the lock's open refused): the
+    refusal names the reason, and a user's file already in the folder is left as it was."""
+    from problems.output import folder
+    from problems.output.files import output_folder
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "mine.txt").write_text("the user's")
+    real_open = os.open
+
+    def refusing_open(path, *args, **kwargs):
+        if str(path).startswith(str(out)):
+            raise OSError(errno.EROFS, "read-only")
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(folder.os, "open", refusing_open)
+    with pytest.raises(SceneError) as err, output_folder(out, overwrite=True):
+        raise AssertionError("the body must not run")
+    assert "a folder mixvi can write (read-only file system)" in str(err.value)
+    assert [p.name for p in out.iterdir()] == ["mine.txt"]
+    assert (out / "mine.txt").read_text() == "the user's"
