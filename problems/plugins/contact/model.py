@@ -28,8 +28,10 @@ from problems.scene import Scene
 from problems.scene.fields import load_parameter
 from problems.scene.model import expressions, refuse
 from vi_core import MixedVI, Solution, product
+from vi_core.engine import row_partition
 
 from ..contract import Sweep
+from . import owned
 from .bodies import build_body, dirichlet, field_data, gram, loads
 from .interface import multiplier_rows
 
@@ -156,9 +158,15 @@ def mixed_vi(
     `piezo_balance`). vi.X, the norm of `vi_core.constants`, is a function that assembles it
     when asked (held for the whole solve, it was 73 MB at level 5, and `constants` refuses
     sizes above 200,000 unknowns)."""
-    A_full = sp.block_diag([b.A for b in bodies], format="csr")
-    for b in bodies:
-        b.A_fixed, b.A = b.A[np.flatnonzero(b.fixed)], None
+    partition = row_partition()
+    if partition is None:
+        A_full = sp.block_diag([b.A for b in bodies], format="csr")
+        for b in bodies:
+            b.A_fixed, b.A = b.A[np.flatnonzero(b.fixed)], None
+    else:  # an engine's: each process assembles its owned rows, gathered (`owned.assemble`)
+        A_full = owned.assemble(bodies, partition)
+        for b in bodies:
+            b.A_fixed = A_full[b.offset + np.flatnonzero(b.fixed)][:, b.offset : b.offset + b.size]
     f_full = np.concatenate([b.f for b in bodies])
     fixed = np.concatenate([b.fixed for b in bodies])
     values = np.concatenate([b.values for b in bodies])
