@@ -1,7 +1,8 @@
 """The bodies' operators assembled by owned rows under an engine's row partition (issue 33,
 docs/distributed.md): each process assembles a contiguous block of the full rows only
-(`fem.assembly`'s owned-rows forms), and the blocks are gathered in rank order into the whole
-A_full, bit for bit the serial `sp.block_diag` of the bodies' whole operators."""
+(`fem.assembly`'s owned-rows forms), and the blocks' Dirichlet-reduced parts are gathered in
+rank order, bit for bit the slices of the serial A_full (`sp.block_diag` of the bodies' whole
+operators), which is never formed."""
 
 from __future__ import annotations
 
@@ -36,19 +37,37 @@ def rows_block(bodies: list[Any], start: int, end: int) -> sp.csr_matrix:
     return sp.block_diag(blocks, format="csr")[start:end]
 
 
-def assemble(bodies: list[Any], partition: Any) -> sp.csr_matrix:
-    """(n_full, n_full) the bodies' operators side by side, the whole A_full on every process,
-    from each process's owned rows (`full_range` of `partition.owned(n_free)`) gathered by
-    `partition.gatherv`: no process assembles a row it does not own."""
+def reduced(
+    bodies: list[Any], partition: Any
+) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
+    """The Dirichlet-reduced blocks of the bodies' operators side by side, on every process,
+    from each process's owned rows (`full_range` of `partition.owned(n_free)`, assembled by
+    `rows_block`) gathered by `partition.gatherv`: no process assembles a row it does not own,
+    and A_full is never formed whole. (A (n_free, n_free) = A_full[free][:, free], A_fixed
+    (n_free, n_fixed) = A_full[free][:, fixed] (`model.Rhs`), fixed_rows (n_fixed, n_full) =
+    A_full[fixed], the prescribed dofs' rows (each body's reactions)), each bit for bit the
+    slice of the serial A_full (rows are sliced row by row)."""
     fixed = np.concatenate([b.fixed for b in bodies])  # (n_full,)
-    start, end = full_range(fixed, *partition.owned(int((~fixed).sum())))
+    free, dof = np.flatnonzero(~fixed), np.flatnonzero(fixed)  # (n_free,), (n_fixed,)
+    start, end = full_range(fixed, *partition.owned(free.size))
     own = rows_block(bodies, start, end)  # (end − start, n_full)
-    counts = partition.gatherv(np.diff(own.indptr))  # (n_full,) entries per row
-    indptr = np.zeros(fixed.size + 1, own.indptr.dtype)
-    np.cumsum(counts, out=indptr[1:])
-    data, indices = own.data, own.indices
+    mine = (start <= free) & (free < end)  # (n_free,) the owned unknowns
+    rows = own[free[mine] - start]  # (k, n_full)
+    fixed_rows = own[dof[(start <= dof) & (dof < end)] - start]  # (k_D, n_full)
     del own
-    A = sp.csr_matrix(
-        (partition.gatherv(data), partition.gatherv(indices), indptr), shape=(fixed.size,) * 2
+    n = fixed.size
+    return (
+        _gathered(partition, rows[:, free].tocsr(), free.size),
+        _gathered(partition, rows[:, dof].tocsr(), dof.size),
+        _gathered(partition, fixed_rows.tocsr(), n),
     )
-    return A
+
+
+def _gathered(partition: Any, M: sp.csr_matrix, ncol: int) -> sp.csr_matrix:
+    """The processes' row blocks M (k_p, ncol) stacked in rank order, on every process: the
+    rows received straight into the whole arrays (MPI_Allgatherv)."""
+    counts = partition.gatherv(np.diff(M.indptr))  # (rows,) entries per row
+    indptr = np.zeros(counts.size + 1, M.indptr.dtype)
+    np.cumsum(counts, out=indptr[1:])
+    data, indices = partition.gatherv(M.data), partition.gatherv(M.indices)
+    return sp.csr_matrix((data, indices, indptr), shape=(counts.size, ncol))

@@ -16,7 +16,9 @@ from hypothesis import strategies as st
 
 import problems.pipeline as pipeline
 from problems.plugins.contact.bodies import operator
-from problems.plugins.contact.owned import full_range, rows_block
+from problems.plugins.contact.owned import full_range, reduced, rows_block
+from vi_core import engine as vi_engine
+from vi_core.ssn import solve_ssn
 
 SCENES = ["paper_two_body", "block3d"]
 
@@ -53,3 +55,53 @@ def test_blocks_are_the_whole_operator(name, seed, ranks):
     np.testing.assert_array_equal(stacked.indptr, whole.indptr)
     np.testing.assert_array_equal(stacked.indices, whole.indices)
     np.testing.assert_array_equal(stacked.data, whole.data)  # bit for bit
+
+
+class _OneRank:
+    """The row partition of one process (`vi_core.engine.row_partition`): every row owned."""
+
+    def owned(self, n: int) -> tuple[int, int]:
+        return 0, n
+
+    def gatherv(self, local: np.ndarray) -> np.ndarray:
+        return local
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_reduced_parts_are_the_serial_slices(name):
+    bodies, whole = _bodies(name)
+    fixed = np.concatenate([b.fixed for b in bodies])  # (n_full,)
+    free, dof = np.flatnonzero(~fixed), np.flatnonzero(fixed)
+    A, A_fixed, fixed_rows = reduced(bodies, _OneRank())
+    for got, want in [
+        (A, whole[free][:, free]),
+        (A_fixed, whole[free][:, dof]),
+        (fixed_rows, whole[dof]),
+    ]:
+        want = want.tocsr()
+        assert got.shape == want.shape
+        np.testing.assert_array_equal(got.indptr, want.indptr)
+        np.testing.assert_array_equal(got.indices, want.indices)
+        np.testing.assert_array_equal(got.data, want.data)  # bit for bit
+
+
+def _csr_equal(got: sp.csr_matrix, want: sp.csr_matrix) -> None:
+    assert got.shape == want.shape
+    np.testing.assert_array_equal(got.indptr, want.indptr)
+    np.testing.assert_array_equal(got.indices, want.indices)
+    np.testing.assert_array_equal(got.data, want.data)
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_a_model_built_by_rows_is_the_serial_model(name):
+    """The whole build under a (one-process) row partition: vi.A, f, the Rhs's A_fixed and
+    each body's A_fixed (its reactions) are the serial build's bit for bit."""
+    loaded = pipeline.load(name)
+    serial = loaded.plugin.build(loaded.scene, 0)
+    with vi_engine.using(solve_ssn, rows=_OneRank()):
+        by_rows = loaded.plugin.build(loaded.scene, 0)
+    _csr_equal(by_rows.vi.A, serial.vi.A)
+    np.testing.assert_array_equal(by_rows.vi.f, serial.vi.f)
+    _csr_equal(by_rows.rhs.A_fixed, serial.rhs.A_fixed)
+    for got, want in zip(by_rows.bodies, serial.bodies, strict=True):
+        _csr_equal(got.A_fixed.tocsr(), want.A_fixed.tocsr())
