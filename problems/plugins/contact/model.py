@@ -160,20 +160,22 @@ def mixed_vi(
     the norm of `vi_core.constants`, is a function that assembles it when asked (held for the
     whole solve, it was 73 MB at level 5, and `constants` refuses sizes above 200,000
     unknowns)."""
-    f_full = np.concatenate([b.f for b in bodies])
-    fixed = np.concatenate([b.fixed for b in bodies])
-    values = np.concatenate([b.values for b in bodies])
-    free, dof = np.flatnonzero(~fixed), np.flatnonzero(fixed)  # (n_free,), (n_fixed,)
     partition = row_partition()
     if partition is None:
         A_full = sp.block_diag([b.A for b in bodies], format="csr")
         for b in bodies:
             b.A_fixed, b.A = b.A[np.flatnonzero(b.fixed)], None
+    f_full = np.concatenate([b.f for b in bodies])
+    fixed = np.concatenate([b.fixed for b in bodies])
+    values = np.concatenate([b.values for b in bodies])
+    dof = np.flatnonzero(fixed)  # (n_fixed,)
+    if partition is None:
         if check is not None:
             check(A_full, f_full, values)
-        A = reduce_dirichlet(A_full, f_full, fixed, values)[0]
+        A, _, free = reduce_dirichlet(A_full, f_full, fixed, values)
         A_fixed = A_full[free][:, dof].tocsr()  # (n_free, n_fixed)
     else:  # an engine's: each process assembles its owned rows only (`owned.reduced`)
+        free = np.flatnonzero(~fixed)  # (n_free,)
         A, A_fixed, fixed_rows = owned.reduced(bodies, partition)
         at = np.searchsorted(dof, [b.offset for b in bodies] + [fixed.size])  # (bodies + 1,)
         for b, i, j in zip(bodies, at[:-1], at[1:], strict=True):
