@@ -13,20 +13,32 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import Any
 
 _ssn: Callable | None = None  # the installed Newton loop; None: vi_core.ssn.solve_ssn
+_rows: Any = None  # the installed engine's row partition; None: serial (every row here)
 
 
 @contextmanager
-def using(ssn: Callable) -> Iterator[None]:
+def using(ssn: Callable, rows: Any = None) -> Iterator[None]:
     """Within the block, ``solve(vi, "ssn", ...)`` calls ``ssn(vi, tol=..., **options)`` (the
-    signature of `vi_core.ssn.solve_ssn`) instead of the serial loop."""
-    global _ssn
-    before, _ssn = _ssn, ssn
+    signature of `vi_core.ssn.solve_ssn`) instead of the serial loop; `rows` (`row_partition`)
+    tells the model builders which rows this process assembles."""
+    global _ssn, _rows
+    before, _ssn = (_ssn, _rows), ssn
+    _rows = rows
     try:
         yield
     finally:
-        _ssn = before
+        _ssn, _rows = before
+
+
+def row_partition() -> Any:
+    """The installed engine's row partition, None for the serial loop: an object with
+    ``owned(n) -> (lo, hi)``, the rows [lo, hi) of n unknowns this process owns (the engine's
+    layout), and ``gatherv(local) -> whole``, the processes' 1-D arrays concatenated in rank
+    order on every process (`vi_core.petsc.runtime.Reductions`)."""
+    return _rows
 
 
 def ssn_loop() -> Callable:

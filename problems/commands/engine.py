@@ -93,12 +93,14 @@ def start(name: str) -> Engine:
 
 @contextmanager
 def running(eng: Engine) -> Iterator[None]:
-    """Within the block, method="ssn" runs on the engine's Newton loop."""
+    """Within the block, method="ssn" runs on the engine's Newton loop, and a model built there
+    assembles its rows by the engine's partition (`vi_core.engine.row_partition`)."""
     if eng.name == "serial":
         yield
         return
     from vi_core import engine as vi_engine
     from vi_core.petsc import solve_ssn_petsc
+    from vi_core.petsc.runtime import RowPartition, petsc
 
-    with vi_engine.using(solve_ssn_petsc):
+    with vi_engine.using(solve_ssn_petsc, rows=RowPartition(petsc())):
         yield

@@ -112,6 +112,22 @@ class Reductions:
         return bool(self.comm.allreduce(int(bool(flag)), op=_min()) == 1)
 
 
+class RowPartition(Reductions):
+    """The row partition the engine installs for the model builders (`vi_core.engine.using`,
+    `row_partition`): PETSc's default layout of n rows over COMM_WORLD, and `gatherv`."""
+
+    def __init__(self, PETSc: Any):
+        super().__init__(PETSc.COMM_WORLD)
+        self._petsc = PETSc
+
+    def owned(self, n: int) -> tuple[int, int]:
+        """[lo, hi): the rows of n this rank owns (the layout the Newton loop's matrices use)."""
+        probe = self._petsc.Vec().createMPI((self._petsc.DECIDE, n), comm=self._petsc.COMM_WORLD)
+        lo, hi = probe.getOwnershipRange()
+        probe.destroy()
+        return lo, hi
+
+
 def _min() -> Any:
     from mpi4py import MPI
 

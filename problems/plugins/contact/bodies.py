@@ -31,6 +31,7 @@ from problems.scene.fields import Expression, Text, Vector, evaluate
 from problems.scene.geometry import Geometry, wrong_dimension
 from problems.scene.materials import Material, MaterialSpec
 from problems.scene.model import one_or_many, refuse
+from vi_core.engine import row_partition
 
 from ..contract import check_boundaries, check_meshed, prescribed_once
 
@@ -280,7 +281,9 @@ def build_body(name: str, t: BodySection, level: int, offset: int) -> Body:
     body = Body(name, mesh, t.material.material(mesh.points.shape[1]), offset)
     f = loads(t, body)
     fixed, values = dirichlet(t, body)
-    body.A, body.f, body.fixed, body.values = operator(body), f, fixed, values
+    # under an engine's row partition A is assembled later, by owned rows (`owned.assemble`)
+    A = operator(body) if row_partition() is None else None
+    body.A, body.f, body.fixed, body.values = A, f, fixed, values
     return body
 
 
@@ -296,16 +299,14 @@ def gram(body: Body) -> sp.csr_matrix:
     return sp.block_diag(blocks, format="csr")
 
 
-def operator(body: Body) -> sp.csr_matrix:
+def operator(body: Body, rows: np.ndarray | None = None) -> sp.csr_matrix:
     """(n_b, n_b) the body's operator A assembled from its mesh and material: [[K, Gᵀ], [−G, P]]
-    with a piezoelectric material, else K."""
-    material = body.material
-    K = assembly.elasticity_matrix(body.mesh, material.C)
-    if not material.piezoelectric:
-        return K.tocsr()
-    G = assembly.coupling_matrix(body.mesh, material.e)
-    P = assembly.permittivity_matrix(body.mesh, material.kappa)
-    return sp.bmat([[K, G.T], [-G, P]], format="csr")
+    with a piezoelectric material, else K. rows (n_b,) bool: only those rows (the others
+    empty), bit for bit the whole operator's (`fem.assembly`'s owned-rows assembly)."""
+    m = body.material
+    if m.piezoelectric:
+        return assembly.piezo_matrix(body.mesh, m.C, m.e, m.kappa, rows=rows)
+    return assembly.elasticity_matrix(body.mesh, m.C, rows=rows).tocsr()
 
 
 def loads(t: BodySection, body: Body) -> np.ndarray:

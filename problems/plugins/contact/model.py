@@ -28,8 +28,10 @@ from problems.scene import Scene
 from problems.scene.fields import load_parameter
 from problems.scene.model import expressions, refuse
 from vi_core import MixedVI, Solution, product
+from vi_core.engine import row_partition
 
 from ..contract import Sweep
+from . import owned
 from .bodies import build_body, dirichlet, field_data, gram, loads
 from .interface import multiplier_rows
 
@@ -150,23 +152,37 @@ def mixed_vi(
     prescribed values, the `Rhs` that recomputes f and gap from other loads and values).
     contact the front's contact (None: no multipliers), whose rows are
     `interface.multiplier_rows`; the MixedVI's `fields` and `near_null` are
-    `bodies.field_data`'s; check(A_full, f_full, values) may refuse the assembled data. Each body's
-    operator A is released (vi.A is the copy kept: memory; paper scene level 5: 117 MB of
-    bodies' A); a body keeps A's rows of its prescribed dofs, `A_fixed` (its reactions:
-    `piezo_balance`). vi.X, the norm of `vi_core.constants`, is a function that assembles it
-    when asked (held for the whole solve, it was 73 MB at level 5, and `constants` refuses
-    sizes above 200,000 unknowns)."""
-    A_full = sp.block_diag([b.A for b in bodies], format="csr")
-    for b in bodies:
-        b.A_fixed, b.A = b.A[np.flatnonzero(b.fixed)], None
+    `bodies.field_data`'s; check(A_full, f_full, values) may refuse the assembled data (under
+    an engine's row partition A_full is never whole: check reads its three parts, whole on
+    every rank, so every rank refuses alike: `owned.reduced`). Each body's operator A is
+    released (vi.A is the copy kept: memory; paper scene level 5: 117 MB of bodies' A); a body
+    keeps A's rows of its prescribed dofs, `A_fixed` (its reactions: `piezo_balance`). vi.X,
+    the norm of `vi_core.constants`, is a function that assembles it when asked (held for the
+    whole solve, it was 73 MB at level 5, and `constants` refuses sizes above 200,000
+    unknowns)."""
+    partition = row_partition()
+    if partition is None:
+        A_full = sp.block_diag([b.A for b in bodies], format="csr")
+        for b in bodies:
+            b.A_fixed, b.A = b.A[np.flatnonzero(b.fixed)], None
     f_full = np.concatenate([b.f for b in bodies])
     fixed = np.concatenate([b.fixed for b in bodies])
     values = np.concatenate([b.values for b in bodies])
-    if check is not None:
-        check(A_full, f_full, values)
-    A, _, free = reduce_dirichlet(A_full, f_full, fixed, values)
     dof = np.flatnonzero(fixed)  # (n_fixed,)
-    A_fixed = A_full[free][:, dof].tocsr()  # (n_free, n_fixed)
+    if partition is None:
+        if check is not None:
+            check(A_full, f_full, values)
+        A, _, free = reduce_dirichlet(A_full, f_full, fixed, values)
+        A_fixed = A_full[free][:, dof].tocsr()  # (n_free, n_fixed)
+    else:  # an engine's: each process assembles its owned rows only (`owned.reduced`)
+        free = np.flatnonzero(~fixed)  # (n_free,)
+        A, A_fixed, fixed_rows = owned.reduced(bodies, partition)
+        at = np.searchsorted(dof, [b.offset for b in bodies] + [fixed.size])  # (bodies + 1,)
+        for b, i, j in zip(bodies, at[:-1], at[1:], strict=True):
+            b.A_fixed = fixed_rows[i:j][:, b.offset : b.offset + b.size]
+        for part in (A, A_fixed, fixed_rows) if check is not None else ():
+            check(part, f_full, values)  # every entry of A_full is in one of the three
+        del fixed_rows
     if contact is None:
         B, Lam, Y = sp.csr_matrix((0, free.size)), product(), sp.csr_matrix((0, 0))
         rhs = Rhs(A_fixed, None, None, free, dof, fixed)
