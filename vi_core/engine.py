@@ -15,6 +15,9 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import numpy as np
+import scipy.sparse as sp
+
 _ssn: Callable | None = None  # the installed Newton loop; None: vi_core.ssn.solve_ssn
 _rows: Any = None  # the installed engine's row partition; None: serial (every row here)
 
@@ -37,8 +40,22 @@ def row_partition() -> Any:
     """The installed engine's row partition, None for the serial loop: an object with
     ``owned(n) -> (lo, hi)``, the rows [lo, hi) of n unknowns this process owns (the engine's
     layout), and ``gatherv(local) -> whole``, the processes' 1-D arrays concatenated in rank
-    order on every process (`vi_core.petsc.runtime.Reductions`)."""
+    order on every process (`vi_core.petsc.runtime.Reductions`; sparse row blocks through it:
+    `gathered_rows`)."""
     return _rows
+
+
+def gathered_rows(
+    gatherv: Callable[[np.ndarray], np.ndarray], block: sp.csr_matrix, ncol: int
+) -> sp.csr_matrix:
+    """The processes' row blocks `block` (k_p, ncol) stacked in rank order, on every process,
+    through a row partition's `gatherv` (`row_partition`): the entries per row, the values and
+    the column indices, each received straight into the whole array (no per-process copies)."""
+    counts = gatherv(np.diff(block.indptr))  # (rows,) entries per row
+    indptr = np.zeros(counts.size + 1, block.indptr.dtype)  # (rows + 1,)
+    np.cumsum(counts, out=indptr[1:])
+    data, indices = gatherv(block.data), gatherv(block.indices)  # (nnz,) each
+    return sp.csr_matrix((data, indices, indptr), shape=(counts.size, ncol))
 
 
 def ssn_loop() -> Callable:

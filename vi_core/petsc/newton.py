@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from vi_core.engine import gathered_rows
 from vi_core.problem import MixedVI
 from vi_core.solution import Solution
 from vi_core.ssn import (
@@ -102,12 +103,10 @@ def _whole(A: sp.csr_matrix, lo: int, hi: int, red: Reductions) -> sp.csr_matrix
     same values, indices and pattern as before (rows concatenated in rank order), received
     straight into the whole arrays (`Reductions.gatherv`): no second copy of A meanwhile."""
     p0, p1 = A.indptr[lo], A.indptr[hi]
-    counts = red.gatherv(np.diff(A.indptr[lo : hi + 1]))  # (n,) entries per row
-    indptr = np.zeros(A.shape[0] + 1, A.indptr.dtype)
-    np.cumsum(counts, out=indptr[1:])
-    data = red.gatherv(A.data[p0:p1])  # (nnz,)
-    indices = red.gatherv(A.indices[p0:p1])  # (nnz,)
-    whole = sp.csr_matrix((data, indices, indptr), shape=A.shape)
+    mine = sp.csr_matrix(  # (hi − lo, n) views of A's arrays: no copy of the rows
+        (A.data[p0:p1], A.indices[p0:p1], A.indptr[lo : hi + 1] - p0), shape=(hi - lo, A.shape[1])
+    )
+    whole = gathered_rows(red.gatherv, mine, A.shape[1])
     whole.has_sorted_indices = True  # each row as it was: canonical (`_canonical_A`)
     whole.has_canonical_format = True
     return whole

@@ -11,6 +11,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from vi_core.engine import gathered_rows
+
 from .bodies import operator
 
 
@@ -57,17 +59,7 @@ def reduced(
     del own
     n = fixed.size
     return (
-        _gathered(partition, rows[:, free].tocsr(), free.size),
-        _gathered(partition, rows[:, dof].tocsr(), dof.size),
-        _gathered(partition, fixed_rows.tocsr(), n),
+        gathered_rows(partition.gatherv, rows[:, free].tocsr(), free.size),
+        gathered_rows(partition.gatherv, rows[:, dof].tocsr(), dof.size),
+        gathered_rows(partition.gatherv, fixed_rows.tocsr(), n),
     )
-
-
-def _gathered(partition: Any, M: sp.csr_matrix, ncol: int) -> sp.csr_matrix:
-    """The processes' row blocks M (k_p, ncol) stacked in rank order, on every process: the
-    rows received straight into the whole arrays (MPI_Allgatherv)."""
-    counts = partition.gatherv(np.diff(M.indptr))  # (rows,) entries per row
-    indptr = np.zeros(counts.size + 1, M.indptr.dtype)
-    np.cumsum(counts, out=indptr[1:])
-    data, indices = partition.gatherv(M.data), partition.gatherv(M.indices)
-    return sp.csr_matrix((data, indices, indptr), shape=(counts.size, ncol))
