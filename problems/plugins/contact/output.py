@@ -97,8 +97,12 @@ def contact_table(model: Any, sol: Solution, st: dict | None = None) -> ContactT
     friction radius g, the remaining gap (unilateral), the state; the class weights W_n, W_t
     for the force. 2D writes its tangent τ = (−n_y, n_x) implicitly (no tangent columns), 3D
     the frame as tangent1_*, tangent2_*."""
+    return _table(model, node_view(model, contact_state(model, sol) if st is None else st))
+
+
+def _table(model: Any, nv: dict) -> ContactTable:
+    """`contact_table` of the node view `nv` (`node_view`)."""
     c = model.contact
-    nv = node_view(model, contact_state(model, sol) if st is None else st)
     return ContactTable(
         points=c.slave.mesh.points[c.tr.nodes],
         normals=c.normals,
@@ -146,11 +150,10 @@ def closed_gap_warning(model: Any, sol: Solution) -> list[str]:
     ]
 
 
-def contact_summary(model: Any, sol: Solution, st: dict, table: ContactTable) -> dict:
-    """summary.json's `contact`, `lemma_4_2` and `warnings` entries of the contact state `st`
-    and its `table`."""
+def contact_summary(model: Any, sol: Solution, st: dict, nv: dict, table: ContactTable) -> dict:
+    """summary.json's `contact`, `lemma_4_2` and `warnings` entries of the contact state `st`,
+    its node view `nv` (`node_view`) and its `table`."""
     c = model.contact
-    nv = node_view(model, st)
     totals = table.totals()
     counts, has_t = totals["counts"], nv["has_t"]
     entry = {
@@ -199,14 +202,15 @@ def postprocess(model: Any, sol: Solution, outdir: Path) -> dict:
             summary["lemma_4_2_quadrature"] = quad
     if c is not None:
         st = contact_state(model, sol)
-        table = contact_table(model, sol, st)
+        nv = node_view(model, st)
+        table = _table(model, nv)
         files += results.write_contact(outdir, table)[0]
         if c.dim == 2:
             files += plots.contact_plots(st, outdir, title=model.scene.name)
         else:
             contact_map(outdir / "contact_map.png", model, table, title=model.scene.name)
             files.append("contact_map.png")
-        summary |= contact_summary(model, sol, st, table)
+        summary |= contact_summary(model, sol, st, nv, table)
         electrical = getattr(model, "electrical", None)
         if electrical is not None:
             summary["electrical"] = {
@@ -256,14 +260,9 @@ def chart(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def contact_map(path: Path, model: Any, table: ContactTable, title: str = "") -> None:
     """Two panels on the 3D contact surface (seen along −n): the stick/slip state with the
     tangential traction −λ_t as arrows, and |λ_t|/g."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.tri import Triangulation
 
-    from problems.output.plots import direction_label
-
+    plt = plots.pyplot()
     c = model.contact
     uv, a, b = chart(model)
     faces = c.tr.facets
@@ -299,8 +298,8 @@ def contact_map(path: Path, model: Any, table: ContactTable, title: str = "") ->
     ax2.set_title("$|\\lambda_t|/g$")
     for axx in axes:
         axx.set_aspect("equal")
-        axx.set_xlabel(direction_label(a))
-        axx.set_ylabel(direction_label(b))
+        axx.set_xlabel(plots.direction_label(a))
+        axx.set_ylabel(plots.direction_label(b))
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
