@@ -39,13 +39,13 @@ from fem.estimator import (
     jump_indicator,
     volume_indicator,
 )
-from fem.facets import SEGMENT_DUAL, facet_values, trace
+from fem.facets import SEGMENT_DUAL, facet_values
 from fem.locate import evaluate
 from vi_core import Solution
 
 from ..contract import Indicator
 from .bodies import COMPONENTS, vector
-from .separation import normal_distances
+from .separation import to_master
 
 # the contact terms (module docstring): flux against λ_h, friction bound, complementarity of
 # the friction law, normal defect (penetration or weak-constraint defect)
@@ -248,27 +248,25 @@ def _field(expr: Any, x: np.ndarray) -> np.ndarray:
 
 
 def _master_side(
-    section: Any, ct: Any, x: np.ndarray, nrm: np.ndarray, U: dict, rel: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+    section: Any, ct: Any, x: np.ndarray, nrm: np.ndarray, U: dict
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The other side seen from the slave points x (M, 2) with outward normals nrm (M, 2):
-    (gap (M,), behind (M,) bool), and `rel` (M, 2) made the displacement relative to it in
-    place. A rigid foundation: the scene's gap (0 without one), behind everywhere. A master
-    body: the point y = x + t n where the slave normal meets the master boundary
-    (`separation.normal_distances`), rel −= u_m(y), gap = t for unilateral contact (the bodies
-    may start apart) and 0 for bilateral (its rows close the gap); where the normal misses the
-    master, no master lies behind (behind False: no slip, no defect; the multiplier is 0 on
-    such segments, whose nodes are uncovered)."""
+    (gap (M,), behind (M,) bool, its displacement (M, 2)). A rigid foundation: the scene's gap
+    (0 without one), behind everywhere, at rest. A master body: the point y = x + t n where
+    the slave normal meets the master boundary (`separation.to_master`), u_m(y), gap = t for
+    unilateral contact (the bodies may start apart) and 0 for bilateral (its rows close the
+    gap); where the normal misses the master, no master lies behind (behind False: no slip,
+    no defect; the multiplier is 0 on such segments, whose nodes are uncovered)."""
+    u_m = np.zeros_like(x)  # (M, 2)
     if ct.master is None:
         gap = np.zeros(len(x)) if section.gap is None else _field(section.gap, x)
-        return gap, np.ones(len(x), dtype=bool)
-    mtr = trace(ct.master.mesh, ct.master_part)
-    P = ct.master.mesh.points[mtr.nodes]  # (n_m, 2) master trace points
-    t, _ = normal_distances(x, nrm, P[mtr.facets[:, 0]], P[mtr.facets[:, 1]])  # (M,) each
+        return gap, np.ones(len(x), dtype=bool), u_m
+    t, _, _ = to_master(x, nrm, ct.master, ct.master_part)  # (M,)
     behind = np.isfinite(t)
     y = x[behind] + t[behind, None] * nrm[behind]  # (M_b, 2) on the master boundary
-    rel[behind] -= evaluate(ct.master.mesh, U[ct.master.name][:, :2], y)
+    u_m[behind] = evaluate(ct.master.mesh, U[ct.master.name][:, :2], y)
     gap = np.where(behind, t, 0.0) if ct.law == "unilateral" else np.zeros(len(x))
-    return gap, behind
+    return gap, behind, u_m
 
 
 def _contact_terms(
@@ -291,8 +289,8 @@ def _contact_terms(
     x = ff.x[i].reshape(-1, 2)  # (n_b q, 2)
     nrm = ff.normal[i].reshape(-1, 2)  # (n_b q, 2) outward of the slave
     tau = np.stack([-nrm[:, 1], nrm[:, 0]], axis=1)  # τ = (−n_y, n_x) as `fem.facets.frames`
-    rel = evaluate(ct.slave.mesh, U[ct.slave.name][:, :2], x)  # (n_b q, 2) slave displacement
-    gap, behind = _master_side(section, ct, x, nrm, U, rel)
+    gap, behind, u_m = _master_side(section, ct, x, nrm, U)  # (n_b q,), (n_b q,), (n_b q, 2)
+    rel = evaluate(ct.slave.mesh, U[ct.slave.name][:, :2], x) - u_m  # (n_b q, 2) the jump
     slip = np.where(behind, np.einsum("md,md->m", rel, tau), 0.0)  # (n_b q,)
     un = np.einsum("md,md->m", rel, nrm)
     bound = _field(section.g if ct.friction == "tresca" else section.F, x)  # (n_b q,)

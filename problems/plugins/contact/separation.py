@@ -55,15 +55,23 @@ def normal_distances(
     return out, seg
 
 
+def to_master(
+    x: np.ndarray, n: np.ndarray, master: Any, mpart: str
+) -> tuple[np.ndarray, np.ndarray, Trace]:
+    """(t, k, mtr): the signed distance t (M,) from each point x (M, 2) along its normal n
+    (M, 2) to the master body's boundary part `mpart` (NaN where it misses:
+    `normal_distances`), the master segment k (M,) hit, and the master trace mtr."""
+    mtr = trace(master.mesh, mpart)
+    P = master.mesh.points[mtr.nodes]  # (n_m, 2)
+    t, k = normal_distances(x, n, P[mtr.facets[:, 0]], P[mtr.facets[:, 1]])
+    return t, k, mtr
+
+
 def separation(slave: Any, part: str, tr: Trace, normals, master: Any, mpart: str, level: int):
     """(t, h): the signed distance (N,) of each slave node along its normal to the master
     polyline (NaN where it misses) and h (N,), the longer of the node's adjacent segments and
     the master segment hit, times 2^level (the level-0 mesh size)."""
-    mtr = trace(master.mesh, mpart)
-    P = master.mesh.points[mtr.nodes]
-    t, k = normal_distances(
-        slave.mesh.points[tr.nodes], normals, P[mtr.facets[:, 0]], P[mtr.facets[:, 1]]
-    )
+    t, k, mtr = to_master(slave.mesh.points[tr.nodes], normals, master, mpart)
     h = mtr.measures[k]
     np.maximum.at(h, tr.facets[:, 0], tr.measures)
     np.maximum.at(h, tr.facets[:, 1], tr.measures)

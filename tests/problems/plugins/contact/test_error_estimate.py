@@ -299,8 +299,8 @@ def test_gap_check_sees_a_gap_read_as_penetration(tmp_path, monkeypatch):
     side = ce._master_side
 
     def no_gap(*args):
-        gap, behind = side(*args)
-        return np.zeros_like(gap), behind
+        gap, behind, u_m = side(*args)
+        return np.zeros_like(gap), behind, u_m
 
     monkeypatch.setattr(ce, "_master_side", no_gap)
     touching = _pressed(tmp_path, 0.0, 'friction = "coulomb"\nF = 0.05')
