@@ -21,7 +21,7 @@ worker waits for them, so the clean-up never races a write, and a commit (rename
 `deferred`, in the main thread) is never cut by the exit. Exceptions raised in the worker
 (SceneError, MemoryError, any other) are raised again, unchanged, in the main thread.
 
-Measured (docs/benchmarks.md, "Interrupting a solve"): SuperLU (scipy's splu), Clarabel and
+Measured (docs/benchmarks.md, "Interrupting a command"): SuperLU (scipy's splu), Clarabel and
 the compiled kernels of pyamg's set-up release the GIL, so the main thread acts on a signal
 within ~0.1 s while they run (the longest wait of the main thread on the paper scene at levels
 3–4: 0.1–0.45 s, for any solver); PARDISO (pypardiso) calls it through ctypes, which releases
