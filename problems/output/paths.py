@@ -47,6 +47,24 @@ def unwritable(option: str, path: Path, err: OSError, what: str = "folder") -> S
     return refuse(option, path, f"a {what} mixvi can write ({reason(err)})")
 
 
+def probe(folder: Path, option: str, path: Path, what: str = "folder") -> None:
+    """Create, write and remove a file in `folder`: catches read-only and virtual file systems
+    before work (the refusal names the output `path` given by `option`, a `what`)."""
+    probe = folder / f"{STAGING}probe-{os.getpid()}"
+    try:
+        with deferred():  # a signal between create and unlink would leave the probe
+            fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            try:
+                os.write(fd, b"mixvi")
+            finally:
+                os.close(fd)
+            probe.unlink()
+    except OSError as err:
+        with suppress(OSError):
+            probe.unlink()
+        raise unwritable(option, path, err, what) from None
+
+
 def overwrite_hint(option: str) -> str:
     """How the caller that named its output `option` asks to overwrite: the command line's
     flag for an option (`--out`), the keyword for the Python API (`folder`)."""
