@@ -452,6 +452,11 @@ def complementarity_defect(lam: np.ndarray, slack: np.ndarray, support: float) -
     return abs(lhs - support) / scale
 
 
+def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
+    """‖a − b‖ / ‖b‖ (a zero b: the absolute difference over 1e-300)."""
+    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
+
+
 def triangles(cells: np.ndarray) -> np.ndarray:
     """(n_tri, 3) triangles of the triangles or quadrilaterals `cells` (n, 3 or 4) for
     plotting (each quad split along a diagonal)."""
