@@ -11,9 +11,7 @@ of a full vector into displacement (N, d) and potential (N,) or None.
 
 from __future__ import annotations
 
-import importlib
 import re
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
@@ -340,19 +338,3 @@ def friction_sweep(g_file: str, F_file: str) -> Sweep:
             "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file=F_file
         ),
     )
-
-
-def moved_names(module: str, moved: dict[str, tuple[str, str]]) -> Callable[[str], Any]:
-    """A module `__getattr__` for names that moved out of `module` (kept one release): name →
-    (its module, its name there), returned with a DeprecationWarning naming the new place."""
-
-    def __getattr__(name: str) -> Any:
-        if name not in moved:
-            raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        where, new = moved[name]
-        warnings.warn(
-            f"{module}.{name} is deprecated: use {where}.{new}", DeprecationWarning, stacklevel=2
-        )
-        return getattr(importlib.import_module(where), new)
-
-    return __getattr__

@@ -14,6 +14,7 @@ import numpy as np
 import vi_core
 from problems.output import plots
 from problems.scene import Scene
+from problems.scene.fields import renamed
 from problems.scene.imported import require_curve
 from vi_core import MixedVI, Solution
 
@@ -53,11 +54,11 @@ class Model(BodiesModel):
 SCENE_MODEL = ContactScene  # one scene model for 2D and 3D (`scene_model`)
 
 
-__getattr__ = contact_model.moved_names(
+__getattr__ = renamed(
     __name__,
     {
-        "PlaneScene": ("problems.plugins.contact.scene_model", "ContactScene"),
-        "ContactSection": ("problems.plugins.contact.scene_model", "ContactSection"),
+        "PlaneScene": "problems.plugins.contact.scene_model.ContactScene",
+        "ContactSection": "problems.plugins.contact.scene_model.ContactSection",
     },
 )
 

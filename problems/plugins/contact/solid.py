@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from functools import partial
 
 from problems.scene import Scene
+from problems.scene.fields import renamed
 from vi_core import Solution
 
 from . import errors, output, reports, warm_starts
@@ -40,11 +41,11 @@ class Model(BodiesModel):
 SCENE_MODEL = ContactScene  # one scene model for 2D and 3D (`scene_model`)
 
 
-__getattr__ = contact_model.moved_names(
+__getattr__ = renamed(
     __name__,
     {
-        "SolidScene": ("problems.plugins.contact.scene_model", "ContactScene"),
-        "ContactSection": ("problems.plugins.contact.scene_model", "ContactSection"),
+        "SolidScene": "problems.plugins.contact.scene_model.ContactScene",
+        "ContactSection": "problems.plugins.contact.scene_model.ContactSection",
     },
 )
 
