@@ -13,6 +13,7 @@ Overrides are keyword arguments with `__` for the dots of `--set` (contact__g=5e
 from __future__ import annotations
 
 import json
+import math
 import warnings
 from pathlib import Path
 from typing import Any
@@ -28,12 +29,8 @@ def _literal(v: Any) -> str:
         return "{" + ", ".join(f"{k} = {_literal(x)}" for k, x in v.items()) + "}"
     if isinstance(v, list | tuple):
         return "[" + ", ".join(_literal(x) for x in v) + "]"
-    if isinstance(v, float):
-        return (
-            repr(v)
-            if v == v and abs(v) != float("inf")
-            else ("nan" if v != v else ("inf" if v > 0 else "-inf"))
-        )
+    if isinstance(v, float) and not math.isfinite(v):
+        return str(v)  # TOML's inf, -inf, nan (a finite float: its repr, as json.dumps writes it)
     return json.dumps(v)
 
 
