@@ -79,11 +79,6 @@ STUDY_NEEDS = ("NORMS", "mesh_size", "reference_errors")  # exact_errors: option
 
 
 # ------------------------------------------------------------------ argument parsing
-def parse_solvers(text: str, allowed: list[str] | tuple[str, ...] = SOLVERS) -> list[str]:
-    """'ssn,conic' → ['ssn', 'conic'] (each one of `allowed`, no repeats)."""
-    return options.names(text, "--solvers", allowed)
-
-
 def applicable(model: Any) -> tuple[list[str], str]:
     """The solvers of SOLVERS that can run the built `model`, and why the others cannot: ssn
     and the fixed point for a multiplier set with Coulomb or unilateral contact blocks; ssn,
@@ -208,11 +203,10 @@ def run_study(
         solutions.update(runs)
     solved = [r for r in records if "error" not in r]
     exact = bool(solved) and all(r["err"] is not None for r in solved)
-    if not exact:
+    if not exact:  # the finest level is the reference (module docstring)
         signals.interruptible(
             _reference_errors, plugin, scene, records, runs, max(levels), tols[-1]
         )
-    if not exact:  # the finest level is the reference (module docstring)
         for r in records:
             if r["level"] == max(levels):
                 r["reference"] = True
@@ -484,7 +478,7 @@ def study_main(argv: list[str] | None = None) -> int:
     """Entry point of `mixvi study`: 0 if every solve converged, 1 if not, 2 on bad input."""
     args = parser().parse_args(argv)
     a, b = level_range(args.levels)
-    solvers = parse_solvers(args.solvers) if args.solvers is not None else None
+    solvers = None if args.solvers is None else options.names(args.solvers, "--solvers", SOLVERS)
     tols = parse_tols(args.tols)
     scene = load_scene(args.scene, args.set or [])
     plugin = registry.for_scene(scene)
