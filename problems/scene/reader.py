@@ -9,7 +9,6 @@ scene checked by a plug-in's scene model (cached while `data` is unchanged).
 from __future__ import annotations
 
 import copy
-import difflib
 import tomllib
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -18,7 +17,7 @@ from typing import Any
 
 from problems.errors import SceneError
 
-from .model import SceneModel, migrate, validate
+from .model import SceneModel, did_you_mean, migrate, validate
 
 SCENES_DIR = Path(__file__).parent.parent / "scenes"
 # Tables and arrays nest at most this deep in a scene or a --set value (the deepest shipped
@@ -122,12 +121,11 @@ def find_scene(name_or_path: str) -> Path:
     if local is not None or shipped is not None:
         return local or shipped
     names = sorted(q.stem for q in SCENES_DIR.glob("*.toml"))
-    hint = difflib.get_close_matches(name_or_path, names, n=1)
-    extra = f" (did you mean {hint[0]!r}?)" if hint else ""
     raise SceneError(
         "scene",
         name_or_path,
-        f"an existing file (x.toml may be named x) or a shipped scene: {', '.join(names)}{extra}",
+        f"an existing file (x.toml may be named x) or a shipped scene: {', '.join(names)}"
+        + did_you_mean(name_or_path, names),
     )
 
 
