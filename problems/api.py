@@ -64,9 +64,7 @@ def solve_scene(
         path = solve_path(loaded, level, solver, tol, cold, linear_solver)
         res = pipeline.results(loaded, path.run)
         res.info["steps"] = path.steps
-        res.info["converged"] = path.converged and len(path.steps) == len(
-            loaded.spec.load_path.values()
-        )
+        res.info["converged"] = path.converged
         return res
     run = pipeline.solve(loaded, level, solver, tol, cold, linear_solver)
     return pipeline.results(loaded, run)

@@ -81,7 +81,7 @@ def _solve_unwritten(args, loaded: pipeline.Loaded, level: int) -> int:
     if loaded.spec.load_path is not None:
         with tempfile.TemporaryDirectory() as tmp:
             path, _ = load_path.solve_steps(args, loaded, level, Path(tmp))
-        return 0 if path.converged and not load_path.stopped(loaded, path) else 1
+        return 0 if path.converged else 1
     run = pipeline.solve(loaded, level, **solver_options(args))
     return 0 if run.solution.converged else 1
 
@@ -144,7 +144,7 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
         return 1
     if path is not None:
-        return 0 if path.converged and not load_path.stopped(loaded, path) else 1
+        return 0 if path.converged else 1
     return 0 if sol.converged else 1
 
 
