@@ -48,7 +48,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import tracemalloc
 from collections.abc import Iterator
@@ -70,6 +69,7 @@ from problems.plugins.contract import needs
 from problems.scene import Scene, load_scene
 
 from . import options, resources
+from .failures import cores
 from .options import level_range
 from .progress import bar as progress_bar
 
@@ -397,14 +397,6 @@ def parser() -> argparse.ArgumentParser:
 # a Dask worker process beyond the memory model's own base (`resources.MEMORY_MODEL`, 115 MB):
 # 175 MB resident with mixvi's imports in a LocalCluster worker against 115 MB (measured once)
 DASK_WORKER_BYTES = 60e6
-
-
-def cores() -> int:
-    """The cores this process may run on (its CPU affinity; os.cpu_count where unknown)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
 
 
 def worker_count(
