@@ -31,7 +31,6 @@ from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
 DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
-ALIAS = "piezo_contact"  # its former name, still accepted (registry.ALIASES)
 LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
 DESCRIPTION = (
     "elasto-piezoelectric bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "

@@ -22,7 +22,6 @@ from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
 from .surface_contact import from_scene
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
-ALIAS = "contact3d"  # its former name, still accepted (registry.ALIASES)
 DIMENSION = 3  # the models' `dimension` (`count` needs no model to tell it)
 DESCRIPTION = (
     "elastic/piezoelectric 3D bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
