@@ -32,6 +32,7 @@ from ..contract import Sweep
 from . import owned
 from .bodies import build_body, dirichlet, field_data, gram, loads
 from .interface import multiplier_rows
+from .reports import interface_warnings
 
 
 @dataclass
@@ -124,7 +125,8 @@ def assemble(
     the scene's), 2D and 3D alike: its bodies, the contact interface
     `interface(bodies by name, spec.contact, n_full, level)` of its [contact] table (None
     without one) and the mixed VI (`mixed_vi`, the data checked by `checks.finite_data`);
-    `options` (the front's) come before the scene's solver options."""
+    `options` (the front's) come before the scene's solver options; the warnings start with
+    the interface's (`reports.interface_warnings`)."""
     from .checks import finite_data
 
     level = spec.scene.level if level is None else level
@@ -135,8 +137,9 @@ def assemble(
     check = partial(finite_data, contact=contact)
     vi, free, values, rhs = mixed_vi(list(bodies.values()), contact, info, check=check)
     options = {**(options or {}), **spec.options()}
+    warnings = [] if contact is None else interface_warnings(contact)
     bodies_ = list(bodies.values())
-    return model_class(scene, level, bodies_, contact, vi, free, values, options, rhs=rhs)
+    return model_class(scene, level, bodies_, contact, vi, free, values, options, warnings, rhs)
 
 
 def mixed_vi(

@@ -20,7 +20,7 @@ from vi_core import MixedVI, Solution
 
 from ..contract import check_meshed
 from . import electrical as electrical_contact
-from . import errors, output, reports, warm_starts
+from . import errors, output, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from .contact_state import contact_state as one_contact_state
@@ -92,8 +92,6 @@ def build_model(
         model.options["potential_along"] = (bname, part)
     if ct is not None and ct.electrical is not None:
         model.electrical = _electrical(ct.electrical, contact, vi, model.free, model.values)
-    if contact is not None:
-        model.warnings += reports.interface_warnings(contact)
     for b in model.bodies:
         ev = np.linalg.eigvalsh(b.material.C)
         if ev[-1] / ev[0] > LOCKING_RATIO:

@@ -13,7 +13,7 @@ from problems.scene import Scene
 from problems.scene.fields import renamed
 from vi_core import Solution
 
-from . import errors, output, reports, warm_starts
+from . import errors, output, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from .contact_state import contact_state as one_contact_state
@@ -57,10 +57,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
 def _build(scene: Scene, level: int | None) -> Model:
     spec = scene.validated(SCENE_MODEL, DIMENSION)
-    model = contact_model.assemble(spec, scene, level, from_scene, Model)
-    if model.contact is not None:
-        model.warnings += reports.interface_warnings(model.contact)
-    return model
+    return contact_model.assemble(spec, scene, level, from_scene, Model)
 
 
 incremental = contact_model.incremental
