@@ -12,7 +12,6 @@ Overrides are keyword arguments with `__` for the dots of `--set` (contact__g=5e
 
 from __future__ import annotations
 
-import json
 import warnings
 from pathlib import Path
 from typing import Any
@@ -20,25 +19,11 @@ from typing import Any
 import problems.pipeline as pipeline
 from problems.scene import Scene, SceneModel
 from problems.scene import load_scene as _read
-
-
-def _literal(v: Any) -> str:
-    """A Python value as a TOML literal for an override."""
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k} = {_literal(x)}" for k, x in v.items()) + "}"
-    if isinstance(v, list | tuple):
-        return "[" + ", ".join(_literal(x) for x in v) + "]"
-    if isinstance(v, float):
-        return (
-            repr(v)
-            if v == v and abs(v) != float("inf")
-            else ("nan" if v != v else ("inf" if v > 0 else "-inf"))
-        )
-    return json.dumps(v)
+from problems.scene.reader import toml_literal
 
 
 def _loaded(path_or_model: str | Path | SceneModel, overrides: dict[str, Any]) -> pipeline.Loaded:
-    sets = [f"{k.replace('__', '.')}={_literal(v)}" for k, v in overrides.items()]
+    sets = [f"{k.replace('__', '.')}={toml_literal(v)}" for k, v in overrides.items()]
     if isinstance(path_or_model, SceneModel):
         scene = Scene.from_model(path_or_model)
         if sets:  # the same path as a file's overrides: through the TOML text of each value
@@ -79,9 +64,7 @@ def solve_scene(
         path = solve_path(loaded, level, solver, tol, cold, linear_solver)
         res = pipeline.results(loaded, path.run)
         res.info["steps"] = path.steps
-        res.info["converged"] = path.converged and len(path.steps) == len(
-            loaded.spec.load_path.values()
-        )
+        res.info["converged"] = path.converged
         return res
     run = pipeline.solve(loaded, level, solver, tol, cold, linear_solver)
     return pipeline.results(loaded, run)

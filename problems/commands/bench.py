@@ -44,6 +44,7 @@ import vi_core
 from problems.errors import SceneError
 from problems.output import signals
 from problems.output.files import Output, claim
+from problems.plugins.contract import relative_difference
 from vi_core import Free, MixedVI
 from vi_core.linalg import resolve_backend
 from vi_core.linear_solvers import LINEAR_SOLVERS, thread_settings
@@ -168,9 +169,7 @@ def _record(
                 "cpu_nonlinear_s": c,
                 "cpu_linear_s": c_lin,
                 "cpu_ratio": c / c_lin,
-                "difference_to_ssn": float(
-                    np.linalg.norm(s.u - sol.u) / max(np.linalg.norm(sol.u), 1e-300)
-                ),
+                "difference_to_ssn": relative_difference(s.u, sol.u),
             }
         )
     peak = resources.peak_rss()  # the child's own peak (not ru_maxrss: `peak_rss`)

@@ -31,6 +31,7 @@ A record fails (exit status 1) when
 from __future__ import annotations
 
 import argparse
+from collections import Counter
 
 import numpy as np
 
@@ -83,10 +84,7 @@ def _states(plugin, model, sol: vi_core.Solution) -> np.ndarray | None:
 def _state_line(a: str, b: str, cmp: dict, la: np.ndarray, lb: np.ndarray) -> str:
     """The failure line of a states disagreement: the node count and the states each says."""
     bad = cmp["disagree_nodes"]
-    kinds: dict[str, int] = {}
-    for i in bad:
-        key = f"{a} {la[i]} / {b} {lb[i]}"
-        kinds[key] = kinds.get(key, 0) + 1
+    kinds = Counter(f"{a} {la[i]} / {b} {lb[i]}" for i in bad)
     said = ", ".join(f"{k} at {n}" for k, n in kinds.items())
     return f"{a} / {b}: contact states disagree at {len(bad)} node(s) ({said}; nodes {bad[:8]})"
 
@@ -253,8 +251,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         option, text = "--levels", args.levels
         a, b = options.level_range(args.levels)
     else:
-        lev = args.level if args.level is not None else resources.default_level(plugin, scene)
-        option = "--level" if args.level is not None else "scene.level"
+        lev, option = resources.requested_level(args.level, plugin, scene)
         text, (a, b) = str(lev), (lev, lev)
     resources.check_levels(plugin, scene, (a, b), option, text, args.force)
     outputs = [] if args.json is None else [Output(args.json, "--json", "json")]

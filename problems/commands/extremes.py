@@ -34,7 +34,7 @@ from problems.errors import SceneError
 from problems.output import signals
 from problems.output.files import output_folder
 from problems.plugins import registry
-from problems.plugins.contract import ExtremeRow, needs
+from problems.plugins.contract import ExtremeRow, needs, relative_difference
 from vi_core.kkt import Checker
 
 from . import options, resources
@@ -45,10 +45,6 @@ ADMISSIBLE_OK = 1e-9
 INACTIVE = 1e-12  # a part of (u', λ') below this × its size: rounding zero (`_difference`)
 CONIC_MAX = 20_000  # unknowns: above this the conic method is skipped (time)
 HOMOTOPY_MAX = 3_000  # unknowns: above this the homotopy method is skipped (time)
-
-
-def _rel(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
 
 
 def _difference(model: Any, vi: Any, sol: vi_core.Solution, other: vi_core.Solution) -> float:
@@ -77,7 +73,7 @@ def _difference(model: Any, vi: Any, sol: vi_core.Solution, other: vi_core.Solut
         if s_.size == 0:
             continue
         active = np.linalg.norm(s_) > INACTIVE * size
-        diffs.append(_rel(a, b) if active else float(np.linalg.norm(o_ - s_)) / size)
+        diffs.append(relative_difference(a, b) if active else float(np.linalg.norm(o_ - s_)) / size)
     return max(diffs, default=0.0)
 
 
@@ -136,7 +132,9 @@ def run_row(row: ExtremeRow) -> dict:
             rec["notes"].append(f"{meth} did not converge (residual {other.residual:.1e})")
         rec["agreement"][meth] = _difference(model, vi, sol, other)
     lam = sol.lam
-    rec["admissibility"] = _rel(vi.Lambda.project(lam), lam) if vi.m and lam.any() else 0.0
+    rec["admissibility"] = (
+        relative_difference(vi.Lambda.project(lam), lam) if vi.m and lam.any() else 0.0
+    )
     if hasattr(model, "complementarity"):
         rec["complementarity"] = model.complementarity(sol)
     checked = []

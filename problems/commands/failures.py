@@ -119,17 +119,21 @@ START_BASE = 400 * 2**20
 START_PER_THREAD = 64 * 2**20
 
 
+def cores() -> int:
+    """The cores this process may run on (its CPU affinity; os.cpu_count where unknown)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def blas_threads() -> int:
     """The threads OpenBLAS starts: its environment variables, else the usable cores (≤ 64)."""
     for var in ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS"):
         text = os.environ.get(var, "").split(",")[0].strip()
         if text.isdigit() and int(text) > 0:
             return min(int(text), 64)
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cores = os.cpu_count() or 1
-    return min(cores, 64)
+    return min(cores(), 64)
 
 
 def start_refusal() -> str | None:

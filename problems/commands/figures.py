@@ -87,8 +87,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
     needs(plugin, "mixvi figures", "SWEEP")
     sweep, values = sweep_values(plugin.SWEEP, probe)
     draw = getattr(plugin, "draw", draw_multiplier)
-    level = args.level if args.level is not None else resources.default_level(plugin, probe)
-    option = "--level" if args.level is not None else "scene.level"  # where the level came from
+    level, option = resources.requested_level(args.level, plugin, probe)
     resources.check_levels(plugin, probe, (level, level), option, str(level), args.force)
     out = Path(args.out) if args.out else Path("out") / f"{probe.name}_figures"
     inputs = probe.files()

@@ -370,7 +370,10 @@ def check_levels(
     return sizes
 
 
-def default_level(plugin, scene) -> int:
-    """The scene's own level (`[scene] level`, else the plug-in's default; SceneError if the
-    scene is not valid). Nothing is built."""
-    return scene.validated(plugin.SCENE_MODEL).scene.level
+def requested_level(level: int | None, plugin, scene) -> tuple[int, str]:
+    """(the level to solve, where it came from): `level` (--level) if given, else the scene's
+    own ("scene.level": `[scene] level`, else the plug-in's default; SceneError if the scene
+    is not valid). Nothing is built."""
+    if level is not None:
+        return level, "--level"
+    return scene.validated(plugin.SCENE_MODEL).scene.level, "scene.level"

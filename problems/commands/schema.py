@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 from typing import Any
 
 from problems.plugins import registry
 from problems.scene.model import json_schema
+from problems.scene.reader import toml_key, toml_literal
 
 
 def scene_schema() -> dict:
@@ -68,26 +68,6 @@ def _allowed(spec: dict) -> str:
 
 def _cell(text: str) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
-
-
-BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
-
-
-def toml_literal(v: Any) -> str:
-    """A value of a scene as a TOML literal (inline tables and arrays)."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_key(k)} = {toml_literal(x)}" for k, x in v.items()) + " }"
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_literal(x) for x in v) + "]"
-    if isinstance(v, float | int):
-        return repr(v)
-    return json.dumps(v, ensure_ascii=False)
-
-
-def _key(k: str) -> str:
-    return k if BARE_KEY.fullmatch(k) else json.dumps(k, ensure_ascii=False)
 
 
 def _fits(spec: dict, data: Any, defs: dict) -> bool:
@@ -165,9 +145,9 @@ def example_block(scene: str, path: tuple, table: dict) -> list[str]:
         return []
     array = path[-1] == "[]"
     parts = [p for p in path if p != "[]"]
-    header = ".".join(_key(p) for p in parts)
+    header = ".".join(toml_key(p) for p in parts)
     head = f"[[{header}]]" if array else f"[{header}]"
-    body = [f"{_key(k)} = {toml_literal(v)}" for k, v in table.items()]
+    body = [f"{toml_key(k)} = {toml_literal(v)}" for k, v in table.items()]
     return [f"Example (from the shipped scene `{scene}`):", "", "```toml", head, *body, "```", ""]
 
 

@@ -50,8 +50,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
     method = args.solver
     if method is not None and method not in pipeline.SOLVERS:
         raise SceneError("--solver", method, "one of " + ", ".join(pipeline.SOLVERS))
-    level = args.level if args.level is not None else resources.default_level(plugin, scene)
-    option = "--level" if args.level is not None else "scene.level"  # where the level came from
+    level, option = resources.requested_level(args.level, plugin, scene)
     resources.check_levels(
         plugin, scene, (level, level), option, str(level), args.force, args.linear_solver
     )
@@ -82,7 +81,7 @@ def _solve_unwritten(args, loaded: pipeline.Loaded, level: int) -> int:
     if loaded.spec.load_path is not None:
         with tempfile.TemporaryDirectory() as tmp:
             path, _ = load_path.solve_steps(args, loaded, level, Path(tmp))
-        return 0 if path.converged and not load_path.stopped(loaded, path) else 1
+        return 0 if path.converged else 1
     run = pipeline.solve(loaded, level, **solver_options(args))
     return 0 if run.solution.converged else 1
 
@@ -145,7 +144,7 @@ def _solve(args, t0, loaded: pipeline.Loaded, level, folder) -> int:
         print("  exit status 1: mortar patch defect above the limit (--allow-defect to accept)")
         return 1
     if path is not None:
-        return 0 if path.converged and not load_path.stopped(loaded, path) else 1
+        return 0 if path.converged else 1
     return 0 if sol.converged else 1
 
 
@@ -229,8 +228,7 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
     if fixed_point:
         rate = info.get("contraction")
         steps = (
-            f"fixed-point iterations g ← F·λ_n (contraction "
-            f"{'n/a' if rate is None else f'{rate:.3g}'}, "
+            f"fixed-point iterations g ← F·λ_n (contraction {_num(rate, '.3g')}, "
             f"{sum(info.get('inner_iterations', []))} {info.get('inner')} Newton steps inside)"
         )
     out.append(
@@ -244,12 +242,10 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
             parts.append(f"open {c['open']}")
         if c.get("ambiguous"):
             parts.append(f"ambiguous {c['ambiguous']}")
-        if "stick_length" in c:
-            parts[1] += f" ({c['stick_length']:.4g} m)"
-            parts[2] += f" ({c['slip_length']:.4g} m)"
-        if "stick_area" in c:  # a 3D contact surface
-            parts[1] += f" ({c['stick_area']:.4g} m²)"
-            parts[2] += f" ({c['slip_area']:.4g} m²)"
+        for measure, unit in (("length", "m"), ("area", "m²")):  # a 2D curve, a 3D surface
+            if f"stick_{measure}" in c:
+                parts[1] += f" ({c[f'stick_{measure}']:.4g} {unit})"
+                parts[2] += f" ({c[f'slip_{measure}']:.4g} {unit})"
         bare = c.get("counts", {}).get("no_multiplier")
         if bare:
             parts.append(f"{bare} node{'s' if bare > 1 else ''} without multiplier")

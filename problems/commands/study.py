@@ -48,7 +48,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import tracemalloc
 from collections.abc import Iterator
@@ -70,6 +69,7 @@ from problems.plugins.contract import needs
 from problems.scene import Scene, load_scene
 
 from . import options, resources
+from .failures import cores
 from .options import level_range
 from .progress import bar as progress_bar
 
@@ -79,11 +79,6 @@ STUDY_NEEDS = ("NORMS", "mesh_size", "reference_errors")  # exact_errors: option
 
 
 # ------------------------------------------------------------------ argument parsing
-def parse_solvers(text: str, allowed: list[str] | tuple[str, ...] = SOLVERS) -> list[str]:
-    """'ssn,conic' → ['ssn', 'conic'] (each one of `allowed`, no repeats)."""
-    return options.names(text, "--solvers", allowed)
-
-
 def applicable(model: Any) -> tuple[list[str], str]:
     """The solvers of SOLVERS that can run the built `model`, and why the others cannot: ssn
     and the fixed point for a multiplier set with Coulomb or unilateral contact blocks; ssn,
@@ -208,11 +203,10 @@ def run_study(
         solutions.update(runs)
     solved = [r for r in records if "error" not in r]
     exact = bool(solved) and all(r["err"] is not None for r in solved)
-    if not exact:
+    if not exact:  # the finest level is the reference (module docstring)
         signals.interruptible(
             _reference_errors, plugin, scene, records, runs, max(levels), tols[-1]
         )
-    if not exact:  # the finest level is the reference (module docstring)
         for r in records:
             if r["level"] == max(levels):
                 r["reference"] = True
@@ -405,14 +399,6 @@ def parser() -> argparse.ArgumentParser:
 DASK_WORKER_BYTES = 60e6
 
 
-def cores() -> int:
-    """The cores this process may run on (its CPU affinity; os.cpu_count where unknown)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
-
-
 def worker_count(
     asked: int, per_worker: float, cases: int, command: str = "mixvi study"
 ) -> tuple[int, str | None]:
@@ -484,7 +470,7 @@ def study_main(argv: list[str] | None = None) -> int:
     """Entry point of `mixvi study`: 0 if every solve converged, 1 if not, 2 on bad input."""
     args = parser().parse_args(argv)
     a, b = level_range(args.levels)
-    solvers = parse_solvers(args.solvers) if args.solvers is not None else None
+    solvers = None if args.solvers is None else options.names(args.solvers, "--solvers", SOLVERS)
     tols = parse_tols(args.tols)
     scene = load_scene(args.scene, args.set or [])
     plugin = registry.for_scene(scene)

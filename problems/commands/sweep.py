@@ -424,8 +424,7 @@ def sweep_main(argv: list[str] | None = None) -> int:
 
         if args.solver not in pipeline.SOLVERS:
             raise SceneError("--solver", args.solver, "one of " + ", ".join(pipeline.SOLVERS))
-    level = args.level if args.level is not None else resources.default_level(plugin, first.scene)
-    option = "--level" if args.level is not None else "scene.level"
+    level, option = resources.requested_level(args.level, plugin, first.scene)
     sizes = None
     for case in dict.fromkeys([0, len(cases) - 1]):  # the grid's ends: sizes may vary with it
         sizes = resources.check_levels(

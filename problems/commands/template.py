@@ -12,14 +12,11 @@ it under a temporary name and linked into place, which fails if the name was tak
 from __future__ import annotations
 
 import argparse
-import os
 import re
-from contextlib import suppress
 from pathlib import Path
 
 from problems.errors import SceneError
-from problems.output.paths import STAGING
-from problems.output.signals import deferred
+from problems.output.paths import write_file
 
 # a mesh or geometry file named in a scene: key = "path" or key = 'path' (TOML basic or literal
 # strings; a path with quotes or escapes inside is left as it is)
@@ -103,23 +100,13 @@ def cmd_new(args: argparse.Namespace) -> int:
 
 
 def _write_new(target: Path, text: str) -> None:
-    """Create `target` with `text`, whole or not at all, never replacing a file: a temporary
-    file beside it (mixvi's STAGING name, removed on any error or signal) hard-linked to the
-    target name (EEXIST if it was taken meanwhile)."""
-    tmp = target.parent / f"{STAGING}{os.getpid()}-{os.urandom(4).hex()}-{target.name}"
+    """Create `target` with `text`, whole or not at all, never replacing a file
+    (`paths.write_file` without replace: a temporary file hard-linked to the target name)."""
     try:
-        with deferred():
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        with deferred():
-            os.link(tmp, target)
+        write_file(target, text, replace=False)
     except FileExistsError:
         raise SceneError(
             "NAME.toml", str(target), "a new file; it was created meanwhile (not overwritten)"
         ) from None
     except OSError as err:
         raise SceneError("NAME.toml", str(target), f"a file mixvi can write ({err})") from None
-    finally:
-        with deferred(), suppress(FileNotFoundError):
-            tmp.unlink()

@@ -24,6 +24,7 @@ from .paths import (
     identity,
     iter_files,
     overwrite_hint,
+    probe,
     prune,
     reason,
     refuse,
@@ -132,7 +133,7 @@ class OutputFolder:
             # we hold the lock: staging folders here are of runs that were killed
             incomplete = previous is not None and previous.get("complete") is False
             self.note = _stale_note(path, stale_lock, clear_stale(path), incomplete)
-            self._probe()
+            probe(self.path, option, path)
         except BaseException:
             self.release()
             raise
@@ -174,22 +175,6 @@ class OutputFolder:
                 self._lock_fd = fd
                 return old or None
             os.close(fd)
-
-    def _probe(self) -> None:
-        """Create and remove a file: catches read-only and virtual file systems before work."""
-        probe = self.path / f"{STAGING}probe-{os.getpid()}"
-        try:
-            with deferred():  # a signal between create and unlink would leave the probe
-                fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-                try:
-                    os.write(fd, b"mixvi")
-                finally:
-                    os.close(fd)
-                probe.unlink()
-        except OSError as err:
-            with suppress(OSError):
-                probe.unlink()
-            raise unwritable(self.option, self.path, err) from None
 
     @contextmanager
     def staging(self) -> Iterator[Path]:

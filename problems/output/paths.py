@@ -47,6 +47,24 @@ def unwritable(option: str, path: Path, err: OSError, what: str = "folder") -> S
     return refuse(option, path, f"a {what} mixvi can write ({reason(err)})")
 
 
+def probe(folder: Path, option: str, path: Path, what: str = "folder") -> None:
+    """Create, write and remove a file in `folder`: catches read-only and virtual file systems
+    before work (the refusal names the output `path` given by `option`, a `what`)."""
+    probe = folder / f"{STAGING}probe-{os.getpid()}"
+    try:
+        with deferred():  # a signal between create and unlink would leave the probe
+            fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            try:
+                os.write(fd, b"mixvi")
+            finally:
+                os.close(fd)
+            probe.unlink()
+    except OSError as err:
+        with suppress(OSError):
+            probe.unlink()
+        raise unwritable(option, path, err, what) from None
+
+
 def overwrite_hint(option: str) -> str:
     """How the caller that named its output `option` asks to overwrite: the command line's
     flag for an option (`--out`), the keyword for the Python API (`folder`)."""
@@ -189,17 +207,20 @@ def clear_stale(folder: Path, name: str | None = None) -> list[int]:
     return sorted(pids)
 
 
-def write_file(path: Path, text: str) -> None:
-    """Write `text` to a temporary file beside `path` and rename it over `path` (user's
-    umask; the temporary file is removed on any error or signal). For mixvi's own
-    bookkeeping (the marker); a run's outputs go through `claim`."""
+def write_file(path: Path, text: str, replace: bool = True) -> None:
+    """Write `text` to a temporary file beside `path` (user's umask) and rename it over
+    `path`, or without `replace` hard-link it to `path`: a new file whole or not at all,
+    never replacing one (FileExistsError if the name is taken); the temporary file is removed
+    on any error or signal. For mixvi's own bookkeeping (the marker) and `mixvi new`'s
+    template; a run's outputs go through `claim`."""
     tmp = path.parent / f"{STAGING}{os.getpid()}-{os.urandom(4).hex()}-{path.name}"
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        with deferred():  # recorded as soon as it exists: the finally removes it
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
         with os.fdopen(fd, "w") as fh:
             fh.write(text)
         with deferred():
-            os.replace(tmp, path)
+            (os.replace if replace else os.link)(tmp, path)
     finally:
         with deferred(), suppress(FileNotFoundError):
             tmp.unlink()

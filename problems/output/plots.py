@@ -178,20 +178,7 @@ def contact_plots(state: dict, outdir: Path, title: str = "") -> list[str]:
     plt = pyplot()
     s, slip = state["s"], state["slip"]
     fig, ax = plt.subplots(figsize=(7, 4))
-    _shade_slip(ax, s, slip)
-    ax.plot(s, state["lam_t"], "o-", ms=3, color="tab:blue", label="multiplier")
-    ax.plot(s, state["g"], "k--", lw=1, label=bound_label(state))
-    ax.plot(s, -state["g"], "k--", lw=1)
-    ax.set_xlabel(_label(state, "s_label"))
-    ax.set_ylabel(_label(state, "lam_label"))
-    ax2 = ax.twinx()
-    ax2.plot(s, state["jump_t"], "s-", ms=2, color="tab:orange", label="jump")
-    ax2.set_ylabel(_label(state, "jump_label"), color="tab:orange")
-    h1, l1 = ax.get_legend_handles_labels()
-    h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=8)
-    ax.set_title(f"{title}: {state_counts(state)} nodes")
-    add_note(fig, state.get("tangent_note", TAU_NOTE))
+    ax.set_title(f"{title}: {friction_panel(ax, state, ms=3, fontsize=8)} nodes")
     _finish(fig)
     fig.savefig(outdir / "contact_multiplier.png", dpi=120)
     plt.close(fig)
@@ -233,12 +220,13 @@ def potential_plot(
     return "potential.png"
 
 
-def friction_panel(ax, st: dict) -> str:
-    """One panel of a friction sweep: the tangential multiplier with its bound and the slip zones,
-    and the tangential jump on a twin axis (`st` in the layout of `contact_plots`); puts the
+def friction_panel(ax, st: dict, ms: float = 2, fontsize: float = 7) -> str:
+    """One panel of a friction sweep (and the first figure of `contact_plots`): the tangential
+    multiplier (marker size `ms`) with its bound and the slip zones, and the tangential jump on
+    a twin axis (`st` in the layout of `contact_plots`), the legend in `fontsize`; puts the
     tangent's sign convention under the figure; returns "stick N, slip M"."""
     _shade_slip(ax, st["s"], st["slip"])
-    ax.plot(st["s"], st["lam_t"], "o-", ms=2, label="multiplier")
+    ax.plot(st["s"], st["lam_t"], "o-", ms=ms, label="multiplier")
     ax.plot(st["s"], st["g"], "k--", lw=1, label=bound_label(st))
     ax.plot(st["s"], -st["g"], "k--", lw=1)
     ax.set_xlabel(_label(st, "s_label"))
@@ -248,7 +236,7 @@ def friction_panel(ax, st: dict) -> str:
     ax2.set_ylabel(_label(st, "jump_label"), color="tab:orange")
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=7)
+    ax.legend(h1 + h2, l1 + l2, loc="best", fontsize=fontsize)
     add_note(ax.figure, st.get("tangent_note", TAU_NOTE))
     return state_counts(st)
 

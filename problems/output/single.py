@@ -11,11 +11,14 @@ import sys
 from contextlib import suppress
 from pathlib import Path
 
+from problems.errors import SceneError
+
 from .paths import (
     STAGING,
     clear_stale,
     create_dirs,
     overwrite_hint,
+    probe,
     refuse,
     remove_empty,
     unwritable,
@@ -91,16 +94,11 @@ class OutputFile:
             if pids
             else None
         )
-        probe = path.parent / f"{STAGING}probe-{os.getpid()}"
         try:
-            with deferred():  # a signal between create and unlink would leave the probe
-                os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-                probe.unlink()
-        except OSError as err:
-            with suppress(OSError):
-                probe.unlink()
+            probe(path.parent, option, path, "file")
+        except SceneError:
             remove_empty(self.created)
-            raise unwritable(option, path, err, "file") from None
+            raise
 
     def write(self, content) -> None:
         """Stage `content` (JSON: a dict; SVG: its text), signed (`_signed`), in a temporary

@@ -298,7 +298,7 @@ def scaling_summary(model: Any) -> dict:
 def info(loaded: Loaded, run: Run) -> dict:
     """What a run reached, as summary.json records it (without the plug-in's entries)."""
     model, sol = run.model, run.solution
-    out = {
+    return {
         "scene": loaded.scene.name,
         "scene_file": loaded.scene.path,
         "plugin": loaded.plugin.NAME,
@@ -312,7 +312,6 @@ def info(loaded: Loaded, run: Run) -> dict:
         "residual": sol.residual,
         "residual_history": sol.history,
     }
-    return out
 
 
 @dataclass

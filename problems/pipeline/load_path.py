@@ -52,7 +52,8 @@ class PathRun:
 
     @property
     def converged(self) -> bool:
-        """Every step converged."""
+        """Every step converged: the whole path was solved (`solve_path` stops after a step
+        that does not converge)."""
         return all(s["converged"] for s in self.steps)
 
 

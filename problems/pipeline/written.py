@@ -84,11 +84,9 @@ def write_state(loaded: Loaded, run: Run, folder: Path, steps: list[dict] | None
     step's state is at hand, so no steps/ folders and no steps.pvd)."""
     extras, files, warnings = state_files(loaded, run, folder)
     files += collection(folder, vtu_datasets(run.model.level, files), "results.pvd")
-    after = {"condition_estimate": run.solution.info.get("condition_estimate")}
-    before = {}
-    if steps is not None:
-        before = {"steps": steps}
-        after = {}
+    before, after = {}, {"condition_estimate": run.solution.info.get("condition_estimate")}
+    if steps is not None:  # a load path's: its steps, and no condition estimate
+        before, after = {"steps": steps}, {}
     summary = summary_of(loaded, run, extras, files, warnings, before, after)
     write_summary(folder, summary)
     return summary

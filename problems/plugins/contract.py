@@ -452,9 +452,14 @@ def complementarity_defect(lam: np.ndarray, slack: np.ndarray, support: float) -
     return abs(lhs - support) / scale
 
 
-def triangles(mesh: Mesh) -> np.ndarray:
-    """(n_tri, 3) triangles of `mesh` for plotting (each quad split along a diagonal)."""
-    if mesh.cell_type == "triangle":
-        return mesh.cells
-    c = mesh.cells  # (n_cells, 4)
-    return np.concatenate([c[:, [0, 1, 2]], c[:, [0, 2, 3]]])
+def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
+    """‖a − b‖ / ‖b‖ (a zero b: the absolute difference over 1e-300)."""
+    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
+
+
+def triangles(cells: np.ndarray) -> np.ndarray:
+    """(n_tri, 3) triangles of the triangles or quadrilaterals `cells` (n, 3 or 4) for
+    plotting (each quad split along a diagonal)."""
+    if cells.shape[1] == 3:
+        return cells
+    return np.concatenate([cells[:, [0, 1, 2]], cells[:, [0, 2, 3]]])

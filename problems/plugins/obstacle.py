@@ -172,7 +172,7 @@ def _plot(model: Model, u: np.ndarray, touch: np.ndarray, path: Path) -> None:
     plt = plots.pyplot()
     P = model.mesh.points  # (n_nodes, 2)
     fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.5))
-    tpc = a0.tripcolor(P[:, 0], P[:, 1], triangles(model.mesh), u, shading="gouraud")
+    tpc = a0.tripcolor(P[:, 0], P[:, 1], triangles(model.mesh.cells), u, shading="gouraud")
     a0.plot(P[touch, 0], P[touch, 1], "k.", ms=2, label="contact (λ > 0)")
     a0.set_aspect("equal")
     a0.legend(loc="upper right", fontsize=8)

@@ -20,8 +20,8 @@ turns the first one into a SceneError naming the field path, the value and what 
 
 from __future__ import annotations
 
+import importlib
 import math
-import sys
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -293,16 +293,17 @@ Direction = Annotated[_numbers(3), AfterValidator(_nonzero)]  # a 3D direction, 
 
 
 def renamed(module: str, names: dict[str, str]) -> Callable[[str], Any]:
-    """The `__getattr__` of `module` that serves its former 3D names (`names`: old → new, both
-    in the module) with a DeprecationWarning; they go in the next release (issue 30)."""
+    """The `__getattr__` of `module` that serves its names of before issue 30 for one release,
+    with a DeprecationWarning: `names` maps each to the name that replaced it, NAME in `module`
+    itself (a former 3D name: the one type of 2D and 3D) or MODULE.NAME elsewhere."""
 
     def __getattr__(name: str) -> Any:
         if name not in names:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        new = names[name]
-        note = f"{module}.{name} is deprecated and goes in the next release: use {new} (2D and 3D)"
+        where, _, new = names[name].rpartition(".")
+        note = f"{module}.{name} is deprecated and goes in the next release: use {names[name]}"
         warnings.warn(note, DeprecationWarning, stacklevel=2)
-        return getattr(sys.modules[module], new)
+        return getattr(importlib.import_module(where or module), new)
 
     return __getattr__
 

@@ -55,7 +55,7 @@ from fem.meshing import END_PARTS, box, extrude, rectangle, transform
 from problems.errors import SceneError
 
 from .fields import BoxCells, Cells, Expression, Integer, Interval, Number, Pair, Point, Text
-from .imported import file_dimension, file_mesh, geo_base, geo_mesh, imported_mesh, resolve
+from .imported import file_dimension, file_mesh, geo_mesh, imported_mesh, resolve
 from .model import UNION_TAGS, Section, refuse
 
 
@@ -309,7 +309,7 @@ class GeoFile(_File):
     def nodes(self, level: int) -> int:
         """gmsh's level-0 mesh's nodes after `level` uniform refinements (gmsh refines by
         splitting every cell as `fem.refine.refine` does)."""
-        return geo_base(self.resolved(), self.body, self.key("geo")).refined_nodes(level)
+        return geo_mesh(self.resolved(), self.body, 0, self.key("geo")).refined_nodes(level)
 
     def mesh(self, level: int) -> Mesh:
         """The body's mesh at refinement `level`."""

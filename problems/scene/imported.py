@@ -84,16 +84,6 @@ def file_mesh(path: Path, body: str | None, key: str, planar: bool = True):
         raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
 
 
-def geo_base(path: Path, body: str | None, key: str) -> Mesh:
-    """The body `body` of the gmsh geometry `path` meshed at level 0 (refusals as for
-    `geo_mesh`)."""
-    st = _stat(path, key, "gmsh geometry file")
-    try:
-        return body_mesh(_geo(str(path), st.st_mtime_ns, st.st_size, 0), body)
-    except MeshImportError as err:
-        raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
-
-
 def imported_mesh(path: Path, body: str | None, level: int, key: str, planar: bool = True) -> Mesh:
     """The body `body` of the mesh file `path` (a physical surface group, or with `planar`
     False a volume group of a 3D file), refined `level` times (new boundary nodes on the file's
@@ -106,13 +96,15 @@ def geo_mesh(path: Path, body: str | None, level: int, key: str) -> Mesh:
     """The body `body` of the gmsh geometry `path` (.geo), meshed and refined `level` times by
     gmsh (optional dependency): new boundary nodes lie on the geometry's curves, so rates on
     curved domains do not stall at a polyline's error. Refusals as for `imported_mesh`, and
-    without gmsh a SceneError saying how to install it or what to give instead."""
-    base = geo_base(path, body, key)
-    if level == 0:
-        return base
+    without gmsh a SceneError saying how to install it or what to give instead. The level-0
+    mesh is made first: the file and the group are refused before a finer meshing."""
     st = _stat(path, key, "gmsh geometry file")
+    name = str(path)
     try:
-        return body_mesh(_geo(str(path), st.st_mtime_ns, st.st_size, level), body)
+        base = body_mesh(_geo(name, st.st_mtime_ns, st.st_size, 0), body)
+        return (
+            base if level == 0 else body_mesh(_geo(name, st.st_mtime_ns, st.st_size, level), body)
+        )
     except MeshImportError as err:
         raise SceneError(key, str(path), f"{err.what}: {err.allowed}") from None
 

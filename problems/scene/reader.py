@@ -9,7 +9,8 @@ scene checked by a plug-in's scene model (cached while `data` is unchanged).
 from __future__ import annotations
 
 import copy
-import difflib
+import json
+import re
 import tomllib
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -18,7 +19,7 @@ from typing import Any
 
 from problems.errors import SceneError
 
-from .model import SceneModel, migrate, validate
+from .model import SceneModel, did_you_mean, migrate, validate
 
 SCENES_DIR = Path(__file__).parent.parent / "scenes"
 # Tables and arrays nest at most this deep in a scene or a --set value (the deepest shipped
@@ -122,12 +123,11 @@ def find_scene(name_or_path: str) -> Path:
     if local is not None or shipped is not None:
         return local or shipped
     names = sorted(q.stem for q in SCENES_DIR.glob("*.toml"))
-    hint = difflib.get_close_matches(name_or_path, names, n=1)
-    extra = f" (did you mean {hint[0]!r}?)" if hint else ""
     raise SceneError(
         "scene",
         name_or_path,
-        f"an existing file (x.toml may be named x) or a shipped scene: {', '.join(names)}{extra}",
+        f"an existing file (x.toml may be named x) or a shipped scene: {', '.join(names)}"
+        + did_you_mean(name_or_path, names),
     )
 
 
@@ -148,6 +148,28 @@ def parse_override(text: str) -> tuple[list[str], Any]:
     if len(parts) > MAX_DEPTH or _too_deep(value, len(parts)) is not None:
         raise SceneError(f"--set {key.strip()}", _short(raw), NESTING)
     return parts, value
+
+
+BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def toml_literal(v: Any) -> str:
+    """A value of a scene as a TOML literal (inline tables and arrays): what `parse_override`
+    reads back as `v` (the Python API's overrides, the scene reference's examples)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{toml_key(k)} = {toml_literal(x)}" for k, x in v.items()) + " }"
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(toml_literal(x) for x in v) + "]"
+    if isinstance(v, float | int):
+        return repr(v)  # inf, -inf and nan are TOML's own
+    return json.dumps(v, ensure_ascii=False)
+
+
+def toml_key(k: str) -> str:
+    """A key of an inline table: bare where TOML allows it, else quoted."""
+    return k if BARE_KEY.fullmatch(k) else json.dumps(k, ensure_ascii=False)
 
 
 def _short(text: str) -> str:

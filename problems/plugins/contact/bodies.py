@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -34,6 +34,7 @@ from problems.scene.model import one_or_many, refuse
 from vi_core.engine import row_partition
 
 from ..contract import check_boundaries, check_meshed, prescribed_once
+from .interface import Gone
 
 # the displacement components a [[displacement]] part may prescribe → their indices
 COMPONENTS = {c: tuple("xyz".index(a) for a in c) for c in ("x", "y", "z", "xy", "xz", "yz", "xyz")}
@@ -69,17 +70,6 @@ class Body:
     f: np.ndarray = None  # (n_b,)
     fixed: np.ndarray = None  # (n_b,) bool
     values: np.ndarray = None  # (n_b,) prescribed values on fixed dofs
-
-    def __getattr__(self, name: str) -> Any:
-        """An AttributeError; for a name of `interface.Coupling` (the 3D `SolidContact.master`
-        before issue 30, now `Interface.master` is the master Body) it names `coupling`."""
-        if name in COUPLING_NAMES:
-            raise AttributeError(
-                f"'Body' object has no attribute {name!r}: Interface.master is the master Body "
-                "since issue 30; the mortar coupling it was in 3D (M_loc, dofs, covered, "
-                "patch_defect) is Interface.coupling"
-            )
-        raise AttributeError(f"'Body' object has no attribute {name!r}")
 
     @property
     def dim(self) -> int:
@@ -117,6 +107,18 @@ class Body:
         u = x_body[: d * N].reshape(N, d)
         phi = x_body[d * N :] if self.has_potential else None
         return u, phi
+
+
+for _name in COUPLING_NAMES:
+    setattr(
+        Body,
+        _name,
+        Gone(
+            f"'Body' object has no attribute {_name!r}: Interface.master is the master Body "
+            "since issue 30; the mortar coupling it was in 3D (M_loc, dofs, covered, "
+            "patch_defect) is Interface.coupling"
+        ),
+    )
 
 
 Parts = BeforeValidator(one_or_many)

@@ -32,10 +32,11 @@ import scipy.sparse as sp
 from fem.facets import Trace, facet_integrals, trace
 from fem.mesh import Mesh
 from problems.errors import SceneError
+from problems.scene.fields import renamed
 from problems.scene.imported import require_curve
 
 from ..contract import check_meshed
-from . import model, reports, rows, separation
+from . import reports, rows, separation
 from .bodies import Body
 from .interface import Coupling, Interface
 from .scene_model import ContactSection
@@ -170,6 +171,4 @@ def friction_local(mesh: Mesh, tr: Trace, gfun) -> np.ndarray:
     return facet_integrals(mesh, tr, rows.checked_bound(gfun))
 
 
-__getattr__ = model.moved_names(
-    __name__, {"Contact": ("problems.plugins.contact.interface", "Interface")}
-)
+__getattr__ = renamed(__name__, {"Contact": "problems.plugins.contact.interface.Interface"})

@@ -32,15 +32,11 @@ from problems.scene.contact_references import (
     uniaxial_electrical_contact,
 )
 
-from ..contract import Checks, ExtremeRow, expect, solve_model
+from ..contract import Checks, ExtremeRow, expect, relative_difference, solve_model
 
 SIGMA_REF = {"rigid_foundation": 9.0e6, "paper_two_body": 1.0e8}
 HOMOGENEOUS = 1e-6  # relative deviation from degree-1 homogeneity that fails a row
 FRICTION_EXCESS = 1e-9  # relative excess of |λ_t| over g that fails a row
-
-
-def _rel(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
 
 
 def contact_checks(plugin: Any, row: ExtremeRow, model: Any, sol: vi_core.Solution):
@@ -84,8 +80,8 @@ def homogeneity(factor: float, scaled_by_edit: bool = False) -> Callable:
         base = ExtremeRow(row.name, row.scene, (), row.level, edit).load()
         m0 = plugin.build(base, row.level)
         s0 = solve_model(plugin, m0, method="ssn")
-        du = _rel(model.full(sol.u) / factor, m0.full(s0.u))
-        h = max(du, _rel(sol.lam / factor, s0.lam))
+        du = relative_difference(model.full(sol.u) / factor, m0.full(s0.u))
+        h = max(du, relative_difference(sol.lam / factor, s0.lam))
         verdict = "FAIL: not homogeneous" if h > HOMOGENEOUS else "homogeneous of degree 1"
         return {"homogeneity": h}, [f"{verdict} (u/s, λ/s vs the unscaled scene: {h:.1e})"]
 

@@ -55,12 +55,17 @@ class Coupling:
     M_t: sp.csr_matrix | None = None
 
 
-# names of the former 2D `Contact` and 3D `SolidContact` that cannot come back, and what to use
-GONE = {
-    "pairs": "the unilateral rows of a node stand side by side, [n, t1, t2] per disc node, "
-    "[n, t] per line node, then the normal-only nodes: use Interface.rows() for the rows of "
-    "each kind (the former 2D pairs [n, τ] are the line nodes, line.size of them)",
-}
+class Gone:
+    """A class attribute for a name the class had before issue 30 and cannot have again:
+    reading it raises an AttributeError with `message` (what to use instead). A descriptor,
+    not a `__getattr__`: Python also calls `__getattr__` when a property raises AttributeError
+    inside, and the hint would hide that error."""
+
+    def __init__(self, message: str) -> None:
+        self.message = message
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        raise AttributeError(self.message)
 
 
 @dataclass
@@ -108,13 +113,13 @@ class Interface:
     closed_gap: float = 0.0
     master_proj: sp.csr_matrix | None = None
     master_phi: sp.csr_matrix | None = None
-
-    def __getattr__(self, name: str) -> Any:
-        """An AttributeError; for a name of the former 2D `Contact` or 3D `SolidContact` that
-        has no counterpart here (`GONE`), it says what to use instead."""
-        if name in GONE:
-            raise AttributeError(f"Interface.{name} is gone (issue 30): {GONE[name]}")
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+    # a name of the former 2D `Contact` and 3D `SolidContact` that cannot come back
+    pairs = Gone(
+        "Interface.pairs is gone (issue 30): the unilateral rows of a node stand side by side, "
+        "[n, t1, t2] per disc node, [n, t] per line node, then the normal-only nodes: use "
+        "Interface.rows() for the rows of each kind (the former 2D pairs [n, τ] are the line "
+        "nodes, line.size of them)"
+    )
 
     @property
     def surf(self) -> Trace:

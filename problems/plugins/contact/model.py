@@ -11,9 +11,7 @@ of a full vector into displacement (N, d) and potential (N,) or None.
 
 from __future__ import annotations
 
-import importlib
 import re
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
@@ -34,6 +32,7 @@ from ..contract import Sweep
 from . import owned
 from .bodies import build_body, dirichlet, field_data, gram, loads
 from .interface import multiplier_rows
+from .reports import interface_warnings
 
 
 @dataclass
@@ -126,7 +125,8 @@ def assemble(
     the scene's), 2D and 3D alike: its bodies, the contact interface
     `interface(bodies by name, spec.contact, n_full, level)` of its [contact] table (None
     without one) and the mixed VI (`mixed_vi`, the data checked by `checks.finite_data`);
-    `options` (the front's) come before the scene's solver options."""
+    `options` (the front's) come before the scene's solver options; the warnings start with
+    the interface's (`reports.interface_warnings`)."""
     from .checks import finite_data
 
     level = spec.scene.level if level is None else level
@@ -137,8 +137,9 @@ def assemble(
     check = partial(finite_data, contact=contact)
     vi, free, values, rhs = mixed_vi(list(bodies.values()), contact, info, check=check)
     options = {**(options or {}), **spec.options()}
+    warnings = [] if contact is None else interface_warnings(contact)
     bodies_ = list(bodies.values())
-    return model_class(scene, level, bodies_, contact, vi, free, values, options, rhs=rhs)
+    return model_class(scene, level, bodies_, contact, vi, free, values, options, warnings, rhs)
 
 
 def mixed_vi(
@@ -340,19 +341,3 @@ def friction_sweep(g_file: str, F_file: str) -> Sweep:
             "contact.F", "friction coefficient F [1]", factors=(1.5, 1.0, 0.6), file=F_file
         ),
     )
-
-
-def moved_names(module: str, moved: dict[str, tuple[str, str]]) -> Callable[[str], Any]:
-    """A module `__getattr__` for names that moved out of `module` (kept one release): name →
-    (its module, its name there), returned with a DeprecationWarning naming the new place."""
-
-    def __getattr__(name: str) -> Any:
-        if name not in moved:
-            raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        where, new = moved[name]
-        warnings.warn(
-            f"{module}.{name} is deprecated: use {where}.{new}", DeprecationWarning, stacklevel=2
-        )
-        return getattr(importlib.import_module(where), new)
-
-    return __getattr__

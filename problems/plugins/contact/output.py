@@ -38,6 +38,7 @@ from problems.output.results import BOUNDS, ContactTable
 from vi_core import Solution
 from vi_core import states as node_states
 
+from ..contract import triangles
 from . import balance as piezo_balance
 from . import checks, reports
 from . import electrical as electrical_contact
@@ -265,11 +266,7 @@ def contact_map(path: Path, model: Any, table: ContactTable, title: str = "") ->
     plt = plots.pyplot()
     c = model.contact
     uv, a, b = chart(model)
-    faces = c.tr.facets
-    tris = (
-        faces if faces.shape[1] == 3 else np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
-    )
-    tri = Triangulation(uv[:, 0], uv[:, 1], tris)
+    tri = Triangulation(uv[:, 0], uv[:, 1], triangles(c.tr.facets))
     lam_t = table.vectors("lambda_t")  # (k, 3)
     g = np.nan_to_num(table.bound)  # (k,)
     ratio = np.divide(np.linalg.norm(lam_t, axis=1), g, out=np.zeros(c.tr.size), where=g > 0)

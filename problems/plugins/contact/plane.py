@@ -14,12 +14,13 @@ import numpy as np
 import vi_core
 from problems.output import plots
 from problems.scene import Scene
+from problems.scene.fields import renamed
 from problems.scene.imported import require_curve
 from vi_core import MixedVI, Solution
 
 from ..contract import check_meshed
 from . import electrical as electrical_contact
-from . import errors, output, reports, warm_starts
+from . import errors, output, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from .contact_state import contact_state as one_contact_state
@@ -30,7 +31,6 @@ from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 2D front
 DIMENSION = 2  # the models' `dimension` (`count` needs no model to tell it)
-ALIAS = "piezo_contact"  # its former name, still accepted (registry.ALIASES)
 LOCKING_RATIO = 50.0  # λ_max/λ_min of the Voigt C; isotropic ν = 0.48 gives 50
 DESCRIPTION = (
     "elasto-piezoelectric bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
@@ -53,11 +53,11 @@ class Model(BodiesModel):
 SCENE_MODEL = ContactScene  # one scene model for 2D and 3D (`scene_model`)
 
 
-__getattr__ = contact_model.moved_names(
+__getattr__ = renamed(
     __name__,
     {
-        "PlaneScene": ("problems.plugins.contact.scene_model", "ContactScene"),
-        "ContactSection": ("problems.plugins.contact.scene_model", "ContactSection"),
+        "PlaneScene": "problems.plugins.contact.scene_model.ContactScene",
+        "ContactSection": "problems.plugins.contact.scene_model.ContactSection",
     },
 )
 
@@ -92,8 +92,6 @@ def build_model(
         model.options["potential_along"] = (bname, part)
     if ct is not None and ct.electrical is not None:
         model.electrical = _electrical(ct.electrical, contact, vi, model.free, model.values)
-    if contact is not None:
-        model.warnings += reports.interface_warnings(contact)
     for b in model.bodies:
         ev = np.linalg.eigvalsh(b.material.C)
         if ev[-1] / ev[0] > LOCKING_RATIO:

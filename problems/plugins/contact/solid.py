@@ -10,9 +10,10 @@ from dataclasses import dataclass
 from functools import partial
 
 from problems.scene import Scene
+from problems.scene.fields import renamed
 from vi_core import Solution
 
-from . import errors, output, reports, warm_starts
+from . import errors, output, warm_starts
 from . import extremes as contact_extremes
 from . import model as contact_model
 from .contact_state import contact_state as one_contact_state
@@ -21,7 +22,6 @@ from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
 from .surface_contact import from_scene
 
 NAME = "contact"  # the unified plug-in (problems.plugins.contact); 3D front
-ALIAS = "contact3d"  # its former name, still accepted (registry.ALIASES)
 DIMENSION = 3  # the models' `dimension` (`count` needs no model to tell it)
 DESCRIPTION = (
     "elastic/piezoelectric 3D bodies in bilateral Tresca or unilateral Tresca/Coulomb contact "
@@ -40,11 +40,11 @@ class Model(BodiesModel):
 SCENE_MODEL = ContactScene  # one scene model for 2D and 3D (`scene_model`)
 
 
-__getattr__ = contact_model.moved_names(
+__getattr__ = renamed(
     __name__,
     {
-        "SolidScene": ("problems.plugins.contact.scene_model", "ContactScene"),
-        "ContactSection": ("problems.plugins.contact.scene_model", "ContactSection"),
+        "SolidScene": "problems.plugins.contact.scene_model.ContactScene",
+        "ContactSection": "problems.plugins.contact.scene_model.ContactSection",
     },
 )
 
@@ -57,10 +57,7 @@ def build(scene: Scene, level: int | None = None) -> Model:
 
 def _build(scene: Scene, level: int | None) -> Model:
     spec = scene.validated(SCENE_MODEL, DIMENSION)
-    model = contact_model.assemble(spec, scene, level, from_scene, Model)
-    if model.contact is not None:
-        model.warnings += reports.interface_warnings(model.contact)
-    return model
+    return contact_model.assemble(spec, scene, level, from_scene, Model)
 
 
 incremental = contact_model.incremental

@@ -50,9 +50,10 @@ import numpy as np
 from fem import mortar as dual_mortar
 from fem.facets import facet_integrals, frames, trace
 from problems.errors import SceneError
+from problems.scene.fields import renamed
 
 from ..contract import check_meshed
-from . import model, reports, rows, separation
+from . import reports, rows, separation
 from .bodies import Body
 from .interface import SURFACE_ORDER, Coupling, Interface
 from .scene_model import ContactSection
@@ -219,6 +220,4 @@ def slave_contact(
     return c
 
 
-__getattr__ = model.moved_names(
-    __name__, {"SolidContact": ("problems.plugins.contact.interface", "Interface")}
-)
+__getattr__ = renamed(__name__, {"SolidContact": "problems.plugins.contact.interface.Interface"})

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 
 import numpy as np
@@ -131,6 +132,22 @@ def test_the_3d_master_is_the_body_and_its_former_coupling_names_point_to_coupli
             getattr(c.master, name)
     with pytest.raises(AttributeError, match=r"^'Body' object has no attribute 'nope'$"):
         c.master.nope  # noqa: B018
+
+
+def test_an_attribute_error_inside_a_property_is_not_hidden_by_the_hints():
+    """The hints of former names (`interface.Gone`) do not answer for a property that raises
+    AttributeError inside: the property's own error reaches the user. (Mutation: the former
+    `__getattr__` hints on Interface and Body reported "'Interface' object has no attribute
+    'W'" and "'Body' object has no attribute 'dim'" here, and this fails.)"""
+    c = _interface("two_blocks3d")
+    broken = dataclasses.replace(c, tr=object())  # a trace without weights
+    with pytest.raises(AttributeError, match=r"'object' object has no attribute 'weights'"):
+        broken.W  # noqa: B018
+    body = dataclasses.replace(c.master, mesh=object())  # a mesh without points
+    with pytest.raises(AttributeError, match=r"'object' object has no attribute 'points'"):
+        body.dim  # noqa: B018
+    with pytest.raises(AttributeError, match=r"is Interface\.coupling"):
+        body.M_loc  # noqa: B018
 
 
 @pytest.mark.parametrize("name", ["coulomb_strip", "coulomb_strip3d"])
