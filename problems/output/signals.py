@@ -17,7 +17,8 @@ released), prints its one line, and the process ends with `os._exit` (`exit_stat
 stuck in C cannot be cancelled, and an interpreter shut-down around it is not worth the risk.
 The worker never touches files itself: the callbacks that write (a coarse level's results, a
 load step's files) are wrapped with `in_main` and run in the main thread, in order, while the
-worker waits for them, so the clean-up never races a write, and a commit (renames under
+worker waits for them, so the clean-up never races a write (a worker left behind by a signal
+that reaches its next write gets the interruption instead), and a commit (renames under
 `deferred`, in the main thread) is never cut by the exit. Exceptions raised in the worker
 (SceneError, MemoryError, any other) are raised again, unchanged, in the main thread.
 
@@ -152,7 +153,11 @@ def in_main(fn: Callable[..., T]) -> Callable[..., T]:
 
     def call(*args: Any, **kwargs: Any) -> T:
         calls = _calls
-        if calls is None or threading.current_thread() is threading.main_thread():
+        me = threading.current_thread()
+        if me in _abandoned:  # the main thread has cleaned up and is leaving: a write now
+            # would come after (or race) the clean-up, e.g. make the staging folder again
+            raise Interrupted(_raised[0] if _raised else signal.SIGINT)
+        if calls is None or me is threading.main_thread():
             return fn(*args, **kwargs)
         c = _Call(fn, args, kwargs)
         calls.put(c)

@@ -1,10 +1,12 @@
 """`signals.masked`: an interruption the import machinery turned into an ordinary exception
-is still reported as the interruption (exit 130), and nothing else is."""
+is still reported as the interruption (exit 130), and nothing else is. `signals.in_main`: a
+worker left behind by a signal writes nothing after the main thread's clean-up."""
 
 from __future__ import annotations
 
 import os
 import signal
+import threading
 import time
 
 import pytest
@@ -60,3 +62,31 @@ def test_main_reports_the_masked_interruption(handlers, monkeypatch, capsys):
     monkeypatch.setattr(cli, "_dispatch", failing_import)
     assert cli.main(["scenes"]) == 130
     assert capsys.readouterr().err.strip() == "mixvi: interrupted by SIGINT"
+
+
+def test_a_worker_left_behind_writes_nothing_after_the_clean_up(handlers):
+    """A signal while the worker computes: the main thread raises, cleans up and leaves. When
+    the worker then reaches its next write (an `in_main` callback; a load path's next step),
+    the write must not run: in the worker it would follow the clean-up and make the staging
+    folder again (seen as a `.mixvi-tmp-*` left behind after Ctrl-C during a load path, on a
+    loaded machine). The old `in_main` ran it as a plain call once the main thread had gone."""
+    writes: list[str] = []
+    computing, cleaned_up = threading.Event(), threading.Event()
+    write = signals.in_main(lambda: writes.append(threading.current_thread().name))
+
+    def work() -> None:
+        computing.set()
+        cleaned_up.wait(10)  # the step's numerical work outlives the main thread's clean-up
+        write()
+
+    def signal_when_computing() -> None:
+        computing.wait(10)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    threading.Thread(target=signal_when_computing).start()
+    with pytest.raises(signals.Interrupted):
+        signals.interruptible(work)
+    worker = signals._abandoned[-1]
+    cleaned_up.set()
+    worker.join(10)
+    assert not worker.is_alive() and writes == []
