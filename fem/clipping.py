@@ -66,6 +66,7 @@ from scipy.spatial import cKDTree
 
 from .elements import reference_element
 from .facets import Trace, facet_values
+from .jacobians import solve2
 
 
 class Pieces(NamedTuple):
@@ -285,14 +286,6 @@ def _distinct(P: np.ndarray, c: np.ndarray, tol: float) -> tuple[np.ndarray, np.
     return np.take_along_axis(P, order[..., None], axis=1), ok.sum(axis=1)
 
 
-def _solve2(J: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """J⁻¹ r for stacks of 2×2 matrices J (..., 2, 2) and vectors r (..., 2) (Cramer)."""
-    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]  # (...,)
-    x0 = J[..., 1, 1] * r[..., 0] - J[..., 0, 1] * r[..., 1]
-    x1 = J[..., 0, 0] * r[..., 1] - J[..., 1, 0] * r[..., 0]
-    return np.stack([x0, x1], axis=-1) / det[..., None]
-
-
 def _coefficients(face_type: str, X: np.ndarray) -> tuple[np.ndarray, ...]:
     """x(ξ, η) = p + b ξ + c η + d ξη of faces X (n, m, k): (p, b, c, d), each (n, 1, k)
     (d = 0 for a triangle, whose reference is (0,0)-(1,0)-(0,1); a quadrilateral's is [−1, 1]²)."""
@@ -324,7 +317,7 @@ def inverse_map(face_type: str, P: np.ndarray, y: np.ndarray, tol: float = 1e-11
     xi = np.zeros(y.shape)  # (n, q, 2)
     for _ in range(30):
         x, xs, xt = _evaluate(coef, xi)  # (n, q, 2) each
-        step = _solve2(np.stack([xs, xt], axis=-1), x - y)
+        step = solve2(np.stack([xs, xt], axis=-1), x - y)
         xi -= step
         if face_type == "triangle" or np.abs(step).max(initial=0.0) <= tol:
             return xi
