@@ -170,18 +170,20 @@ def _assemble_chunks(
 def _assemble_forms(
     mesh: Mesh,
     kernel: Callable[[Geometry], np.ndarray],
-    order: int,
     rows: np.ndarray,
     cols: np.ndarray,
     shape: tuple[int, int],
     chunk: int,
     keep: np.ndarray | None = None,
+    order: int | None = None,
 ) -> sp.csr_matrix:
-    """Σ over cells of kernel(g) (k, r, c), g the quadrature data (rule of `order`) of a chunk
-    of k cells, computed chunk by chunk; the cells are checked once first (`check_cells`).
-    keep: only those rows, from the cells touching them (`_assemble_chunks`)."""
+    """Σ over cells of kernel(g) (k, r, c), g the quadrature data (rule of `order`, default
+    the element's `form_order`) of a chunk of k cells, computed chunk by chunk; the cells are
+    checked once first (`check_cells`). keep: only those rows, from the cells touching them
+    (`_assemble_chunks`)."""
     check_cells(mesh)
-    pts, wts = reference_element(mesh.cell_type).quadrature(order)
+    ref = reference_element(mesh.cell_type)
+    pts, wts = ref.quadrature(ref.form_order if order is None else order)
     per_cell = wts.size * rows.shape[1] * cols.shape[1]  # entries of a cell's (n_qp, r, c)
     chunk = min(chunk, max(1, LOCAL_ENTRIES // per_cell))  # chunk < 1 is refused below
     return _assemble_chunks(
@@ -242,10 +244,9 @@ def elasticity_matrix(
         wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (k, n_qp, d n_loc, v)
         return _sum_points(wBt, C @ B)  # (k, d n_loc, d n_loc)
 
-    ref = reference_element(mesh.cell_type)
     dofs = vector_dofs(mesh)  # (n_cells, d n_loc)
     n = d * mesh.n_nodes
-    return _assemble_forms(mesh, kernel, ref.form_order, dofs, dofs, (n, n), chunk, rows)
+    return _assemble_forms(mesh, kernel, dofs, dofs, (n, n), chunk, rows)
 
 
 def coupling_matrix(
@@ -271,13 +272,11 @@ def _coupling(
         G = _sum_points(wgrad, e @ B)  # (k, n_loc, d n_loc)
         return G.transpose(0, 2, 1) if transposed else G
 
-    ref = reference_element(mesh.cell_type)
-    nodes, dofs = mesh.cells, vector_dofs(mesh)  # (n_cells, n_loc), (n_cells, d n_loc)
-    if transposed:
-        shape = (d * mesh.n_nodes, mesh.n_nodes)
-        return _assemble_forms(mesh, kernel, ref.form_order, dofs, nodes, shape, chunk, rows)
+    dofs = (mesh.cells, vector_dofs(mesh))  # G's rows (n_cells, n_loc), columns (n_cells, d n_loc)
     shape = (mesh.n_nodes, d * mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, ref.form_order, nodes, dofs, shape, chunk, rows)
+    if transposed:
+        dofs, shape = dofs[::-1], shape[::-1]
+    return _assemble_forms(mesh, kernel, *dofs, shape, chunk, rows)
 
 
 def permittivity_matrix(
@@ -292,9 +291,8 @@ def permittivity_matrix(
         wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, d)
         return _sum_points(wgrad @ kappa, g.grad.transpose(0, 1, 3, 2))  # (k, n_loc, n_loc)
 
-    ref = reference_element(mesh.cell_type)
     shape = (mesh.n_nodes, mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, ref.form_order, mesh.cells, mesh.cells, shape, chunk, rows)
+    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk, rows)
 
 
 def stiffness_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
@@ -328,9 +326,8 @@ def mass_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
     def kernel(g: Geometry) -> np.ndarray:
         return np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (k, n_loc, n_loc)
 
-    ref = reference_element(mesh.cell_type)
-    shape = (mesh.n_nodes, mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, ref.mass_order, mesh.cells, mesh.cells, shape, chunk)
+    shape, order = (mesh.n_nodes, mesh.n_nodes), reference_element(mesh.cell_type).mass_order
+    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk, order=order)
 
 
 def _evaluate(func: Func, x: np.ndarray, ncomp: int) -> np.ndarray:
