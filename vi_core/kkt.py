@@ -275,10 +275,7 @@ class Checker:
         feasibility = float(np.max(np.abs(feas), initial=0.0)) / lmax
         z = self.Be @ up - self.ge  # (m,) equilibrated: λ'ᵀz' = λᵀ(Bu − gap)
         sigma, off = _support(self.blocks, z, self.s_lam, lp)
-        size = max(
-            float(np.linalg.norm(z)), float(np.linalg.norm(up)), float(np.linalg.norm(self.ge))
-        )
-        size = size or 1.0
+        size = float(max(np.linalg.norm(z), np.linalg.norm(up), np.linalg.norm(self.ge))) or 1.0
         nl = float(np.linalg.norm(lp)) or 1.0
         comp = abs(float(lp @ z) - sigma) / (nl * size) + off / size
         return KKT(absolute / self.scale, absolute, n1, n2, feasibility, comp)
@@ -288,12 +285,7 @@ class Checker:
         up, lp = self.scaled(u, lam)
         z = self.Be @ up - self.ge  # (m,)
         L = max(float(np.max(np.abs(lp), initial=0.0)), 1e-300)
-        Z = max(
-            float(np.max(np.abs(z), initial=0.0)),
-            float(np.max(np.abs(up), initial=0.0)),
-            float(np.max(np.abs(self.ge), initial=0.0)),
-        )
-        Z = Z or 1.0
+        Z = max(float(np.max(np.abs(v), initial=0.0)) for v in (z, up, self.ge)) or 1.0
         worst = np.zeros(5)
         counts = np.zeros(3, dtype=int)
         for blk in self.blocks:
