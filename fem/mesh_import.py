@@ -34,11 +34,9 @@ import contextlib
 import difflib
 import io
 import tempfile
-from collections.abc import Mapping
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
@@ -273,34 +271,21 @@ CELL_NAMES = {
 }
 
 
-class BodyCells(NamedTuple):
-    """One body's cells cut out of a mesh file (`body_cells`)."""
-
-    where: str  # "the file" or "body 'NAME'", for messages
-    cell_type: str  # the meshio cell type of every cell of the body
-    cells: np.ndarray  # (n_cells, k) body node ids, as in the file (orientation unchecked)
-    points: np.ndarray  # (n, d) the body's nodes, in the file's order
-    new_id: np.ndarray  # (n_file,) body node id of each file node; −1 where not in the body
-
-
-def body_cells(
-    mf: MeshFile,
-    body: str | None,
-    dim: int,
-    allowed: Mapping[str, int],
-    allowed_text: str,
-    one_type_text: str,
-) -> BodyCells:
-    """The cells of the physical group `body` of dimension `dim` (None: every cell of that
-    dimension, and — to refuse them — every cell of a higher one), its nodes renumbered
-    0 … n−1 in the file's order. Refused naming the file and the body: a cell type not in
-    `allowed` (`allowed_text` says what is), no cell, mixed types (`one_type_text` says how to
-    get one), two nodes at the same point (`distinct_nodes`)."""
+def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
+    """The body `body` as a Mesh of the file's dimension d (`read_mesh`'s `planar`): the
+    physical group `body` of dimension d, surfaces (2D) or volumes (3D) (None: every cell of
+    dimension d, and — to refuse them — every cell of a higher one), its nodes renumbered
+    0 … n−1 in the file's order. Every physical group of dimension d − 1 that lies on its
+    boundary is a boundary part. Refused naming the file and the body: a cell type other than
+    `BODY_CELLS` allows, no cell, mixed types, two nodes at the same point (`distinct_nodes`);
+    and as `_counterclockwise`, `_positive` and `_boundaries` say."""
+    d = mf.points.shape[1]
+    allowed, allowed_text, one_type_text = BODY_CELLS[d]
     where = "the file" if body is None else f"body {body!r}"
-    tag = None if body is None else mf._group(body, dim, "body")
+    tag = None if body is None else mf._group(body, d, "body")
     cells_of: dict[str, list[np.ndarray]] = {}
     for ctype, data, phys in mf.blocks:
-        if cell_dimension(ctype) < dim or (cell_dimension(ctype) > dim and tag is not None):
+        if cell_dimension(ctype) < d or (cell_dimension(ctype) > d and tag is not None):
             continue
         sel = data if tag is None else data[phys == tag]
         if len(sel) == 0:
@@ -312,7 +297,7 @@ def body_cells(
         cells_of.setdefault(ctype, []).append(sel)
     if not cells_of:
         kinds = " or ".join(CELL_NAMES[c] for c in allowed)
-        raise MeshImportError(mf.path, where, f"a {SHAPES[dim]} with {kinds}")
+        raise MeshImportError(mf.path, where, f"a {SHAPES[d]} with {kinds}")
     if len(cells_of) > 1:
         counts = ", ".join(f"{sum(map(len, v))} {k}" for k, v in cells_of.items())
         raise MeshImportError(
@@ -320,23 +305,13 @@ def body_cells(
             f"{where} mixes cell types ({counts})",
             f"one cell type per body: {one_type_text}",
         )
-    ctype, pieces = next(iter(cells_of.items()))
-    cells_file = np.concatenate(pieces)  # (n_cells, k) file node ids
+    cells_file = np.concatenate(next(iter(cells_of.values())))  # (n_cells, k) file node ids
     order = np.unique(cells_file.ravel())  # file node ids used by the body, in file order
     new_id = np.full(mf.points.shape[0], -1, dtype=np.int64)  # (n_file,)
     new_id[order] = np.arange(order.size)
     points = mf.points[order]  # (n, d)
     distinct_nodes(mf.path, where, points, order)
-    return BodyCells(where, ctype, new_id[cells_file], points, new_id)
-
-
-def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
-    """The body `body` as a Mesh of the file's dimension (`read_mesh`'s `planar`): a physical
-    surface group (2D) or volume group (3D); None: every cell of that dimension. Every
-    physical group of one dimension less that lies on its boundary is a boundary part."""
-    d = mf.points.shape[1]
-    where, ctype, cells, points, new_id = body_cells(mf, body, d, *BODY_CELLS[d])
-    cells = (_counterclockwise if d == 2 else _positive)(mf.path, where, points, cells)
+    cells = (_counterclockwise if d == 2 else _positive)(mf.path, where, points, new_id[cells_file])
     return Mesh(points, cells, _boundaries(mf, where, new_id, points, cells))
 
 
