@@ -374,12 +374,8 @@ def facet_geometry(
     Returns x (n_f, n_qp, d) points, w (n_f, n_qp) weights × facet measure, phi (n_qp, k) facet
     shape values and n (n_f, n_qp, d) unit outward normals. KeyError for an unknown part.
     """
-    if name not in mesh.boundaries:
-        raise KeyError(
-            f"unknown boundary {name!r}; this mesh has: {', '.join(sorted(mesh.boundaries))}"
-        )
     ftype = reference_element(mesh.cell_type).facet_type
-    x, wts, N, phi = facet_quadrature(mesh.points[mesh.boundaries[name]], ftype, order)
+    x, wts, N, phi = facet_quadrature(mesh.points[mesh.boundary(name)], ftype, order)
     dA = np.linalg.norm(N, axis=-1)  # (n_f, n_qp)
     return x, wts[None, :] * dA, phi, N / dA[..., None]
 

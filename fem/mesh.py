@@ -55,13 +55,18 @@ class Mesh:
     def n_cells(self) -> int:
         return self.cells.shape[0]
 
-    def boundary_nodes(self, name: str) -> np.ndarray:
-        """Sorted unique node indices of the boundary part `name`."""
+    def boundary(self, name: str) -> np.ndarray:
+        """The facets (n_facets, k_facet) of boundary part `name`; KeyError naming the parts
+        this mesh has if it has no such part."""
         if name not in self.boundaries:
             raise KeyError(
                 f"unknown boundary {name!r}; this mesh has: {', '.join(sorted(self.boundaries))}"
             )
-        return np.unique(self.boundaries[name])
+        return self.boundaries[name]
+
+    def boundary_nodes(self, name: str) -> np.ndarray:
+        """Sorted unique node indices of the boundary part `name` (KeyError: `boundary`)."""
+        return np.unique(self.boundary(name))
 
     @property
     def h(self) -> float:
