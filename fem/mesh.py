@@ -102,6 +102,32 @@ REFINED_COUNTS: dict[str, np.ndarray] = {
 }
 
 
+def row_codes(rows: np.ndarray) -> np.ndarray:
+    """(n,) integers equal exactly where the rows of `rows` (n, size) of node numbers (≥ 0)
+    are, in the rows' lexicographic order: the columns in mixed radix (each column's max + 1),
+    ranked by np.unique only where the next column would overflow 2^62."""
+    code = rows[:, 0].astype(np.int64)
+    top = int(code.max(initial=0)) + 1  # every code < top
+    for col in rows[:, 1:].T.astype(np.int64):
+        radix = int(col.max(initial=0)) + 1
+        if top * radix > 2**62:
+            _, code = np.unique(code, return_inverse=True)
+            code = code.ravel()
+            top = int(code.max(initial=0)) + 1
+        code, top = code * radix + col, top * radix
+    return code
+
+
+def find_rows(table: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(n,) for each row of `rows` (n, k) of node numbers the index of the row of `table`
+    (m ≥ 1, k) with the same nodes (each of table's rows sorted; the first such row), or −1."""
+    code = row_codes(np.concatenate([table, np.sort(rows, axis=1)]))  # (m + n,)
+    known, asked = code[: len(table)], code[len(table) :]
+    order = np.argsort(known, kind="stable")
+    pos = order[np.minimum(np.searchsorted(known, asked, sorter=order), len(table) - 1)]
+    return np.where(known[pos] == asked, pos, -1)
+
+
 def distinct(cells: np.ndarray, local: np.ndarray) -> int:
     """The number of distinct entities (edges, faces) with local node lists `local`
     (n_local, m) over the cells (n_cells, k)."""

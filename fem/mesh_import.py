@@ -44,7 +44,7 @@ from . import mesh_bounds
 from .elements import FACET_TYPE, FACETS, reference_element
 from .jacobians import check_cells, jacobian_determinants
 from .mapped import _order_edges
-from .mesh import Mesh, exterior_facets
+from .mesh import Mesh, exterior_facets, find_rows
 
 SURFACE_CELLS = {"triangle": 3, "quad": 4}  # meshio cell types accepted in a 2D body
 VOLUME_CELLS = {"tetra": 4, "hexahedron": 8}  # meshio cell types accepted in a 3D body
@@ -415,8 +415,8 @@ def _boundaries(
                 "order 1)",
             )
         keys = np.sort(np.concatenate([x for _, x in local]), axis=1)  # (n_g, k)
-        on = _rows_in(keys, ext_keys)  # (n_g,) index into ext or −1
-        inside = (on < 0) & (_rows_in(keys, all_facets) >= 0)
+        on = find_rows(ext_keys, keys)  # (n_g,) index into ext or −1
+        inside = (on < 0) & (find_rows(all_facets, keys) >= 0)
         if inside.any():
             i = int(np.flatnonzero(inside)[0])
             raise MeshImportError(
@@ -432,16 +432,6 @@ def _boundaries(
         if len(part):
             out[name] = part
     return out
-
-
-def _rows_in(rows: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """For each row of `rows` (n, k) its index in `table` (m, k) (rows sorted alike), or −1."""
-    both = np.concatenate([table, rows])
-    _, inv = np.unique(both, axis=0, return_inverse=True)
-    inv = inv.ravel()
-    first = np.full(inv.max() + 1, -1)
-    first[inv[: len(table)][::-1]] = np.arange(len(table))[::-1]
-    return first[inv[len(table) :]]
 
 
 def require_curve(mesh: Mesh, part: str) -> None:

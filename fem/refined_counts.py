@@ -36,7 +36,7 @@ from functools import cache
 import numpy as np
 
 from .elements import EDGES, FACETS, reference_element
-from .mesh import Mesh
+from .mesh import Mesh, find_rows, row_codes
 from .refine import refine
 
 _SIMPLEX = {"triangle", "tetra"}
@@ -63,22 +63,6 @@ def _local_entities(cell_type: str) -> list[tuple[int, ...]]:
         else []
     )
     return [(i,) for i in range(k)] + edges + faces + [tuple(range(k))]
-
-
-def _codes(rows: np.ndarray) -> np.ndarray:
-    """(n,) integers equal exactly where the rows of `rows` (n, size) of node numbers (≥ 0)
-    are, in the rows' lexicographic order: the columns in mixed radix (each column's max + 1),
-    ranked by np.unique only where the next column would overflow 2^62."""
-    code = rows[:, 0].astype(np.int64)
-    top = int(code.max(initial=0)) + 1  # every code < top
-    for col in rows[:, 1:].T.astype(np.int64):
-        radix = int(col.max(initial=0)) + 1
-        if top * radix > 2**62:
-            _, code = np.unique(code, return_inverse=True)
-            code = code.ravel()
-            top = int(code.max(initial=0)) + 1
-        code, top = code * radix + col, top * radix
-    return code
 
 
 def _distinct(values: np.ndarray) -> np.ndarray:
@@ -169,7 +153,7 @@ class Skeleton:
         for size in sizes:
             cols = [j for j, e in enumerate(local) if len(e) == size]
             tuples = np.sort(cells[:, [list(local[j]) for j in cols]], axis=2)  # (C, n_j, size)
-            code = _codes(tuples.reshape(-1, size))  # (C n_j,)
+            code = row_codes(tuples.reshape(-1, size))  # (C n_j,)
             keys, first, inv = np.unique(code, return_index=True, return_inverse=True)
             G[:, cols] = offset + inv.reshape(len(cells), len(cols))
             self._keys[size], self._offset[size] = tuples.reshape(-1, size)[first], offset
@@ -185,15 +169,10 @@ class Skeleton:
 
     def _find(self, tuples: np.ndarray) -> np.ndarray:
         """Global ids of entities given as (n, size) vertex tuples (any order)."""
-        size = tuples.shape[1]
-        keys = self._keys[size]  # (n_size, size) sorted rows, in id order
-        code = _codes(np.concatenate([keys, np.sort(tuples, axis=1)]))  # (n_size + n,)
-        known, asked = code[: len(keys)], code[len(keys) :]
-        order = np.argsort(known)
-        pos = order[np.minimum(np.searchsorted(known, asked, sorter=order), len(keys) - 1)]
-        if (known[pos] != asked).any():
+        pos = find_rows(self._keys[tuples.shape[1]], tuples)  # keys: sorted rows, in id order
+        if (pos < 0).any():
             raise ValueError("a boundary facet is not an entity of the mesh's cells")
-        return self._offset[size] + pos
+        return self._offset[tuples.shape[1]] + pos
 
     def closure(self, facets: np.ndarray) -> np.ndarray:
         """(n_entities,) bool: the entities in the closure of boundary `facets` (n_b, k_f)
