@@ -36,6 +36,7 @@ import scipy.sparse as sp
 from .constants import constants, skew_ratio
 from .problem import MixedVI, natural_residual
 from .solution import Solution
+from .solve import solve_from
 
 INNER = ("ssn", "conic")
 
@@ -84,14 +85,7 @@ class _Homotopy:
         self.levels[0].calls += 1
         self.levels[0].iterations += 1
         vi0 = self.level0.with_rhs(f=g)
-        if self.inner == "ssn":
-            from .ssn import solve_ssn
-
-            sol = solve_ssn(vi0, tol=tol / _scale(self.e, g), u0=u, lam0=lam, **self.options)
-        else:
-            from .conic import solve_conic
-
-            sol = solve_conic(vi0, tol=tol / _scale(self.e, g), **self.options)
+        sol = solve_from(vi0, self.inner, tol / _scale(self.e, g), u, lam, self.options)
         return sol.u, sol.lam
 
     def solve(self, k: int, g, u, lam, tol, history: list[float] | None = None):
