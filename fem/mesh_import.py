@@ -34,6 +34,7 @@ import contextlib
 import difflib
 import io
 import tempfile
+from collections import Counter
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
@@ -461,11 +462,8 @@ def write_msh(
     dim = dims.pop()
     if dim == 3 and file_format != "gmsh22":  # meshio's v4.1 writer drops entities without a
         raise ValueError("write_msh: 3D meshes as gmsh22")  # node of their own (its reader fails)
-    counts: dict[str, int] = {}
-    for m in bodies.values():
-        for p in m.boundaries:
-            counts[p] = counts.get(p, 0) + 1
-    points, cells, phys, geo, field, dim_tags = [], [], [], [], {}, []
+    counts = Counter(p for m in bodies.values() for p in m.boundaries)  # bodies with a part
+    points, cells, phys, field, dim_tags = [], [], [], {}, []  # phys: physical = geometrical
     offset, tag = 0, 1
     for bname, m in bodies.items():
         faces = FACET_TYPE[m.cell_type]
@@ -473,26 +471,22 @@ def write_msh(
         dt = np.tile([dim, tag], (m.n_nodes, 1))  # (n, 2) the entity each node is classified on
         cells.append((m.cell_type, m.cells + offset))
         phys.append(np.full(m.n_cells, tag))
-        geo.append(np.full(m.n_cells, tag))
         tag += 1
         for p, e in m.boundaries.items():
             name = p if counts[p] == 1 else f"{bname}_{p}"
             field[name] = np.array([tag, dim - 1])
             cells.append((faces, e + offset))
             phys.append(np.full(len(e), tag))
-            geo.append(np.full(len(e), tag))
             dt[e.ravel()] = [dim - 1, tag]
             tag += 1
         points.append(m.points)
         dim_tags.append(dt)
         offset += m.n_nodes
-    pts = np.concatenate(points)
-    pts3 = np.pad(pts, ((0, 0), (0, 3 - dim)))  # (n, 3)
     out = meshio.Mesh(
-        pts3,
+        np.pad(np.concatenate(points), ((0, 0), (0, 3 - dim))),  # (n, 3)
         cells,
         point_data={"gmsh:dim_tags": np.concatenate(dim_tags)},
-        cell_data={"gmsh:physical": phys, "gmsh:geometrical": geo},
+        cell_data={"gmsh:physical": phys, "gmsh:geometrical": phys},
         field_data=field,
     )
     out.write(str(Path(path)), file_format=file_format, binary=binary)
