@@ -48,15 +48,9 @@ def check_file(path: str, error) -> int:
     except OSError as err:
         raise error("cannot be read", f"an existing, readable file ({err.strerror})") from None
     if not stat.S_ISREG(st.st_mode):
-        kind = (
-            "a named pipe (FIFO)"
-            if stat.S_ISFIFO(st.st_mode)
-            else "a device"
-            if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
-            else "a folder"
-            if stat.S_ISDIR(st.st_mode)
-            else "not a regular file"
-        )
+        kinds = {stat.S_IFIFO: "a named pipe (FIFO)", stat.S_IFCHR: "a device"}
+        kinds |= {stat.S_IFBLK: "a device", stat.S_IFDIR: "a folder"}
+        kind = kinds.get(stat.S_IFMT(st.st_mode), "not a regular file")
         raise error(kind, "a regular mesh file (not a pipe, device or folder)")
     if st.st_size > MAX_FILE_BYTES:
         raise error(f"{st.st_size:,} bytes", f"a mesh file of at most {MAX_FILE_BYTES:,} bytes")
