@@ -36,7 +36,6 @@ import scipy.sparse as sp
 from .constants import constants, skew_ratio
 from .problem import MixedVI, natural_residual
 from .solution import Solution
-from .solve import solve_from
 
 INNER = ("ssn", "conic")
 
@@ -85,7 +84,14 @@ class _Homotopy:
         self.levels[0].calls += 1
         self.levels[0].iterations += 1
         vi0 = self.level0.with_rhs(f=g)
-        sol = solve_from(vi0, self.inner, tol / _scale(self.e, g), u, lam, self.options)
+        if self.inner == "ssn":
+            from .ssn import solve_ssn
+
+            sol = solve_ssn(vi0, tol=tol / _scale(self.e, g), u0=u, lam0=lam, **self.options)
+        else:
+            from .conic import solve_conic
+
+            sol = solve_conic(vi0, tol=tol / _scale(self.e, g), **self.options)
         return sol.u, sol.lam
 
     def solve(self, k: int, g, u, lam, tol, history: list[float] | None = None):

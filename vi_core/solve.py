@@ -57,23 +57,6 @@ def _run(vi: MixedVI, method: str, tol: float, options: dict[str, Any]) -> Solut
     return solve_homotopy(vi, tol=tol, **options)
 
 
-def solve_from(vi: MixedVI, method: str, tol: float, u0, lam0, options: dict) -> Solution:
-    """An inner solve (a Tresca problem of the fixed point, the homotopy's level 0): the serial
-    `method` ("ssn", "homotopy" without its constants, or "conic") from (u0, λ0) where it takes
-    a start (conic does not)."""
-    if method == "ssn":
-        from .ssn import solve_ssn
-
-        return solve_ssn(vi, tol=tol, u0=u0, lam0=lam0, **options)
-    if method == "homotopy":
-        from .homotopy import solve_homotopy
-
-        return solve_homotopy(vi, tol=tol, u0=u0, lam0=lam0, report_constants=False, **options)
-    from .conic import solve_conic
-
-    return solve_conic(vi, tol=tol, **options)
-
-
 def solve(vi: MixedVI, method: str = "auto", tol: float = 1e-10, **options: Any) -> Solution:
     """Solve the mixed VI `vi` to relative natural-map residual `tol` (`MixedVI.residual`).
 

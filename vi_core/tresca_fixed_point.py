@@ -46,7 +46,6 @@ from .coulomb import ContactSet
 from .problem import MixedVI
 from .sets import Ball, Box, ConvexSet, NonNegative, product
 from .solution import Solution
-from .solve import solve_from
 
 INNER = ("ssn", "homotopy", "conic")
 NO_CONTRACTION = 0.999  # a step ratio at least this large counts as "not contracting"
@@ -99,6 +98,20 @@ class TrescaSequence:
         return [block.tresca_bound(lam[rows]) for block, rows in self.contact]
 
 
+def _inner_solve(sub: MixedVI, inner: str, tol: float, u, lam, options: dict) -> Solution:
+    if inner == "ssn":
+        from .ssn import solve_ssn
+
+        return solve_ssn(sub, tol=tol, u0=u, lam0=lam, **options)
+    if inner == "homotopy":
+        from .homotopy import solve_homotopy
+
+        return solve_homotopy(sub, tol=tol, u0=u, lam0=lam, report_constants=False, **options)
+    from .conic import solve_conic
+
+    return solve_conic(sub, tol=tol, **options)
+
+
 def solve_tresca_fixed_point(
     vi: MixedVI,
     tol: float = 1e-10,
@@ -141,7 +154,7 @@ def solve_tresca_fixed_point(
         while not converged and j < max_iter:
             j += 1
             sub = seq.problem(seq.bounds(lam))
-            sol = solve_from(sub, inner, inner_tol, u, lam[seq.perm], dict(inner_options))
+            sol = _inner_solve(sub, inner, inner_tol, u, lam[seq.perm], dict(inner_options))
             inner_iterations.append(sol.iterations)
             if not sol.converged:
                 warnings.append(
