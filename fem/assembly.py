@@ -250,19 +250,17 @@ def elasticity_matrix(
 
 
 def coupling_matrix(
-    mesh: Mesh, e: np.ndarray, chunk: int = CHUNK, rows: np.ndarray | None = None
+    mesh: Mesh,
+    e: np.ndarray,
+    chunk: int = CHUNK,
+    rows: np.ndarray | None = None,
+    transposed: bool = False,
 ) -> sp.csr_matrix:
     """(N × dN) G[θ, u] = ∫ ∇θ · (e ε(u)), e the d×v piezoelectric matrix (rows D_x, D_y(, D_z));
-    `chunk` cells at a time. rows (N,) bool: only those rows (`elasticity_matrix`)."""
-    return _coupling(mesh, e, chunk, rows, transposed=False)
-
-
-def _coupling(
-    mesh: Mesh, e: np.ndarray, chunk: int, rows: np.ndarray | None, transposed: bool
-) -> sp.csr_matrix:
-    """G (`coupling_matrix`), or Gᵀ (dN × N) assembled as such (transposed: each entry the same
-    terms in the same cell order as G's, so Gᵀ's rows where `rows` (dN,) holds are G.T's bit
-    for bit without G's other columns)."""
+    `chunk` cells at a time. rows (N,) bool: only those rows (`elasticity_matrix`).
+    transposed: Gᵀ (dN × N) assembled as such, each entry the same terms in the same cell order
+    as G's, so that its rows where `rows` (dN,) holds are G.T's bit for bit without G's other
+    columns."""
     d, v = _sizes(mesh)
     e = _check_matrix("e", e, (d, v))
 
@@ -305,7 +303,7 @@ def piezo_matrix(
 ) -> sp.csr_matrix:
     """The coupled operator [[K, Gᵀ], [−G, P]] on (u interleaved, then φ): ((d+1)N × (d+1)N).
     rows ((d+1)N,) bool: only those rows, from the cells touching them (`elasticity_matrix`;
-    Gᵀ's assembled as such, `_coupling`), each row's entries in the whole matrix's order."""
+    Gᵀ's assembled as such, `coupling_matrix`), each row's entries in the whole matrix's order."""
     if rows is None:
         K = elasticity_matrix(mesh, C)
         G = coupling_matrix(mesh, e)
@@ -314,7 +312,7 @@ def piezo_matrix(
     n_u = mesh.points.shape[1] * mesh.n_nodes
     r_u, r_phi = rows[:n_u], rows[n_u:]  # (dN,), (N,)
     K = elasticity_matrix(mesh, C, rows=r_u)
-    Gt = _coupling(mesh, e, CHUNK, r_u, transposed=True)  # (dN, N) Gᵀ's rows r_u
+    Gt = coupling_matrix(mesh, e, rows=r_u, transposed=True)  # (dN, N) Gᵀ's rows r_u
     G = coupling_matrix(mesh, e, rows=r_phi)
     P = permittivity_matrix(mesh, kappa, rows=r_phi)
     return sp.bmat([[K, Gt], [-G, P]], format="csr")
