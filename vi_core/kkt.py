@@ -339,14 +339,11 @@ class Checker:
                 Y = yb.reshape(-1, d)
                 r = blk.radius / t.reshape(-1, d)[:, 0]
                 nrm = np.sqrt((Y * Y).sum(axis=1))
-                cells = []
-                for yk, nk, rk in zip(Y, nrm, r, strict=True):
-                    if nk <= rk:
-                        cells.append(np.eye(d))
-                    else:
-                        yh = yk / nk
-                        cells.append((rk / nk) * (np.eye(d) - np.outer(yh, yh)))
-                mats.append(sp.block_diag(cells))
+                out = nrm > r  # (k,) I inside, (r/|y|)(I − ŷŷᵀ) outside
+                yh = Y / np.where(out, nrm, 1.0)[:, None]  # (k, d)
+                g = np.where(out, r / np.where(out, nrm, 1.0), 1.0)[:, None, None]  # (k, 1, 1)
+                cells = g * (np.eye(d) - out[:, None, None] * yh[:, :, None] * yh[:, None, :])
+                mats.append(sp.block_diag(list(cells)))
         m = self.Be.shape[0]
         P = sp.block_diag(mats, format="csr") if mats else sp.csr_matrix((0, 0))
         Q = sp.block_diag(qmats, format="csr") if qmats else sp.csr_matrix((0, 0))
