@@ -55,14 +55,10 @@ _CHUNK = 4096  # coarse cells per block of `Skeleton.sums` (hexahedra: 343 class
 def _local_entities(cell_type: str) -> list[tuple[int, ...]]:
     """The reference cell's entities as sorted tuples of local vertices: vertices, edges,
     faces (3D), the cell."""
-    k = reference_element(cell_type).n_loc
-    edges = [tuple(sorted(e)) for e in EDGES[cell_type].tolist()]
-    faces = (
-        [tuple(sorted(f)) for f in FACETS[cell_type].tolist()]
-        if reference_element(cell_type).dim == 3
-        else []
-    )
-    return [(i,) for i in range(k)] + edges + faces + [tuple(range(k))]
+    ref = reference_element(cell_type)
+    faces = FACETS[cell_type].tolist() if ref.dim == 3 else []
+    edges_faces = [tuple(sorted(e)) for e in EDGES[cell_type].tolist() + faces]
+    return [(i,) for i in range(ref.n_loc)] + edges_faces + [tuple(range(ref.n_loc))]
 
 
 def _distinct(values: np.ndarray) -> np.ndarray:
