@@ -170,18 +170,20 @@ def _assemble_chunks(
 def _assemble_forms(
     mesh: Mesh,
     kernel: Callable[[Geometry], np.ndarray],
-    order: int,
     rows: np.ndarray,
     cols: np.ndarray,
     shape: tuple[int, int],
     chunk: int,
     keep: np.ndarray | None = None,
+    order: int | None = None,
 ) -> sp.csr_matrix:
-    """Σ over cells of kernel(g) (k, r, c), g the quadrature data (rule of `order`) of a chunk
-    of k cells, computed chunk by chunk; the cells are checked once first (`check_cells`).
-    keep: only those rows, from the cells touching them (`_assemble_chunks`)."""
+    """Σ over cells of kernel(g) (k, r, c), g the quadrature data (rule of `order`, default
+    the element's `form_order`) of a chunk of k cells, computed chunk by chunk; the cells are
+    checked once first (`check_cells`). keep: only those rows, from the cells touching them
+    (`_assemble_chunks`)."""
     check_cells(mesh)
-    pts, wts = reference_element(mesh.cell_type).quadrature(order)
+    ref = reference_element(mesh.cell_type)
+    pts, wts = ref.quadrature(ref.form_order if order is None else order)
     per_cell = wts.size * rows.shape[1] * cols.shape[1]  # entries of a cell's (n_qp, r, c)
     chunk = min(chunk, max(1, LOCAL_ENTRIES // per_cell))  # chunk < 1 is refused below
     return _assemble_chunks(
@@ -242,26 +244,23 @@ def elasticity_matrix(
         wBt = (B * g.w[:, :, None, None]).transpose(0, 1, 3, 2)  # (k, n_qp, d n_loc, v)
         return _sum_points(wBt, C @ B)  # (k, d n_loc, d n_loc)
 
-    ref = reference_element(mesh.cell_type)
     dofs = vector_dofs(mesh)  # (n_cells, d n_loc)
     n = d * mesh.n_nodes
-    return _assemble_forms(mesh, kernel, ref.form_order, dofs, dofs, (n, n), chunk, rows)
+    return _assemble_forms(mesh, kernel, dofs, dofs, (n, n), chunk, rows)
 
 
 def coupling_matrix(
-    mesh: Mesh, e: np.ndarray, chunk: int = CHUNK, rows: np.ndarray | None = None
+    mesh: Mesh,
+    e: np.ndarray,
+    chunk: int = CHUNK,
+    rows: np.ndarray | None = None,
+    transposed: bool = False,
 ) -> sp.csr_matrix:
     """(N × dN) G[θ, u] = ∫ ∇θ · (e ε(u)), e the d×v piezoelectric matrix (rows D_x, D_y(, D_z));
-    `chunk` cells at a time. rows (N,) bool: only those rows (`elasticity_matrix`)."""
-    return _coupling(mesh, e, chunk, rows, transposed=False)
-
-
-def _coupling(
-    mesh: Mesh, e: np.ndarray, chunk: int, rows: np.ndarray | None, transposed: bool
-) -> sp.csr_matrix:
-    """G (`coupling_matrix`), or Gᵀ (dN × N) assembled as such (transposed: each entry the same
-    terms in the same cell order as G's, so Gᵀ's rows where `rows` (dN,) holds are G.T's bit
-    for bit without G's other columns)."""
+    `chunk` cells at a time. rows (N,) bool: only those rows (`elasticity_matrix`).
+    transposed: Gᵀ (dN × N) assembled as such, each entry the same terms in the same cell order
+    as G's, so that its rows where `rows` (dN,) holds are G.T's bit for bit without G's other
+    columns."""
     d, v = _sizes(mesh)
     e = _check_matrix("e", e, (d, v))
 
@@ -271,13 +270,11 @@ def _coupling(
         G = _sum_points(wgrad, e @ B)  # (k, n_loc, d n_loc)
         return G.transpose(0, 2, 1) if transposed else G
 
-    ref = reference_element(mesh.cell_type)
-    nodes, dofs = mesh.cells, vector_dofs(mesh)  # (n_cells, n_loc), (n_cells, d n_loc)
-    if transposed:
-        shape = (d * mesh.n_nodes, mesh.n_nodes)
-        return _assemble_forms(mesh, kernel, ref.form_order, dofs, nodes, shape, chunk, rows)
+    dofs = (mesh.cells, vector_dofs(mesh))  # G's rows (n_cells, n_loc), columns (n_cells, d n_loc)
     shape = (mesh.n_nodes, d * mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, ref.form_order, nodes, dofs, shape, chunk, rows)
+    if transposed:
+        dofs, shape = dofs[::-1], shape[::-1]
+    return _assemble_forms(mesh, kernel, *dofs, shape, chunk, rows)
 
 
 def permittivity_matrix(
@@ -292,9 +289,8 @@ def permittivity_matrix(
         wgrad = g.grad * g.w[:, :, None, None]  # (k, n_qp, n_loc, d)
         return _sum_points(wgrad @ kappa, g.grad.transpose(0, 1, 3, 2))  # (k, n_loc, n_loc)
 
-    ref = reference_element(mesh.cell_type)
     shape = (mesh.n_nodes, mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, ref.form_order, mesh.cells, mesh.cells, shape, chunk, rows)
+    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk, rows)
 
 
 def stiffness_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
@@ -307,7 +303,7 @@ def piezo_matrix(
 ) -> sp.csr_matrix:
     """The coupled operator [[K, Gᵀ], [−G, P]] on (u interleaved, then φ): ((d+1)N × (d+1)N).
     rows ((d+1)N,) bool: only those rows, from the cells touching them (`elasticity_matrix`;
-    Gᵀ's assembled as such, `_coupling`), each row's entries in the whole matrix's order."""
+    Gᵀ's assembled as such, `coupling_matrix`), each row's entries in the whole matrix's order."""
     if rows is None:
         K = elasticity_matrix(mesh, C)
         G = coupling_matrix(mesh, e)
@@ -316,7 +312,7 @@ def piezo_matrix(
     n_u = mesh.points.shape[1] * mesh.n_nodes
     r_u, r_phi = rows[:n_u], rows[n_u:]  # (dN,), (N,)
     K = elasticity_matrix(mesh, C, rows=r_u)
-    Gt = _coupling(mesh, e, CHUNK, r_u, transposed=True)  # (dN, N) Gᵀ's rows r_u
+    Gt = coupling_matrix(mesh, e, rows=r_u, transposed=True)  # (dN, N) Gᵀ's rows r_u
     G = coupling_matrix(mesh, e, rows=r_phi)
     P = permittivity_matrix(mesh, kappa, rows=r_phi)
     return sp.bmat([[K, Gt], [-G, P]], format="csr")
@@ -328,9 +324,8 @@ def mass_matrix(mesh: Mesh, chunk: int = CHUNK) -> sp.csr_matrix:
     def kernel(g: Geometry) -> np.ndarray:
         return np.einsum("cq,qa,qb->cab", g.w, g.phi, g.phi, optimize=True)  # (k, n_loc, n_loc)
 
-    ref = reference_element(mesh.cell_type)
-    shape = (mesh.n_nodes, mesh.n_nodes)
-    return _assemble_forms(mesh, kernel, ref.mass_order, mesh.cells, mesh.cells, shape, chunk)
+    shape, order = (mesh.n_nodes, mesh.n_nodes), reference_element(mesh.cell_type).mass_order
+    return _assemble_forms(mesh, kernel, mesh.cells, mesh.cells, shape, chunk, order=order)
 
 
 def _evaluate(func: Func, x: np.ndarray, ncomp: int) -> np.ndarray:
@@ -377,12 +372,8 @@ def facet_geometry(
     Returns x (n_f, n_qp, d) points, w (n_f, n_qp) weights × facet measure, phi (n_qp, k) facet
     shape values and n (n_f, n_qp, d) unit outward normals. KeyError for an unknown part.
     """
-    if name not in mesh.boundaries:
-        raise KeyError(
-            f"unknown boundary {name!r}; this mesh has: {', '.join(sorted(mesh.boundaries))}"
-        )
     ftype = reference_element(mesh.cell_type).facet_type
-    x, wts, N, phi = facet_quadrature(mesh.points[mesh.boundaries[name]], ftype, order)
+    x, wts, N, phi = facet_quadrature(mesh.points[mesh.boundary(name)], ftype, order)
     dA = np.linalg.norm(N, axis=-1)  # (n_f, n_qp)
     return x, wts[None, :] * dA, phi, N / dA[..., None]
 

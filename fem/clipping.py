@@ -66,6 +66,7 @@ from scipy.spatial import cKDTree
 
 from .elements import reference_element
 from .facets import Trace, facet_values
+from .jacobians import solve2
 
 
 class Pieces(NamedTuple):
@@ -285,14 +286,6 @@ def _distinct(P: np.ndarray, c: np.ndarray, tol: float) -> tuple[np.ndarray, np.
     return np.take_along_axis(P, order[..., None], axis=1), ok.sum(axis=1)
 
 
-def _solve2(J: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """J⁻¹ r for stacks of 2×2 matrices J (..., 2, 2) and vectors r (..., 2) (Cramer)."""
-    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]  # (...,)
-    x0 = J[..., 1, 1] * r[..., 0] - J[..., 0, 1] * r[..., 1]
-    x1 = J[..., 0, 0] * r[..., 1] - J[..., 1, 0] * r[..., 0]
-    return np.stack([x0, x1], axis=-1) / det[..., None]
-
-
 def _coefficients(face_type: str, X: np.ndarray) -> tuple[np.ndarray, ...]:
     """x(ξ, η) = p + b ξ + c η + d ξη of faces X (n, m, k): (p, b, c, d), each (n, 1, k)
     (d = 0 for a triangle, whose reference is (0,0)-(1,0)-(0,1); a quadrilateral's is [−1, 1]²)."""
@@ -324,7 +317,7 @@ def inverse_map(face_type: str, P: np.ndarray, y: np.ndarray, tol: float = 1e-11
     xi = np.zeros(y.shape)  # (n, q, 2)
     for _ in range(30):
         x, xs, xt = _evaluate(coef, xi)  # (n, q, 2) each
-        step = _solve2(np.stack([xs, xt], axis=-1), x - y)
+        step = solve2(np.stack([xs, xt], axis=-1), x - y)
         xi -= step
         if face_type == "triangle" or np.abs(step).max(initial=0.0) <= tol:
             return xi
@@ -422,17 +415,25 @@ def _area(poly: np.ndarray, count: np.ndarray) -> np.ndarray:
     return 0.5 * np.where(i < count[:, None], _cross(poly, nxt), 0.0).sum(axis=1)
 
 
-def _hit_distance(s: Trace, m: Trace, e, f, y, x0, E) -> np.ndarray:
-    """(n,) |x − π_f(x)| of the slave points x of faces e below plane points y (n, 2): how far
-    along the interpolated normal the line meets master face f."""
+def _below(s: Trace, m: Trace, e, f, y, x0, E) -> tuple[np.ndarray, ...]:
+    """Plane points y (n, q, 2) of slave faces e (n,) carried to the slave and along its normal
+    field to master faces f (n,): slave reference points xs (n, q, 2), slave points x and
+    normals (n, q, 3) there, reference points xm (n, q, 2) where those lines meet f."""
     Xs, Xm = s.points[s.facets[e]], m.points[m.facets[f]]  # (n, m_s, 3), (n, m_m, 3)
     Ps = np.einsum("nai,nij->naj", Xs - x0[e][:, None], E[e])  # (n, m_s, 2)
     Pm = np.einsum("nai,nij->naj", Xm - x0[e][:, None], E[e])  # (n, m_m, 2)
-    phi = facet_values(s.facet_type, inverse_map(s.facet_type, Ps, y[:, None]))  # (n, 1, m_s)
-    x = np.einsum("nqa,nai->nqi", phi, Xs)  # (n, 1, 3)
-    nrm = np.einsum("nqa,nai->nqi", phi, s.normals[s.facets[e]])
-    xm = _rays(m.facet_type, Xm, x, inverse_map(m.facet_type, Pm, y[:, None]), dirs=nrm)
-    hit = np.einsum("nqb,nbi->nqi", facet_values(m.facet_type, xm), Xm)  # (n, 1, 3)
+    xs = inverse_map(s.facet_type, Ps, y)  # (n, q, 2)
+    phi = facet_values(s.facet_type, xs)  # (n, q, m_s)
+    x = np.einsum("nqa,nai->nqi", phi, Xs)  # (n, q, 3)
+    nrm = np.einsum("nqa,nai->nqi", phi, s.normals[s.facets[e]])  # (n, q, 3)
+    return xs, x, nrm, _rays(m.facet_type, Xm, x, inverse_map(m.facet_type, Pm, y), dirs=nrm)
+
+
+def _hit_distance(s: Trace, m: Trace, e, f, y, x0, E) -> np.ndarray:
+    """(n,) |x − π_f(x)| of the slave points x of faces e below plane points y (n, 2): how far
+    along the interpolated normal the line meets master face f."""
+    _, x, _, xm = _below(s, m, e, f, y[:, None], x0, E)  # x (n, 1, 3), xm (n, 1, 2)
+    hit = np.einsum("nqb,nbi->nqi", facet_values(m.facet_type, xm), m.points[m.facets[f]])
     return np.linalg.norm(hit - x, axis=2)[:, 0]
 
 
@@ -516,15 +517,8 @@ def polygon_pieces(s: Trace, m: Trace, reach: float, order: int) -> Pieces:
     pts, wq = reference_element("triangle").quadrature(order)  # (q, 2), (q,)
     y = ctr[c][:, None] + pts[None, :, :1] * a[:, None] + pts[None, :, 1:] * b[:, None]
     et, ft = e[c], f[c]  # (n_t,) slave and master face of each triangle
-    Xs, Xm = s.points[s.facets[et]], m.points[m.facets[ft]]  # (n_t, m_s, 3), (n_t, m_m, 3)
-    Ps = np.einsum("tai,tij->taj", Xs - x0[et][:, None], E[et])  # (n_t, m_s, 2)
-    Pm = np.einsum("tai,tij->taj", Xm - x0[et][:, None], E[et])  # (n_t, m_m, 2)
-    xs = inverse_map(s.facet_type, Ps, y)  # (n_t, q, 2) slave points below y
-    phi_s = facet_values(s.facet_type, xs)  # (n_t, q, m_s)
-    x = np.einsum("tqa,tai->tqi", phi_s, Xs)  # (n_t, q, 3)
-    n = np.einsum("tqa,tai->tqi", phi_s, s.normals[s.facets[et]])  # (n_t, q, 3)
-    xm = _rays(m.facet_type, Xm, x, inverse_map(m.facet_type, Pm, y), dirs=n)  # (n_t, q, 2)
-    Ns = _tangent_cross(s.facet_type, Xs, xs)  # (n_t, q, 3)
+    xs, _, n, xm = _below(s, m, et, ft, y, x0, E)  # (n_t, q, 2), _, (n_t, q, 3), (n_t, q, 2)
+    Ns = _tangent_cross(s.facet_type, s.points[s.facets[et]], xs)  # (n_t, q, 3)
     ratio = np.linalg.norm(Ns, axis=2) / np.abs(np.einsum("tqi,ti->tq", Ns, n0[et]))
     wt = area2[:, None] * wq[None, :] * ratio  # (n_t, q) slave-surface weights
     return Pieces(et, ft, xs, xm, wt, n_cells)

@@ -44,19 +44,25 @@ def _check_order(order: int) -> None:
         raise ValueError(f"quadrature order must be non-negative, got {order}")
 
 
+def _gauss_product(n: int, dim: int) -> tuple[list[np.ndarray], np.ndarray]:
+    """The n-point Gauss–Legendre product on [−1, 1]^dim: coordinates (dim arrays (n, …, n))
+    and weights (n, …, n)."""
+    t, w = np.polynomial.legendre.leggauss(n)
+    return np.meshgrid(*[t] * dim, indexing="ij"), reduce(np.multiply.outer, [w] * dim)
+
+
 def _collapsed_rule(order: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
     """Collapsed (Duffy) Gauss product on the reference simplex of `dim`, exact for total
-    degree ≤ `order`: points (n^dim, dim), weights (n^dim,) summing to 1/dim!.
+    degree ≤ `order`: points (n^dim, dim), weights (n^dim,) summing to 1/dim! (dim = 1: Gauss
+    on the segment [0, 1]).
 
     ξ_0 = a_0, ξ_i = a_i Π_{j<i} (1 − a_j) on the cube [0, 1]^dim, Jacobian
     Π_i (1 − a_i)^(dim − 1 − i); a monomial of total degree k becomes degree ≤ k + dim − 1 in
     each a_i, so n = ⌈(order + dim)/2⌉ Gauss points per direction suffice.
     """
-    n = (order + dim + 1) // 2  # 2n − 1 ≥ order + dim − 1
-    t, w = np.polynomial.legendre.leggauss(n)
-    x, w = 0.5 * (t + 1.0), 0.5 * w  # (n,) each: Gauss on [0, 1]
-    a = np.meshgrid(*[x] * dim, indexing="ij")  # dim × (n, …, n)
-    W = reduce(np.multiply.outer, [w] * dim)  # (n, …, n)
+    _check_order(order)
+    t, W = _gauss_product((order + dim + 1) // 2, dim)  # 2n − 1 ≥ order + dim − 1
+    a, W = [0.5 * (g + 1.0) for g in t], 0.5**dim * W  # the product on [0, 1]^dim
     pts, jac = [], 1.0
     for i in range(dim):
         p = a[i]
@@ -95,24 +101,15 @@ def _tet_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
     return _collapsed_rule(order, 3)
 
 
-def _line_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss–Legendre on [0, 1]: points (n_qp, 1), weights (n_qp,) summing to 1."""
-    _check_order(order)
-    t, w = np.polynomial.legendre.leggauss(order // 2 + 1)  # exact to degree 2n − 1 ≥ order
-    return 0.5 * (t[:, None] + 1.0), 0.5 * w
-
-
 def _tensor_rule(order: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss–Legendre product on [−1, 1]^dim: points (n^dim, dim), weights (n^dim,)."""
     _check_order(order)
-    t, w = np.polynomial.legendre.leggauss(order // 2 + 1)  # exact to degree 2n − 1 ≥ order
-    grids = np.meshgrid(*[t] * dim, indexing="ij")  # dim × (n, …, n)
-    W = reduce(np.multiply.outer, [w] * dim)  # (n, …, n)
+    grids, W = _gauss_product(order // 2 + 1, dim)  # exact to degree 2n − 1 ≥ order
     return np.stack([g.ravel() for g in grids], axis=1), W.ravel()
 
 
 _RULES = {
-    "line": _line_rule,
+    "line": lambda order: _collapsed_rule(order, 1),
     "triangle": _triangle_rule,
     "tetra": _tet_rule,
     "quad": lambda order: _tensor_rule(order, 2),

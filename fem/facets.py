@@ -216,12 +216,7 @@ def trace(mesh: Mesh, names: str | Sequence[str], order: int = 4) -> Trace:
     order : quadrature order of a 3D face's mass matrix and normal (segments: closed form).
     """
     names = [names] if isinstance(names, str) else list(names)
-    for nm in names:
-        if nm not in mesh.boundaries:
-            raise KeyError(
-                f"unknown boundary {nm!r}; this mesh has: {', '.join(sorted(mesh.boundaries))}"
-            )
-    glob = np.concatenate([mesh.boundaries[nm] for nm in names])  # (n_f, m) global ids
+    glob = np.concatenate([mesh.boundary(nm) for nm in names])  # (n_f, m) global ids
     if mesh.points.shape[1] == 2:
         return _segments(mesh, glob, "+".join(names))
     return _faces(mesh, glob, "+".join(names), order)

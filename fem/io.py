@@ -18,9 +18,7 @@ def _as_field(name: str, a: np.ndarray, n: int) -> np.ndarray:
         a = a.reshape(n, 2)
     if a.shape[0] != n:
         raise ValueError(f"field {name!r} has {a.shape[0]} rows, expected {n}")
-    if a.ndim == 2 and a.shape[1] == 2:
-        a = np.concatenate([a, np.zeros((n, 1), dtype=a.dtype)], axis=1)
-    return a
+    return np.pad(a, ((0, 0), (0, 1))) if a.ndim == 2 and a.shape[1] == 2 else a
 
 
 def write_vtu(
@@ -34,11 +32,8 @@ def write_vtu(
     Fields are (n,) scalars, (n, c) arrays, or flat interleaved 2-vector fields of length 2 n
     (e.g. a displacement dof vector); 2-component vectors get a zero third component.
     """
-    points = mesh.points  # (N, 3); 2D points get a zero z
-    if points.shape[1] == 2:
-        points = np.concatenate([points, np.zeros((mesh.n_nodes, 1))], axis=1)
     out = meshio.Mesh(
-        points,
+        np.pad(mesh.points, ((0, 0), (0, 3 - mesh.dim))),  # (N, 3): 2D points get a zero z
         [(mesh.cell_type, mesh.cells)],
         point_data={k: _as_field(k, v, mesh.n_nodes) for k, v in (point_data or {}).items()},
         cell_data={k: [_as_field(k, v, mesh.n_cells)] for k, v in (cell_data or {}).items()},

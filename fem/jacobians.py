@@ -44,6 +44,16 @@ def _dets(J: np.ndarray) -> np.ndarray:
     return det
 
 
+def solve2(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """J⁻¹ r for stacks of 2×2 matrices J (..., 2, 2) and vectors r (..., 2), by Cramer's rule
+    (NaN or inf where J is singular)."""
+    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]  # (...,)
+    x0 = J[..., 1, 1] * r[..., 0] - J[..., 0, 1] * r[..., 1]
+    x1 = J[..., 0, 0] * r[..., 1] - J[..., 1, 0] * r[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.stack([x0, x1], axis=-1) / det[..., None]
+
+
 def jacobian_determinants(mesh: Mesh, pts: np.ndarray) -> np.ndarray:
     """det ∂x/∂ξ of every cell at reference points `pts` (n_pts, d): (n_cells, n_pts)."""
     ref = reference_element(mesh.cell_type)

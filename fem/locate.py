@@ -17,6 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from fem.elements import reference_element
+from fem.jacobians import solve2
 from fem.mesh import Mesh
 
 CHUNK = 32_768  # point-cell pairs inverted at once (memory: arrays of (CHUNK, n_loc, d) floats)
@@ -145,15 +146,7 @@ def _solve_small(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     """J⁻¹ r (a, d) for the matrices J (a, d, d): Cramer's rule for d = 2 (NaN where singular),
     LAPACK otherwise (a singular J gives NaN rows)."""
     if J.shape[1] == 2:
-        det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]  # (a,)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.stack(
-                [
-                    (J[:, 1, 1] * r[:, 0] - J[:, 0, 1] * r[:, 1]) / det,
-                    (J[:, 0, 0] * r[:, 1] - J[:, 1, 0] * r[:, 0]) / det,
-                ],
-                axis=1,
-            )
+        return solve2(J, r)
     det = np.linalg.det(J)  # (a,)
     out = np.full(r.shape, np.nan)
     ok = det != 0

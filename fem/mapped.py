@@ -156,15 +156,10 @@ def coons_block(
         "top": np.stack([idx[-1, 1:], idx[-1, :-1]], axis=1)[::-1],
         "left": np.stack([idx[1:, 0], idx[:-1, 0]], axis=1)[::-1],
     }  # each (n_side, 2), domain on the left
-    boundaries: dict[str, np.ndarray] = {}
-    for side in SIDES:
-        if side in names:
-            part = names[side]
-            edges = (
-                loop[side] if part not in boundaries else np.vstack([boundaries[part], loop[side]])
-            )
-            boundaries[part] = edges
-    return Mesh(points, cells, {k: _order_edges(v) for k, v in boundaries.items()})
+    parts: dict[str, list[np.ndarray]] = {}  # part → its sides' edges, in loop order
+    for side in (s for s in SIDES if s in names):
+        parts.setdefault(names[side], []).append(loop[side])
+    return Mesh(points, cells, {k: _order_edges(np.vstack(v)) for k, v in parts.items()})
 
 
 def glue(blocks: Sequence[Mesh], tol: float = 1e-10) -> Mesh:

@@ -55,13 +55,18 @@ class Mesh:
     def n_cells(self) -> int:
         return self.cells.shape[0]
 
-    def boundary_nodes(self, name: str) -> np.ndarray:
-        """Sorted unique node indices of the boundary part `name`."""
+    def boundary(self, name: str) -> np.ndarray:
+        """The facets (n_facets, k_facet) of boundary part `name`; KeyError naming the parts
+        this mesh has if it has no such part."""
         if name not in self.boundaries:
             raise KeyError(
                 f"unknown boundary {name!r}; this mesh has: {', '.join(sorted(self.boundaries))}"
             )
-        return np.unique(self.boundaries[name])
+        return self.boundaries[name]
+
+    def boundary_nodes(self, name: str) -> np.ndarray:
+        """Sorted unique node indices of the boundary part `name` (KeyError: `boundary`)."""
+        return np.unique(self.boundary(name))
 
     @property
     def h(self) -> float:
@@ -95,6 +100,32 @@ REFINED_COUNTS: dict[str, np.ndarray] = {
     "tetra": np.array([[1, 1, 0, 0], [0, 2, 3, 1], [0, 0, 4, 8], [0, 0, 0, 8]]),
     "hexahedron": np.array([[1, 1, 1, 1], [0, 2, 4, 6], [0, 0, 4, 12], [0, 0, 0, 8]]),
 }
+
+
+def row_codes(rows: np.ndarray) -> np.ndarray:
+    """(n,) integers equal exactly where the rows of `rows` (n, size) of node numbers (≥ 0)
+    are, in the rows' lexicographic order: the columns in mixed radix (each column's max + 1),
+    ranked by np.unique only where the next column would overflow 2^62."""
+    code = rows[:, 0].astype(np.int64)
+    top = int(code.max(initial=0)) + 1  # every code < top
+    for col in rows[:, 1:].T.astype(np.int64):
+        radix = int(col.max(initial=0)) + 1
+        if top * radix > 2**62:
+            _, code = np.unique(code, return_inverse=True)
+            code = code.ravel()
+            top = int(code.max(initial=0)) + 1
+        code, top = code * radix + col, top * radix
+    return code
+
+
+def find_rows(table: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(n,) for each row of `rows` (n, k) of node numbers the index of the row of `table`
+    (m ≥ 1, k) with the same nodes (each of table's rows sorted; the first such row), or −1."""
+    code = row_codes(np.concatenate([table, np.sort(rows, axis=1)]))  # (m + n,)
+    known, asked = code[: len(table)], code[len(table) :]
+    order = np.argsort(known, kind="stable")
+    pos = order[np.minimum(np.searchsorted(known, asked, sorter=order), len(table) - 1)]
+    return np.where(known[pos] == asked, pos, -1)
 
 
 def distinct(cells: np.ndarray, local: np.ndarray) -> int:

@@ -48,15 +48,9 @@ def check_file(path: str, error) -> int:
     except OSError as err:
         raise error("cannot be read", f"an existing, readable file ({err.strerror})") from None
     if not stat.S_ISREG(st.st_mode):
-        kind = (
-            "a named pipe (FIFO)"
-            if stat.S_ISFIFO(st.st_mode)
-            else "a device"
-            if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
-            else "a folder"
-            if stat.S_ISDIR(st.st_mode)
-            else "not a regular file"
-        )
+        kinds = {stat.S_IFIFO: "a named pipe (FIFO)", stat.S_IFCHR: "a device"}
+        kinds |= {stat.S_IFBLK: "a device", stat.S_IFDIR: "a folder"}
+        kind = kinds.get(stat.S_IFMT(st.st_mode), "not a regular file")
         raise error(kind, "a regular mesh file (not a pipe, device or folder)")
     if st.st_size > MAX_FILE_BYTES:
         raise error(f"{st.st_size:,} bytes", f"a mesh file of at most {MAX_FILE_BYTES:,} bytes")
@@ -88,6 +82,18 @@ class _Scan:
                 f"a count from 0 to {most:,} (what a file of {self.size:,} bytes can hold)",
             )
         return n
+
+    def node(self, lines: Iterator[tuple[int, str]]) -> None:
+        """Read a node line ("tag ..."): its tag."""
+        i, tok = _next(lines, self, "$Nodes")
+        self.tags.append(_int(tok[0], i, "node tag", self.error))
+
+    def cell(self, i: int, refs: list[str]) -> None:
+        """The node tags `refs` that the cell of line i names."""
+        for t in refs:
+            ref = _int(t, i, "node tag", self.error)
+            self.refs.append(ref)
+            self.first_ref.setdefault(ref, i)
 
     def check(self) -> None:
         """Tags positive, unique, bounded; every tag a cell names present."""
@@ -158,8 +164,7 @@ def _nodes_v2(scan: _Scan, lines, version: str) -> None:
     i, tok = _next(lines, scan, "$Nodes")
     n = scan.count(tok[0], i, "number of nodes", MIN_NODE_LINE)
     for _ in range(n):
-        i, tok = _next(lines, scan, "$Nodes")
-        scan.tags.append(_int(tok[0], i, "node tag", scan.error))
+        scan.node(lines)
 
 
 def _cells_v2(scan: _Scan, lines, version: str) -> None:
@@ -168,10 +173,7 @@ def _cells_v2(scan: _Scan, lines, version: str) -> None:
     for _ in range(n):
         i, tok = _next(lines, scan, "$Elements")
         k = _int(tok[2], i, "number of tags", scan.error) if len(tok) > 2 else len(tok)
-        for t in tok[3 + k :]:
-            ref = _int(t, i, "node tag", scan.error)
-            scan.refs.append(ref)
-            scan.first_ref.setdefault(ref, i)
+        scan.cell(i, tok[3 + k :])
 
 
 def _nodes_v4(scan: _Scan, lines, version: str) -> None:
@@ -181,16 +183,10 @@ def _nodes_v4(scan: _Scan, lines, version: str) -> None:
     for _ in range(blocks):
         i, tok = _next(lines, scan, "$Nodes")
         n = scan.count(tok[-1], i, "number of nodes in a block", MIN_NODE_LINE)
-        if version.startswith("4.0"):  # "tag x y z" per node
-            for _ in range(n):
-                i, t = _next(lines, scan, "$Nodes")
-                scan.tags.append(_int(t[0], i, "node tag", scan.error))
-        else:  # 4.1: n tag lines, then n coordinate lines
-            for _ in range(n):
-                i, t = _next(lines, scan, "$Nodes")
-                scan.tags.append(_int(t[0], i, "node tag", scan.error))
-            for _ in range(n):
-                _next(lines, scan, "$Nodes")
+        for _ in range(n):  # 4.0: "tag x y z" per node; 4.1: n tag lines,
+            scan.node(lines)
+        for _ in range(0 if version.startswith("4.0") else n):  # then n coordinate lines
+            _next(lines, scan, "$Nodes")
     if len(scan.tags) != total:
         raise scan.error(
             f"$Nodes: {len(scan.tags):,} nodes in its blocks, {total:,} in its header",
@@ -207,10 +203,7 @@ def _cells_v4(scan: _Scan, lines, version: str) -> None:
         n = scan.count(tok[-1], i, "number of elements in a block", MIN_CELL_LINE)
         for _ in range(n):
             i, t = _next(lines, scan, "$Elements")
-            for x in t[1:]:
-                ref = _int(x, i, "node tag", scan.error)
-                scan.refs.append(ref)
-                scan.first_ref.setdefault(ref, i)
+            scan.cell(i, t[1:])
 
 
 def _address_space() -> int:

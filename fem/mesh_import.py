@@ -34,11 +34,10 @@ import contextlib
 import difflib
 import io
 import tempfile
-from collections.abc import Mapping
+from collections import Counter
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
@@ -46,7 +45,7 @@ from . import mesh_bounds
 from .elements import FACET_TYPE, FACETS, reference_element
 from .jacobians import check_cells, jacobian_determinants
 from .mapped import _order_edges
-from .mesh import Mesh, exterior_facets
+from .mesh import Mesh, exterior_facets, find_rows
 
 SURFACE_CELLS = {"triangle": 3, "quad": 4}  # meshio cell types accepted in a 2D body
 VOLUME_CELLS = {"tetra": 4, "hexahedron": 8}  # meshio cell types accepted in a 3D body
@@ -273,34 +272,21 @@ CELL_NAMES = {
 }
 
 
-class BodyCells(NamedTuple):
-    """One body's cells cut out of a mesh file (`body_cells`)."""
-
-    where: str  # "the file" or "body 'NAME'", for messages
-    cell_type: str  # the meshio cell type of every cell of the body
-    cells: np.ndarray  # (n_cells, k) body node ids, as in the file (orientation unchecked)
-    points: np.ndarray  # (n, d) the body's nodes, in the file's order
-    new_id: np.ndarray  # (n_file,) body node id of each file node; −1 where not in the body
-
-
-def body_cells(
-    mf: MeshFile,
-    body: str | None,
-    dim: int,
-    allowed: Mapping[str, int],
-    allowed_text: str,
-    one_type_text: str,
-) -> BodyCells:
-    """The cells of the physical group `body` of dimension `dim` (None: every cell of that
-    dimension, and — to refuse them — every cell of a higher one), its nodes renumbered
-    0 … n−1 in the file's order. Refused naming the file and the body: a cell type not in
-    `allowed` (`allowed_text` says what is), no cell, mixed types (`one_type_text` says how to
-    get one), two nodes at the same point (`distinct_nodes`)."""
+def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
+    """The body `body` as a Mesh of the file's dimension d (`read_mesh`'s `planar`): the
+    physical group `body` of dimension d, surfaces (2D) or volumes (3D) (None: every cell of
+    dimension d, and — to refuse them — every cell of a higher one), its nodes renumbered
+    0 … n−1 in the file's order. Every physical group of dimension d − 1 that lies on its
+    boundary is a boundary part. Refused naming the file and the body: a cell type other than
+    `BODY_CELLS` allows, no cell, mixed types, two nodes at the same point (`distinct_nodes`);
+    and as `_counterclockwise`, `_positive` and `_boundaries` say."""
+    d = mf.points.shape[1]
+    allowed, allowed_text, one_type_text = BODY_CELLS[d]
     where = "the file" if body is None else f"body {body!r}"
-    tag = None if body is None else mf._group(body, dim, "body")
+    tag = None if body is None else mf._group(body, d, "body")
     cells_of: dict[str, list[np.ndarray]] = {}
     for ctype, data, phys in mf.blocks:
-        if cell_dimension(ctype) < dim or (cell_dimension(ctype) > dim and tag is not None):
+        if cell_dimension(ctype) < d or (cell_dimension(ctype) > d and tag is not None):
             continue
         sel = data if tag is None else data[phys == tag]
         if len(sel) == 0:
@@ -312,7 +298,7 @@ def body_cells(
         cells_of.setdefault(ctype, []).append(sel)
     if not cells_of:
         kinds = " or ".join(CELL_NAMES[c] for c in allowed)
-        raise MeshImportError(mf.path, where, f"a {SHAPES[dim]} with {kinds}")
+        raise MeshImportError(mf.path, where, f"a {SHAPES[d]} with {kinds}")
     if len(cells_of) > 1:
         counts = ", ".join(f"{sum(map(len, v))} {k}" for k, v in cells_of.items())
         raise MeshImportError(
@@ -320,23 +306,13 @@ def body_cells(
             f"{where} mixes cell types ({counts})",
             f"one cell type per body: {one_type_text}",
         )
-    ctype, pieces = next(iter(cells_of.items()))
-    cells_file = np.concatenate(pieces)  # (n_cells, k) file node ids
+    cells_file = np.concatenate(next(iter(cells_of.values())))  # (n_cells, k) file node ids
     order = np.unique(cells_file.ravel())  # file node ids used by the body, in file order
     new_id = np.full(mf.points.shape[0], -1, dtype=np.int64)  # (n_file,)
     new_id[order] = np.arange(order.size)
     points = mf.points[order]  # (n, d)
     distinct_nodes(mf.path, where, points, order)
-    return BodyCells(where, ctype, new_id[cells_file], points, new_id)
-
-
-def body_mesh(mf: MeshFile, body: str | None = None) -> Mesh:
-    """The body `body` as a Mesh of the file's dimension (`read_mesh`'s `planar`): a physical
-    surface group (2D) or volume group (3D); None: every cell of that dimension. Every
-    physical group of one dimension less that lies on its boundary is a boundary part."""
-    d = mf.points.shape[1]
-    where, ctype, cells, points, new_id = body_cells(mf, body, d, *BODY_CELLS[d])
-    cells = (_counterclockwise if d == 2 else _positive)(mf.path, where, points, cells)
+    cells = (_counterclockwise if d == 2 else _positive)(mf.path, where, points, new_id[cells_file])
     return Mesh(points, cells, _boundaries(mf, where, new_id, points, cells))
 
 
@@ -440,8 +416,8 @@ def _boundaries(
                 "order 1)",
             )
         keys = np.sort(np.concatenate([x for _, x in local]), axis=1)  # (n_g, k)
-        on = _rows_in(keys, ext_keys)  # (n_g,) index into ext or −1
-        inside = (on < 0) & (_rows_in(keys, all_facets) >= 0)
+        on = find_rows(ext_keys, keys)  # (n_g,) index into ext or −1
+        inside = (on < 0) & (find_rows(all_facets, keys) >= 0)
         if inside.any():
             i = int(np.flatnonzero(inside)[0])
             raise MeshImportError(
@@ -457,16 +433,6 @@ def _boundaries(
         if len(part):
             out[name] = part
     return out
-
-
-def _rows_in(rows: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """For each row of `rows` (n, k) its index in `table` (m, k) (rows sorted alike), or −1."""
-    both = np.concatenate([table, rows])
-    _, inv = np.unique(both, axis=0, return_inverse=True)
-    inv = inv.ravel()
-    first = np.full(inv.max() + 1, -1)
-    first[inv[: len(table)][::-1]] = np.arange(len(table))[::-1]
-    return first[inv[len(table) :]]
 
 
 def require_curve(mesh: Mesh, part: str) -> None:
@@ -496,11 +462,8 @@ def write_msh(
     dim = dims.pop()
     if dim == 3 and file_format != "gmsh22":  # meshio's v4.1 writer drops entities without a
         raise ValueError("write_msh: 3D meshes as gmsh22")  # node of their own (its reader fails)
-    counts: dict[str, int] = {}
-    for m in bodies.values():
-        for p in m.boundaries:
-            counts[p] = counts.get(p, 0) + 1
-    points, cells, phys, geo, field, dim_tags = [], [], [], [], {}, []
+    counts = Counter(p for m in bodies.values() for p in m.boundaries)  # bodies with a part
+    points, cells, phys, field, dim_tags = [], [], [], {}, []  # phys: physical = geometrical
     offset, tag = 0, 1
     for bname, m in bodies.items():
         faces = FACET_TYPE[m.cell_type]
@@ -508,26 +471,22 @@ def write_msh(
         dt = np.tile([dim, tag], (m.n_nodes, 1))  # (n, 2) the entity each node is classified on
         cells.append((m.cell_type, m.cells + offset))
         phys.append(np.full(m.n_cells, tag))
-        geo.append(np.full(m.n_cells, tag))
         tag += 1
         for p, e in m.boundaries.items():
             name = p if counts[p] == 1 else f"{bname}_{p}"
             field[name] = np.array([tag, dim - 1])
             cells.append((faces, e + offset))
             phys.append(np.full(len(e), tag))
-            geo.append(np.full(len(e), tag))
             dt[e.ravel()] = [dim - 1, tag]
             tag += 1
         points.append(m.points)
         dim_tags.append(dt)
         offset += m.n_nodes
-    pts = np.concatenate(points)
-    pts3 = np.pad(pts, ((0, 0), (0, 3 - dim)))  # (n, 3)
     out = meshio.Mesh(
-        pts3,
+        np.pad(np.concatenate(points), ((0, 0), (0, 3 - dim))),  # (n, 3)
         cells,
         point_data={"gmsh:dim_tags": np.concatenate(dim_tags)},
-        cell_data={"gmsh:physical": phys, "gmsh:geometrical": geo},
+        cell_data={"gmsh:physical": phys, "gmsh:geometrical": phys},
         field_data=field,
     )
     out.write(str(Path(path)), file_format=file_format, binary=binary)

@@ -36,7 +36,7 @@ from functools import cache
 import numpy as np
 
 from .elements import EDGES, FACETS, reference_element
-from .mesh import Mesh
+from .mesh import Mesh, find_rows, row_codes
 from .refine import refine
 
 _SIMPLEX = {"triangle", "tetra"}
@@ -55,30 +55,10 @@ _CHUNK = 4096  # coarse cells per block of `Skeleton.sums` (hexahedra: 343 class
 def _local_entities(cell_type: str) -> list[tuple[int, ...]]:
     """The reference cell's entities as sorted tuples of local vertices: vertices, edges,
     faces (3D), the cell."""
-    k = reference_element(cell_type).n_loc
-    edges = [tuple(sorted(e)) for e in EDGES[cell_type].tolist()]
-    faces = (
-        [tuple(sorted(f)) for f in FACETS[cell_type].tolist()]
-        if reference_element(cell_type).dim == 3
-        else []
-    )
-    return [(i,) for i in range(k)] + edges + faces + [tuple(range(k))]
-
-
-def _codes(rows: np.ndarray) -> np.ndarray:
-    """(n,) integers equal exactly where the rows of `rows` (n, size) of node numbers (≥ 0)
-    are, in the rows' lexicographic order: the columns in mixed radix (each column's max + 1),
-    ranked by np.unique only where the next column would overflow 2^62."""
-    code = rows[:, 0].astype(np.int64)
-    top = int(code.max(initial=0)) + 1  # every code < top
-    for col in rows[:, 1:].T.astype(np.int64):
-        radix = int(col.max(initial=0)) + 1
-        if top * radix > 2**62:
-            _, code = np.unique(code, return_inverse=True)
-            code = code.ravel()
-            top = int(code.max(initial=0)) + 1
-        code, top = code * radix + col, top * radix
-    return code
+    ref = reference_element(cell_type)
+    faces = FACETS[cell_type].tolist() if ref.dim == 3 else []
+    edges_faces = [tuple(sorted(e)) for e in EDGES[cell_type].tolist() + faces]
+    return [(i,) for i in range(ref.n_loc)] + edges_faces + [tuple(range(ref.n_loc))]
 
 
 def _distinct(values: np.ndarray) -> np.ndarray:
@@ -169,7 +149,7 @@ class Skeleton:
         for size in sizes:
             cols = [j for j, e in enumerate(local) if len(e) == size]
             tuples = np.sort(cells[:, [list(local[j]) for j in cols]], axis=2)  # (C, n_j, size)
-            code = _codes(tuples.reshape(-1, size))  # (C n_j,)
+            code = row_codes(tuples.reshape(-1, size))  # (C n_j,)
             keys, first, inv = np.unique(code, return_index=True, return_inverse=True)
             G[:, cols] = offset + inv.reshape(len(cells), len(cols))
             self._keys[size], self._offset[size] = tuples.reshape(-1, size)[first], offset
@@ -185,15 +165,10 @@ class Skeleton:
 
     def _find(self, tuples: np.ndarray) -> np.ndarray:
         """Global ids of entities given as (n, size) vertex tuples (any order)."""
-        size = tuples.shape[1]
-        keys = self._keys[size]  # (n_size, size) sorted rows, in id order
-        code = _codes(np.concatenate([keys, np.sort(tuples, axis=1)]))  # (n_size + n,)
-        known, asked = code[: len(keys)], code[len(keys) :]
-        order = np.argsort(known)
-        pos = order[np.minimum(np.searchsorted(known, asked, sorter=order), len(keys) - 1)]
-        if (known[pos] != asked).any():
+        pos = find_rows(self._keys[tuples.shape[1]], tuples)  # keys: sorted rows, in id order
+        if (pos < 0).any():
             raise ValueError("a boundary facet is not an entity of the mesh's cells")
-        return self._offset[size] + pos
+        return self._offset[tuples.shape[1]] + pos
 
     def closure(self, facets: np.ndarray) -> np.ndarray:
         """(n_entities,) bool: the entities in the closure of boundary `facets` (n_b, k_f)

@@ -83,31 +83,13 @@ def field_blocks(
 
 
 class BlockAMG:
-    """x ≈ K⁻¹ r: one multigrid cycle per field, block lower triangular over the fields.
+    """x ≈ K⁻¹ r: one multigrid cycle per field, block lower triangular over the fields, built
+    from `field_blocks(K, ...)` (each field's symmetric block is dropped from `blocks` once its
+    hierarchy is built).
 
     parts : optional (n_R,) label of each unknown's body (aggregates stay within one body)."""
 
-    def __init__(
-        self,
-        K: sp.csr_matrix,
-        fields: list[tuple],
-        couple: bool = True,
-        parts: np.ndarray | None = None,
-        cycle: str = "V",
-    ):
-        self._setup(field_blocks(K, fields, couple), parts, cycle)
-
-    @classmethod
-    def from_blocks(
-        cls, blocks: list[dict], parts: np.ndarray | None = None, cycle: str = "V"
-    ) -> BlockAMG:
-        """The preconditioner of `field_blocks`' output; each field's symmetric block is
-        dropped from `blocks` once its hierarchy is built."""
-        self = cls.__new__(cls)
-        self._setup(blocks, parts, cycle)
-        return self
-
-    def _setup(self, blocks: list[dict], parts: np.ndarray | None, cycle: str) -> None:
+    def __init__(self, blocks: list[dict], parts: np.ndarray | None = None, cycle: str = "V"):
         self.cycle = cycle
         t = time.perf_counter()
         self.blocks: list[FieldBlock] = []

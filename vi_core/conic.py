@@ -198,17 +198,9 @@ def solve_conic(
     info["solve_time"] = getattr(stats, "solve_time", None) if stats else None
     if status not in _OK + _INACCURATE or x_of[0].value is None:
         msg = f"conic: Clarabel/cvxpy status {status!r}; no solution"
-        return Solution(
-            u=np.zeros(vi.n),
-            lam=np.zeros(vi.m),
-            converged=False,
-            iterations=1,
-            residual=history[0],
-            history=history,
-            time=time.perf_counter() - t0,
-            method="conic",
-            info=info,
-            warnings=[msg],
+        u, lam = np.zeros(vi.n), np.zeros(vi.m)
+        return Solution.of(
+            "conic", u, lam, history[0], False, 1, history, t0, info=info, warnings=[msg]
         )
     if status in _INACCURATE:
         warnings.append(f"conic: Clarabel status {status!r}; judged by the VI residual")
@@ -244,16 +236,7 @@ def solve_conic(
     converged = res <= tol
     if not converged:
         warnings.append(f"conic: residual {res:.3e} did not reach tol {tol:.1e}")
-    u_phys, lam_phys = sc.to_physical(u, lam)
-    return Solution(
-        u=u_phys,
-        lam=lam_phys,
-        converged=bool(converged),
-        iterations=iterations,
-        residual=float(res),
-        history=history,
-        time=time.perf_counter() - t0,
-        method="conic",
-        info=info,
-        warnings=warnings,
+    u, lam = sc.to_physical(u, lam)
+    return Solution.of(
+        "conic", u, lam, res, converged, iterations, history, t0, info=info, warnings=warnings
     )

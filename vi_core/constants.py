@@ -30,7 +30,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .linalg import factorize
+from .linalg import Factorization
 from .problem import MixedVI
 
 MAX_SIZE = 200_000
@@ -61,7 +61,7 @@ class Constants:
 
     def dual_norm_x(self, f: np.ndarray) -> float:
         """‖f‖_{X'} = sqrt(fᵀ X^{-1} f): the X-norm of the Riesz representative of f."""
-        x = factorize(self.X, "splu")(f)
+        x = Factorization(self.X, "splu")(f)
         return float(np.sqrt(max(f @ x, 0.0)))
 
 
@@ -108,7 +108,7 @@ def skew_ratio(
         W = sla.solve_triangular(L, C.toarray(), lower=True)  # L^{-1} C
         M = sla.solve_triangular(L, W.T, lower=True).T  # (n, n) L^{-1} C L^{-T}
         return float(np.linalg.norm(M, 2))
-    solve0 = factorize(A0, backend)
+    solve0 = Factorization(A0, backend)
     Ct = sp.csr_matrix(C.T)
     op = _op(n, lambda x: Ct @ solve0(C @ x))
     return float(np.sqrt(max(_largest(op, sp.csr_matrix(A0), _op(n, solve0)), 0.0)))
@@ -174,19 +174,19 @@ def _sparse(vi: MixedVI, X: sp.csr_matrix, Y: sp.csr_matrix) -> tuple[float, flo
     n, m = vi.n, vi.m
     A, B = vi.A, vi.B
     At, Bt = sp.csr_matrix(A.T), sp.csr_matrix(B.T)
-    solve_x = factorize(X)
+    solve_x = Factorization(X)
     Xinv = _op(n, solve_x)
     # m_a = 1 / λ_max(X, A0), relatively accurate across mixed scales (see _dense)
-    solve_a0 = factorize(vi.A0)
+    solve_a0 = Factorization(vi.A0)
     top = spla.eigsh(X, k=1, M=vi.A0, Minv=_op(n, solve_a0), which="LA", tol=1e-10)[0][0]
     m_a = float(1.0 / top)
     M_a = float(np.sqrt(_largest(_op(n, lambda x: At @ solve_x(A @ x)), X, Xinv)))
     if m == 0:
         return m_a, M_a, 0.0, np.inf
     S = _op(m, lambda y: B @ solve_x(Bt @ y))  # B X^{-1} Bᵀ
-    M_b = float(np.sqrt(_largest(S, Y, _op(m, factorize(Y)))))
+    M_b = float(np.sqrt(_largest(S, Y, _op(m, Factorization(Y)))))
     # S^{-1} r through the saddle-point matrix [[X, Bᵀ], [B, 0]]: y = S^{-1} r
-    kkt = factorize(sp.bmat([[X, Bt], [B, None]], format="csr"))
+    kkt = Factorization(sp.bmat([[X, Bt], [B, None]], format="csr"))
     S_inv = _op(m, lambda r: kkt(np.concatenate([np.zeros(n), -r]))[n:])
     mu = spla.eigsh(S, k=1, M=Y, sigma=0.0, which="LM", OPinv=S_inv, tol=1e-10)[0][0]
     return m_a, M_a, M_b, float(np.sqrt(max(mu, 0.0)))

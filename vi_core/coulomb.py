@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from .sets import ConvexSet, _vector, beyond
+from .sets import ConvexSet, _per_block, _vector, beyond
 
 OPEN = 1e-10  # `tresca_bound`: λ_n ≤ OPEN · (largest λ_n) counts as apart (rounding)
 
@@ -110,10 +110,7 @@ class ContactSet(ConvexSet):
         return sp.block_diag(list(blocks), format="csr") if self.k else sp.csr_matrix((0, 0))
 
     def _node_scale(self, t: Any) -> np.ndarray:
-        t = _vector("scaling", t, self.size).reshape(self.k, self.dim)
-        if not np.allclose(t, t[:, :1], rtol=1e-12, atol=0):
-            raise ValueError("a contact set can only be scaled uniformly within each node")
-        return t[:, 0]
+        return _per_block(t, self.k, self.dim, "a contact set", "node")
 
     def support(self, z):
         raise NotImplementedError(

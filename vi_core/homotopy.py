@@ -161,22 +161,15 @@ def solve_homotopy(
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
     history = [natural_residual(e, u, lam).relative]
     if n_levels > max_levels:
-        u_phys, lam_phys = sc.to_physical(u, lam)
-        return Solution(
-            u=u_phys,
-            lam=lam_phys,
-            converged=False,
-            iterations=0,
-            residual=history[0],
-            history=history,
-            time=time.perf_counter() - t0,
-            method="homotopy",
-            info={"rho": rho, "levels_needed": n_levels, "max_levels": max_levels},
-            warnings=[
-                f"homotopy: ρ = {rho:.3g} needs {n_levels} levels at rate {rate} "
-                f"(> max_levels = {max_levels}); the nested cost grows geometrically with "
-                'the number of levels: not attempted (use method="ssn")'
-            ],
+        info = {"rho": rho, "levels_needed": n_levels, "max_levels": max_levels}
+        refusal = (
+            f"homotopy: ρ = {rho:.3g} needs {n_levels} levels at rate {rate} "
+            f"(> max_levels = {max_levels}); the nested cost grows geometrically with "
+            'the number of levels: not attempted (use method="ssn")'
+        )
+        u, lam = sc.to_physical(u, lam)
+        return Solution.of(
+            "homotopy", u, lam, history[0], False, 0, history, t0, info=info, warnings=[refusal]
         )
     levels = [k / n_levels for k in range(n_levels + 1)] if n_levels else [0.0]
     solver = _Homotopy(e, levels, inner, eta, {**inner_options, "max_iter": max_iter})
@@ -217,18 +210,9 @@ def solve_homotopy(
         except ValueError as err:
             info["t0_paper"] = f"not computed: {err}"
     converged = res <= tol
-    u_phys, lam_phys = sc.to_physical(u, lam)
-    sol = Solution(
-        u=u_phys,
-        lam=lam_phys,
-        converged=bool(converged),
-        iterations=top.iterations if n_levels else 1,
-        residual=float(res),
-        history=history,
-        time=time.perf_counter() - t0,
-        method="homotopy",
-        info=info,
-    )
+    u, lam = sc.to_physical(u, lam)
+    iterations = top.iterations if n_levels else 1
+    sol = Solution.of("homotopy", u, lam, res, converged, iterations, history, t0, info=info)
     if not converged:
         sol.warnings.append(
             f"homotopy: residual {res:.3e} did not reach tol {tol:.1e} "

@@ -275,10 +275,7 @@ class Checker:
         feasibility = float(np.max(np.abs(feas), initial=0.0)) / lmax
         z = self.Be @ up - self.ge  # (m,) equilibrated: λ'ᵀz' = λᵀ(Bu − gap)
         sigma, off = _support(self.blocks, z, self.s_lam, lp)
-        size = max(
-            float(np.linalg.norm(z)), float(np.linalg.norm(up)), float(np.linalg.norm(self.ge))
-        )
-        size = size or 1.0
+        size = float(max(np.linalg.norm(z), np.linalg.norm(up), np.linalg.norm(self.ge))) or 1.0
         nl = float(np.linalg.norm(lp)) or 1.0
         comp = abs(float(lp @ z) - sigma) / (nl * size) + off / size
         return KKT(absolute / self.scale, absolute, n1, n2, feasibility, comp)
@@ -288,12 +285,7 @@ class Checker:
         up, lp = self.scaled(u, lam)
         z = self.Be @ up - self.ge  # (m,)
         L = max(float(np.max(np.abs(lp), initial=0.0)), 1e-300)
-        Z = max(
-            float(np.max(np.abs(z), initial=0.0)),
-            float(np.max(np.abs(up), initial=0.0)),
-            float(np.max(np.abs(self.ge), initial=0.0)),
-        )
-        Z = Z or 1.0
+        Z = max(float(np.max(np.abs(v), initial=0.0)) for v in (z, up, self.ge)) or 1.0
         worst = np.zeros(5)
         counts = np.zeros(3, dtype=int)
         for blk in self.blocks:
@@ -347,14 +339,11 @@ class Checker:
                 Y = yb.reshape(-1, d)
                 r = blk.radius / t.reshape(-1, d)[:, 0]
                 nrm = np.sqrt((Y * Y).sum(axis=1))
-                cells = []
-                for yk, nk, rk in zip(Y, nrm, r, strict=True):
-                    if nk <= rk:
-                        cells.append(np.eye(d))
-                    else:
-                        yh = yk / nk
-                        cells.append((rk / nk) * (np.eye(d) - np.outer(yh, yh)))
-                mats.append(sp.block_diag(cells))
+                out = nrm > r  # (k,) I inside, (r/|y|)(I − ŷŷᵀ) outside
+                yh = Y / np.where(out, nrm, 1.0)[:, None]  # (k, d)
+                g = np.where(out, r / np.where(out, nrm, 1.0), 1.0)[:, None, None]  # (k, 1, 1)
+                cells = g * (np.eye(d) - out[:, None, None] * yh[:, :, None] * yh[:, None, :])
+                mats.append(sp.block_diag(list(cells)))
         m = self.Be.shape[0]
         P = sp.block_diag(mats, format="csr") if mats else sp.csr_matrix((0, 0))
         Q = sp.block_diag(qmats, format="csr") if qmats else sp.csr_matrix((0, 0))

@@ -326,11 +326,6 @@ def condition_estimate(F: Factorization) -> float:
     return float(abs(F.A).sum(axis=0).max()) * float(spla.onenormest(op))
 
 
-def factorize(A: sp.spmatrix, backend: str = "auto") -> Factorization:
-    """Factorise the square sparse matrix A once; return x = solve(b)."""
-    return Factorization(A, backend)
-
-
 def _refine(A, b, x, solve, steps: int = 2) -> np.ndarray:
     """A few steps of iterative refinement (cheap: one solve each) while they help."""
     b = np.asarray(b, dtype=float)

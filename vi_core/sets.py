@@ -21,6 +21,15 @@ import numpy as np
 import scipy.sparse as sp
 
 
+def _per_block(t: Any, k: int, dim: int, what: str, block: str) -> np.ndarray:
+    """(k,) the scaling t (k·dim,) of `what`'s k blocks of dim coordinates, which must be
+    uniform within each `block` (ValueError otherwise)."""
+    t = _vector("scaling", t, k * dim).reshape(k, dim)
+    if not np.allclose(t, t[:, :1], rtol=1e-12, atol=0):
+        raise ValueError(f"{what} can only be scaled uniformly within each {block}")
+    return t[:, 0]
+
+
 def _vector(name: str, value: Any, size: int | None = None) -> np.ndarray:
     arr = np.atleast_1d(np.asarray(value, dtype=float))
     if arr.ndim != 1:
@@ -70,13 +79,27 @@ class ConvexSet(ABC):
         return np.ones(self.size, dtype=int)
 
 
-class Free(ConvexSet):
-    """Λ = R^k: an equality constraint B u = gap."""
+class _Cone(ConvexSet):
+    """A cone of R^k given by its size alone, the same after scaling; its support function (0
+    on the polar cone, +∞ elsewhere) is expressed by the caller as a constraint."""
 
     def __init__(self, k: int):
         self.size = int(k)
         if self.size < 0:
-            raise ValueError(f"Free(k) needs k ≥ 0, got {k}")
+            raise ValueError(f"{type(self).__name__}(k) needs k ≥ 0, got {k}")
+
+    def scaled(self, t):
+        return type(self)(self.size)
+
+    def support(self, z):
+        return None
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.size})"
+
+
+class Free(_Cone):
+    """Λ = R^k: an equality constraint B u = gap (σ = 0 on {z = 0})."""
 
     def project(self, y):
         return np.array(y, dtype=float, copy=True)
@@ -84,39 +107,16 @@ class Free(ConvexSet):
     def jacobian(self, y):
         return sp.identity(self.size, format="csr")
 
-    def scaled(self, t):
-        return Free(self.size)
 
-    def support(self, z):
-        # σ = 0 on {z = 0}, +∞ elsewhere: expressed by the caller as a constraint
-        return None
-
-    def __repr__(self):
-        return f"Free({self.size})"
-
-
-class NonNegative(ConvexSet):
-    """Λ = {λ ≥ 0}: a unilateral constraint B u ≤ gap, complementarity with λ."""
-
-    def __init__(self, k: int):
-        self.size = int(k)
-        if self.size < 0:
-            raise ValueError(f"NonNegative(k) needs k ≥ 0, got {k}")
+class NonNegative(_Cone):
+    """Λ = {λ ≥ 0}: a unilateral constraint B u ≤ gap, complementarity with λ (σ = 0 on
+    {z ≤ 0})."""
 
     def project(self, y):
         return np.maximum(np.asarray(y, dtype=float), 0.0)
 
     def jacobian(self, y):
         return sp.diags((np.asarray(y) > 0).astype(float), format="csr")
-
-    def scaled(self, t):
-        return NonNegative(self.size)
-
-    def support(self, z):
-        return None  # σ = 0 on {z ≤ 0}: expressed by the caller as a constraint
-
-    def __repr__(self):
-        return f"NonNegative({self.size})"
 
 
 class Box(ConvexSet):
@@ -216,10 +216,7 @@ class Ball(ConvexSet):
         return sp.block_diag(list(blocks), format="csr") if self.k else sp.csr_matrix((0, 0))
 
     def scaled(self, t):
-        t = _vector("scaling", t, self.size).reshape(self.k, self.dim)
-        if not np.allclose(t, t[:, :1], rtol=1e-12, atol=0):
-            raise ValueError("a Ball can only be scaled uniformly within each ball")
-        return Ball(self.radius / t[:, 0], self.dim)
+        return Ball(self.radius / _per_block(t, self.k, self.dim, "a Ball", "ball"), self.dim)
 
     def support(self, z):
         import cvxpy as cp

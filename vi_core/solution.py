@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,3 +31,21 @@ class Solution:
     method: str
     info: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+
+    @classmethod
+    def of(
+        cls,
+        method: str,
+        u: np.ndarray,
+        lam: np.ndarray,
+        residual: float,
+        converged: bool,
+        iterations: int,
+        history: list[float],
+        t0: float,
+        **details,
+    ) -> Solution:
+        """A solver's record: `time` the seconds since `t0` (`time.perf_counter()`), residual
+        and converged as plain float and bool; details: info, warnings."""
+        res, ok, elapsed = float(residual), bool(converged), time.perf_counter() - t0
+        return cls(u, lam, ok, iterations, res, history, elapsed, method, **details)

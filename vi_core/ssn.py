@@ -525,15 +525,5 @@ def finish(
         converged = res <= tol
     y = lam + e.B @ u - e.gap
     inner = int((np.abs(y - Lam.project(y)) == 0).sum())
-    u_phys, lam_phys = sc.to_physical(u, lam)
-    return Solution(
-        u=u_phys,
-        lam=lam_phys,
-        converged=bool(converged),
-        iterations=k,
-        residual=float(res),
-        history=history,
-        time=time.perf_counter() - t0,
-        method="ssn",
-        info={"inside": inner},  # coordinates with λ + Bu − gap strictly inside Λ
-    )
+    info = {"inside": inner}  # coordinates with λ + Bu − gap strictly inside Λ
+    return Solution.of("ssn", *sc.to_physical(u, lam), res, converged, k, history, t0, info=info)

@@ -118,24 +118,28 @@ def _layout(sets: Sequence[str], m: int, ball_dim: int) -> list[tuple[str, int]]
     return [(s, k) for s, k in out if k > 0]
 
 
-def _variables(
-    rng: np.random.Generator, A: np.ndarray, B: np.ndarray, f: np.ndarray, spread: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Change of units u = S ũ with S = 10^U(−spread, spread): returns A, B, f and S."""
+def _vi(rng: np.random.Generator, spread: float, A, B, f, Lambda, gap, **info) -> tuple:
+    """The MixedVI of dense A (n, n), B (m, n), f (n,) in random units u = S ũ,
+    S = 10^U(−spread, spread) (1 when spread = 0), and S (n,)."""
     s = 10.0 ** rng.uniform(-spread, spread, A.shape[0]) if spread > 0 else np.ones(A.shape[0])
-    return s[:, None] * A * s[None, :], B * s[None, :], s * f, s
+    A, B = sp.csr_matrix(s[:, None] * A * s[None, :]), sp.csr_matrix(B * s[None, :])
+    return MixedVI(A=A, B=B, f=s * f, Lambda=Lambda, gap=gap, info=info), s
 
 
-def _operators(rng, n, m, sets, structure, rho, cond, ball_dim) -> tuple:
-    """A (`_operator`), the layout of Λ (`_layout`) and B (m, n) random where it may act."""
-    A, n_first = _operator(rng, n, structure, rho, cond)
-    layout = _layout(sets, m, ball_dim)
-    m = sum(k for _, k in layout)
+def _constraints(rng: np.random.Generator, m: int, n: int, n_first: int) -> np.ndarray:
+    """B (m, n): random on the n_first leading columns (those it may act on), zero beyond."""
     if m > n_first:
         raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
     B = np.zeros((m, n))
     B[:, :n_first] = rng.standard_normal((m, n_first))
-    return A, B, layout
+    return B
+
+
+def _operators(rng, n, m, sets, structure, rho, cond, ball_dim) -> tuple:
+    """A (`_operator`), the layout of Λ (`_layout`) and B (`_constraints`)."""
+    A, n_first = _operator(rng, n, structure, rho, cond)
+    layout = _layout(sets, m, ball_dim)
+    return A, _constraints(rng, sum(k for _, k in layout), n, n_first), layout
 
 
 def random_vi(
@@ -182,15 +186,8 @@ def random_vi(
             norms = np.linalg.norm(lam_eq[start : start + k].reshape(-1, ball_dim), axis=1)
             blocks.append(Ball(norms * rng.uniform(0.3, 1.2, norms.size) + 1e-3, ball_dim))
         start += k
-    A, B, f, _ = _variables(rng, A, B, f, spread)
-    return MixedVI(
-        A=sp.csr_matrix(A),
-        B=sp.csr_matrix(B),
-        f=f,
-        Lambda=product(*blocks),
-        gap=gap,
-        info={"gallery": "random_vi", "seed": seed, "structure": structure, "rho": rho},
-    )
+    info = {"gallery": "random_vi", "seed": seed, "structure": structure, "rho": rho}
+    return _vi(rng, spread, A, B, f, product(*blocks), gap, **info)[0]
 
 
 def manufactured_vi(
@@ -263,20 +260,9 @@ def manufactured_vi(
         start += k
     gap = B @ u - z
     f = A @ u + B.T @ lam
-    A, B, f, scale = _variables(rng, A, B, f, spread)
-    return Manufactured(
-        vi=MixedVI(
-            A=sp.csr_matrix(A),
-            B=sp.csr_matrix(B),
-            f=f,
-            Lambda=product(*blocks),
-            gap=gap,
-            info={"gallery": "manufactured_vi", "seed": seed, "structure": structure, "rho": rho},
-        ),
-        u=u / scale,
-        lam=lam,
-        kind=kind.astype(str),
-    )
+    info = {"gallery": "manufactured_vi", "seed": seed, "structure": structure, "rho": rho}
+    vi, scale = _vi(rng, spread, A, B, f, product(*blocks), gap, **info)
+    return Manufactured(vi=vi, u=u / scale, lam=lam, kind=kind.astype(str))
 
 
 def random_contact_vi(
@@ -325,10 +311,7 @@ def random_contact_vi(
         B[np.ix_(tangential, n1 + np.arange(c2))] = rng.standard_normal((tangential.size, c2))
     else:
         A, n_first = _operator(rng, n, structure, rho, cond)
-        if m > n_first:
-            raise ValueError(f"m = {m} exceeds the {n_first} columns B may act on")
-        B = np.zeros((m, n))
-        B[:, :n_first] = rng.standard_normal((m, n_first))
+        B = _constraints(rng, m, n, n_first)
     f = rng.standard_normal(n)
     # constraint values of the solution with the free rows only (B_free u = gap_free)
     gap_free = 0.5 * rng.standard_normal(free)
@@ -342,15 +325,8 @@ def random_contact_vi(
     push = size * np.where(pressed, -rng.uniform(1.0, 3.0, k), rng.uniform(0.1, 0.5, k))
     gap[normal] = z0[normal] + push
     contact = Coulomb(F, dim, k=k) if law == "coulomb" else UnilateralTresca(F, dim, k=k)
-    A, B, f, _ = _variables(rng, A, B, f, spread)
-    return MixedVI(
-        A=sp.csr_matrix(A),
-        B=sp.csr_matrix(B),
-        f=f,
-        Lambda=product(Free(free), contact),
-        gap=gap,
-        info={"gallery": "random_contact_vi", "seed": seed, "structure": structure, "rho": rho},
-    )
+    info = {"gallery": "random_contact_vi", "seed": seed, "structure": structure, "rho": rho}
+    return _vi(rng, spread, A, B, f, product(Free(free), contact), gap, **info)[0]
 
 
 def _params(draw, structures, sets, n_range, rho_range, cond_range):

@@ -236,7 +236,7 @@ class TiedPreconditioner:
         parts = None
         if self.parts is not None:
             parts = np.concatenate([self.parts[self.R], self.parts[self.S][~tied]])
-        self.amg = BlockAMG.from_blocks(blocks, parts=parts, cycle=self.cycle)
+        self.amg = BlockAMG(blocks, parts=parts, cycle=self.cycle)
         self.tied, self.spring = tied.copy(), spring
         self.setups.append(self.amg.setup_time)
 

@@ -219,15 +219,15 @@ def solve_tresca_fixed_point(
         warnings.append(
             f"fixed_point: residual {res:.3e} did not reach tol {tol:.1e} in {j} iterations"
         )
-    return Solution(
-        u=u,
-        lam=lam,
-        converged=bool(converged),
-        iterations=j,
-        residual=float(res),
-        history=history,
-        time=time.perf_counter() - t0,
-        method="fixed_point",
+    return Solution.of(
+        "fixed_point",
+        u,
+        lam,
+        res,
+        converged,
+        j,
+        history,
+        t0,
         info={
             "inner": inner,
             "inner_iterations": inner_iterations,

@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fem import refined_counts
-from fem.mesh import Mesh
+from fem.mesh import Mesh, row_codes
 from fem.mesh_import import body_mesh, read_mesh
 from fem.meshing import box, rectangle
 from fem.refine import refine
@@ -236,13 +236,13 @@ def test_several_levels_at_once_are_each_level_alone():
 
 @pytest.mark.parametrize("high", [50, 10**6])
 def test_codes_are_equal_exactly_where_rows_are_and_keep_their_order(high):
-    """`_codes` of (n, 8) rows of node numbers below `high` (10^6: eight columns overflow
-    2^62, so it ranks part-way): equal codes ⇔ equal rows, ordered as the rows
+    """`fem.mesh.row_codes` of (n, 8) rows of node numbers below `high` (10^6: eight columns
+    overflow 2^62, so it ranks part-way): equal codes ⇔ equal rows, ordered as the rows
     lexicographically (mutation: the overflow guard removed wraps around and fails)."""
     rng = np.random.default_rng(high)
     rows = rng.integers(0, high, (400, 8))
     rows = np.concatenate([rows, rows[rng.integers(0, 400, 100)]])  # (500, 8) with repeats
-    code = refined_counts._codes(rows)  # (500,)
+    code = row_codes(rows)  # (500,)
     _, rank = np.unique(rows, axis=0, return_inverse=True)  # lexicographic ranks of the rows
     _, code_rank = np.unique(code, return_inverse=True)
     assert np.array_equal(code_rank.ravel(), rank.ravel())

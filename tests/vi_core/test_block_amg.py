@@ -24,7 +24,7 @@ def test_block_preconditioner_applies_the_coupling():
     b = np.random.default_rng(0).standard_normal(2 * n1)
     rel = {}
     for couple in (True, False):
-        M = block_amg.BlockAMG(K, fields, couple=couple)
+        M = block_amg.BlockAMG(block_amg.field_blocks(K, fields, couple))
         assert all(len(blk.ml.levels) == 1 for blk in M.blocks)
         rel[couple] = np.linalg.norm(K @ M(b) - b) / np.linalg.norm(b)
     assert rel[True] < 1e-12 and rel[False] > 0.1, rel

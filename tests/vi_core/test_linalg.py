@@ -11,7 +11,6 @@ from hypothesis import strategies as st
 
 from vi_core import linalg
 from vi_core.linalg import Factorization, Refactorizer, condition_estimate, pardiso_available
-from vi_core.ordering import nested_dissection
 
 BACKENDS = ["splu"] + (["pardiso"] if pardiso_available() else [])
 
@@ -108,38 +107,6 @@ def test_mutation_natural_ordering_fails_the_fill_test(monkeypatch):
     monkeypatch.setattr(linalg, "ORDERING", "NATURAL")
     A = _grid(40)
     assert not _factor_fill(Factorization(A, "splu")) < 0.5 * _fill(A, "NATURAL")
-
-
-def _nd_fill(A: sp.spmatrix, p: np.ndarray) -> float:
-    Ap = sp.csc_matrix(A[p][:, p])
-    return _fill(Ap, "NATURAL")
-
-
-@given(st.integers(36, 45), st.integers(0, 2**32 - 1))
-def test_nested_dissection_is_a_permutation_and_fills_less_than_natural(k, seed):
-    A = _grid(k)
-    rng = np.random.default_rng(seed)
-    q = rng.permutation(A.shape[0])  # any numbering of the same mesh
-    Aq = sp.csr_matrix(A[q][:, q])
-    p = nested_dissection(Aq)
-    assert np.array_equal(np.sort(p), np.arange(A.shape[0]))
-    assert _nd_fill(Aq, p) < 0.6 * _nd_fill(A, np.arange(A.shape[0]))  # vs the banded order
-
-
-def test_mutation_identity_ordering_fails_the_nested_dissection_fill_test():
-    A = _grid(30)
-    identity = np.arange(A.shape[0])
-    assert not _nd_fill(A, identity) < 0.6 * _nd_fill(A, identity)
-    assert _nd_fill(A, nested_dissection(A)) < 0.6 * _nd_fill(A, identity)
-
-
-def test_nested_dissection_of_disconnected_and_tiny_graphs():
-    A = sp.block_diag([_grid(12), _grid(9), sp.identity(5)], format="csr")
-    p = nested_dissection(A, leaf=8)
-    assert np.array_equal(np.sort(p), np.arange(A.shape[0]))
-    assert nested_dissection(sp.csr_matrix((0, 0))).size == 0
-    with pytest.raises(ValueError, match="square"):
-        nested_dissection(sp.csr_matrix((3, 4)))
 
 
 class _CountedLU:
