@@ -38,8 +38,8 @@ energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
 - fifth pass (docs/benchmarks.md, "Adaptivity on Hertz, fifth pass"): "layers2", "layers3"
   the cells within 2, 3 vertex rings of the touching nodes split only red (`red_layers`:
   "fan_red" is 0 rings), so the zone's surface layer is regular a few cells deep and its
-  nodal multiplier has no odd-even oscillation; "near_box" the near field as a box refined
-  with the zone, plus "layers3" (`near_box`);
+  nodal multiplier has no odd-even oscillation; "near_box" the near field as a box graded
+  from the zone's surface, plus "layers3" (`near_box`);
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of
@@ -396,13 +396,16 @@ def near_box(
     marked: dict,
     width: float = 1.3,
     depth: float = 2.6,
-    factor: float = 4.0,
+    full: float = 1.3,
+    step: float = 0.5,
+    factor: float = 2.0,
 ) -> dict:
-    """ "near_box": the slave cells whose centroid lies in the box |x − x_c| < width ℓ,
-    y > y_top − depth ℓ (ℓ the zone's half-length, x_c its centre, y_top its highest touching
-    node) and whose longest edge exceeds `factor` × the median touching segment, added to the
-    marks (the near field kept within `factor` of the zone's surface, as the a priori boxes of
-    `bench_adaptive.box_mesh`), then `red_layers` (3 rings)."""
+    """ "near_box": the slave cells whose centroid lies in the box |x − x_c| < width ℓ, at
+    a depth t = (y_top − y) / ℓ < `depth` (ℓ the zone's half-length, x_c its centre, y_top its
+    highest touching node), and whose longest edge exceeds `factor` × the zone's median
+    segment × 2^max(0, (t − full) / step), added to the marks: the near field kept as fine as
+    the zone's surface to the depth `full` ℓ, then twice coarser every `step` ℓ (as the nested
+    a priori boxes of `bench_adaptive.box_mesh`); then `red_layers` (3 rings)."""
     c = model.contact
     mesh = meshes[c.slave.name]
     touch = _touch(model, sol)  # (k,)
@@ -412,10 +415,10 @@ def near_box(
     P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
     h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)  # (n_cells,)
     centroid = P.mean(axis=1)  # (n_cells, 2)
-    inside = (np.abs(centroid[:, 0] - xc) < width * half) & (
-        centroid[:, 1] > p[:, 1].max() - depth * half
-    )
-    out = {c.slave.name: marked[c.slave.name] | (inside & (h > factor * h_zone))}
+    t = (p[:, 1].max() - centroid[:, 1]) / half  # (n_cells,) depth in zone half-lengths
+    inside = (np.abs(centroid[:, 0] - xc) < width * half) & (t < depth)
+    coarse = h > factor * h_zone * 2.0 ** np.maximum(0.0, (t - full) / step)
+    out = {c.slave.name: marked[c.slave.name] | (inside & coarse)}
     return red_layers(model, sol, meshes, out)
 
 

@@ -174,9 +174,10 @@ def test_fourth_pass_marks_split_the_centre_fan_red(hertz, name):
 
 
 def test_near_box_marks_the_coarse_box_cells_and_nothing_deeper(hertz):
-    """ "near_box" (factor 1) from no marks: every cell of its box coarser than the zone's median
-    segment is marked, and no cell whose centroid lies deeper than the box (and outside the
-    red layers' vertex rings) is (a box without its depth bound fails it)."""
+    """ "near_box" (factor 1) from no marks: outside the red layers' vertex rings, a cell of
+    its box is marked exactly when it is coarser than the zone's median segment ×
+    2^max(0, (t − 1.3) / 0.5) (t its depth in zone half-lengths; a box without the grading
+    fails it), and no cell deeper than the box is."""
     model, sol, meshes = hertz
     mesh, c = meshes["body"], model.contact
     none = {"body": np.zeros(mesh.n_cells, dtype=bool)}
@@ -188,12 +189,15 @@ def test_near_box_marks_the_coarse_box_cells_and_nothing_deeper(hertz):
     P = mesh.points[mesh.cells]
     h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)
     cen = P.mean(axis=1)
-    top = p[:, 1].max()
-    box = (np.abs(cen[:, 0] - xc) < 1.3 * half) & (cen[:, 1] > top - 2.6 * half)
-    assert (box & (h > h_zone)).any() and m[box & (h > h_zone)].all()
+    t = (p[:, 1].max() - cen[:, 1]) / half
+    box = (np.abs(cen[:, 0] - xc) < 1.3 * half) & (t < 2.6)
+    coarse = h > h_zone * 2.0 ** np.maximum(0.0, (t - 1.3) / 0.5)
     near = np.zeros(mesh.n_nodes, dtype=bool)
     near[c.tr.nodes[touch]] = True
     for _ in range(3):
         near[mesh.cells[near[mesh.cells].any(axis=1)].ravel()] = True
-    deep = (cen[:, 1] < top - 2.6 * half) & ~near[mesh.cells].any(axis=1)
+    layers = near[mesh.cells].any(axis=1)  # the red layers may add marks there
+    assert (box & coarse).any() and (box & ~coarse & ~layers).any()
+    assert (m[box & ~layers] == coarse[box & ~layers]).all()
+    deep = (t > 2.6) & ~layers
     assert deep.any() and not m[deep].any()
