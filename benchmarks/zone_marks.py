@@ -35,8 +35,8 @@ energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
   `dual_indicators`, `dual_weighted`), added; "dual_red" and "dual_a_red" (a only) plus
   "fan_red", "dual_red_t8" with θ = 0.8 on the goal sets, "dual_union" / "dual_union_red"
   the Dörfler sets of η_T(z_h) itself, "dual_peak_red" plus "peak_red";
-- fifth pass (docs/benchmarks.md, "Adaptivity on Hertz, fifth pass"): "layers2", "layers3"
-  the cells within 2, 3 vertex rings of the touching nodes split only red (`red_layers`:
+- fifth pass (docs/benchmarks.md, "Adaptivity on Hertz, fifth pass"): "layers3" the cells
+  within 3 vertex rings of the touching nodes split only red (`red_layers`:
   "fan_red" is 0 rings), so the zone's surface layer is regular a few cells deep and its
   nodal multiplier has no odd-even oscillation; "near_box" the near field as a box graded
   from the zone's surface, plus "layers3" (`near_box`);
@@ -486,7 +486,6 @@ MARKS = {
     "dual_peak_red": lambda m, s, ms, mk: peak_red(
         m, s, ms, dual_weighted(m, s, ms, mk, red=False)
     ),
-    "layers2": lambda *a: red_layers(*a, rings=2),
     "layers3": red_layers,
     "near_box": near_box,
     "near_level": near_level,
