@@ -1,7 +1,7 @@
 """Adaptive against uniform refinement (issue 32, part 4).
 
     python benchmarks/bench_adaptive.py [--uniform L] [--max-unknowns N] [--zone-levels Z]
-        [--contact-zone | --zone NAME ...] [--json FILE] [SCENE ...]
+        [--contact-zone | --zone NAME ...] [--box U,Z,W,D,S ...] [--json FILE] [SCENE ...]
     python benchmarks/bench_adaptive.py --mutations [--uniform L] [--cycles C] [--json FILE]
         [SCENE ...]
 
@@ -16,7 +16,10 @@ error against the half-plane (~1e-3, the floor the uniform levels level off at);
 block's limit, computed once on a mesh refined Z times more around the contact zone
 (`hertz_limit`), and the signed errors a, p0 in the JSON. With --zone NAME ... one adaptive
 run per NAME: "energy" (the Dörfler marks alone, the default) or a candidate contact-zone
-marking of `benchmarks/zone_marks.py` (--contact-zone is --zone touching). Prints the table,
+marking of `benchmarks/zone_marks.py` (--contact-zone is --zone touching). On Hertz also two
+diagnostics of the nodal pressure at the centre (`_centre`: "osc", the centre node against its
+neighbours' mean, and "h0", the segment length there) and, with --box, a priori meshes refined
+around the zone (`box_mesh`), one solve each. Prints the table,
 then per run and measure the first adaptive cycle that reaches the finest uniform level's
 value: its unknowns and CPU time against the uniform level's, and on Hertz the first cycle
 that reaches both a_dis and p0_dis. Writes all rows as JSON (default bench_adaptive.json)
@@ -41,6 +44,7 @@ import time
 HERTZ_R = 1.0  # m, the cylinder radius of the hertz scene
 HERTZ_ZONE = 0.075  # m, the limit's box half-width: the contact half-width a = 0.058 m and 30 %
 KEYS = ("total", "a_err", "p0_err", "a_dis", "p0_dis")  # the measures compared
+CENTRE = ("osc", "h0")  # Hertz diagnostics printed beside them (`_centre`)
 
 
 def _measures(name: str, plugin, model, sol, limit: dict | None = None) -> dict:
@@ -49,8 +53,10 @@ def _measures(name: str, plugin, model, sol, limit: dict | None = None) -> dict:
 
     row = {"unknowns": int(sum(model.dofs.values())), **totals(plugin.estimate(model, sol))}
     if name == "hertz":
-        errors = hertz.of_model(model, sol, HERTZ_R).errors
+        contact = hertz.of_model(model, sol, HERTZ_R)
+        errors = contact.errors
         row["a"], row["p0"] = errors["a"], errors["p0"]  # signed
+        row.update(_centre(model, sol, contact.p0_ref))
         row["a_err"], row["p0_err"] = abs(errors["a"]), abs(errors["p0"])
         if limit is not None:  # the discretisation's part: against the finite block's limit
             row["a_dis"] = abs(errors["a"] - limit["a"])
@@ -58,33 +64,63 @@ def _measures(name: str, plugin, model, sol, limit: dict | None = None) -> dict:
     return row
 
 
-def hertz_limit(plugin, scene, zone_levels: int) -> dict:
-    """The Hertz errors of the finite block itself (its model error against the half-plane):
-    the level-0 mesh split into triangles, refined uniformly 3 times, then `zone_levels` times
-    more in the cells meeting the box |x| < HERTZ_ZONE, y > 1 − d around the contact zone
-    (d = 0.12 m, × 0.8 per step; the box's width stays: a box shrinking with d, as before
-    the third pass, leaves the zone's edge x = a one level coarser from step 4 on, and its
-    errors were off by 1.8e-4 in a and 1.6e-4 in p0: docs/benchmarks.md). {"a", "p0",
-    "unknowns"}."""
+def _centre(model, sol, p0_ref: float) -> dict:
+    """The nodal pressures at the centre (diagnostics, not measures): "osc", the centre node's
+    λ_n against the mean of its two neighbours', relative to p0_ref (the odd-even mode of the
+    nodal multiplier: a smooth p gives +h0²/(2a²), ~2e-5 at h0 = 0.35 mm), and "h0", the mean
+    length of the two contact segments at x = 0 (m)."""
+    import numpy as np
+
+    c = model.contact
+    x = c.slave.mesh.points[c.tr.nodes[c.rows_n], 0]  # (N_n,)
+    lam = c.normal(sol.lam)  # (N_n,)
+    order = np.argsort(x)
+    k = int(np.argmin(np.abs(x[order])))
+    left, mid, right = order[k - 1], order[k], order[k + 1]
+    return {
+        "osc": float((lam[mid] - 0.5 * (lam[left] + lam[right])) / p0_ref),
+        "h0": float(0.5 * (x[right] - x[left])),
+    }
+
+
+def box_mesh(plugin, scene, uniform: int, steps: int, width: float, depth: float, shrink: float):
+    """The level-0 mesh split into triangles, refined `uniform` times uniformly, then `steps`
+    times more in the cells meeting the box |x| < width, y > 1 − d (d = depth, × shrink per
+    step): an a priori mesh around the Hertz zone (x = 0 its centre, y = 1 the surface)."""
     import numpy as np
 
     from fem.bisection import prepared, refine_marked
-    from problems.plugins import hertz
+
+    mesh = prepared(plugin.build(scene, 0).bodies[0].mesh)
+    for _ in range(uniform):
+        mesh = refine_marked(mesh, np.ones(mesh.n_cells, dtype=bool))[0]
+    for _ in range(steps):
+        P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
+        near = (np.abs(P[..., 0]) < width).any(axis=1) & (P[..., 1] > 1 - depth).any(axis=1)
+        mesh = refine_marked(mesh, near)[0]
+        depth *= shrink
+    return mesh
+
+
+def _solve_on(plugin, scene, mesh):
     from problems.plugins.contact.bodies import given_meshes
     from problems.plugins.contract import solve_model
 
-    mesh = prepared(plugin.build(scene, 0).bodies[0].mesh)
-    for _ in range(3):
-        mesh = refine_marked(mesh, np.ones(mesh.n_cells, dtype=bool))[0]
-    depth = 0.12
-    for _ in range(zone_levels):
-        P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
-        near = (np.abs(P[..., 0]) < HERTZ_ZONE).any(axis=1) & (P[..., 1] > 1 - depth).any(axis=1)
-        mesh = refine_marked(mesh, near)[0]
-        depth *= 0.8
     with given_meshes({"body": mesh}):
         model = plugin.build(scene, 0)
-    sol = solve_model(plugin, model, method="ssn", tol=1e-10)
+    return model, solve_model(plugin, model, method="ssn", tol=1e-10)
+
+
+def hertz_limit(plugin, scene, zone_levels: int) -> dict:
+    """The Hertz errors of the finite block itself (its model error against the half-plane):
+    `box_mesh` with 3 uniform steps and `zone_levels` box steps, |x| < HERTZ_ZONE, d = 0.12 m
+    × 0.8 per step (the box's width stays: a box shrinking with d, as before the third pass,
+    leaves the zone's edge x = a one level coarser from step 4 on, and its errors were off by
+    1.8e-4 in a and 1.6e-4 in p0: docs/benchmarks.md). {"a", "p0", "unknowns"}."""
+    from problems.plugins import hertz
+
+    mesh = box_mesh(plugin, scene, 3, zone_levels, HERTZ_ZONE, 0.12, 0.8)
+    model, sol = _solve_on(plugin, scene, mesh)
     return {**hertz.of_model(model, sol, HERTZ_R).errors, "unknowns": sum(model.dofs.values())}
 
 
@@ -95,9 +131,12 @@ def run(
     zone_levels: int = 0,
     zones: tuple[str, ...] = ("energy",),
     theta: float = 0.5,
+    boxes: tuple[tuple[int, int, float, float, float], ...] = (),
 ) -> dict:
     """Uniform levels 0..levels, then one adaptive run per entry of `zones` ("energy": the
-    Dörfler marks alone; else a name of `zone_marks.MARKS` added to them), Dörfler θ = `theta`."""
+    Dörfler marks alone; else a name of `zone_marks.MARKS` added to them), Dörfler θ = `theta`;
+    on Hertz one solve per entry of `boxes` ((uniform, steps, width, depth, shrink) of
+    `box_mesh`: a priori meshes, CPU time of the solve alone)."""
     from problems import pipeline
     from problems.plugins.contract import nested_start, solve_model
 
@@ -115,6 +154,15 @@ def run(
         row = _measures(name, plugin, model, sol, limit)
         uniform.append({"level": level, "cpu_s": cpu, **row})
         prev = (model, sol)
+    box_rows = []
+    for spec in boxes if name == "hertz" else ():
+        mesh = box_mesh(plugin, scene, *spec)
+        t0 = time.process_time()
+        model, sol = _solve_on(plugin, scene, mesh)
+        cpu_s = time.process_time() - t0
+        box_rows.append(
+            {"box": list(spec), "cpu_s": cpu_s, **_measures(name, plugin, model, sol, limit)}
+        )
     runs = {
         zone: _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta)
         for zone in zones
@@ -124,6 +172,7 @@ def run(
         "limit": limit,
         "uniform": uniform,
         "adaptive": runs,
+        "boxes": box_rows,
         "reach": {zone: _reach(uniform, cycles) for zone, cycles in runs.items()},
     }
 
@@ -281,6 +330,14 @@ def main() -> None:
         help="the adaptive loops' Dörfler bulk fraction (default 0.5, what mixvi solve uses)",
     )
     ap.add_argument(
+        "--box",
+        nargs="+",
+        default=[],
+        metavar="U,Z,W,D,S",
+        help="Hertz: also a priori meshes refined U times uniformly, then Z times in the box "
+        "|x| < W, y > 1 - D (D × S per step) (bench_adaptive.box_mesh), one solve each",
+    )
+    ap.add_argument(
         "--mutations",
         action="store_true",
         help="efficiency index with each contact term dropped or flipped (exact-solution scenes)",
@@ -322,12 +379,27 @@ def main() -> None:
     for z in zones:
         if z != "energy" and z not in MARKS:
             ap.error(f"--zone: unknown marking {z!r}; known: energy, {', '.join(MARKS)}")
+    try:
+        boxes = tuple(
+            (int(u), int(z), float(w), float(d), float(sh))
+            for u, z, w, d, sh in (b.split(",") for b in args.box)
+        )
+    except ValueError:
+        ap.error(f"--box: U,Z,W,D,S each (two integers, three numbers), got {args.box}")
     results = []
     for name in args.scenes:
-        res = run(name, args.uniform, args.max_unknowns, args.zone_levels, tuple(zones), args.theta)
+        res = run(
+            name,
+            args.uniform,
+            args.max_unknowns,
+            args.zone_levels,
+            tuple(zones),
+            args.theta,
+            boxes,
+        )
         results.append(res)
         print(f"\n{name}")
-        keys = [k for k in KEYS if k in res["uniform"][0]]
+        keys = [k for k in (*KEYS, *CENTRE) if k in res["uniform"][0]]
         if res["limit"]:
             lim = res["limit"]
             print(
@@ -338,6 +410,10 @@ def main() -> None:
         for r in res["uniform"]:
             vals = " ".join(f"{r[k]:10.3e}" for k in keys)
             print(f"  {'level ' + str(r['level']):>16} {r['unknowns']:9d} {r['cpu_s']:8.2f} {vals}")
+        for r in res["boxes"]:
+            vals = " ".join(f"{r[k]:10.3e}" for k in keys)
+            label = "box " + "/".join(f"{v:g}" for v in r["box"])
+            print(f"  {label:>16} {r['unknowns']:9d} {r['cpu_s']:8.2f} {vals}")
         for zone, cycles in res["adaptive"].items():
             for r in cycles:
                 vals = " ".join(f"{r[k]:10.3e}" for k in keys)

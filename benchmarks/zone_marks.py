@@ -35,6 +35,11 @@ energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
   `dual_indicators`, `dual_weighted`), added; "dual_red" and "dual_a_red" (a only) plus
   "fan_red", "dual_red_t8" with θ = 0.8 on the goal sets, "dual_union" / "dual_union_red"
   the Dörfler sets of η_T(z_h) itself, "dual_peak_red" plus "peak_red";
+- fifth pass (docs/benchmarks.md, "Adaptivity on Hertz, fifth pass"): "layers3" the cells
+  within 3 vertex rings of the touching nodes split only red (`red_layers`:
+  "fan_red" is 0 rings), so the zone's surface layer is regular a few cells deep and its
+  nodal multiplier has no odd-even oscillation; "near_box" the near field as a box graded
+  from the zone's surface, plus "layers3" (`near_box`);
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of
@@ -372,6 +377,51 @@ def surface_red(
     return red_split(model, meshes, marked, zone)
 
 
+def red_layers(model: Any, sol: Any, meshes: dict, marked: dict, rings: int = 3) -> dict:
+    """ "layers3": `red_split` of the slave cells with a vertex within `rings` vertex rings of
+    a touching node (0 rings: the touching nodes' fans, "fan_red")."""
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    near = np.zeros(mesh.n_nodes, dtype=bool)  # (n_nodes,)
+    near[c.tr.nodes[_touch(model, sol)]] = True
+    for _ in range(rings):
+        near[mesh.cells[near[mesh.cells].any(axis=1)].ravel()] = True
+    return red_split(model, meshes, marked, near[mesh.cells].any(axis=1))
+
+
+def near_box(
+    model: Any,
+    sol: Any,
+    meshes: dict,
+    marked: dict,
+    width: float = 1.3,
+    depth: float = 2.6,
+    full: float = 1.3,
+    step: float = 0.5,
+    factor: float = 2.0,
+) -> dict:
+    """ "near_box": the slave cells whose centroid lies in the box |x − x_c| < width ℓ, at
+    a depth t = (y_top − y) / ℓ < `depth` (ℓ the zone's half-length, x_c its centre, y_top its
+    highest touching node), and whose longest edge exceeds `factor` × the zone's median
+    segment × 2^max(0, (t − full) / step), added to the marks: the near field kept as fine as
+    the zone's surface to the depth `full` ℓ, then twice coarser every `step` ℓ (as the nested
+    a priori boxes of `bench_adaptive.box_mesh`); then `red_layers` (3 rings)."""
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    touch = _touch(model, sol)  # (k,)
+    p = mesh.points[c.tr.nodes[touch]]  # (n_touch, 2)
+    half, xc = 0.5 * np.ptp(p[:, 0]), 0.5 * (p[:, 0].max() + p[:, 0].min())
+    h_zone = float(np.median(c.tr.measures[touch[c.tr.facets].all(axis=1)]))
+    P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
+    h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)  # (n_cells,)
+    centroid = P.mean(axis=1)  # (n_cells, 2)
+    t = (p[:, 1].max() - centroid[:, 1]) / half  # (n_cells,) depth in zone half-lengths
+    inside = (np.abs(centroid[:, 0] - xc) < width * half) & (t < depth)
+    coarse = h > factor * h_zone * 2.0 ** np.maximum(0.0, (t - full) / step)
+    out = {c.slave.name: marked[c.slave.name] | (inside & coarse)}
+    return red_layers(model, sol, meshes, out)
+
+
 def graded_chain(
     h: np.ndarray, halved: np.ndarray, pairs: np.ndarray, ratio: float = 2.0
 ) -> np.ndarray:
@@ -436,6 +486,8 @@ MARKS = {
     "dual_peak_red": lambda m, s, ms, mk: peak_red(
         m, s, ms, dual_weighted(m, s, ms, mk, red=False)
     ),
+    "layers3": red_layers,
+    "near_box": near_box,
     "near_level": near_level,
     "near_level4": lambda *a: near_level(*a, factor=4.0),
     "contact_w10": contact_weighted,

@@ -91,12 +91,12 @@ def test_multiplier_indicators(hertz):
     assert scale > 0 and eta2(np.full(x.size, 1e6), "jump").max() < 1e-12 * scale
 
 
-@pytest.mark.parametrize("name", ["fan_red", "surface_red"])
+@pytest.mark.parametrize("name", ["fan_red", "surface_red", "layers3"])
 def test_red_zone_cells_are_split_only_red(hertz, name):
     """One marked cell at the centre of the zone: after the marking, the conformity closure
     of the marks splits no cell of the zone that is not marked (so split red); the marks
     grew from the one cell (a mutation stopping after one pass leaves a zone cell split by
-    bisection)."""
+    bisection; "layers3" with its rings dropped leaves a cell of the third ring)."""
     from fem.bisection import _closure, _edge_cells, _edges
 
     model, sol, meshes = hertz
@@ -113,6 +113,12 @@ def test_red_zone_cells_are_split_only_red(hertz, name):
     split = _closure(cell_edges, _edge_cells(cell_edges, codes.size), edges)[cell_edges].any(axis=1)
     touch = zm._touch(model, sol)
     zone = zm._cells_at(mesh, c.tr.nodes[touch])
+    if name == "layers3":
+        near = np.zeros(mesh.n_nodes, dtype=bool)
+        near[c.tr.nodes[touch]] = True
+        for _ in range(3):
+            near[mesh.cells[near[mesh.cells].any(axis=1)].ravel()] = True
+        zone = near[mesh.cells].any(axis=1)
     if name == "surface_red":
         zone = np.zeros(mesh.n_cells, dtype=bool)
         zone[zm.facet_cells(mesh, c.tr.nodes[c.tr.facets[touch[c.tr.facets].any(axis=1)]])] = True
@@ -165,3 +171,33 @@ def test_fourth_pass_marks_split_the_centre_fan_red(hertz, name):
     start[np.flatnonzero(fan)[0]] = True
     m = zm.MARKS[name](model, sol, meshes, {"body": start})["body"]
     assert (m >= start).all() and m[fan].all()
+
+
+def test_near_box_marks_the_coarse_box_cells_and_nothing_deeper(hertz):
+    """ "near_box" (factor 1) from no marks: outside the red layers' vertex rings, a cell of
+    its box is marked exactly when it is coarser than the zone's median segment ×
+    2^max(0, (t − 1.3) / 0.5) (t its depth in zone half-lengths; a box without the grading
+    fails it), and no cell deeper than the box is."""
+    model, sol, meshes = hertz
+    mesh, c = meshes["body"], model.contact
+    none = {"body": np.zeros(mesh.n_cells, dtype=bool)}
+    m = zm.near_box(model, sol, meshes, none, factor=1.0)["body"]
+    touch = zm._touch(model, sol)
+    p = mesh.points[c.tr.nodes[touch]]
+    half, xc = 0.5 * np.ptp(p[:, 0]), 0.5 * (p[:, 0].max() + p[:, 0].min())
+    h_zone = np.median(c.tr.measures[touch[c.tr.facets].all(axis=1)])
+    P = mesh.points[mesh.cells]
+    h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)
+    cen = P.mean(axis=1)
+    t = (p[:, 1].max() - cen[:, 1]) / half
+    box = (np.abs(cen[:, 0] - xc) < 1.3 * half) & (t < 2.6)
+    coarse = h > h_zone * 2.0 ** np.maximum(0.0, (t - 1.3) / 0.5)
+    near = np.zeros(mesh.n_nodes, dtype=bool)
+    near[c.tr.nodes[touch]] = True
+    for _ in range(3):
+        near[mesh.cells[near[mesh.cells].any(axis=1)].ravel()] = True
+    layers = near[mesh.cells].any(axis=1)  # the red layers may add marks there
+    assert (box & coarse).any() and (box & ~coarse & ~layers).any()
+    assert (m[box & ~layers] == coarse[box & ~layers]).all()
+    deep = (t > 2.6) & ~layers
+    assert deep.any() and not m[deep].any()

@@ -1,0 +1,51 @@
+"""benchmarks/bench_adaptive.py: the Hertz centre diagnostics and the a priori box meshes."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from benchmarks import bench_adaptive as ba
+
+
+def _model(x: np.ndarray, lam: np.ndarray) -> SimpleNamespace:
+    """A stand-in for a solved contact model: trace nodes at abscissae x (k,), λ_n = lam."""
+    k = x.size
+    points = np.stack([x, np.ones(k)], axis=1)  # (k, 2)
+    contact = SimpleNamespace(
+        slave=SimpleNamespace(mesh=SimpleNamespace(points=points)),
+        tr=SimpleNamespace(nodes=np.arange(k)),
+        rows_n=np.arange(k),
+        normal=lambda sol_lam: sol_lam,
+    )
+    return SimpleNamespace(contact=contact)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_centre_reads_the_odd_even_mode(seed):
+    """Nodes in random order, λ = p0 (1 − x²) + A (−1)^i at spacing h: the centre node against
+    its neighbours' mean is p0 h² + 2A (relative: ÷ p0_ref), h0 = h. Reading neighbours in
+    storage order instead of along x fails it."""
+    rng = np.random.default_rng(seed)
+    h, A, p0 = rng.uniform(0.01, 0.1), rng.uniform(-0.01, 0.01), rng.uniform(1.0, 3.0)
+    i = np.arange(-10, 11)
+    x, lam = h * i, p0 * (1.0 - (h * i) ** 2) + A * (-1.0) ** i
+    perm = rng.permutation(i.size)
+    out = ba._centre(_model(x[perm], lam[perm]), SimpleNamespace(lam=lam[perm]), p0)
+    assert out["osc"] == pytest.approx((p0 * h**2 + 2 * A) / p0, rel=1e-9, abs=1e-12)
+    assert out["h0"] == pytest.approx(h, rel=1e-12)
+
+
+def test_box_mesh_refines_only_the_box():
+    """One box step refines the cells meeting the box, not the far corners: new nodes lie
+    within one level-0 cell of the box, and a wider box gives more of them."""
+    from problems import pipeline
+
+    loaded = pipeline.load("hertz")
+    base = ba.box_mesh(loaded.plugin, loaded.scene, 0, 0, 0.075, 0.12, 0.8)
+    narrow = ba.box_mesh(loaded.plugin, loaded.scene, 0, 1, 0.075, 0.12, 0.8)
+    wide = ba.box_mesh(loaded.plugin, loaded.scene, 0, 1, 0.5, 0.5, 0.8)
+    new = narrow.points[base.n_nodes :]  # (k, 2) the nodes the step added
+    assert new.shape[0] > 0
+    assert np.abs(new[:, 0]).max() < 0.5 and new[:, 1].min() > 0.5
+    assert wide.n_nodes > narrow.n_nodes
