@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from vi_core.engine import gathered_rows
+from vi_core.engine import gathered_rows, row_partition
 from vi_core.problem import MixedVI
 from vi_core.solution import Solution
 from vi_core.ssn import (
@@ -60,7 +60,7 @@ from vi_core.ssn import (
 )
 
 from .ksp import LinearSolve
-from .runtime import Reductions, peak_mb, petsc
+from .runtime import Reductions, RowPartition, peak_mb, petsc
 
 
 def _row_view(M: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
@@ -186,14 +186,6 @@ def _residual(e: _Kept, own: _Owned, red: Reductions, u, lam, scale: float) -> f
     return float(np.hypot(red.norm(r1), red.norm(r2)) / scale)
 
 
-def _ownership(PETSc: Any, comm: Any, n: int) -> tuple[int, int]:
-    """[lo, hi): the rows of n this rank owns in PETSc's default layout."""
-    probe = PETSc.Vec().createMPI((PETSc.DECIDE, n), comm=comm)
-    lo, hi = probe.getOwnershipRange()
-    probe.destroy()
-    return lo, hi
-
-
 def solve_ssn_petsc(
     vi: MixedVI,
     tol: float = 1e-10,
@@ -216,7 +208,7 @@ def solve_ssn_petsc(
         raise ValueError("the petsc engine solves condensed Newton steps only (condense=True)")
     PETSc = petsc()
     comm = PETSc.COMM_WORLD
-    red = Reductions(comm)
+    red = row_partition() or RowPartition(PETSc)  # the layout and the reductions
     t0 = time.perf_counter()
     e, sc = _kept(vi), vi.scaling
     cond = Condensation.detect(e.B)
@@ -225,7 +217,7 @@ def solve_ssn_petsc(
             "the petsc engine condenses the multipliers: B has no block-diagonal slave part "
             "(dual mortar multipliers)"
         )
-    lo, hi = _ownership(PETSc, comm, e.n)
+    lo, hi = red.owned(e.n)
     A_S = vi.equilibrated_rows(cond.S)  # (m, n) the slave rows of A', wherever they are owned
     # vi.A (canonical since equilibrated_rows) keeps this rank's rows only until the solve
     # ends, the others freed (if nothing else holds them): no rank holds the whole A meanwhile
@@ -293,7 +285,7 @@ def solve_ssn_petsc(
             **solver.info(),
             "peak_mb": memory,  # per rank: ru_maxrss after the set-up and at the end
         }
-        if solver.accuracy():  # the last step solved by GMRES: the states read its accuracy
+        if solver.accuracy() is not None:  # the states read the last step's accuracy
             sol.info["states"] = {"accuracy": solver.accuracy()}
         if estimate_condition:
             sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
