@@ -243,9 +243,10 @@ class LinearSolve:
         GMRES was asked for where GMRES solved it (GMRES_RTOL unless ``-mixvi_ksp_rtol`` says
         otherwise; a solve that took no GMRES iteration, its guess already within rtol,
         included: the step is no more accurate than that), 0 after a direct solve (MUMPS, or
-        the fallback: exact to rounding), None before any solve. The states' thresholds read
-        it (`vi_core.states.solution_thresholds`)."""
-        if not self.steps:
+        the fallback: exact to rounding), None on the direct path (as the serial direct path:
+        the residual alone) or before any solve. The states' thresholds read it
+        (`vi_core.states.solution_thresholds`)."""
+        if self.kind != "gamg" or not self.steps:
             return None
         last = self.steps[-1]
         return last["rtol"] if last["ksp"] == "gamg" and "fallback" not in last else 0.0
