@@ -281,6 +281,8 @@ def solve_ssn_petsc(
     }
     if solver.accuracy() is not None:  # the states read the last step's accuracy
         sol.info["states"] = {"accuracy": solver.accuracy()}
+    vi.matvec(sol.u)  # A u at the answer gathered now, on every rank: kept for the
+    # post-processing, which rank 0 runs alone (`MixedVI.matvec`)
     if estimate_condition:
         sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
     if not converged:

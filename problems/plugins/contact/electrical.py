@@ -229,6 +229,7 @@ def solve_coupled(
             break
         if options.get("method", "ssn") in ("ssn", "auto"):
             warm = {"u0": sol.u, "lam0": sol.lam}
+    c.vi0.matvec(sol.u)  # A0 u at the answer on every process (kept: `report` reads it)
     ratios = [b / a for a, b in zip(steps[:-1], steps[1:], strict=True) if a > 0]
     record = {
         "kind": c.law.kind,
