@@ -39,9 +39,12 @@ def using(ssn: Callable, rows: Any = None) -> Iterator[None]:
 def row_partition() -> Any:
     """The installed engine's row partition, None for the serial loop: an object with
     ``owned(n) -> (lo, hi)``, the rows [lo, hi) of n unknowns this process owns (the engine's
-    layout), and ``gatherv(local) -> whole``, the processes' 1-D arrays concatenated in rank
-    order on every process (`vi_core.petsc.runtime.Reductions`; sparse row blocks through it:
-    `gathered_rows`)."""
+    layout), and the reductions (collectives: every process calls them in the same order)
+    ``gatherv(local) -> whole``, the processes' 1-D arrays concatenated in rank order on every
+    process (sparse row blocks through it: `gathered_rows`), ``all_true(flag) -> bool``,
+    whether the flag holds on every process, and ``norm(local) -> float``, the 2-norm of the
+    vector whose parts the processes hold (`vi_core.petsc.runtime.RowPartition`). A MixedVI
+    built under it may hold A by rows (`MixedVI.partition`)."""
     return _rows
 
 

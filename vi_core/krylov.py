@@ -123,6 +123,17 @@ class KrylovSolver:
         self.steps.append(record)
         return (None if record["fallback"] else x), record
 
+    def accuracy(self) -> float | None:
+        """The relative accuracy of the last step beyond what its residual shows: the relative
+        tolerance GMRES was asked for (its target ‖b − K x‖ / ‖b‖, the forcing term's), also
+        where the guess already met it and no iteration ran; 0 where the step fell back to
+        the direct solver (exact to rounding); None before any step. The states' thresholds
+        read it (`vi_core.states.solution_thresholds`)."""
+        if not self.steps:
+            return None
+        last = self.steps[-1]
+        return 0.0 if last["fallback"] else float(last["target"])
+
     def info(self) -> dict:
         """What the Newton solve's `info` reports about the iterative path."""
         pre = self.preconditioner

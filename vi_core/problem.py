@@ -70,6 +70,13 @@ class MixedVI:
         used by the iterative linear path (`vi_core.krylov`).
     near_null : optional {field name: (k, d) array} near-null space of that field's block of A,
         rows in the field's order (e.g. the rigid-body modes of the displacement block).
+    partition : optional row partition of A over processes (`vi_core.engine.row_partition`: an
+        object with ``owned(n) -> (lo, hi)`` and the reductions ``gatherv``, ``all_true``,
+        ``norm``); A is then (hi − lo, n), this process's rows [lo, hi) of the whole A, and
+        what reads A does so by owned rows and reductions (the checks, `scaling`, `residual`,
+        `matvec`, `equilibrated_rows`); B, f, gap, Λ are whole on every process. What needs
+        the whole A (`equilibrated`, `A0`, `C`, `structure`: the serial solvers) refuses.
+        None: A whole, (n, n).
     """
 
     A: Any
@@ -82,12 +89,22 @@ class MixedVI:
     info: dict = field(default_factory=dict)
     fields: dict | None = None
     near_null: dict | None = None
+    partition: Any = None
 
     def __post_init__(self):
         self.A = sp.csr_matrix(self.A, dtype=float)
-        n = self.A.shape[0]
-        if self.A.shape != (n, n):
-            raise ValueError(f"A must be square, got shape {self.A.shape}")
+        if self.partition is None:
+            n = self.A.shape[0]
+            if self.A.shape != (n, n):
+                raise ValueError(f"A must be square, got shape {self.A.shape}")
+        else:
+            n = self.A.shape[1]
+            lo, hi = self.partition.owned(n)
+            if self.A.shape != (hi - lo, n):
+                raise ValueError(
+                    f"A must hold the rows [{lo}, {hi}) of an {n}×{n} matrix under its "
+                    f"partition, got shape {self.A.shape}"
+                )
         self.B = sp.csr_matrix(self.B, dtype=float)
         if self.B.shape[1] != n:
             raise ValueError(f"B must have {n} columns (A is {n}×{n}), got shape {self.B.shape}")
@@ -103,17 +120,26 @@ class MixedVI:
         self.gap = np.zeros(m) if self.gap is None else np.asarray(self.gap, float).ravel()
         if self.gap.shape != (m,):
             raise ValueError(f"gap must have {m} entries, got {self.gap.size}")
-        for name in ("A", "B"):
-            if not np.isfinite(getattr(self, name).data).all():
-                raise ValueError(f"{name} contains NaN or inf")
+        finite = np.isfinite(self.A.data).all()
+        if not (finite if self.partition is None else self.partition.all_true(finite)):
+            raise ValueError("A contains NaN or inf")
+        if not np.isfinite(self.B.data).all():
+            raise ValueError("B contains NaN or inf")
         for name in ("f", "gap"):
             if not np.isfinite(getattr(self, name)).all():
                 raise ValueError(f"{name} contains NaN or inf")
         self._check_fields(n)
-        d = self.A.diagonal()
-        if (d <= 0).any():
-            i = int(np.flatnonzero(d <= 0)[0])
-            raise ValueError(f"A must have a positive diagonal (A + Aᵀ > 0); A[{i},{i}] = {d[i]}")
+        d = self._diagonal()  # (hi − lo,) the owned rows'
+        bad = np.flatnonzero(d <= 0)[:1]  # the first nonpositive one here, if any
+        lo = self.row_range[0]
+        where, value = lo + bad.astype(np.int64), d[bad]  # (0,) or (1,)
+        if self.partition is not None:  # every process: the first over all of them
+            where, value = self.partition.gatherv(where), self.partition.gatherv(value)
+        if where.size:
+            i = int(where[0])
+            raise ValueError(
+                f"A must have a positive diagonal (A + Aᵀ > 0); A[{i},{i}] = {value[0]}"
+            )
 
     def _check_fields(self, n: int) -> None:
         """fields as boolean masks (n,), disjoint; near_null rows = the field's size."""
@@ -143,7 +169,52 @@ class MixedVI:
 
     @property
     def n(self) -> int:
-        return self.A.shape[0]
+        return self.A.shape[1]
+
+    @property
+    def row_range(self) -> tuple[int, int]:
+        """[lo, hi): the rows of the whole A this process holds (all of them without a
+        partition)."""
+        return (0, self.n) if self.partition is None else self.partition.owned(self.n)
+
+    def _diagonal(self) -> np.ndarray:
+        """(hi − lo,) the diagonal entries of the rows held here."""
+        return self.A.diagonal(k=self.row_range[0])
+
+    def _whole_A(self) -> sp.csr_matrix:
+        """A, which must be whole (ValueError under a partition: a serial reader)."""
+        if self.partition is not None:
+            lo, hi = self.row_range
+            raise ValueError(
+                f"this MixedVI holds the rows [{lo}, {hi}) of A only (a row partition): "
+                "a reader of the whole A (the serial solvers, equilibrated, structure) cannot "
+                "run on it"
+            )
+        return self.A
+
+    def matvec(self, u: np.ndarray) -> np.ndarray:
+        """A u (n,), whole on every process: under a partition each process's rows' product,
+        gathered (every entry bit for bit the whole A's product's; a collective), and kept
+        with u: asked again at the same u (the answer, by the post-processing that one
+        process runs alone after the solve: the engine gathers A u at its answer on every
+        process, `vi_core.petsc.solve_ssn_petsc`) it is returned with no communication."""
+        u = np.asarray(u, dtype=float)
+        if self.partition is None:
+            return self.A @ u
+        kept = self.__dict__.get("_product")
+        if kept is not None and np.array_equal(kept[0], u):
+            return kept[1].copy()
+        Au = self.partition.gatherv(self.A @ u)  # (n,)
+        self._product = (u.copy(), Au)
+        return Au.copy()
+
+    def rows_of(self, M: Any) -> Any:
+        """The rows [lo, hi) held here (`row_range`) of M, an (n, ·) matrix or vector in A's
+        row numbering (M itself without a partition): to add to A, e.g. A + rows_of(Gᵀ D G)."""
+        if self.partition is None:
+            return M
+        lo, hi = self.row_range
+        return M[lo:hi]
 
     @property
     def m(self) -> int:
@@ -152,20 +223,22 @@ class MixedVI:
     @cached_property
     def A0(self) -> sp.csr_matrix:
         """Symmetric part (A + Aᵀ)/2."""
-        return ((self.A + self.A.T) * 0.5).tocsr()
+        A = self._whole_A()
+        return ((A + A.T) * 0.5).tocsr()
 
     @cached_property
     def C(self) -> sp.csr_matrix:
         """Skew part (A − Aᵀ)/2."""
-        C = ((self.A - self.A.T) * 0.5).tocsr()
+        A = self._whole_A()
+        C = ((A - A.T) * 0.5).tocsr()
         C.eliminate_zeros()
         return C
 
     @cached_property
     def structure(self) -> str:
         """'symmetric', 'skew-coupled' or 'general' (see `skew_split`)."""
-        scale = max(abs(self.A).max(), 1e-300) if self.A.nnz else 1.0
         C = self.C
+        scale = max(abs(self.A).max(), 1e-300) if self.A.nnz else 1.0
         if C.nnz == 0 or abs(C).max() <= 1e-14 * scale:
             return "symmetric"
         return "skew-coupled" if self.skew_split is not None else "general"
@@ -219,7 +292,9 @@ class MixedVI:
         The equilibrated problem is invariant under a change of units of any field (up to
         rounding), which makes every solver unit-invariant.
         """
-        s_u = 1.0 / np.sqrt(self.A.diagonal())
+        s_u = 1.0 / np.sqrt(self._diagonal())  # (hi − lo,) the rows held here
+        if self.partition is not None:
+            s_u = self.partition.gatherv(s_u)  # (n,)
         Bs = self.B @ sp.diags(s_u)
         row = np.sqrt(np.asarray(Bs.multiply(Bs).sum(axis=1)).ravel())  # (m,)
         row[row == 0] = 1.0
@@ -261,10 +336,14 @@ class MixedVI:
 
     def equilibrated_rows(self, rows: np.ndarray) -> sp.csr_matrix:
         """(r, n) the rows `rows` (r,) of `equilibrated`.A, the same values, built from those
-        rows of A alone (a distributed solver's owned rows: no whole-size copy)."""
+        rows of A alone (a distributed solver's owned rows: no whole-size copy); under a
+        partition `rows` must be held here (`row_range`)."""
         A, s_u = self._canonical_A(), self.scaling.s_u
         rows = np.asarray(rows, dtype=np.intp)
-        Ar = A[rows]  # (r, n) a canonical copy of the rows
+        lo, hi = self.row_range
+        if rows.size and (rows.min() < lo or rows.max() >= hi):
+            raise ValueError(f"equilibrated_rows: rows outside [{lo}, {hi}), the rows held here")
+        Ar = A[rows - lo]  # (r, n) a canonical copy of the rows
         data = np.repeat(s_u[rows], np.diff(Ar.indptr))  # (nnz_r,) s_i of each entry's row
         data *= Ar.data
         data *= s_u[Ar.indices]
@@ -287,6 +366,7 @@ class MixedVI:
         paper scene level 5: 34 MB), A canonical first (`_canonical_A`), so e.A has the
         structure of the product Su A Su (which drops zeros: a direct solver's ordering follows
         the structure)."""
+        self._whole_A()
         A, s_u = self._canonical_A(), self.scaling.s_u
         data = np.repeat(s_u, np.diff(A.indptr))  # (nnz,) s_i of each entry's row
         data *= A.data
@@ -295,9 +375,12 @@ class MixedVI:
 
     # ---------------------------------------------------------------- residual
     def residual(self, u: np.ndarray, lam: np.ndarray) -> Residual:
-        """Natural-map residual of (u, λ) in equilibrated variables (see `Residual`)."""
+        """Natural-map residual of (u, λ) in equilibrated variables (see `Residual`); under a
+        partition from the rows held here, r1's norm a reduction (`owned_residual`)."""
         up, lp = self.scaling.to_scaled(np.asarray(u, float), np.asarray(lam, float))
-        return natural_residual(self.equilibrated, up, lp)
+        if self.partition is None:
+            return natural_residual(self.equilibrated, up, lp)
+        return owned_residual(self, up, lp)
 
     def with_rhs(self, f: np.ndarray | None = None, gap: np.ndarray | None = None) -> MixedVI:
         """A copy with another right-hand side (same A, B, Λ)."""
@@ -312,10 +395,12 @@ class MixedVI:
             info=dict(self.info),
             fields=self.fields,
             near_null=self.near_null,
+            partition=self.partition,
         )
 
     def __repr__(self):
-        return f"MixedVI(n={self.n}, m={self.m}, Lambda={self.Lambda!r}, {self.structure})"
+        kind = self.structure if self.partition is None else "rows [{}, {})".format(*self.row_range)
+        return f"MixedVI(n={self.n}, m={self.m}, Lambda={self.Lambda!r}, {kind})"
 
 
 def natural_residual(vi: MixedVI, u: np.ndarray, lam: np.ndarray, c: float = 1.0) -> Residual:
@@ -324,4 +409,19 @@ def natural_residual(vi: MixedVI, u: np.ndarray, lam: np.ndarray, c: float = 1.0
     r2 = lam - vi.Lambda.project(lam + c * (vi.B @ u - vi.gap))
     scale = max(float(np.linalg.norm(vi.f)), float(np.linalg.norm(vi.gap))) or 1.0
     n1, n2 = float(np.linalg.norm(r1)), float(np.linalg.norm(r2))
+    return Residual(n1, n2, scale, float(np.hypot(n1, n2) / scale))
+
+
+def owned_residual(vi: MixedVI, u: np.ndarray, lam: np.ndarray) -> Residual:
+    """`natural_residual` of vi's equilibrated problem at (u', λ') (equilibrated, (n,), (m,)),
+    vi's A held by rows (`MixedVI.partition`): r1's rows [lo, hi) from A's rows held here,
+    A' u' = s_u ⊙ (A (s_u ⊙ u')) (the equilibrated A' never formed), its norm a reduction over
+    the processes; r2, f' and gap' whole on each."""
+    s_u, part = vi.scaling.s_u, vi.partition
+    lo, hi = vi.row_range
+    e = vi.equilibrated_parts()
+    r1 = s_u[lo:hi] * (vi.A @ (s_u * u)) + (e["B"].T @ lam)[lo:hi] - e["f"][lo:hi]  # (hi − lo,)
+    r2 = lam - e["Lambda"].project(lam + (e["B"] @ u - e["gap"]))  # (m,)
+    scale = max(float(np.linalg.norm(e["f"])), float(np.linalg.norm(e["gap"]))) or 1.0
+    n1, n2 = part.norm(r1), float(np.linalg.norm(r2))
     return Residual(n1, n2, scale, float(np.hypot(n1, n2) / scale))

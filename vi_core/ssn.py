@@ -437,6 +437,8 @@ def _solve_ssn(
     }
     if stepper.krylov is not None:
         sol.info.update(stepper.krylov.info())
+        if stepper.krylov.accuracy() is not None:  # the states read the last step's accuracy
+            sol.info["states"] = {"accuracy": stepper.krylov.accuracy()}
     elif linear_solver == "amg":
         sol.info["fallback"] = [{"step": None, "reason": "not condensable: direct solves"}]
     if stepper.factorize.fallbacks:

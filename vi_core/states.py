@@ -160,7 +160,7 @@ def vi_states(
     )
     if lam_scale == 0.0:  # nothing presses: the elastic force per weight is the scale
         w_min = min(float(w[w > 0].min(initial=np.inf)) for *_, w in parts)
-        lam_scale = float(np.abs((vi.A @ u)[disp]).max(initial=0.0)) / min(w_min, 1.0)
+        lam_scale = float(np.abs(vi.matvec(u)[disp]).max(initial=0.0)) / min(w_min, 1.0)
     th = thresholds(residual, lam_scale, float(np.abs(u[disp]).max(initial=0.0)))
     th = Thresholds(max(th.lam, FACTOR * float(lam_accuracy)), th.u)
     out = []

@@ -91,6 +91,7 @@ class TrescaSequence:
             Lambda=product(*blocks),
             gap=vi.gap[self.perm],
             info={"tresca_of": vi.info.get("gallery", "")},
+            partition=vi.partition,  # A by rows on an engine's processes
         )
 
     def bounds(self, lam: np.ndarray) -> list[np.ndarray]:

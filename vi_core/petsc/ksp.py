@@ -217,6 +217,7 @@ class LinearSolve:
         }
         if self.kind == "gamg":
             record["pc"] = self.pc
+            record["rtol"] = float(self.ksp.getTolerances()[0])  # asked of GMRES (-mixvi_ksp_rtol)
             self.iterations += record["iterations"]
             if record["reason"] < 0:  # GMRES did not converge: MUMPS for this step
                 direct = self._ksp("mumps")
@@ -237,13 +238,18 @@ class LinearSolve:
         for obj in (*kept, self.K, self.b, self.x, *self._nullspaces.values()):
             obj.destroy()
 
-    def accuracy(self) -> float:
-        """The relative accuracy of the last solve beyond what its residual shows: GMRES_RTOL
-        where GMRES solved it (its relative residual; the step, and so u and λ, are no more
-        accurate than that), 0 after a direct solve (MUMPS, or the fallback: exact to
-        rounding). The states' thresholds read it (`vi_core.states.solution_thresholds`)."""
-        last = self.steps[-1] if self.steps else {}
-        return GMRES_RTOL if last.get("ksp") == "gamg" and "fallback" not in last else 0.0
+    def accuracy(self) -> float | None:
+        """The relative accuracy of the last solve beyond what its residual shows: the rtol
+        GMRES was asked for where GMRES solved it (GMRES_RTOL unless ``-mixvi_ksp_rtol`` says
+        otherwise; a solve that took no GMRES iteration, its guess already within rtol,
+        included: the step is no more accurate than that), 0 after a direct solve (MUMPS, or
+        the fallback: exact to rounding), None on the direct path (as the serial direct path:
+        the residual alone) or before any solve. The states' thresholds read it
+        (`vi_core.states.solution_thresholds`)."""
+        if self.kind != "gamg" or not self.steps:
+            return None
+        last = self.steps[-1]
+        return last["rtol"] if last["ksp"] == "gamg" and "fallback" not in last else 0.0
 
     def info(self) -> dict:
         """What the solves did, for Solution.info (the serial amg path's keys where they mean

@@ -19,26 +19,24 @@ What is distributed and what is not (issue 33, docs/distributed.md):
   ``linear_solver="amg"``, MUMPS again for a step GMRES does not solve. PETSc options
   (``-mixvi_ksp_*``, ``-mixvi_pc_*``) override through PETSC_OPTIONS.
 
-* **No rank holds the whole A during a solve.** The equilibrated VI is never formed whole
-  (`MixedVI.equilibrated_parts`: B', f', gap', Λ'; A' read by rows, `MixedVI.equilibrated_rows`:
-  the slave rows, then the owned fixed rows); vi.A itself keeps only the rank's rows [lo, hi)
-  from then until the solve ends (`_rows_only`; the equilibrium residual reads them, scaled:
-  s_u ⊙ (A (s_u ⊙ u'))), and is made whole again at the end (`_whole`, the rows gathered by
-  MPI_Allgatherv straight into the whole arrays: the serial post-processing reads it), or
-  given back its own A where another holder kept that alive (a load path's step shares A
-  with its model: no second copy).
+* **A by rows.** A VI that holds A by rows (`MixedVI.partition`: the contact model built
+  under the engine, each rank assembling only its rows) is read by its rows: the equilibrium
+  residual from them, scaled (s_u ⊙ (A (s_u ⊙ u'))), the owned fixed rows of A'
+  (`MixedVI.equilibrated_rows`) and the slave rows, which every rank needs (the multipliers'
+  recovery and the condensed rows read D^{-T} A_S): each rank scales those it owns and the
+  m rows (the interface's) are gathered (`_slave_rows`). The equilibrated VI is never formed
+  whole (`MixedVI.equilibrated_parts`: B', f', gap', Λ'). A VI with A whole (the scalar
+  plug-ins) is read the same way, through a view of the rank's rows.
 
-Not yet distributed (what remains, stated in docs/distributed.md): the model is built whole on
-every rank (the plug-in assembles A and B whole; each rank then keeps its rows of A during the
-solve), u and λ are replicated after each step (an allgather), and the active-set map of Λ is
-evaluated on the replicated y (O(m), the interface) with each rank using its owned rows
+Not yet distributed (what remains, stated in docs/distributed.md): B is assembled whole on
+every rank, u and λ are replicated after each step (an allgather), and the active-set map of Λ
+is evaluated on the replicated y (O(m), the interface) with each rank using its owned rows
 (docs/benchmarks.md, "The petsc engine").
 """
 
 from __future__ import annotations
 
 import time
-import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -46,7 +44,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from vi_core.engine import gathered_rows
+from vi_core.engine import gathered_rows, row_partition
 from vi_core.problem import MixedVI
 from vi_core.solution import Solution
 from vi_core.ssn import (
@@ -60,7 +58,7 @@ from vi_core.ssn import (
 )
 
 from .ksp import LinearSolve
-from .runtime import Reductions, peak_mb, petsc
+from .runtime import Reductions, RowPartition, peak_mb, petsc
 
 
 def _row_view(M: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
@@ -88,28 +86,29 @@ class _Kept:
     m: int
 
 
-def _rows_only(A: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
-    """(n, n) A with only its rows [lo, hi) (a copy of them), every other row empty."""
-    own = A[lo:hi]  # (k, n) a copy
-    nnz = own.indptr[-1]
-    indptr = np.concatenate(
-        [np.zeros(lo, A.indptr.dtype), own.indptr, np.full(A.shape[0] - hi, nnz, A.indptr.dtype)]
-    )  # (n + 1,)
-    return sp.csr_matrix((own.data, own.indices, indptr), shape=A.shape)
+def _held_rows(vi: MixedVI, lo: int, hi: int) -> sp.csr_matrix:
+    """(hi − lo, n) vi's (physical) rows [lo, hi) of A: vi.A itself where vi holds A by rows
+    (`MixedVI.partition`, the contact model built under the engine), else a view of the whole
+    A's rows (no copy)."""
+    if vi.partition is not None:
+        if vi.row_range != (lo, hi):
+            raise ValueError(
+                f"vi holds the rows {vi.row_range} of A, the engine's layout gives this rank "
+                f"[{lo}, {hi})"
+            )
+        return vi.A
+    return _row_view(vi.A.tocsr(), lo, hi)
 
 
-def _whole(A: sp.csr_matrix, lo: int, hi: int, red: Reductions) -> sp.csr_matrix:
-    """A whole again from the ranks' rows-only copies (`_rows_only`, rows [lo, hi) here): the
-    same values, indices and pattern as before (rows concatenated in rank order), received
-    straight into the whole arrays (`Reductions.gatherv`): no second copy of A meanwhile."""
-    p0, p1 = A.indptr[lo], A.indptr[hi]
-    mine = sp.csr_matrix(  # (hi − lo, n) views of A's arrays: no copy of the rows
-        (A.data[p0:p1], A.indices[p0:p1], A.indptr[lo : hi + 1] - p0), shape=(hi - lo, A.shape[1])
-    )
-    whole = gathered_rows(red.gatherv, mine, A.shape[1])
-    whole.has_sorted_indices = True  # each row as it was: canonical (`_canonical_A`)
-    whole.has_canonical_format = True
-    return whole
+def _slave_rows(vi: MixedVI, S: np.ndarray, lo: int, hi: int, red: Reductions) -> sp.csr_matrix:
+    """(m, n) the slave rows S (m,) of A' in the order of S, on every rank: each rank scales
+    the slave rows it owns (`MixedVI.equilibrated_rows`), the ranks' blocks gathered
+    (`gathered_rows`, m rows: the interface's) and put in S's order. Every row is the one
+    `equilibrated_rows(S)` of the whole A gives, bit for bit."""
+    mine = np.flatnonzero((S >= lo) & (S < hi))  # (k_m,) the multipliers whose slave dof is here
+    rows = gathered_rows(red.gatherv, vi.equilibrated_rows(S[mine]), vi.n)  # (m, n) rank order
+    order = red.gatherv(mine.astype(np.int64))  # (m,) the multiplier of each gathered row
+    return rows[np.argsort(order)]
 
 
 def _kept(vi: MixedVI) -> _Kept:
@@ -135,7 +134,7 @@ class _Owned:
         R_own = R[(R >= lo) & (R < hi)]  # (k_R,) owned fixed rows
         self.mult = np.flatnonzero((S >= lo) & (S < hi))  # (k_m,) owned multiplier rows
         A_R = vi.equilibrated_rows(R_own)  # (k_R, n) the owned fixed rows of A'
-        self.A_own = _row_view(vi.A.tocsr(), lo, hi)  # (k, n) physical rows, no copy
+        self.A_own = _held_rows(vi, lo, hi)  # (k, n) physical rows, no copy
         self.s_u = vi.scaling.s_u  # (n,)
         self.A_S = A_S  # (m, n) the slave rows of A' (a multiplier's recovery reads its D
         # block's)
@@ -186,14 +185,6 @@ def _residual(e: _Kept, own: _Owned, red: Reductions, u, lam, scale: float) -> f
     return float(np.hypot(red.norm(r1), red.norm(r2)) / scale)
 
 
-def _ownership(PETSc: Any, comm: Any, n: int) -> tuple[int, int]:
-    """[lo, hi): the rows of n this rank owns in PETSc's default layout."""
-    probe = PETSc.Vec().createMPI((PETSc.DECIDE, n), comm=comm)
-    lo, hi = probe.getOwnershipRange()
-    probe.destroy()
-    return lo, hi
-
-
 def solve_ssn_petsc(
     vi: MixedVI,
     tol: float = 1e-10,
@@ -216,7 +207,7 @@ def solve_ssn_petsc(
         raise ValueError("the petsc engine solves condensed Newton steps only (condense=True)")
     PETSc = petsc()
     comm = PETSc.COMM_WORLD
-    red = Reductions(comm)
+    red = row_partition() or RowPartition(PETSc)  # the layout and the reductions
     t0 = time.perf_counter()
     e, sc = _kept(vi), vi.scaling
     cond = Condensation.detect(e.B)
@@ -225,85 +216,77 @@ def solve_ssn_petsc(
             "the petsc engine condenses the multipliers: B has no block-diagonal slave part "
             "(dual mortar multipliers)"
         )
-    lo, hi = _ownership(PETSc, comm, e.n)
-    A_S = vi.equilibrated_rows(cond.S)  # (m, n) the slave rows of A', wherever they are owned
-    # vi.A (canonical since equilibrated_rows) keeps this rank's rows only until the solve
-    # ends, the others freed (if nothing else holds them): no rank holds the whole A meanwhile
-    whole = weakref.ref(vi.A)
-    vi.A = _rows_only(vi.A, lo, hi)
-    try:
-        own = _Owned(vi, e, cond, A_S, lo, hi)
-        kind = "gamg" if linear_solver == "amg" else "mumps"
-        solver = LinearSolve(PETSc, comm, kind, e, own.lo, own.first())
-        memory = {"set_up": red.comm.allgather(peak_mb())}
-        u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
-        lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
-        Lam = e.Lambda
-        scale = max(red.norm(e.f[own.lo : own.hi]), red.norm(e.gap[own.mult])) or 1.0
-        res = _residual(e, own, red, u, lam, scale)
-        steps, k = NewtonSteps(tol, [res]), 0
-        nloc = own.hi - own.lo
-        while not steps.converged and k < max_iter:
-            k += 1
-            y = lam + e.B @ u - e.gap  # (m,)
-            p = Lam.project(y)
-            J = sp.csr_matrix(Lam.jacobian(y))  # (m, m) block diagonal
-            W = sp.identity(e.m, format="csr") - J
-            rhs_c = p - J @ y - J @ e.gap
-            # owned slave rows: Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)
-            solver.set_rows(own.rows_S, own.pattern_S, own.slave_rows(e, J, W))
-            rhs_S = own.Dt @ (W @ (cond.Dt_inv @ own.f_S) - rhs_c)  # (k_m,)
-            rhs = np.concatenate([own.rhs_R, rhs_S])[own.order]  # (k,) in local row order
-            x = solver.solve(rhs, u[own.lo : own.hi])
-            u_new = red.gather(own.dofs, x, e.n)
-            lam_own = own.Dt_inv @ (own.f_S - own.A_S @ u_new)  # (k_m,)
-            lam_new = red.gather(own.mult, lam_own, e.m)
-            u, lam, t, res = damped_step(
-                lambda u, lam: _residual(e, own, red, u, lam, scale), u, lam, u_new, lam_new, res,
-                damping,
-            )  # fmt: skip
-            steps.record(t, res)
-            if on_step is not None:
-                active = int((p == y).sum())
-                slip = int(((p != y) & (p != 0.0)).sum())
-                on_step(
-                    dict(
-                        step=k,
-                        residual=res,
-                        active=active,
-                        slip=slip,
-                        done=True,
-                        krylov_iterations=solver.iterations if solver.kind == "gamg" else None,
-                    )
-                )
-        sol = finish(
-            e, Lam, sc, u, lam, (res, steps.converged), tol,
-            lambda lam: _residual(e, own, red, u, lam, scale), steps.history, k, t0,
+    lo, hi = red.owned(e.n)
+    A_S = _slave_rows(vi, cond.S, lo, hi, red)  # (m, n) the slave rows of A', on every rank
+    own = _Owned(vi, e, cond, A_S, lo, hi)
+    kind = "gamg" if linear_solver == "amg" else "mumps"
+    solver = LinearSolve(PETSc, comm, kind, e, own.lo, own.first())
+    memory = {"set_up": red.comm.allgather(peak_mb())}
+    u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
+    lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
+    Lam = e.Lambda
+    scale = max(red.norm(e.f[own.lo : own.hi]), red.norm(e.gap[own.mult])) or 1.0
+    res = _residual(e, own, red, u, lam, scale)
+    steps, k = NewtonSteps(tol, [res]), 0
+    nloc = own.hi - own.lo
+    while not steps.converged and k < max_iter:
+        k += 1
+        y = lam + e.B @ u - e.gap  # (m,)
+        p = Lam.project(y)
+        J = sp.csr_matrix(Lam.jacobian(y))  # (m, m) block diagonal
+        W = sp.identity(e.m, format="csr") - J
+        rhs_c = p - J @ y - J @ e.gap
+        # owned slave rows: Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)
+        solver.set_rows(own.rows_S, own.pattern_S, own.slave_rows(e, J, W))
+        rhs_S = own.Dt @ (W @ (cond.Dt_inv @ own.f_S) - rhs_c)  # (k_m,)
+        rhs = np.concatenate([own.rhs_R, rhs_S])[own.order]  # (k,) in local row order
+        x = solver.solve(rhs, u[own.lo : own.hi])
+        u_new = red.gather(own.dofs, x, e.n)
+        lam_own = own.Dt_inv @ (own.f_S - own.A_S @ u_new)  # (k_m,)
+        lam_new = red.gather(own.mult, lam_own, e.m)
+        u, lam, t, res = damped_step(
+            lambda u, lam: _residual(e, own, red, u, lam, scale), u, lam, u_new, lam_new, res,
+            damping,
         )  # fmt: skip
-        res, converged = sol.residual, sol.converged
-        solver.destroy()
-        memory["end"] = red.comm.allgather(peak_mb())
-        sol.info = {
-            "engine": "petsc",
-            "ranks": comm.getSize(),
-            "owned_rows": red.comm.allgather(int(nloc)),
-            "condensed": True,
-            "damped_steps": steps.damped,
-            "inside": sol.info["inside"],
-            **solver.info(),
-            "peak_mb": memory,  # per rank: ru_maxrss after the set-up and at the end
-        }
-        if solver.accuracy():  # the last step solved by GMRES: the states read its accuracy
-            sol.info["states"] = {"accuracy": solver.accuracy()}
-        if estimate_condition:
-            sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
-        if not converged:
-            sol.warnings.append(
-                f"ssn (petsc): residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"
+        steps.record(t, res)
+        if on_step is not None:
+            active = int((p == y).sum())
+            slip = int(((p != y) & (p != 0.0)).sum())
+            on_step(
+                dict(
+                    step=k,
+                    residual=res,
+                    active=active,
+                    slip=slip,
+                    done=True,
+                    krylov_iterations=solver.iterations if solver.kind == "gamg" else None,
+                )
             )
-        return sol
-    finally:
-        # the whole A back: the same object where another holder kept it alive (a load path's
-        # step shares A with the model it came from) on every rank, else gathered from the rows
-        kept = whole()
-        vi.A = kept if red.all_true(kept is not None) else _whole(vi.A, lo, hi, red)
+    sol = finish(
+        e, Lam, sc, u, lam, (res, steps.converged), tol,
+        lambda lam: _residual(e, own, red, u, lam, scale), steps.history, k, t0,
+    )  # fmt: skip
+    res, converged = sol.residual, sol.converged
+    solver.destroy()
+    memory["end"] = red.comm.allgather(peak_mb())
+    sol.info = {
+        "engine": "petsc",
+        "ranks": comm.getSize(),
+        "owned_rows": red.comm.allgather(int(nloc)),
+        "condensed": True,
+        "damped_steps": steps.damped,
+        "inside": sol.info["inside"],
+        **solver.info(),
+        "peak_mb": memory,  # per rank: ru_maxrss after the set-up and at the end
+    }
+    if solver.accuracy() is not None:  # the states read the last step's accuracy
+        sol.info["states"] = {"accuracy": solver.accuracy()}
+    vi.matvec(sol.u)  # A u at the answer gathered now, on every rank: kept for the
+    # post-processing, which rank 0 runs alone (`MixedVI.matvec`)
+    if estimate_condition:
+        sol.info["condition_estimate_skipped"] = "not available with the petsc engine"
+    if not converged:
+        sol.warnings.append(
+            f"ssn (petsc): residual {res:.3e} did not reach tol {tol:.1e} in {k} iterations"
+        )
+    return sol

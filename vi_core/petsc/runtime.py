@@ -114,18 +114,24 @@ class Reductions:
 
 class RowPartition(Reductions):
     """The row partition the engine installs for the model builders (`vi_core.engine.using`,
-    `row_partition`): PETSc's default layout of n rows over COMM_WORLD, and `gatherv`."""
+    `row_partition`) and the Newton loop uses: PETSc's default layout of n rows over
+    COMM_WORLD, and the reductions."""
 
     def __init__(self, PETSc: Any):
         super().__init__(PETSc.COMM_WORLD)
         self._petsc = PETSc
+        self._ranges: dict[int, tuple[int, int]] = {}  # n → [lo, hi), computed once per n
 
     def owned(self, n: int) -> tuple[int, int]:
-        """[lo, hi): the rows of n this rank owns (the layout the Newton loop's matrices use)."""
-        probe = self._petsc.Vec().createMPI((self._petsc.DECIDE, n), comm=self._petsc.COMM_WORLD)
-        lo, hi = probe.getOwnershipRange()
-        probe.destroy()
-        return lo, hi
+        """[lo, hi): the rows of n this rank owns (PETSc's default layout, `PetscSplitOwnership`,
+        the one a Vec or Mat of global size n gets with PETSC_DECIDE), computed at the first
+        call for n (collective then: every rank asks for the same n in the same order) and
+        kept: no PETSc object is made."""
+        if n not in self._ranges:
+            k, _ = self._petsc.Sys.splitOwnership(n, comm=self._petsc.COMM_WORLD)
+            lo = self.comm.exscan(k) or 0  # rank 0 receives None
+            self._ranges[n] = (lo, lo + k)
+        return self._ranges[n]
 
 
 def _min() -> Any:

@@ -65,7 +65,7 @@ def jumps(model: Any, sol: Solution, radius: np.ndarray) -> Jumps:
         # the elastic nodal forces per area: the pressure scale when the bodies are apart (all
         # of λ is rounding then)
         w_min = float(c.W_n[c.rows_n].min())  # the smallest normal row weight (docstring)
-        force = float(np.abs((model.vi.A @ sol.u)[disp]).max(initial=0.0)) / w_min
+        force = float(np.abs(model.vi.matvec(sol.u)[disp]).max(initial=0.0)) / w_min
         pressure = max(float(sol.lam[c.idx_n].max(initial=0.0)), force)
     Bi = Bu if model.slip_origin is None else Bu - model.slip_origin  # slip since the origin
     th = node_states.solution_thresholds(

@@ -176,7 +176,7 @@ class Coupling:
         wk = np.where(keep, self.weights * k, 0.0)  # (N,)
         G = self.jump_matrix
         const = -self.phi_F + (0.0 if self.fixed is None else self.fixed)  # (N,) or scalar
-        A = self.vi0.A + G.T @ sp.diags(wk) @ G
+        A = self.vi0.A + self.vi0.rows_of(G.T @ sp.diags(wk) @ G)  # the rows held here
         f = self.vi0.f - G.T @ (wk * const)  # (n,)
         return dataclasses.replace(self.vi0, A=A.tocsr(), f=f)
 
@@ -188,7 +188,7 @@ class Coupling:
         """The discrete normal electric displacement D·n (N,) at the trace nodes, recovered
         from the insulating equations: (f0 − A0 u − B0ᵀλ)_φi / w_i (NaN where φ is
         prescribed) — independent of the k the solver used."""
-        r = self.vi0.f - self.vi0.A @ u - self.vi0.B.T @ lam  # (n,)
+        r = self.vi0.f - self.vi0.matvec(u) - self.vi0.B.T @ lam  # (n,)
         out = np.full(self.phi.size, np.nan)
         keep = self.phi >= 0
         out[keep] = r[self.phi[keep]] / self.weights[keep]
@@ -229,6 +229,7 @@ def solve_coupled(
             break
         if options.get("method", "ssn") in ("ssn", "auto"):
             warm = {"u0": sol.u, "lam0": sol.lam}
+    c.vi0.matvec(sol.u)  # A0 u at the answer on every process (kept: `report` reads it)
     ratios = [b / a for a, b in zip(steps[:-1], steps[1:], strict=True) if a > 0]
     record = {
         "kind": c.law.kind,

@@ -154,13 +154,13 @@ def mixed_vi(
     contact the front's contact (None: no multipliers), whose rows are
     `interface.multiplier_rows`; the MixedVI's `fields` and `near_null` are
     `bodies.field_data`'s; check(A_full, f_full, values) may refuse the assembled data (under
-    an engine's row partition A_full is never whole: check reads its three parts, whole on
-    every rank, so every rank refuses alike: `owned.reduced`). Each body's operator A is
-    released (vi.A is the copy kept: memory; paper scene level 5: 117 MB of bodies' A); a body
-    keeps A's rows of its prescribed dofs, `A_fixed` (its reactions: `piezo_balance`). vi.X,
-    the norm of `vi_core.constants`, is a function that assembles it when asked (held for the
-    whole solve, it was 73 MB at level 5, and `constants` refuses sizes above 200,000
-    unknowns)."""
+    an engine's row partition A_full is never whole: `owned.check` reads its three parts, every
+    rank refusing alike, and vi holds its rows of A only: `owned.reduced`, `MixedVI.partition`).
+    Each body's operator A is released (vi.A is the copy kept: memory; paper scene level 5:
+    117 MB of bodies' A); a body keeps A's rows of its prescribed dofs, `A_fixed` (its
+    reactions: `piezo_balance`). vi.X, the norm of `vi_core.constants`, is a function that
+    assembles it when asked (held for the whole solve, it was 73 MB at level 5, and
+    `constants` refuses sizes above 200,000 unknowns)."""
     partition = row_partition()
     if partition is None:
         A_full = sp.block_diag([b.A for b in bodies], format="csr")
@@ -181,8 +181,8 @@ def mixed_vi(
         at = np.searchsorted(dof, [b.offset for b in bodies] + [fixed.size])  # (bodies + 1,)
         for b, i, j in zip(bodies, at[:-1], at[1:], strict=True):
             b.A_fixed = fixed_rows[i:j][:, b.offset : b.offset + b.size]
-        for part in (A, A_fixed, fixed_rows) if check is not None else ():
-            check(part, f_full, values)  # every entry of A_full is in one of the three
+        if check is not None:  # A's rows on their process only: refused alike on every one
+            owned.check(check, partition, (A, A_fixed, fixed_rows), f_full, values)
         del fixed_rows
     if contact is None:
         B, Lam, Y = sp.csr_matrix((0, free.size)), product(), sp.csr_matrix((0, 0))
@@ -202,6 +202,7 @@ def mixed_vi(
         Y=Y,
         info=info,
         **field_data(bodies, free, values.size),  # for the iterative linear path
+        partition=partition,  # an engine's: vi.A holds this process's rows only
     )
     return vi, free, values, rhs
 

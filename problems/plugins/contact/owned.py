@@ -6,6 +6,7 @@ operators), which is never formed."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -42,13 +43,14 @@ def rows_block(bodies: list[Any], start: int, end: int) -> sp.csr_matrix:
 def reduced(
     bodies: list[Any], partition: Any
 ) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
-    """The Dirichlet-reduced blocks of the bodies' operators side by side, on every process,
-    from each process's owned rows (`full_range` of `partition.owned(n_free)`, assembled by
-    `rows_block`) gathered by `partition.gatherv`: no process assembles a row it does not own,
-    and A_full is never formed whole. (A (n_free, n_free) = A_full[free][:, free], A_fixed
-    (n_free, n_fixed) = A_full[free][:, fixed] (`model.Rhs`), fixed_rows (n_fixed, n_full) =
-    A_full[fixed], the prescribed dofs' rows (each body's reactions)), each bit for bit the
-    slice of the serial A_full (rows are sliced row by row)."""
+    """The Dirichlet-reduced blocks of the bodies' operators side by side from each process's
+    owned rows (`full_range` of `partition.owned(n_free)`, assembled by `rows_block`): no
+    process assembles a row it does not own, and A_full is never formed whole. Returns
+    A (k, n_free) this process's rows [lo, hi) of A_full[free][:, free] (the MixedVI holds A
+    by rows: `MixedVI.partition`), and, gathered on every process (`partition.gatherv`),
+    A_fixed (n_free, n_fixed) = A_full[free][:, fixed] (`model.Rhs`) and fixed_rows
+    (n_fixed, n_full) = A_full[fixed], the prescribed dofs' rows (each body's reactions); each
+    bit for bit the slice of the serial A_full (rows are sliced row by row)."""
     fixed = np.concatenate([b.fixed for b in bodies])  # (n_full,)
     free, dof = np.flatnonzero(~fixed), np.flatnonzero(fixed)  # (n_free,), (n_fixed,)
     start, end = full_range(fixed, *partition.owned(free.size))
@@ -59,7 +61,20 @@ def reduced(
     del own
     n = fixed.size
     return (
-        gathered_rows(partition.gatherv, rows[:, free].tocsr(), free.size),
+        rows[:, free].tocsr(),
         gathered_rows(partition.gatherv, rows[:, dof].tocsr(), dof.size),
         gathered_rows(partition.gatherv, fixed_rows.tocsr(), n),
     )
+
+
+def check(
+    check: Callable, partition: Any, parts: tuple, f_full: np.ndarray, values: np.ndarray
+) -> None:
+    """The plug-in's data check `check(matrix, f_full, values)` of the model whose A_full is
+    in `parts` (`reduced`'s: every entry of A_full is in one of them, A's only on the process
+    owning its row), every process refusing alike: the parts' finiteness is reduced over the
+    processes (`partition.all_true`) and a non-finite entry anywhere is checked as one
+    non-finite matrix entry on every process (the check's stiffness refusal); f_full and
+    values, whole on every process, are checked there."""
+    finite = partition.all_true(all(np.isfinite(p.data).all() for p in parts))
+    check(parts[0] if finite else sp.csr_matrix(np.array([[np.nan]])), f_full, values)

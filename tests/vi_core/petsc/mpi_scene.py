@@ -79,7 +79,10 @@ SOURCE_FAULTS = {
     "slave_sign": (r"Dt @ \(W @ (\w+)\.X\)", r"Dt @ (-W @ \1.X)"),
     # the states read the achieved residual only, not the GMRES step's accuracy
     # (`vi_core.states.solution_thresholds`): hertz's node on the symmetry axis reads "slip"
-    "no_accuracy": (r"if solver\.accuracy\(\):", "if False:"),
+    "no_accuracy": (r"if solver\.accuracy\(\) is not None:", "if False:"),
+    # A u at the answer not gathered at the end of the solve: the post-processing rank 0 runs
+    # alone (a unilateral law's force scale, `contact_state`) waits on a collective forever
+    "no_kept_product": (r"\n    vi\.matvec\(sol\.u\)", "\n    pass"),
 }
 
 

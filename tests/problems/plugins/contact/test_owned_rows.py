@@ -66,6 +66,12 @@ class _OneRank:
     def gatherv(self, local: np.ndarray) -> np.ndarray:
         return local
 
+    def all_true(self, flag: bool) -> bool:
+        return bool(flag)
+
+    def norm(self, local: np.ndarray) -> float:
+        return float(np.sqrt(local @ local))
+
 
 @pytest.mark.parametrize("name", SCENES)
 def test_reduced_parts_are_the_serial_slices(name):
