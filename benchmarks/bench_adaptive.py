@@ -114,9 +114,9 @@ def _solve_on(plugin, scene, mesh):
 def hertz_limit(plugin, scene, zone_levels: int) -> dict:
     """The Hertz errors of the finite block itself (its model error against the half-plane):
     `box_mesh` with 3 uniform steps and `zone_levels` box steps, |x| < HERTZ_ZONE, d = 0.12 m
-    × 0.8 per step (the box's width stays: a box shrinking with d, as before the third pass,
-    leaves the zone's edge x = a one level coarser from step 4 on, and its errors were off by
-    1.8e-4 in a and 1.6e-4 in p0: docs/benchmarks.md). {"a", "p0", "unknowns"}."""
+    × 0.8 per step (the box's width stays: a box shrinking with d leaves the zone's edge
+    x = a one level coarser from step 4 on, and its errors were off by 1.8e-4 in a and 1.6e-4
+    in p0: the history of docs/benchmarks.md). {"a", "p0", "unknowns"}."""
     from problems.plugins import hertz
 
     mesh = box_mesh(plugin, scene, 3, zone_levels, HERTZ_ZONE, 0.12, 0.8)

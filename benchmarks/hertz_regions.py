@@ -1,5 +1,5 @@
 """Which region of an adapted Hertz mesh carries the error of the half-width and of the peak
-pressure (issue 32, docs/benchmarks.md "Adaptivity on Hertz, fourth pass").
+pressure (docs/benchmarks.md, "Hertz against uniform refinement").
 
     python benchmarks/hertz_regions.py [--zone NAME] [--cycle C] [--theta θ] [--limit A P0]
 
@@ -12,8 +12,8 @@ near field without the touching nodes' fans (the subsurface); the touching nodes
 (the surface layer); the fans of the outer half of the zone (|x − x_c| > ℓ/2, the rim) and of
 the inner half (the core); the cells within ℓ/4 of the zone's two end nodes (its edge).
 Prints per region the unknowns and the signed relative errors a, p0 (× 1e-3) against the
-closed form, and a_dis, p0_dis against the finite block's limit A, P0 (default: the third
-pass's `bench_adaptive.py --zone-levels 5` values, −1.292e-3 and +1.276e-3). What a region's
+closed form, and a_dis, p0_dis against the finite block's limit A, P0 (default: the
+`bench_adaptive.py --zone-levels 5` values, −1.292e-3 and +1.276e-3). What a region's
 refinement changes in a is (minus) that region's share of the error in a.
 """
 
@@ -23,7 +23,7 @@ import argparse
 
 import numpy as np
 
-LIMIT = (-1.292e-3, 1.276e-3)  # a, p0: bench_adaptive.hertz_limit(..., 5), third pass
+LIMIT = (-1.292e-3, 1.276e-3)  # a, p0: bench_adaptive.hertz_limit(..., 5)
 
 
 def regions(model, sol, mesh) -> dict[str, np.ndarray]:

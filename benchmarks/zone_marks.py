@@ -1,7 +1,7 @@
-"""Candidate contact-zone markings for the adaptive loop (issue 32, Hertz third pass), each a
-`problems.pipeline.adaptive.ZoneMarks`: (model, solution, meshes, the Dörfler marks of the
-energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
-`adapt(..., contact_zone=MARKS[name])`:
+"""Candidate contact-zone markings for the adaptive loop on Hertz (docs/benchmarks.md, "Hertz
+against uniform refinement"), each a `problems.pipeline.adaptive.ZoneMarks`: (model, solution,
+meshes, the Dörfler marks of the energy estimate) → {slave body: (n_cells,) bool, those marks
+and more}, for `adapt(..., contact_zone=MARKS[name])`:
 
 - "touching": every cell with a vertex at a touching node (`adaptive.touching_cells`, what
   `mixvi solve --accuracy X --contact-zone` does);
@@ -17,9 +17,8 @@ energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
   split half and half between the two segments' cells;
 - "surface_red": the cells on touching segments are split only red (`surface_red`);
   "fan_red": the same for every cell at a touching node;
-- fourth pass (docs/benchmarks.md, "Adaptivity on Hertz, fourth pass"): "peak_red" red
-  fans only at the node of the largest λ_n and its neighbours (the support of the peak
-  pressure's dual function); "core_red", "core50_red" red fans at the touching nodes with
+- "peak_red" red fans only at the node of the largest λ_n and its neighbours (the support of
+  the peak pressure's dual function); "core_red", "core50_red" red fans at the touching nodes with
   λ_n ≥ 0.8, 0.5 × its maximum;
   "contact_w10", "contact_w100" the Dörfler set (θ = 0.5) of the estimate with its contact
   terms' share of η_T² scaled by 10 or 100, added (`contact_weighted`); "near_zone",
@@ -35,11 +34,10 @@ energy estimate) → {slave body: (n_cells,) bool, those marks and more}, for
   `dual_indicators`, `dual_weighted`), added; "dual_red" and "dual_a_red" (a only) plus
   "fan_red", "dual_red_t8" with θ = 0.8 on the goal sets, "dual_union" / "dual_union_red"
   the Dörfler sets of η_T(z_h) itself, "dual_peak_red" plus "peak_red";
-- fifth pass (docs/benchmarks.md, "Adaptivity on Hertz, fifth pass"): "layers3" the cells
-  within 3 vertex rings of the touching nodes split only red (`red_layers`:
-  "fan_red" is 0 rings), so the zone's surface layer is regular a few cells deep and its
-  nodal multiplier has no odd-even oscillation; "near_box" the near field as a box graded
-  from the zone's surface, plus "layers3" (`near_box`);
+- "layers3" the cells within 3 vertex rings of the touching nodes split only red (`red_layers`:
+  "fan_red" is 0 rings), so the zone's surface layer is regular a few cells deep and its nodal
+  multiplier has no odd-even oscillation; "near_box" the near field as a box graded from the
+  zone's surface, plus "layers3" (`near_box`);
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of

@@ -1,4 +1,4 @@
-"""benchmarks/zone_marks.py: the candidate contact-zone markings of the Hertz third pass."""
+"""benchmarks/zone_marks.py: the candidate contact-zone markings for Hertz."""
 
 from types import SimpleNamespace
 
@@ -159,8 +159,8 @@ def test_dual_indicators_locate_their_goal(hertz):
 
 
 @pytest.mark.parametrize("name", ["peak_red", "near_level", "dual_red", "zone_weighted"])
-def test_fourth_pass_marks_split_the_centre_fan_red(hertz, name):
-    """One marked cell at the centre node: the fourth pass's candidates keep it, add marks,
+def test_red_fan_marks_split_the_centre_fan_red(hertz, name):
+    """One marked cell at the centre node: these candidates keep it, add marks,
     and mark the centre node's whole fan (split red: each puts red fans there; "near_level"
     marks the near field too)."""
     model, sol, meshes = hertz

@@ -61,19 +61,18 @@ def test_efficiency_index(name, levels):
 )
 def test_efficiency_test_sees_a_flipped_contact_term(name, level, term):
     """Mutation of the efficiency test itself: with the sign inside one contact term reversed
-    the index leaves [0.5, 5]: σ_h n − λ_h 4.89 → 22.7 and (G − |λ_t|)_+ → 14.4 (curved,
+    the index leaves [0.5, 5]: σ_h n − λ_h 4.88 → 22.7 and (G − |λ_t|)_+ → 14.4 (curved,
     level 0); (G|s_h| + λ_t s_h)_+ = 2G|s_h| on the slip zone, a term of the slip and not
     of the error, 4.19 → 5.74 (manufactured, level 3; 4.04 → 4.10 at level 0, which is why
     the level); the friction term flipped, (|λ_t| − G)_+ → (G − |λ_t|)_+, is the stick margin
-    K (b − x)² of unilateral_manufactured: 3.46 → 5.42 (level 1). Dropping a term keeps the
-    index inside the window on all these scenes (at most 4.89 → 4.52; docs/benchmarks.md,
-    issue 32, has the shares). On the bilateral scenes the normal defect is invisible to any
-    efficiency test: on a rigid foundation biorthogonal multipliers hold u_n,h = g at the
-    nodes, so u_n,h − g is the interpolation error O(h²) and h_E⁻¹‖u_n,h − g‖² = O(h³) against
-    η² = O(h²), under either sign (squared); on unilateral_manufactured its flip is the
-    separation (test_unilateral_efficiency_test_sees_a_flipped_term). Its own test is
-    test_normal_term_sees_a_normal_
-    displacement."""
+    K (b − x)² of unilateral_manufactured: 3.46 → 5.42 (level 1). Dropping a term keeps the index
+    inside the window on all these scenes (at most 4.88 → 4.50; docs/benchmarks.md, "How good the
+    estimate is", has the shares). On the bilateral scenes the normal defect is invisible to any
+    efficiency test: on a rigid foundation biorthogonal multipliers hold u_n,h = g at the nodes, so
+    u_n,h − g is the interpolation error O(h²) and h_E⁻¹‖u_n,h − g‖² = O(h³) against η² = O(h²),
+    under either sign (squared); on unilateral_manufactured its flip is the separation
+    (test_unilateral_efficiency_test_sees_a_flipped_term). Its own test is
+    test_normal_term_sees_a_normal_displacement."""
     model, sol = _solved(name, level)
     err = ce.energy_errors(model, sol)
     assert LOW <= ce.efficiency(ce.indicators(pc.SCENE_MODEL, model, sol), err) <= HIGH
@@ -86,7 +85,7 @@ def test_unilateral_efficiency_test_sees_a_flipped_term(term):
     """unilateral_manufactured (separation, stick and slip on a curved obstacle), level 4:
     σ_h n − λ_h 3.61 → 5.78; g − u_n, i.e. the separation (a quantity of the solution, not of
     the error) 3.61 → 5.31. The flipped complementarity term (4.21) and every dropped term (at
-    most 3.61 → 3.54) stay inside the window: docs/benchmarks.md, issue 32."""
+    most 3.61 → 3.54) stay inside the window: docs/benchmarks.md, "How good the estimate is"."""
     model, sol = _solved("unilateral_manufactured", 4)
     err = ce.energy_errors(model, sol)
     assert LOW <= ce.efficiency(ce.indicators(pc.SCENE_MODEL, model, sol), err) <= HIGH
