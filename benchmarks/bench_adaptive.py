@@ -10,7 +10,7 @@ adaptive loop (`problems.pipeline.adaptive.adapt`, Dörfler θ = 0.5, up to N un
 60,000), each solve from the previous one (nested start), with the CPU time (process_time:
 the machine may be shared) accumulated over the levels or cycles, the estimate and, on Hertz,
 the relative errors of the contact half-width a and the peak pressure p0 against the closed
-form (`problems.plugins.hertz`: a_err, p0_err). These contain the finite block's own model
+form (`benchmarks.hertz`: a_err, p0_err). These contain the finite block's own model
 error against the half-plane (~1e-3, the floor the uniform levels level off at); with
 --zone-levels Z also its discretisation part a_dis, p0_dis: the distance to the finite
 block's limit, computed once on a mesh refined Z times more around the contact zone
@@ -48,8 +48,8 @@ CENTRE = ("osc", "h0")  # Hertz diagnostics printed beside them (`_centre`)
 
 
 def _measures(name: str, plugin, model, sol, limit: dict | None = None) -> dict:
+    from benchmarks import hertz
     from problems.pipeline.adaptive import totals
-    from problems.plugins import hertz
 
     row = {"unknowns": int(sum(model.dofs.values())), **totals(plugin.estimate(model, sol))}
     if name == "hertz":
@@ -117,7 +117,7 @@ def hertz_limit(plugin, scene, zone_levels: int) -> dict:
     × 0.8 per step (the box's width stays: a box shrinking with d leaves the zone's edge
     x = a one level coarser from step 4 on, and its errors were off by 1.8e-4 in a and 1.6e-4
     in p0: the history of docs/benchmarks.md). {"a", "p0", "unknowns"}."""
-    from problems.plugins import hertz
+    from benchmarks import hertz
 
     mesh = box_mesh(plugin, scene, 3, zone_levels, HERTZ_ZONE, 0.12, 0.8)
     model, sol = _solve_on(plugin, scene, mesh)

@@ -65,10 +65,10 @@ def main() -> None:
     ap.add_argument("--limit", type=float, nargs=2, default=LIMIT, metavar=("A", "P0"))
     args = ap.parse_args()
 
+    from benchmarks import hertz
     from fem.bisection import refine_marked
     from problems import pipeline
     from problems.pipeline.adaptive import adapt
-    from problems.plugins import hertz
     from problems.plugins.contact.bodies import given_meshes
     from problems.plugins.contract import nested_start, solve_model
 

@@ -15,9 +15,9 @@ import argparse
 import math
 import sys
 
+from benchmarks import hertz
 from problems.output.files import Output, claim
 from problems.pipeline import load, solve
-from problems.plugins import hertz
 
 
 def rows(scene: str, levels: range, R: float, overrides: list[str] = ()) -> list[dict]:

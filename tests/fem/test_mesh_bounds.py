@@ -9,8 +9,9 @@ import resource
 import pytest
 
 from fem import mesh_bounds
-from fem.mesh_import import MeshImportError, body_mesh, read_mesh, write_msh
+from fem.mesh_import import MeshImportError, body_mesh, read_mesh
 from fem.meshing import rectangle
+from tests.gmsh_files import write_msh
 
 
 def _msh(tmp_path, fmt="gmsh22"):

@@ -16,11 +16,12 @@ from fem import mesh_import, shapes
 from fem.facets import trace
 from fem.jacobians import jacobian_determinants
 from fem.mesh import Mesh
-from fem.mesh_import import MeshImportError, body_mesh, read_mesh, require_curve, write_msh
+from fem.mesh_import import MeshImportError, body_mesh, read_mesh, require_curve
 from fem.meshing import box, rectangle, transform
 from fem.refine import refine
 from problems.scene import SCENES_DIR
 from tests import optional
+from tests.gmsh_files import write_msh
 
 FORMATS = ("gmsh22", "gmsh")  # meshio's names of gmsh v2.2 and v4.1
 

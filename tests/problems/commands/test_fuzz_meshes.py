@@ -30,9 +30,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fem.mesh_import import write_msh
 from fem.meshing import rectangle
 from problems.commands.main import main
+from tests.gmsh_files import write_msh
 
 MIXVI = str(Path(sys.executable).with_name("mixvi"))
 CHILD_MEMORY = 3 * 2**30  # RLIMIT_AS of a fuzz-tier child: a blow-up fails there, not here

@@ -12,10 +12,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fem.mesh_import import write_msh
 from fem.meshing import rectangle
 from problems.commands.main import main
 from problems.scene import load_scene
+from tests.gmsh_files import write_msh
 
 
 def _scene(tmp_path, name):

@@ -10,7 +10,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fem import shapes
-from fem.mesh_import import write_msh
 from fem.meshing import box, rectangle
 from problems.commands.main import main
 from problems.errors import SceneError
@@ -19,6 +18,7 @@ from problems.plugins.contact import separation
 from problems.plugins.contact import solid as contact3d
 from problems.scene import load_scene
 from tests import optional
+from tests.gmsh_files import write_msh
 from vi_core import solve
 
 

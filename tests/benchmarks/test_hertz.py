@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import vi_core
-from problems.plugins import hertz
+from benchmarks import hertz
 from problems.plugins import signorini as sg
 from problems.plugins.contact import plane as pc
 from problems.scene import contact_references as cr
