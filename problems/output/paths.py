@@ -51,17 +51,20 @@ def probe(folder: Path, option: str, path: Path, what: str = "folder") -> None:
     """Create, write and remove a file in `folder`: catches read-only and virtual file systems
     before work (the refusal names the output `path` given by `option`, a `what`)."""
     probe = folder / f"{STAGING}probe-{os.getpid()}"
+    made = False  # only a probe this call created is removed (never a file of that name)
     try:
         with deferred():  # a signal between create and unlink would leave the probe
             fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            made = True
             try:
                 os.write(fd, b"mixvi")
             finally:
                 os.close(fd)
             probe.unlink()
     except OSError as err:
-        with suppress(OSError):
-            probe.unlink()
+        if made:
+            with suppress(OSError):
+                probe.unlink()
         raise unwritable(option, path, err, what) from None
 
 
@@ -214,13 +217,16 @@ def write_file(path: Path, text: str, replace: bool = True) -> None:
     on any error or signal. For mixvi's own bookkeeping (the marker) and `mixvi new`'s
     template; a run's outputs go through `claim`."""
     tmp = path.parent / f"{STAGING}{os.getpid()}-{os.urandom(4).hex()}-{path.name}"
+    made = False  # the finally removes only a file this call created
     try:
         with deferred():  # recorded as soon as it exists: the finally removes it
             fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            made = True
         with os.fdopen(fd, "w") as fh:
             fh.write(text)
         with deferred():
             (os.replace if replace else os.link)(tmp, path)
     finally:
-        with deferred(), suppress(FileNotFoundError):
-            tmp.unlink()
+        if made:
+            with deferred(), suppress(FileNotFoundError):
+                tmp.unlink()
