@@ -39,7 +39,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
+from pathlib import Path
+
+if not __package__:  # run as python benchmarks/bench_adaptive.py: `benchmarks` importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 HERTZ_R = 1.0  # m, the cylinder radius of the hertz scene
 HERTZ_ZONE = 0.075  # m, the limit's box half-width: the contact half-width a = 0.058 m and 30 %
@@ -179,12 +184,8 @@ def run(
 
 def _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta=0.5) -> list[dict]:
     """The adaptive loop's cycles with the measures and the CPU time summed over cycles."""
+    from benchmarks.zone_marks import MARKS
     from problems.pipeline import adaptive
-
-    try:  # python -m benchmarks.bench_adaptive, or imported
-        from .zone_marks import MARKS
-    except ImportError:  # python benchmarks/bench_adaptive.py
-        from zone_marks import MARKS
 
     cycles = []
     clock = {"t": time.process_time()}
@@ -264,8 +265,6 @@ def _mutation_row(model, sol) -> dict:
 def mutations(name: str, levels: int, cycles: int = 0) -> list[dict]:
     """The rows of `_mutation_row` per uniform level 0..levels of the scene `name` ("level")
     and, with `cycles`, per adaptive cycle 0..cycles − 1 (Dörfler θ = 0.5; "cycle")."""
-    from pathlib import Path
-
     from problems.pipeline import solve_model
     from problems.pipeline.adaptive import adapt
     from problems.plugins.contact import plane as pc
@@ -368,10 +367,7 @@ def main() -> None:
             json.dump({"mutations": table, "peak_mib": peak_rss() / 2**20}, fh, indent=2)
         return
 
-    try:
-        from .zone_marks import MARKS
-    except ImportError:
-        from zone_marks import MARKS
+    from benchmarks.zone_marks import MARKS
 
     zones = args.zone or ["touching" if args.contact_zone else "energy"]
     if args.contact_zone and args.zone:

@@ -42,7 +42,8 @@ and more}, for `adapt(..., contact_zone=MARKS[name])`:
   near_box cycles); "near_box_tight" a narrower box (width 1.1 ℓ), full size only to 0.8 ℓ
   deep, 2.5× the median segment; "near_box_paced" the target falling by at most √2 per cycle
   (`NearBoxPaced`); "size_graded" no box: every cell graded by its distance to the zone's
-  surface (`size_graded`, `zone_distance`);
+  surface (`size_graded`, `zone_distance`); "box_dorfler30", "box_dorfler60" a second
+  Dörfler set (θ = 0.3, 0.6) of the estimate restricted to near_box's box (`box_dorfler`);
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of
@@ -482,6 +483,18 @@ def size_graded(
     return red_layers(model, sol, meshes, out)
 
 
+def box_dorfler(model: Any, sol: Any, meshes: dict, marked: dict, theta: float = 0.6) -> dict:
+    """ "box_dorfler30", "box_dorfler60": the Dörfler set (θ = 0.3, 0.6) of the energy
+    estimate η_T restricted to near_box's box (`box_coarse` with size 0: every cell of the
+    box), added to the marks; then `red_layers` (3 rings)."""
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    inside = box_coarse(mesh, _zone_frame(model, sol, mesh), 0.0)  # (n_cells,)
+    eta = np.where(inside, _slave_eta(model, sol), 0.0)  # (n_cells,)
+    out = {c.slave.name: marked[c.slave.name] | dorfler_mark(eta, theta)}
+    return red_layers(model, sol, meshes, out)
+
+
 class NearBoxPaced:
     """ "near_box_paced": `near_box` with its size target paced, size_k = max(factor × the
     zone's median segment, size_{k−1} / rate), so the near field's target falls by at most
@@ -579,6 +592,8 @@ MARKS = {
     "near_box_tight": lambda *a: near_box(*a, width=1.1, full=0.8, factor=2.5),
     "near_box_paced": NearBoxPaced(),
     "size_graded": size_graded,
+    "box_dorfler30": lambda *a: box_dorfler(*a, theta=0.3),
+    "box_dorfler60": box_dorfler,
     "near_level": near_level,
     "near_level4": lambda *a: near_level(*a, factor=4.0),
     "contact_w10": contact_weighted,

@@ -203,7 +203,14 @@ def test_near_box_marks_the_coarse_box_cells_and_nothing_deeper(hertz):
     assert deep.any() and not m[deep].any()
 
 
-NEW = ["near_box_f2r2", "near_box_tight", "near_box_paced", "size_graded"]
+NEW = [
+    "near_box_f2r2",
+    "near_box_tight",
+    "near_box_paced",
+    "size_graded",
+    "box_dorfler30",
+    "box_dorfler60",
+]
 
 
 @pytest.mark.parametrize("seed", range(3))
