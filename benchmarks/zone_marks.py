@@ -41,9 +41,11 @@ and more}, for `adapt(..., contact_zone=MARKS[name])`:
   zone's median segment instead of 2× (a cycle's near field √2 coarser: the step between two
   near_box cycles); "near_box_tight" a narrower box (width 1.1 ℓ), full size only to 0.8 ℓ
   deep, 2.5× the median segment; "near_box_paced" the target falling by at most √2 per cycle
-  (`NearBoxPaced`); "size_graded" no box: every cell graded by its distance to the zone's
-  surface (`size_graded`, `zone_distance`); "box_dorfler30", "box_dorfler60" a second
-  Dörfler set (θ = 0.3, 0.6) of the estimate restricted to near_box's box (`box_dorfler`);
+  (`NearBoxPaced`); "near_box_nvb" its box cells bisected once (h ÷ √2) instead of split
+  into 4, the rings still red (`near_box_nvb`); "size_graded" no box: every cell graded by
+  its distance to the zone's surface (`size_graded`, `zone_distance`); "box_dorfler30",
+  "box_dorfler60" a second Dörfler set (θ = 0.3, 0.6) of the estimate restricted to
+  near_box's box (`box_dorfler`);
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of
@@ -154,11 +156,14 @@ def multiplier(model: Any, sol: Any, meshes: dict, marked: dict, kind: str) -> d
     return {name: marked[name] | dorfler_mark(np.sqrt(eta2), 0.5)}
 
 
-def red_split(model: Any, meshes: dict, marked: dict, zone: np.ndarray) -> dict[str, np.ndarray]:
+def red_split(
+    model: Any, meshes: dict, marked: dict, zone: np.ndarray, bisect: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """The slave's marks with every cell of `zone` (n_cells,) bool that the refinement would
-    split at all (a marked edge after the conformity closure of `fem.bisection`) marked, i.e.
-    split red into four similar triangles instead of by bisections, until none is left to
-    split otherwise."""
+    split at all (a marked edge after the conformity closure of `fem.bisection`, with the
+    refinement edges of the `bisect` cells (n_cells,) bool marked too) marked, i.e. split red
+    into four similar triangles instead of by bisections, until none is left to split
+    otherwise."""
     from fem.bisection import _closure, _edge_cells, _edges
 
     c = model.contact
@@ -169,6 +174,8 @@ def red_split(model: Any, meshes: dict, marked: dict, zone: np.ndarray) -> dict[
     while True:
         edges = np.zeros(codes.size, dtype=bool)
         edges[cell_edges[m].ravel()] = True
+        if bisect is not None:
+            edges[cell_edges[bisect, 0]] = True
         split = _closure(cell_edges, edge_cells, edges)[cell_edges].any(axis=1)  # (n_cells,)
         add = split & zone & ~m
         if not add.any():
@@ -381,16 +388,23 @@ def surface_red(
     return red_split(model, meshes, marked, zone)
 
 
-def red_layers(model: Any, sol: Any, meshes: dict, marked: dict, rings: int = 3) -> dict:
+def red_layers(
+    model: Any,
+    sol: Any,
+    meshes: dict,
+    marked: dict,
+    rings: int = 3,
+    bisect: np.ndarray | None = None,
+) -> dict:
     """ "layers3": `red_split` of the slave cells with a vertex within `rings` vertex rings of
-    a touching node (0 rings: the touching nodes' fans, "fan_red")."""
+    a touching node (0 rings: the touching nodes' fans, "fan_red"), with `bisect` as there."""
     c = model.contact
     mesh = meshes[c.slave.name]
     near = np.zeros(mesh.n_nodes, dtype=bool)  # (n_nodes,)
     near[c.tr.nodes[_touch(model, sol)]] = True
     for _ in range(rings):
         near[mesh.cells[near[mesh.cells].any(axis=1)].ravel()] = True
-    return red_split(model, meshes, marked, near[mesh.cells].any(axis=1))
+    return red_split(model, meshes, marked, near[mesh.cells].any(axis=1), bisect)
 
 
 def _zone_frame(model: Any, sol: Any, mesh: Any) -> tuple[float, float, float, float]:
@@ -447,6 +461,29 @@ def near_box(
     coarse = box_coarse(mesh, frame, factor * frame[3], width, depth, full, step)
     out = {c.slave.name: marked[c.slave.name] | coarse}
     return red_layers(model, sol, meshes, out)
+
+
+def near_box_nvb(
+    model: Any,
+    sol: Any,
+    meshes: dict,
+    marked: dict,
+    width: float = 1.3,
+    depth: float = 2.6,
+    full: float = 1.3,
+    step: float = 0.5,
+    factor: float = 2.0,
+) -> dict:
+    """ "near_box_nvb": near_box's box cells (`box_coarse`) bisected once per cycle (h ÷ √2,
+    area ÷ 2: mark 1 of `adaptive.ZoneMarks`) instead of split into 4; the energy's marks and
+    the cells of `red_layers` (3 rings, the bisections' closure included) split into 4
+    (mark 2). Returns (n_cells,) int8 marks."""
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    frame = _zone_frame(model, sol, mesh)
+    coarse = box_coarse(mesh, frame, factor * frame[3], width, depth, full, step)
+    red = red_layers(model, sol, meshes, marked, bisect=coarse)[c.slave.name]
+    return {c.slave.name: np.where(red, 2, np.where(coarse, 1, 0)).astype(np.int8)}
 
 
 def zone_distance(mesh: Any, frame: tuple[float, float, float, float]) -> np.ndarray:
@@ -553,7 +590,7 @@ def graded(marks):
         nxt = _chain(tr)
         halved = graded_chain(tr.measures, m[cells], np.stack([nxt, nxt + 1], axis=1))
         m = m.copy()
-        m[cells[halved]] = True
+        m[cells[halved]] = True if m.dtype == bool else 2  # split into 4 (`ZoneMarks`)
         return {**out, c.slave.name: m}
 
     return closed
@@ -591,6 +628,7 @@ MARKS = {
     "near_box_f2r2": lambda *a: near_box(*a, factor=2.0 * 2.0**0.5),
     "near_box_tight": lambda *a: near_box(*a, width=1.1, full=0.8, factor=2.5),
     "near_box_paced": NearBoxPaced(),
+    "near_box_nvb": near_box_nvb,
     "size_graded": size_graded,
     "box_dorfler30": lambda *a: box_dorfler(*a, theta=0.3),
     "box_dorfler60": box_dorfler,

@@ -8,6 +8,7 @@ import pytest
 from benchmarks import zone_marks as zm
 from fem.bisection import prepared, refine_marked
 from problems import pipeline
+from problems.pipeline import adaptive
 from problems.plugins.contact.bodies import given_meshes
 from problems.plugins.contract import solve_model
 
@@ -210,6 +211,7 @@ NEW = [
     "size_graded",
     "box_dorfler30",
     "box_dorfler60",
+    "near_box_nvb",
 ]
 
 
@@ -228,9 +230,10 @@ def test_new_marks_keep_the_energy_marks_and_the_mesh_conforming(hertz, name, se
     if name == "near_box_paced":
         zm.MARKS[name].size = None  # a fresh run
     m = zm.MARKS[name](model, sol, meshes, {"body": start})["body"]
-    assert m.dtype == bool and m.shape == (mesh.n_cells,)
-    assert (m >= start).all() and m.sum() > start.sum()
-    check_conforming(refine_marked(mesh, m)[0], mesh)
+    red, once = adaptive.split_marks(m)
+    assert m.shape == (mesh.n_cells,) and (once is None) == (name != "near_box_nvb")
+    assert (red >= start).all() and red.sum() + (0 if once is None else once.sum()) > start.sum()
+    check_conforming(refine_marked(mesh, red, bisect=once)[0], mesh)
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -296,3 +299,36 @@ def test_near_box_paced_target_falls_at_most_by_its_rate(hertz):
     assert (second != first).any()
     paced.n_cells = mesh.n_cells + 1  # the last call's mesh was finer: a new run
     assert (paced(model, sol, meshes, none)["body"] == first).all()
+
+
+def test_near_box_nvb_bisects_the_box_and_splits_the_rings_red(hertz):
+    """ "near_box_nvb" from no marks: near_box's coarse box cells outside the rings are 1
+    (bisected once), the cells of the three rings that the bisections' closure would split
+    are 2 (split into 4), nothing else is marked; after refining, no cell of the rings is
+    split other than red. Dropping the bisections from `red_split`'s closure leaves ring cells
+    split by bisection and fails; with one marked cell it is 2 (kept)."""
+    from fem.bisection import _closure, _edge_cells, _edges
+
+    model, sol, meshes = hertz
+    mesh, c = meshes["body"], model.contact
+    none = np.zeros(mesh.n_cells, dtype=bool)
+    m = zm.near_box_nvb(model, sol, meshes, {"body": none})["body"]
+    frame = zm._zone_frame(model, sol, mesh)
+    coarse = zm.box_coarse(mesh, frame, 2.0 * frame[3])
+    assert set(np.unique(m)) == {0, 1, 2}
+    assert ((m == 1) == (coarse & (m != 2))).all() and not (m[~coarse] == 1).any()
+    codes, cell_edges = _edges(mesh.cells, mesh.n_nodes)
+    edges = np.zeros(codes.size, dtype=bool)
+    edges[cell_edges[m == 2].ravel()] = True
+    edges[cell_edges[m == 1, 0]] = True
+    split = _closure(cell_edges, _edge_cells(cell_edges, codes.size), edges)[cell_edges].any(1)
+    near = np.zeros(mesh.n_nodes, dtype=bool)
+    near[c.tr.nodes[zm._touch(model, sol)]] = True
+    for _ in range(3):
+        near[mesh.cells[near[mesh.cells].any(axis=1)].ravel()] = True
+    rings = near[mesh.cells].any(axis=1)
+    assert not (rings & (m == 1)).any() and (m[~rings] != 2).all()
+    assert (split & rings).any() and not (split & rings & (m != 2)).any()
+    one = none.copy()
+    one[np.flatnonzero(~rings & ~coarse)[0]] = True
+    assert zm.near_box_nvb(model, sol, meshes, {"body": one})["body"][one].tolist() == [2]
