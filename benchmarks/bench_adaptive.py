@@ -16,7 +16,8 @@ error against the half-plane (~1e-3, the floor the uniform levels level off at);
 block's limit, computed once on a mesh refined Z times more around the contact zone
 (`hertz_limit`), and the signed errors a, p0 in the JSON. With --zone NAME ... one adaptive
 run per NAME: "energy" (the Dörfler marks alone, the default) or a candidate contact-zone
-marking of `benchmarks/zone_marks.py` (--contact-zone is --zone touching). On Hertz also two
+marking of `benchmarks/zone_marks.py` (--contact-zone is --zone touching), or NAME@KEY=VALUE,...
+for one of its functions with those keywords (`zone_marking`). On Hertz also two
 diagnostics of the nodal pressure at the centre (`_centre`: "osc", the centre node against its
 neighbours' mean, and "h0", the segment length there) and, with --box, a priori meshes refined
 around the zone (`box_mesh`), one solve each. Prints the table,
@@ -39,7 +40,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
+from collections.abc import Callable
+from pathlib import Path
+
+if not __package__:  # run as python benchmarks/bench_adaptive.py: `benchmarks` importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 HERTZ_R = 1.0  # m, the cylinder radius of the hertz scene
 HERTZ_ZONE = 0.075  # m, the limit's box half-width: the contact half-width a = 0.058 m and 30 %
@@ -177,14 +184,35 @@ def run(
     }
 
 
+def zone_marking(spec: str) -> Callable[..., dict]:
+    """The marking of `--zone SPEC`: a name of `zone_marks.MARKS`, or NAME@KEY=VALUE,... with
+    NAME a function of `zone_marks.MARKS` taking those keyword arguments (numbers), e.g.
+    near_box@factor=2.4,width=1.1: that function with them. ValueError for an unknown name, a
+    NAME that takes no keywords, or a bad KEY=VALUE."""
+    import functools
+    import inspect
+
+    from benchmarks.zone_marks import MARKS
+
+    name, _, args = spec.partition("@")
+    if name not in MARKS:
+        raise ValueError(f"unknown marking {name!r}; known: energy, {', '.join(MARKS)}")
+    if not args:
+        return MARKS[name]
+    try:
+        kw = {k: float(v) for k, v in (a.split("=") for a in args.split(","))}
+    except ValueError:
+        raise ValueError(f"{spec!r}: NAME@KEY=VALUE,... with numbers as values") from None
+    params = list(inspect.signature(MARKS[name]).parameters.values())[4:]  # after the 4 given
+    bad = sorted(set(kw) - {p.name for p in params if p.kind is p.POSITIONAL_OR_KEYWORD})
+    if bad:
+        raise ValueError(f"{spec!r}: {name} takes no keyword(s) {bad}")
+    return functools.partial(MARKS[name], **kw)
+
+
 def _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta=0.5) -> list[dict]:
     """The adaptive loop's cycles with the measures and the CPU time summed over cycles."""
     from problems.pipeline import adaptive
-
-    try:  # python -m benchmarks.bench_adaptive, or imported
-        from .zone_marks import MARKS
-    except ImportError:  # python benchmarks/bench_adaptive.py
-        from zone_marks import MARKS
 
     cycles = []
     clock = {"t": time.process_time()}
@@ -215,7 +243,7 @@ def _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta=0.5
         max_unknowns=max_unknowns,
         solve_options=options,
         on_cycle=record,
-        contact_zone=False if zone == "energy" else MARKS[zone],
+        contact_zone=False if zone == "energy" else zone_marking(zone),
     )
     return cycles
 
@@ -264,8 +292,6 @@ def _mutation_row(model, sol) -> dict:
 def mutations(name: str, levels: int, cycles: int = 0) -> list[dict]:
     """The rows of `_mutation_row` per uniform level 0..levels of the scene `name` ("level")
     and, with `cycles`, per adaptive cycle 0..cycles − 1 (Dörfler θ = 0.5; "cycle")."""
-    from pathlib import Path
-
     from problems.pipeline import solve_model
     from problems.pipeline.adaptive import adapt
     from problems.plugins.contact import plane as pc
@@ -321,7 +347,8 @@ def main() -> None:
         help="one adaptive run per NAME: energy (the Dörfler marks alone) or a candidate "
         "contact-zone marking of benchmarks/zone_marks.py (touching, edge, edge_peak, jump, "
         "rough, graded, NAME_graded, fan_red, peak_red, core_red, contact_w10, near_zone, "
-        "zone_weighted, ...; the list: zone_marks.MARKS)",
+        "zone_weighted, ...; the list: zone_marks.MARKS), or NAME@KEY=VALUE,... for a "
+        "function's keywords, e.g. near_box@factor=2.4,width=1.1",
     )
     ap.add_argument(
         "--theta",
@@ -368,17 +395,15 @@ def main() -> None:
             json.dump({"mutations": table, "peak_mib": peak_rss() / 2**20}, fh, indent=2)
         return
 
-    try:
-        from .zone_marks import MARKS
-    except ImportError:
-        from zone_marks import MARKS
-
     zones = args.zone or ["touching" if args.contact_zone else "energy"]
     if args.contact_zone and args.zone:
         ap.error("--contact-zone is --zone touching: give one of them")
     for z in zones:
-        if z != "energy" and z not in MARKS:
-            ap.error(f"--zone: unknown marking {z!r}; known: energy, {', '.join(MARKS)}")
+        if z != "energy":
+            try:
+                zone_marking(z)
+            except ValueError as err:
+                ap.error(f"--zone: {err}")
     try:
         boxes = tuple(
             (int(u), int(z), float(w), float(d), float(sh))

@@ -37,7 +37,15 @@ and more}, for `adapt(..., contact_zone=MARKS[name])`:
 - "layers3" the cells within 3 vertex rings of the touching nodes split only red (`red_layers`:
   "fan_red" is 0 rings), so the zone's surface layer is regular a few cells deep and its nodal
   multiplier has no odd-even oscillation; "near_box" the near field as a box graded from the
-  zone's surface, plus "layers3" (`near_box`);
+  zone's surface, plus "layers3" (`near_box`); "near_box_f2r2" its size target 2√2 × the
+  zone's median segment instead of 2× (a cycle's near field √2 coarser: the step between two
+  near_box cycles); "near_box_tight" a narrower box (width 1.1 ℓ), full size only to 0.8 ℓ
+  deep, 2.5× the median segment; "near_box_paced" the target falling by at most √2 per cycle
+  (`NearBoxPaced`); "near_box_nvb" its box cells bisected once (h ÷ √2) instead of split
+  into 4, the rings still red (`near_box_nvb`); "size_graded" no box: every cell graded by
+  its distance to the zone's surface (`size_graded`, `zone_distance`); "box_dorfler30",
+  "box_dorfler60" a second Dörfler set (θ = 0.3, 0.6) of the estimate restricted to
+  near_box's box (`box_dorfler`);
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of
@@ -148,11 +156,14 @@ def multiplier(model: Any, sol: Any, meshes: dict, marked: dict, kind: str) -> d
     return {name: marked[name] | dorfler_mark(np.sqrt(eta2), 0.5)}
 
 
-def red_split(model: Any, meshes: dict, marked: dict, zone: np.ndarray) -> dict[str, np.ndarray]:
+def red_split(
+    model: Any, meshes: dict, marked: dict, zone: np.ndarray, bisect: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """The slave's marks with every cell of `zone` (n_cells,) bool that the refinement would
-    split at all (a marked edge after the conformity closure of `fem.bisection`) marked, i.e.
-    split red into four similar triangles instead of by bisections, until none is left to
-    split otherwise."""
+    split at all (a marked edge after the conformity closure of `fem.bisection`, with the
+    refinement edges of the `bisect` cells (n_cells,) bool marked too) marked, i.e. split red
+    into four similar triangles instead of by bisections, until none is left to split
+    otherwise."""
     from fem.bisection import _closure, _edge_cells, _edges
 
     c = model.contact
@@ -163,6 +174,8 @@ def red_split(model: Any, meshes: dict, marked: dict, zone: np.ndarray) -> dict[
     while True:
         edges = np.zeros(codes.size, dtype=bool)
         edges[cell_edges[m].ravel()] = True
+        if bisect is not None:
+            edges[cell_edges[bisect, 0]] = True
         split = _closure(cell_edges, edge_cells, edges)[cell_edges].any(axis=1)  # (n_cells,)
         add = split & zone & ~m
         if not add.any():
@@ -375,16 +388,56 @@ def surface_red(
     return red_split(model, meshes, marked, zone)
 
 
-def red_layers(model: Any, sol: Any, meshes: dict, marked: dict, rings: int = 3) -> dict:
+def red_layers(
+    model: Any,
+    sol: Any,
+    meshes: dict,
+    marked: dict,
+    rings: int = 3,
+    bisect: np.ndarray | None = None,
+) -> dict:
     """ "layers3": `red_split` of the slave cells with a vertex within `rings` vertex rings of
-    a touching node (0 rings: the touching nodes' fans, "fan_red")."""
+    a touching node (0 rings: the touching nodes' fans, "fan_red"), with `bisect` as there."""
     c = model.contact
     mesh = meshes[c.slave.name]
     near = np.zeros(mesh.n_nodes, dtype=bool)  # (n_nodes,)
     near[c.tr.nodes[_touch(model, sol)]] = True
     for _ in range(rings):
         near[mesh.cells[near[mesh.cells].any(axis=1)].ravel()] = True
-    return red_split(model, meshes, marked, near[mesh.cells].any(axis=1))
+    return red_split(model, meshes, marked, near[mesh.cells].any(axis=1), bisect)
+
+
+def _zone_frame(model: Any, sol: Any, mesh: Any) -> tuple[float, float, float, float]:
+    """(ℓ, x_c, y_top, h_zone): the zone's half-length (half the x-extent of the touching
+    nodes), its centre, its highest touching node's y and its median touching segment."""
+    c = model.contact
+    touch = _touch(model, sol)  # (k,)
+    p = mesh.points[c.tr.nodes[touch]]  # (n_touch, 2)
+    half, xc = 0.5 * np.ptp(p[:, 0]), 0.5 * (p[:, 0].max() + p[:, 0].min())
+    h_zone = float(np.median(c.tr.measures[touch[c.tr.facets].all(axis=1)]))
+    return float(half), float(xc), float(p[:, 1].max()), h_zone
+
+
+def box_coarse(
+    mesh: Any,
+    frame: tuple[float, float, float, float],
+    size: float,
+    width: float = 1.3,
+    depth: float = 2.6,
+    full: float = 1.3,
+    step: float = 0.5,
+) -> np.ndarray:
+    """(n_cells,) bool: the cells whose centroid lies in the box |x − x_c| < width ℓ, at a
+    depth t = (y_top − y) / ℓ < `depth` (frame = (ℓ, x_c, y_top, ·) of `_zone_frame`), and
+    whose longest edge exceeds size × 2^max(0, (t − full) / step): as fine as `size` to the
+    depth `full` ℓ, then twice coarser every `step` ℓ."""
+    half, xc, y_top, _ = frame
+    P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
+    h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)  # (n_cells,)
+    centroid = P.mean(axis=1)  # (n_cells, 2)
+    t = (y_top - centroid[:, 1]) / half  # (n_cells,) depth in zone half-lengths
+    inside = (np.abs(centroid[:, 0] - xc) < width * half) & (t < depth)
+    return inside & (h > size * 2.0 ** np.maximum(0.0, (t - full) / step))
 
 
 def near_box(
@@ -398,26 +451,112 @@ def near_box(
     step: float = 0.5,
     factor: float = 2.0,
 ) -> dict:
-    """ "near_box": the slave cells whose centroid lies in the box |x − x_c| < width ℓ, at
-    a depth t = (y_top − y) / ℓ < `depth` (ℓ the zone's half-length, x_c its centre, y_top its
-    highest touching node), and whose longest edge exceeds `factor` × the zone's median
-    segment × 2^max(0, (t − full) / step), added to the marks: the near field kept as fine as
-    the zone's surface to the depth `full` ℓ, then twice coarser every `step` ℓ (as the nested
-    a priori boxes of `bench_adaptive.box_mesh`); then `red_layers` (3 rings)."""
+    """ "near_box": the slave cells of `box_coarse` with size `factor` × the zone's median
+    segment, added to the marks: the near field kept as fine as the zone's surface to the
+    depth `full` ℓ, then twice coarser every `step` ℓ (as the nested a priori boxes of
+    `bench_adaptive.box_mesh`); then `red_layers` (3 rings)."""
     c = model.contact
     mesh = meshes[c.slave.name]
-    touch = _touch(model, sol)  # (k,)
-    p = mesh.points[c.tr.nodes[touch]]  # (n_touch, 2)
-    half, xc = 0.5 * np.ptp(p[:, 0]), 0.5 * (p[:, 0].max() + p[:, 0].min())
-    h_zone = float(np.median(c.tr.measures[touch[c.tr.facets].all(axis=1)]))
+    frame = _zone_frame(model, sol, mesh)
+    coarse = box_coarse(mesh, frame, factor * frame[3], width, depth, full, step)
+    out = {c.slave.name: marked[c.slave.name] | coarse}
+    return red_layers(model, sol, meshes, out)
+
+
+def near_box_nvb(
+    model: Any,
+    sol: Any,
+    meshes: dict,
+    marked: dict,
+    width: float = 1.3,
+    depth: float = 2.6,
+    full: float = 1.3,
+    step: float = 0.5,
+    factor: float = 2.0,
+) -> dict:
+    """ "near_box_nvb": near_box's box cells (`box_coarse`) bisected once per cycle (h ÷ √2,
+    area ÷ 2: mark 1 of `adaptive.ZoneMarks`) instead of split into 4; the energy's marks and
+    the cells of `red_layers` (3 rings, the bisections' closure included) split into 4
+    (mark 2). Returns (n_cells,) int8 marks."""
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    frame = _zone_frame(model, sol, mesh)
+    coarse = box_coarse(mesh, frame, factor * frame[3], width, depth, full, step)
+    red = red_layers(model, sol, meshes, marked, bisect=coarse)[c.slave.name]
+    return {c.slave.name: np.where(red, 2, np.where(coarse, 1, 0)).astype(np.int8)}
+
+
+def zone_distance(mesh: Any, frame: tuple[float, float, float, float]) -> np.ndarray:
+    """(n_cells,) the distance of each cell's centroid to the zone's surface, the segment
+    |x − x_c| ≤ ℓ at y = y_top (frame of `_zone_frame`), in zone half-lengths ℓ."""
+    half, xc, y_top, _ = frame
+    centroid = mesh.points[mesh.cells].mean(axis=1)  # (n_cells, 2)
+    dx = np.maximum(0.0, np.abs(centroid[:, 0] - xc) - half)  # (n_cells,)
+    return np.hypot(dx, y_top - centroid[:, 1]) / half
+
+
+def size_graded(
+    model: Any,
+    sol: Any,
+    meshes: dict,
+    marked: dict,
+    factor: float = 2.0,
+    full: float = 1.3,
+    step: float = 0.5,
+) -> dict:
+    """ "size_graded": a size function around the zone: a slave cell is marked when its
+    longest edge exceeds h(d) = `factor` × the zone's median segment × 2^max(0, (d − full) /
+    step), d the distance of its centroid to the zone's surface in zone half-lengths
+    (`zone_distance`): as fine as the surface to `full` ℓ, then twice coarser every `step`
+    ℓ, everywhere (no box); then `red_layers` (3 rings)."""
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    frame = _zone_frame(model, sol, mesh)
     P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
     h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)  # (n_cells,)
-    centroid = P.mean(axis=1)  # (n_cells, 2)
-    t = (p[:, 1].max() - centroid[:, 1]) / half  # (n_cells,) depth in zone half-lengths
-    inside = (np.abs(centroid[:, 0] - xc) < width * half) & (t < depth)
-    coarse = h > factor * h_zone * 2.0 ** np.maximum(0.0, (t - full) / step)
-    out = {c.slave.name: marked[c.slave.name] | (inside & coarse)}
+    d = zone_distance(mesh, frame)  # (n_cells,)
+    coarse = h > factor * frame[3] * 2.0 ** np.maximum(0.0, (d - full) / step)
+    out = {c.slave.name: marked[c.slave.name] | coarse}
     return red_layers(model, sol, meshes, out)
+
+
+def box_dorfler(model: Any, sol: Any, meshes: dict, marked: dict, theta: float = 0.6) -> dict:
+    """ "box_dorfler30", "box_dorfler60": the Dörfler set (θ = 0.3, 0.6) of the energy
+    estimate η_T restricted to near_box's box (`box_coarse` with size 0: every cell of the
+    box), added to the marks; then `red_layers` (3 rings)."""
+    c = model.contact
+    mesh = meshes[c.slave.name]
+    inside = box_coarse(mesh, _zone_frame(model, sol, mesh), 0.0)  # (n_cells,)
+    eta = np.where(inside, _slave_eta(model, sol), 0.0)  # (n_cells,)
+    out = {c.slave.name: marked[c.slave.name] | dorfler_mark(eta, theta)}
+    return red_layers(model, sol, meshes, out)
+
+
+class NearBoxPaced:
+    """ "near_box_paced": `near_box` with its size target paced, size_k = max(factor × the
+    zone's median segment, size_{k−1} / rate), so the near field's target falls by at most
+    `rate` per cycle (near_box's falls by 2 with the zone's surface: its cycles grow 3–4×).
+    Stateful: the last target is kept between calls and dropped when a call's mesh has fewer
+    cells than the last one's (a new run)."""
+
+    def __init__(self, rate: float = 2.0**0.5, factor: float = 2.0) -> None:
+        self.rate, self.factor = rate, factor
+        self.size: float | None = None
+        self.n_cells = 0
+
+    def __call__(self, model: Any, sol: Any, meshes: dict, marked: dict) -> dict:
+        c = model.contact
+        mesh = meshes[c.slave.name]
+        if mesh.n_cells < self.n_cells:
+            self.size = None
+        self.n_cells = mesh.n_cells
+        frame = _zone_frame(model, sol, mesh)
+        size = self.factor * frame[3]
+        if self.size is not None:
+            size = max(size, self.size / self.rate)
+        self.size = size
+        out = {c.slave.name: marked[c.slave.name] | box_coarse(mesh, frame, size)}
+        return red_layers(model, sol, meshes, out)
 
 
 def graded_chain(
@@ -451,7 +590,7 @@ def graded(marks):
         nxt = _chain(tr)
         halved = graded_chain(tr.measures, m[cells], np.stack([nxt, nxt + 1], axis=1))
         m = m.copy()
-        m[cells[halved]] = True
+        m[cells[halved]] = True if m.dtype == bool else 2  # split into 4 (`ZoneMarks`)
         return {**out, c.slave.name: m}
 
     return closed
@@ -486,6 +625,13 @@ MARKS = {
     ),
     "layers3": red_layers,
     "near_box": near_box,
+    "near_box_f2r2": lambda *a: near_box(*a, factor=2.0 * 2.0**0.5),
+    "near_box_tight": lambda *a: near_box(*a, width=1.1, full=0.8, factor=2.5),
+    "near_box_paced": NearBoxPaced(),
+    "near_box_nvb": near_box_nvb,
+    "size_graded": size_graded,
+    "box_dorfler30": lambda *a: box_dorfler(*a, theta=0.3),
+    "box_dorfler60": box_dorfler,
     "near_level": near_level,
     "near_level4": lambda *a: near_level(*a, factor=4.0),
     "contact_w10": contact_weighted,

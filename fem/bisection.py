@@ -201,11 +201,14 @@ def refine_marked(
     mesh: Mesh,
     marked: np.ndarray,
     project: Mapping[str, Projection] | None = None,
+    bisect: np.ndarray | None = None,
 ) -> tuple[Mesh, sp.csr_matrix]:
     """Newest-vertex bisection of the labelled triangle mesh `mesh` (module docstring):
-    every marked cell is split into 4, others as conformity requires.
+    every marked cell is split into 4, every `bisect` cell at least into 2 (its refinement
+    edge bisected: one bisection, its area halved), others as conformity requires.
 
     marked : (n_cells,) bool, or integer indices of the cells to refine.
+    bisect : optional, the same form: cells to bisect once (more if the closure asks).
     project : optional boundary part name → projection of points (k, 2) onto the true
         boundary curve; the new nodes on that part are moved onto it.
     Returns (new mesh, P): the new mesh's points begin with the old points (same indices),
@@ -227,6 +230,8 @@ def refine_marked(
     edge_cells = _edge_cells(cell_edges, len(codes))  # (n_edges, 2)
     edge_marked = np.zeros(len(codes), dtype=bool)
     edge_marked[cell_edges[cell_marked].ravel()] = True
+    if bisect is not None:
+        edge_marked[cell_edges[_marked_cells(bisect, mesh.n_cells), 0]] = True
     edge_marked = _closure(cell_edges, edge_cells, edge_marked)
 
     bisected = np.flatnonzero(edge_marked)  # (n_bis,) the edges that get a midpoint

@@ -41,8 +41,21 @@ def estimate_output(plugin: Any, model: Any, sol: Solution, outdir: Path) -> dic
 
 ZoneMarks = Callable[[Any, Solution, dict[str, Any], dict[str, np.ndarray]], dict[str, np.ndarray]]
 """(model, solution, the meshes it was built on, the Dörfler marks, each by body name) →
-{body name: (n_cells,) bool, its marks ⊇ Dörfler's} for the bodies whose marks it changes
-(`adapt`'s `contact_zone`)."""
+{body name: its marks} for the bodies whose marks it changes (`adapt`'s `contact_zone`):
+(n_cells,) bool, the cells split into 4 (⊇ Dörfler's), or (n_cells,) integers, 2 for a cell
+split into 4 (⊇ Dörfler's), 1 for a cell bisected once, 0 for neither (`split_marks`)."""
+
+
+def split_marks(marks: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """(cells split into 4 (n_cells,) bool, cells bisected once (n_cells,) bool or None) of
+    one body's `ZoneMarks` value, for `fem.bisection.refine_marked(mesh, red, bisect=once)`.
+    ValueError for integers other than 0, 1, 2."""
+    m = np.asarray(marks)
+    if m.dtype == bool:
+        return m, None
+    if not np.isin(m, (0, 1, 2)).all():
+        raise ValueError(f"zone marks: bool, or integers 0, 1, 2 per cell; got {np.unique(m)}")
+    return m == 2, m == 1
 
 
 def touching_cells(
@@ -83,7 +96,7 @@ def adapt(
     with green/blue closure cells at the surface, and the nodal multiplier, e.g. the Hertz
     peak pressure, oscillates by ~1 % there: docs/benchmarks.md); or a `ZoneMarks` function
     that extends the Dörfler marks (the benchmarks' other candidate markings:
-    `benchmarks/zone_marks.py`).
+    `benchmarks/zone_marks.py`), and may ask for cells bisected once (`ZoneMarks`).
 
     Returns (model, solution, cycles, why it stopped); each cycle is {"cycle", "unknowns",
     "estimate", "relative", "contact_nodes", "time_s"} plus the plug-in's exact errors where
@@ -140,10 +153,12 @@ def adapt(
         )
         if zone is not None and model.contact is not None:
             marked.update(zone(model, sol, meshes, marked))
-        meshes = {
-            n: refine_marked(meshes[n], marked[n], project=indicators[n].curves or None)[0]
-            for n in names
-        }
+        refined = {}
+        for n in names:
+            red, once = split_marks(marked[n])
+            curves = indicators[n].curves or None
+            refined[n] = refine_marked(meshes[n], red, project=curves, bisect=once)[0]
+        meshes = refined
         prev = (model, sol)
     return model, sol, cycles, f"{max_cycles} cycles"
 

@@ -49,3 +49,27 @@ def test_box_mesh_refines_only_the_box():
     assert new.shape[0] > 0
     assert np.abs(new[:, 0]).max() < 0.5 and new[:, 1].min() > 0.5
     assert wide.n_nodes > narrow.n_nodes
+
+
+def test_zone_marking_parses_names_and_keywords():
+    """`--zone SPEC`: a name is its MARKS entry; NAME@KEY=VALUE,... that function with those
+    keywords as numbers; an unknown name, a keyword the function does not take (one of the
+    four positional arguments the loop passes, or any for a lambda entry) and a value that
+    is not a number are refused. Taking every parameter name as a keyword (no [4:]) lets
+    "touching@model=1" through and fails."""
+    from benchmarks import zone_marks as zm
+
+    assert ba.zone_marking("near_box") is zm.MARKS["near_box"]
+    f = ba.zone_marking("near_box@factor=2.4,width=1.1")
+    assert f.func is zm.near_box and f.keywords == {"factor": 2.4, "width": 1.1}
+    for bad in (
+        "nope",
+        "nope@factor=1",
+        "near_box@size=1",
+        "near_box_tight@factor=2",
+        "touching@model=1",
+        "near_box@factor=x",
+        "near_box@factor",
+    ):
+        with pytest.raises(ValueError):
+            ba.zone_marking(bad)

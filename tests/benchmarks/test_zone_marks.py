@@ -8,6 +8,7 @@ import pytest
 from benchmarks import zone_marks as zm
 from fem.bisection import prepared, refine_marked
 from problems import pipeline
+from problems.pipeline import adaptive
 from problems.plugins.contact.bodies import given_meshes
 from problems.plugins.contract import solve_model
 
@@ -201,3 +202,133 @@ def test_near_box_marks_the_coarse_box_cells_and_nothing_deeper(hertz):
     assert (m[box & ~layers] == coarse[box & ~layers]).all()
     deep = (t > 2.6) & ~layers
     assert deep.any() and not m[deep].any()
+
+
+NEW = [
+    "near_box_f2r2",
+    "near_box_tight",
+    "near_box_paced",
+    "size_graded",
+    "box_dorfler30",
+    "box_dorfler60",
+    "near_box_nvb",
+]
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("name", NEW)
+def test_new_marks_keep_the_energy_marks_and_the_mesh_conforming(hertz, name, seed):
+    """Random Dörfler-like marks (seeded): the candidate's marks contain them, add to them,
+    and the refined mesh is conforming (`check_conforming`). A candidate that returns its own
+    marks without the energy's (`coarse` instead of `marked | coarse`) fails the first."""
+    from tests.fem.test_bisection import check_conforming
+
+    model, sol, meshes = hertz
+    mesh = meshes["body"]
+    rng = np.random.default_rng(seed)
+    start = rng.random(mesh.n_cells) < 0.05
+    if name == "near_box_paced":
+        zm.MARKS[name].size = None  # a fresh run
+    m = zm.MARKS[name](model, sol, meshes, {"body": start})["body"]
+    red, once = adaptive.split_marks(m)
+    assert m.shape == (mesh.n_cells,) and (once is None) == (name != "near_box_nvb")
+    assert (red >= start).all() and red.sum() + (0 if once is None else once.sum()) > start.sum()
+    check_conforming(refine_marked(mesh, red, bisect=once)[0], mesh)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_zone_distance_is_the_distance_to_the_surface_segment(seed):
+    """`zone_distance` against a brute-force minimum over 20,001 points of the segment
+    |x − x_c| ≤ ℓ, y = y_top, for random cells (seeded); dropping the max(0, ·) of the
+    lateral offset (the distance to the line through the segment's centre) fails."""
+    rng = np.random.default_rng(seed)
+    half, xc, y_top = rng.uniform(0.1, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)
+    pts = rng.uniform(-3.0, 3.0, size=(60, 2))
+    mesh = SimpleNamespace(points=pts, cells=np.arange(60).reshape(20, 3))
+    got = zm.zone_distance(mesh, (half, xc, y_top, 0.0))
+    c = pts[mesh.cells].mean(axis=1)  # (20, 2)
+    s = np.stack([np.linspace(xc - half, xc + half, 20_001), np.full(20_001, y_top)], axis=1)
+    want = np.linalg.norm(c[:, None] - s[None], axis=-1).min(axis=1) / half
+    assert np.allclose(got, want, atol=1e-4)  # the sampling step is 1e-4 ℓ
+
+
+def test_size_graded_marks_exactly_the_cells_coarser_than_the_size_function(hertz):
+    """ "size_graded" from no marks: outside the red layers' vertex rings a cell is marked
+    exactly when its longest edge exceeds 2 × the median segment × 2^max(0, (d − 1.3) / 0.5),
+    d its centroid's distance to the zone's surface in ℓ; there are cells of both kinds. A
+    size function without the grading (or with d measured from the zone's centre) fails."""
+    model, sol, meshes = hertz
+    mesh, c = meshes["body"], model.contact
+    none = {"body": np.zeros(mesh.n_cells, dtype=bool)}
+    m = zm.size_graded(model, sol, meshes, none)["body"]
+    touch = zm._touch(model, sol)
+    p = mesh.points[c.tr.nodes[touch]]
+    half, xc = 0.5 * np.ptp(p[:, 0]), 0.5 * (p[:, 0].max() + p[:, 0].min())
+    h_zone = np.median(c.tr.measures[touch[c.tr.facets].all(axis=1)])
+    P = mesh.points[mesh.cells]
+    h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)
+    cen = P.mean(axis=1)
+    d = np.hypot(np.maximum(0, np.abs(cen[:, 0] - xc) - half), p[:, 1].max() - cen[:, 1]) / half
+    coarse = h > 2 * h_zone * 2.0 ** np.maximum(0.0, (d - 1.3) / 0.5)
+    near = np.zeros(mesh.n_nodes, dtype=bool)
+    near[c.tr.nodes[touch]] = True
+    for _ in range(3):
+        near[mesh.cells[near[mesh.cells].any(axis=1)].ravel()] = True
+    out = ~near[mesh.cells].any(axis=1)
+    assert (out & coarse).any() and (out & ~coarse).any()
+    assert (m[out] == coarse[out]).all()
+
+
+def test_near_box_paced_target_falls_at_most_by_its_rate(hertz):
+    """ "near_box_paced": with no target kept it marks as "near_box"; with a kept target S
+    (from a call on a mesh of as many cells) it marks as near_box with factor S / √2 ÷ the
+    median segment when that is coarser, and keeps S / √2; a call on a coarser mesh (a new run)
+    drops it. Without the pacing (the max) the second call marks as near_box and fails."""
+    model, sol, meshes = hertz
+    mesh = meshes["body"]
+    none = {"body": np.zeros(mesh.n_cells, dtype=bool)}
+    paced = zm.NearBoxPaced()
+    h_zone = zm._zone_frame(model, sol, mesh)[3]
+    first = paced(model, sol, meshes, none)["body"]
+    assert (first == zm.near_box(model, sol, meshes, none)["body"]).all()
+    assert paced.size == pytest.approx(2 * h_zone)
+    paced.size = 8 * h_zone * 2**0.5  # as if the last cycle's target had been that
+    second = paced(model, sol, meshes, none)["body"]
+    assert paced.size == pytest.approx(8 * h_zone)
+    assert (second == zm.near_box(model, sol, meshes, none, factor=8.0)["body"]).all()
+    assert (second != first).any()
+    paced.n_cells = mesh.n_cells + 1  # the last call's mesh was finer: a new run
+    assert (paced(model, sol, meshes, none)["body"] == first).all()
+
+
+def test_near_box_nvb_bisects_the_box_and_splits_the_rings_red(hertz):
+    """ "near_box_nvb" from no marks: near_box's coarse box cells outside the rings are 1
+    (bisected once), the cells of the three rings that the bisections' closure would split
+    are 2 (split into 4), nothing else is marked; after refining, no cell of the rings is
+    split other than red. Dropping the bisections from `red_split`'s closure leaves ring cells
+    split by bisection and fails; with one marked cell it is 2 (kept)."""
+    from fem.bisection import _closure, _edge_cells, _edges
+
+    model, sol, meshes = hertz
+    mesh, c = meshes["body"], model.contact
+    none = np.zeros(mesh.n_cells, dtype=bool)
+    m = zm.near_box_nvb(model, sol, meshes, {"body": none})["body"]
+    frame = zm._zone_frame(model, sol, mesh)
+    coarse = zm.box_coarse(mesh, frame, 2.0 * frame[3])
+    assert set(np.unique(m)) == {0, 1, 2}
+    assert ((m == 1) == (coarse & (m != 2))).all() and not (m[~coarse] == 1).any()
+    codes, cell_edges = _edges(mesh.cells, mesh.n_nodes)
+    edges = np.zeros(codes.size, dtype=bool)
+    edges[cell_edges[m == 2].ravel()] = True
+    edges[cell_edges[m == 1, 0]] = True
+    split = _closure(cell_edges, _edge_cells(cell_edges, codes.size), edges)[cell_edges].any(1)
+    near = np.zeros(mesh.n_nodes, dtype=bool)
+    near[c.tr.nodes[zm._touch(model, sol)]] = True
+    for _ in range(3):
+        near[mesh.cells[near[mesh.cells].any(axis=1)].ravel()] = True
+    rings = near[mesh.cells].any(axis=1)
+    assert not (rings & (m == 1)).any() and (m[~rings] != 2).all()
+    assert (split & rings).any() and not (split & rings & (m != 2)).any()
+    one = none.copy()
+    one[np.flatnonzero(~rings & ~coarse)[0]] = True
+    assert zm.near_box_nvb(model, sol, meshes, {"body": one})["body"][one].tolist() == [2]

@@ -318,6 +318,26 @@ def test_one_marked_cell_makes_a_local_closure():
     assert fine.n_cells - mesh.n_cells <= 16
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_bisect_cells_are_bisected_once(seed):
+    """`bisect` cells (seeded random, no marks): the mesh stays valid (`check_all`), each
+    cell's refinement-edge midpoint is a new node, and with every cell of a structured grid
+    given, each is split into exactly 2 (the diagonal, shared by a quad's two triangles, is
+    both halves' refinement edge): 2 n_cells cells, one node per quad. Ignoring `bisect`
+    (the mutation) leaves the mesh unchanged and fails."""
+    rng = np.random.default_rng(seed)
+    mesh = prepared(rectangle((0.0, 1.0), (0.0, 1.0), (12, 8), "triangle"))
+    once = rng.random(mesh.n_cells) < 0.2
+    none = np.zeros(mesh.n_cells, dtype=bool)
+    fine, P = refine_marked(mesh, none, bisect=once if seed else np.flatnonzero(once))
+    check_all(fine, P, mesh, none, rng)
+    mid = 0.5 * (mesh.points[mesh.cells[once, 1]] + mesh.points[mesh.cells[once, 2]])
+    assert (cKDTree(fine.points).query(mid)[0] < 1e-12).all()
+    every, _ = refine_marked(mesh, none, bisect=np.ones(mesh.n_cells, dtype=bool))
+    assert every.n_cells == 2 * mesh.n_cells
+    assert every.n_nodes == mesh.n_nodes + mesh.n_cells // 2
+
+
 def test_split_quads_and_labelling():
     """Quads into two counterclockwise triangles with the diagonal as the refinement edge of
     both; longest-edge labelling makes the longest edge the refinement edge."""

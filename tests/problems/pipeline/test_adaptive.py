@@ -145,7 +145,11 @@ def test_mutation_without_the_curves_the_nodes_leave_the_arc(monkeypatch):
     import fem.bisection
 
     plain = fem.bisection.refine_marked
-    monkeypatch.setattr(fem.bisection, "refine_marked", lambda m, k, project=None: plain(m, k))
+    monkeypatch.setattr(
+        fem.bisection,
+        "refine_marked",
+        lambda m, k, project=None, bisect=None: plain(m, k, bisect=bisect),
+    )
     try:
         model = _paper_cycles()[0]
     except Exception as err:  # the interface check
@@ -246,3 +250,47 @@ def test_contact_zone_function_extends_the_marks(hook):
     if hook:  # it was given Dörfler's marks: a proper subset of the cells
         marks = seen[0][m0.bodies[0].name]
         assert 0 < marks.sum() < marks.size
+
+
+def test_split_marks():
+    """A bool value is the cells split into 4; integers 2, 1, 0 are split into 4, bisected
+    once, neither; any other integer is refused."""
+    b = np.array([True, False, True])
+    red, once = adaptive.split_marks(b)
+    assert red is b and once is None
+    red, once = adaptive.split_marks(np.array([2, 1, 0, 1]))
+    assert red.tolist() == [True, False, False, False]
+    assert once.tolist() == [False, True, False, True]
+    with pytest.raises(ValueError, match="0, 1, 2"):
+        adaptive.split_marks(np.array([0, 3]))
+
+
+@pytest.mark.parametrize("level", [1, 2])
+def test_contact_zone_may_ask_for_one_bisection(level):
+    """contact_zone=FUNCTION returning integers: every cell at 1 bisects each cell once (cycle
+    1 gains one node per distinct refinement edge of cycle 0's labelled mesh), at 2 splits
+    each into 4 (one uniform refinement's nodes). adapt dropping the bisections (the mutation)
+    leaves cycle 1 with cycle 0's nodes at level 1 and fails."""
+    from fem.bisection import _edges
+
+    expect = {}
+
+    def every(model, sol, meshes, marked):
+        for n, mesh in meshes.items():
+            codes, cell_edges = _edges(mesh.cells, mesh.n_nodes)
+            new = np.unique(cell_edges[:, 0]).size if level == 1 else codes.size
+            expect.setdefault(n, mesh.n_nodes + new)  # cycle 0's (the loop marks after 1 too)
+        return {n: np.full(meshes[n].n_cells, level, dtype=np.int8) for n in marked}
+
+    plugin = Keeping(pc)
+    adaptive.adapt(
+        plugin,
+        load_scene(SCENES / "manufactured.toml"),
+        1e-9,
+        solve_options=OPTIONS,
+        max_cycles=2,
+        contact_zone=every,
+    )
+    (m0, _), (m1, _) = plugin.solved
+    for body in m1.bodies:
+        assert body.mesh.n_nodes == expect[body.name] > m0.bodies[0].mesh.n_nodes
