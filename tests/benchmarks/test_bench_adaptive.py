@@ -104,3 +104,16 @@ def test_hertz_limit_uses_its_box(monkeypatch):
         with pytest.raises(Stop):
             ba.hertz_limit(None, None, 4, **kw)
     assert seen == [(3, 4, 0.075, 0.12, 0.8), (3, 4, 0.05, 0.08, 0.8)]
+
+
+def test_run_radius_sets_the_gap_and_the_reference():
+    """`--radius R`: the scene's gap becomes x²/(2R) (a shallower cylinder at R = 2 carries
+    more load at the same push) and the closed form uses R (a_ref² = 4PR/(πE*): a_ref²/P
+    doubles). Measuring with the default R instead, or not setting the gap, fails."""
+    shipped = ba.run("hertz", 0, 0, zones=())["uniform"][0]
+    res = ba.run("hertz", 0, 0, zones=(), radius=2.0)
+    wide = res["uniform"][0]
+    assert res["overrides"] == ['contact.gap="x**2 / (2 * 2.0)"']
+    assert wide["P"] > 1.05 * shipped["P"]
+    ratio = (wide["a_ref"] ** 2 / wide["P"]) / (shipped["a_ref"] ** 2 / shipped["P"])
+    assert ratio == pytest.approx(2.0, rel=1e-9)
