@@ -1,7 +1,8 @@
 """Adaptive against uniform refinement (issue 32, part 4).
 
     python benchmarks/bench_adaptive.py [--uniform L] [--max-unknowns N] [--zone-levels Z]
-        [--contact-zone | --zone NAME ...] [--box U,Z,W,D,S ...] [--json FILE] [SCENE ...]
+        [--contact-zone | --zone NAME ...] [--box U,Z,W,D,S ...] [--limit-box W,D]
+        [--set KEY=VALUE ...] [--radius R] [--json FILE] [SCENE ...]
     python benchmarks/bench_adaptive.py --mutations [--uniform L] [--cycles C] [--json FILE]
         [SCENE ...]
 
@@ -14,17 +15,22 @@ form (`benchmarks.hertz`: a_err, p0_err). These contain the finite block's own m
 error against the half-plane (~1e-3, the floor the uniform levels level off at); with
 --zone-levels Z also its discretisation part a_dis, p0_dis: the distance to the finite
 block's limit, computed once on a mesh refined Z times more around the contact zone
-(`hertz_limit`), and the signed errors a, p0 in the JSON. With --zone NAME ... one adaptive
-run per NAME: "energy" (the Dörfler marks alone, the default) or a candidate contact-zone
-marking of `benchmarks/zone_marks.py` (--contact-zone is --zone touching), or NAME@KEY=VALUE,...
-for one of its functions with those keywords (`zone_marking`). On Hertz also two
-diagnostics of the nodal pressure at the centre (`_centre`: "osc", the centre node against its
-neighbours' mean, and "h0", the segment length there) and, with --box, a priori meshes refined
-around the zone (`box_mesh`), one solve each. Prints the table,
-then per run and measure the first adaptive cycle that reaches the finest uniform level's
-value: its unknowns and CPU time against the uniform level's, and on Hertz the first cycle
-that reaches both a_dis and p0_dis. Writes all rows as JSON (default bench_adaptive.json)
-with the peak memory.
+(`hertz_limit`, its box |x| < W, depth D: --limit-box W,D, default 0.075,0.12 for the
+shipped load's a = 0.058 m), and the signed errors a, p0 in the JSON. --set KEY=VALUE ...
+overrides the scenes' fields as `mixvi solve --set` does (e.g. another load on Hertz:
+--set 'body.displacement=[{boundary = "bottom", value = [0.0, 3.0e-3]}]'); --radius R sets
+the Hertz cylinder's radius (the gap x²/(2R) and the closed form's R, default HERTZ_R). On
+Hertz each row also has the measured load P (N/m) and the closed form's a_ref (m) at it.
+With --zone NAME ... one adaptive run per NAME: "energy" (the Dörfler marks alone, the
+default) or a candidate contact-zone marking of `benchmarks/zone_marks.py` (--contact-zone
+is --zone touching), or NAME@KEY=VALUE,... for one of its functions with those keywords
+(`zone_marking`). On Hertz also two diagnostics of the nodal pressure at the centre
+(`_centre`: "osc", the centre node against its neighbours' mean, and "h0", the segment
+length there) and, with --box, a priori meshes refined around the zone (`box_mesh`), one
+solve each. Prints the table, then per run and measure the first adaptive cycle that reaches
+the finest uniform level's value: its unknowns and CPU time against the uniform level's, and
+on Hertz the first cycle that reaches both a_dis and p0_dis. Writes all rows as JSON
+(default bench_adaptive.json) with the peak memory.
 
 With --mutations (for the exact-solution scenes, e.g. manufactured curved_manufactured):
 per uniform level 0..L (and with --cycles C per adaptive cycle 0..C − 1) the efficiency index
@@ -50,18 +56,22 @@ if not __package__:  # run as python benchmarks/bench_adaptive.py: `benchmarks` 
 
 HERTZ_R = 1.0  # m, the cylinder radius of the hertz scene
 HERTZ_ZONE = 0.075  # m, the limit's box half-width: the contact half-width a = 0.058 m and 30 %
+HERTZ_DEPTH = 0.12  # m, the limit's box depth at its first step (2.07 a)
 KEYS = ("total", "a_err", "p0_err", "a_dis", "p0_dis")  # the measures compared
 CENTRE = ("osc", "h0")  # Hertz diagnostics printed beside them (`_centre`)
 
 
-def _measures(name: str, plugin, model, sol, limit: dict | None = None) -> dict:
+def _measures(
+    name: str, plugin, model, sol, limit: dict | None = None, radius: float = HERTZ_R
+) -> dict:
     from benchmarks import hertz
     from problems.pipeline.adaptive import totals
 
     row = {"unknowns": int(sum(model.dofs.values())), **totals(plugin.estimate(model, sol))}
     if name == "hertz":
-        contact = hertz.of_model(model, sol, HERTZ_R)
+        contact = hertz.of_model(model, sol, radius)
         errors = contact.errors
+        row["P"], row["a_ref"] = contact.P, contact.a_ref
         row["a"], row["p0"] = errors["a"], errors["p0"]  # signed
         row.update(_centre(model, sol, contact.p0_ref))
         row["a_err"], row["p0_err"] = abs(errors["a"]), abs(errors["p0"])
@@ -118,17 +128,27 @@ def _solve_on(plugin, scene, mesh):
     return model, solve_model(plugin, model, method="ssn", tol=1e-10)
 
 
-def hertz_limit(plugin, scene, zone_levels: int) -> dict:
+def hertz_limit(
+    plugin,
+    scene,
+    zone_levels: int,
+    width: float = HERTZ_ZONE,
+    depth: float = HERTZ_DEPTH,
+    radius: float = HERTZ_R,
+) -> dict:
     """The Hertz errors of the finite block itself (its model error against the half-plane):
-    `box_mesh` with 3 uniform steps and `zone_levels` box steps, |x| < HERTZ_ZONE, d = 0.12 m
-    × 0.8 per step (the box's width stays: a box shrinking with d leaves the zone's edge
-    x = a one level coarser from step 4 on, and its errors were off by 1.8e-4 in a and 1.6e-4
-    in p0: the history of docs/benchmarks.md). {"a", "p0", "unknowns"}."""
+    `box_mesh` with 3 uniform steps and `zone_levels` box steps, |x| < width, d = depth × 0.8
+    per step (defaults for the shipped load; scale both with a for another; the box's width
+    stays: a box shrinking with d leaves the zone's edge x = a one level coarser from step 4
+    on, and its errors were off by 1.8e-4 in a and 1.6e-4 in p0: the history of
+    docs/benchmarks.md), against the closed form for a cylinder of this `radius`.
+    {"a", "p0", "unknowns"}."""
     from benchmarks import hertz
 
-    mesh = box_mesh(plugin, scene, 3, zone_levels, HERTZ_ZONE, 0.12, 0.8)
+    mesh = box_mesh(plugin, scene, 3, zone_levels, width, depth, 0.8)
     model, sol = _solve_on(plugin, scene, mesh)
-    return {**hertz.of_model(model, sol, HERTZ_R).errors, "unknowns": sum(model.dofs.values())}
+    errors = hertz.of_model(model, sol, radius).errors
+    return {**errors, "unknowns": sum(model.dofs.values())}
 
 
 def run(
@@ -139,18 +159,30 @@ def run(
     zones: tuple[str, ...] = ("energy",),
     theta: float = 0.5,
     boxes: tuple[tuple[int, int, float, float, float], ...] = (),
+    overrides: tuple[str, ...] = (),
+    limit_box: tuple[float, float] = (HERTZ_ZONE, HERTZ_DEPTH),
+    radius: float | None = None,
 ) -> dict:
     """Uniform levels 0..levels, then one adaptive run per entry of `zones` ("energy": the
     Dörfler marks alone; else a name of `zone_marks.MARKS` added to them), Dörfler θ = `theta`;
     on Hertz one solve per entry of `boxes` ((uniform, steps, width, depth, shrink) of
-    `box_mesh`: a priori meshes, CPU time of the solve alone)."""
+    `box_mesh`: a priori meshes, CPU time of the solve alone). `overrides`: the scene's `--set`
+    overrides (`pipeline.load`); `limit_box`: (width, depth) of `hertz_limit`'s box; `radius`:
+    on Hertz the cylinder's (its gap x²/(2R) set on the scene; None: the scene's HERTZ_R)."""
     from problems import pipeline
     from problems.plugins.contract import nested_start, solve_model
 
-    loaded = pipeline.load(name)
+    if name == "hertz" and radius is not None:
+        overrides = (*overrides, f'contact.gap="x**2 / (2 * {radius!r})"')
+    radius = HERTZ_R if radius is None else radius
+    loaded = pipeline.load(name, overrides)
     plugin, scene = loaded.plugin, loaded.scene
     options = {"method": "ssn", "tol": 1e-10}
-    limit = hertz_limit(plugin, scene, zone_levels) if name == "hertz" and zone_levels else None
+    limit = (
+        hertz_limit(plugin, scene, zone_levels, *limit_box, radius)
+        if name == "hertz" and zone_levels
+        else None
+    )
     uniform, prev, cpu = [], None, 0.0
     for level in range(levels + 1):
         t0 = time.process_time()
@@ -158,7 +190,7 @@ def run(
         start = nested_start(plugin, *prev, model)[0] if prev else {}
         sol = solve_model(plugin, model, **options, **start)
         cpu += time.process_time() - t0
-        row = _measures(name, plugin, model, sol, limit)
+        row = _measures(name, plugin, model, sol, limit, radius)
         uniform.append({"level": level, "cpu_s": cpu, **row})
         prev = (model, sol)
     box_rows = []
@@ -168,10 +200,14 @@ def run(
         model, sol = _solve_on(plugin, scene, mesh)
         cpu_s = time.process_time() - t0
         box_rows.append(
-            {"box": list(spec), "cpu_s": cpu_s, **_measures(name, plugin, model, sol, limit)}
+            {
+                "box": list(spec),
+                "cpu_s": cpu_s,
+                **_measures(name, plugin, model, sol, limit, radius),
+            }
         )
     runs = {
-        zone: _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta)
+        zone: _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta, radius)
         for zone in zones
     }
     return {
@@ -181,6 +217,8 @@ def run(
         "adaptive": runs,
         "boxes": box_rows,
         "reach": {zone: _reach(uniform, cycles) for zone, cycles in runs.items()},
+        "overrides": list(overrides),
+        "limit_box": list(limit_box),
     }
 
 
@@ -210,7 +248,9 @@ def zone_marking(spec: str) -> Callable[..., dict]:
     return functools.partial(MARKS[name], **kw)
 
 
-def _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta=0.5) -> list[dict]:
+def _adaptive(
+    name, plugin, scene, max_unknowns, options, limit, zone, theta=0.5, radius=HERTZ_R
+) -> list[dict]:
     """The adaptive loop's cycles with the measures and the CPU time summed over cycles."""
     from problems.pipeline import adaptive
 
@@ -226,7 +266,7 @@ def _adaptive(name, plugin, scene, max_unknowns, options, limit, zone, theta=0.5
 
         def estimate(self, model, sol):
             spent = time.process_time()
-            row = _measures(name, plugin, model, sol, limit)
+            row = _measures(name, plugin, model, sol, limit, radius)
             clock["t"] += time.process_time() - spent  # not the loop's cost
             Measuring.last = row
             return plugin.estimate(model, sol)
@@ -365,6 +405,29 @@ def main() -> None:
         "|x| < W, y > 1 - D (D × S per step) (bench_adaptive.box_mesh), one solve each",
     )
     ap.add_argument(
+        "--limit-box",
+        default=f"{HERTZ_ZONE},{HERTZ_DEPTH}",
+        metavar="W,D",
+        help="Hertz: the limit's box |x| < W, first depth D (m; default for the shipped load's "
+        "a = 0.058 m: scale both with a for another load)",
+    )
+    ap.add_argument(
+        "--radius",
+        type=float,
+        default=None,
+        help="Hertz: the cylinder's radius R (m; the gap x²/(2R) and the closed form's R; "
+        f"default the scene's {HERTZ_R})",
+    )
+    ap.add_argument(
+        "--set",
+        dest="overrides",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scene overrides as mixvi solve --set, applied to every SCENE, e.g. "
+        "'body.displacement=[{boundary = \"bottom\", value = [0.0, 3.0e-3]}]'",
+    )
+    ap.add_argument(
         "--mutations",
         action="store_true",
         help="efficiency index with each contact term dropped or flipped (exact-solution scenes)",
@@ -411,6 +474,10 @@ def main() -> None:
         )
     except ValueError:
         ap.error(f"--box: U,Z,W,D,S each (two integers, three numbers), got {args.box}")
+    try:
+        width, depth = (float(v) for v in args.limit_box.split(","))
+    except ValueError:
+        ap.error(f"--limit-box: W,D (two numbers), got {args.limit_box}")
     results = []
     for name in args.scenes:
         res = run(
@@ -421,6 +488,9 @@ def main() -> None:
             tuple(zones),
             args.theta,
             boxes,
+            tuple(args.overrides),
+            (width, depth),
+            args.radius,
         )
         results.append(res)
         print(f"\n{name}")
@@ -429,8 +499,13 @@ def main() -> None:
             lim = res["limit"]
             print(
                 f"  the finite block's own errors (limit, {lim['unknowns']} unknowns): "
-                f"a {lim['a']:+.3e}, p0 {lim['p0']:+.3e}"
+                f"a {lim['a']:+.3e}, p0 {lim['p0']:+.3e}; box {res['limit_box']}"
             )
+        if res["overrides"]:
+            print(f"  --set {' '.join(res['overrides'])}")
+        if "P" in res["uniform"][-1]:
+            last = res["uniform"][-1]
+            print(f"  load P {last['P']:.4e} N/m, a_ref {last['a_ref']:.4e} m (finest level)")
         print(f"  {'run':>16} {'unknowns':>9} {'cpu s':>8} " + " ".join(f"{k:>10}" for k in keys))
         for r in res["uniform"]:
             vals = " ".join(f"{r[k]:10.3e}" for k in keys)

@@ -73,3 +73,47 @@ def test_zone_marking_parses_names_and_keywords():
     ):
         with pytest.raises(ValueError):
             ba.zone_marking(bad)
+
+
+def test_run_passes_the_scene_overrides():
+    """`--set` reaches the scene: the bottom pushed up half as far (3 mm, not 6) carries
+    roughly half the load at level 0 (the contact is nonlinear: P not exactly halved), and the
+    result records the overrides. Dropping `overrides` in `run` leaves P unchanged and fails."""
+    half = ['body.displacement=[{boundary = "bottom", value = [0.0, 3.0e-3]}]']
+    shipped = ba.run("hertz", 0, 0, zones=())
+    halved = ba.run("hertz", 0, 0, zones=(), overrides=tuple(half))
+    ratio = halved["uniform"][0]["P"] / shipped["uniform"][0]["P"]
+    assert 0.35 < ratio < 0.6
+    assert halved["overrides"] == half and shipped["overrides"] == []
+
+
+def test_hertz_limit_uses_its_box(monkeypatch):
+    """`hertz_limit`'s width and depth (--limit-box) are the box of its mesh: 3 uniform steps,
+    the zone steps asked for, shrink 0.8; the defaults are the shipped load's box."""
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def record(plugin, scene, *spec):
+        seen.append(spec)
+        raise Stop
+
+    monkeypatch.setattr(ba, "box_mesh", record)
+    for kw in ({}, {"width": 0.05, "depth": 0.08}):
+        with pytest.raises(Stop):
+            ba.hertz_limit(None, None, 4, **kw)
+    assert seen == [(3, 4, 0.075, 0.12, 0.8), (3, 4, 0.05, 0.08, 0.8)]
+
+
+def test_run_radius_sets_the_gap_and_the_reference():
+    """`--radius R`: the scene's gap becomes x²/(2R) (a shallower cylinder at R = 2 carries
+    more load at the same push) and the closed form uses R (a_ref² = 4PR/(πE*): a_ref²/P
+    doubles). Measuring with the default R instead, or not setting the gap, fails."""
+    shipped = ba.run("hertz", 0, 0, zones=())["uniform"][0]
+    res = ba.run("hertz", 0, 0, zones=(), radius=2.0)
+    wide = res["uniform"][0]
+    assert res["overrides"] == ['contact.gap="x**2 / (2 * 2.0)"']
+    assert wide["P"] > 1.05 * shipped["P"]
+    ratio = (wide["a_ref"] ** 2 / wide["P"]) / (shipped["a_ref"] ** 2 / shipped["P"])
+    assert ratio == pytest.approx(2.0, rel=1e-9)
