@@ -22,11 +22,13 @@ import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 from problems.errors import SceneError
+from problems.output import signals
 
 ENGINES = ("serial", "petsc")
+T = TypeVar("T")
 
 
 @dataclass
@@ -49,6 +51,33 @@ class Engine:
             return bool(ok)
         return bool(self.comm.bcast(ok, root=0))
 
+    def unanimous(self, check: Callable[..., T], *args: Any, **kw: Any) -> T:
+        """`check(*args, **kw)` (the checks of the input, before any other collective call) on
+        every rank, its verdict agreed: if it raised on one rank, it raises on every rank — on
+        that rank its own exception, on the others the first failing rank's SceneError (the
+        same line: bad input), or a RuntimeError naming that rank (exit 3) — and no rank goes on
+        into the solve to wait there for one that has stopped. A refusal may depend on the
+        rank: the memory available when each one looks, a limit (ulimit -v) set on one.
+        Interruptions pass on (`signals.one_rank_of_several`)."""
+        if self.comm is None or self.size == 1:
+            return check(*args, **kw)
+        mine: Exception | None = None
+        try:
+            value = check(*args, **kw)
+        except Exception as err:
+            mine = err
+        verdicts = self.comm.allgather(_verdict(mine))
+        if mine is not None:
+            raise mine
+        failed = [(rank, v) for rank, v in enumerate(verdicts) if v is not None]
+        if not failed:
+            return value
+        refused = [fields for _, (kind, fields) in failed if kind == "scene"]
+        if refused:
+            raise SceneError(*refused[0])
+        rank, (_, line) = failed[0]
+        raise RuntimeError(f"rank {rank} of {self.size} failed: {line}")
+
     def guarded(self, solve: Callable[..., Any], *args: Any, **kw: Any) -> Any:
         """`solve(*args, **kw)`; an exception on this rank aborts every rank (MPI_Abort), so no
         rank waits forever on one that has stopped. SceneError and interruptions pass on."""
@@ -69,6 +98,26 @@ class Engine:
             raise
 
 
+def _verdict(err: Exception | None) -> tuple[str, Any] | None:
+    """What one rank tells the others of its checks (`Engine.unanimous`): None (passed), a
+    SceneError's fields, or another exception's line."""
+    if err is None:
+        return None
+    if isinstance(err, SceneError):
+        return "scene", (
+            err.key,
+            str(err.value) if _odd(err.value) else err.value,
+            err.allowed,
+            err.file,
+        )
+    return "other", f"{type(err).__name__}: {err}"
+
+
+def _odd(value: Any) -> bool:
+    """Whether `value` is anything but a plain str, number, bool or None (sent as its text)."""
+    return not isinstance(value, str | int | float | bool | type(None))
+
+
 def start(name: str) -> Engine:
     """The engine `name` (ENGINES), its rank and size; SceneError on --engine if unknown or
     if petsc4py/mpi4py are missing (on every rank alike)."""
@@ -86,6 +135,8 @@ def start(name: str) -> Engine:
             ".ci/install_petsc)",
         )
     rank, size = vi_petsc.comm_rank_size()
+    if size > 1:  # an interruption then ends this rank without the collective exit handlers
+        signals.one_rank_of_several()
     from mpi4py import MPI
 
     return Engine(name, rank, size, MPI.COMM_WORLD)

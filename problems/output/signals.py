@@ -71,6 +71,7 @@ _installed = False
 _calls: queue.SimpleQueue | None = None  # the running worker's requests to the main thread
 _abandoned: list[threading.Thread] = []  # workers still inside their work after a signal
 _raised: list[int] = []  # the signals the handler has raised as Interrupted
+_one_rank = False  # this process is one rank of several of an MPI run (`one_rank_of_several`)
 
 
 def _handler(signum: int, frame) -> None:
@@ -238,14 +239,27 @@ def exit_if_abandoned(status: int) -> None:
         _exit_now(status)
 
 
+def one_rank_of_several() -> None:
+    """Mark this process as one rank of an MPI run of several (`mixvi solve --engine petsc`
+    under mpiexec): `finish` then ends it without the exit handlers. An interruption ends one
+    rank alone while the others may still be inside the solve, and the handlers petsc4py and
+    mpi4py registered are collective (PETSc's garbage clean-up duplicates a communicator, then
+    MPI_Finalize): the rank would wait in them forever for ranks that wait for it in the
+    solve, and mpiexec, which ends the others once one rank has ended with a non-zero status,
+    would never see it end."""
+    global _one_rank
+    _one_rank = True
+
+
 def finish(status: int) -> None:
     """End the process now with `status` after an interruption whose clean-up has run (the
     `finally` blocks the signal went through): the exit handlers (`atexit`) unless a worker is
     still inside its work, the standard streams flushed, then `os._exit` — without the
     interpreter's tear-down of every module and object, which took 1.1–1.4 s of the 1.2–1.5 s
     from a SIGTERM to the exit of `mixvi bench` on a loaded 2-core machine (its child, the
-    solve, was already gone after 0.1 s)."""
-    if not _worker_running():
+    solve, was already gone after 0.1 s). One rank of several (`one_rank_of_several`): no exit
+    handlers either (they are collective)."""
+    if not _worker_running() and not _one_rank:
         import atexit
 
         atexit._run_exitfuncs()
