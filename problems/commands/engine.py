@@ -1,22 +1,23 @@
 """`mixvi solve --engine petsc`: the Newton loop on PETSc over the ranks of an `mpiexec` run
 (`vi_core.petsc`), output written once, by rank 0.
 
-Under `mpiexec -n P mixvi solve SCENE --engine petsc` every rank reads and validates the scene
-and builds the model; the ranks agree on the checks of the input (`Engine.unanimous`: refused
-on one rank, e.g. by a memory limit of its own, it is refused on every rank, exit status 2,
-before the solve's first collective call: no rank waits on another); rank 0 alone opens the output folder and tells the
-others whether it could (`Engine.agree`): a refused folder ends every rank with status 2. Then
-every rank runs the same solve (nested iteration included: each level's Newton loop is
+Under `mpiexec -n P mixvi solve SCENE --engine petsc` every rank reads and validates the scene and
+builds the model; the ranks agree on the checks of the input (`Engine.unanimous`: refused on one
+rank, e.g. by a memory limit of its own, it is refused on every rank, exit status 2, before the
+solve's first collective call: no rank waits on another); rank 0 alone opens the output folder and
+tells the others whether it could (`Engine.agree`): a refused folder ends every rank with status 2.
+Then every rank runs the same solve (nested iteration included: each level's Newton loop is
 `vi_core.petsc.solve_ssn_petsc`); rank 0 writes the results as the serial command does (same files,
-same summary.json fields, plus solver_info["engine"] and ["ranks"]), the other ranks write
-nothing and exit with the same status. An exception on one rank mid-solve aborts the whole run
-(MPI_Abort) with a line naming the rank; a rank killed by a signal ends the run through mpiexec,
-and so does a rank interrupted by SIGTERM or SIGINT: it ends at once with 143 or 130, without the
-exit handlers, which are collective (`signals.one_rank_of_several`).
-Rank 0 opens its staging folder only once the solve is done (`solve._solve`): inside a PETSc
-call (petsc4py holds the GIL) it cannot run its SIGTERM handling before mpiexec's SIGKILL, so a
-run ended mid-solve leaves the claimed folder as it was (a load path's steps, written as they
-end, are the exception: a killed run's staging folder is cleared by the next run there).
+same summary.json fields, plus solver_info["engine"] and ["ranks"]), the other ranks write nothing
+and exit with the same status. An exception on one rank mid-solve aborts the whole run (MPI_Abort)
+with a line naming the rank; a rank killed by a signal ends the run through mpiexec, and so does a
+rank interrupted by SIGTERM or SIGINT: it ends at once with 143 or 130, without the exit handlers,
+which are collective (`signals.one_rank_of_several`, `signals.command_done`). Rank 0 opens its
+staging folder only once the solve is done (`solve._solve`): inside a PETSc call (petsc4py holds
+the GIL) it cannot run its SIGTERM handling before mpiexec's SIGKILL, so a run ended mid-solve
+leaves the claimed folder as it was but for its lock file (a load path's steps, written as they
+end, are the exception: a killed run's lock and staging folder are cleared by the next run there,
+with a note).
 """
 
 from __future__ import annotations

@@ -251,6 +251,18 @@ def one_rank_of_several() -> None:
     _one_rank = True
 
 
+def command_done() -> None:
+    """The command has returned, its clean-up done. One rank of several (`one_rank_of_several`)
+    then waits in its exit handlers, inside compiled code that runs no Python signal handler,
+    for the others (rank 0 may still be writing the results): SIGINT and SIGTERM get their
+    default action back, so a signal there ends this rank at once and mpiexec ends the others
+    (rank 0's clean-up leaves its folder as it was), where it would raise `Interrupted` inside
+    an exit handler once they end (a traceback, the run going on). A no-op for one process."""
+    if _one_rank and threading.current_thread() is threading.main_thread():
+        for s in SIGNALS:
+            signal.signal(s, signal.SIG_DFL)
+
+
 def finish(status: int) -> None:
     """End the process now with `status` after an interruption whose clean-up has run (the
     `finally` blocks the signal went through): the exit handlers (`atexit`) unless a worker is

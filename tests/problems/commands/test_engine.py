@@ -244,3 +244,53 @@ def test_refused_on_one_rank_refused_on_every_rank(tmp_path):
     assert run.returncode == 2, stderr[-2000:]
     assert stderr.count("mixvi: error: --level = '6'") == 2, stderr  # each rank says why
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_rank_interrupted_while_rank_0_writes_ends_the_run(tmp_path):
+    """SIGTERM to rank 1 once its solve is done, while rank 0 writes the results (rank 1
+    waits for it in its collective exit handlers, where no Python handler runs): rank 1 ends
+    at once, mpiexec ends rank 0, whose clean-up leaves the previous run as it was; exit
+    status 143 and no traceback. On the old code the handler raised inside an exit handler
+    once rank 0 was done ("Exception ignored in atexit callback", a traceback) and the run
+    went on to exit 0."""
+    need_petsc()
+    out = tmp_path / "o"
+    first = subprocess.run(
+        [mixvi(), "solve", SCENE, "--level", "0", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert first.returncode == 0, first.stderr
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    tag = str(os.getpid())
+    run = mpiexec(
+        2,
+        [mixvi(), "solve", "paper_two_body", "--level", "4", "--engine", "petsc"]
+        + ["--out", str(out)],
+        popen=True,
+        env={"MIXVI_KILL_TEST": tag},
+    )
+    try:
+        pid, t0 = None, time.monotonic()
+        while pid is None and time.monotonic() - t0 < 60:
+            pid = _rank_pid(int(tag), 1)
+            time.sleep(0.2)
+        assert pid is not None
+
+        def staged() -> bool:
+            return any(p.name.startswith(".mixvi-tmp-") for p in out.iterdir())
+
+        while not staged() and run.poll() is None:
+            time.sleep(0.05)  # rank 0 writes into its staging folder: the solve is done
+        assert run.poll() is None, run.communicate()
+        os.kill(pid, signal.SIGTERM)
+        _, stderr = _ended(run, tag, 2, 90)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 143, stderr[-2000:]
+    assert "Traceback" not in stderr and "Exception ignored" not in stderr, stderr[-2000:]
+    assert "signal 15" in stderr, stderr[-2000:]  # mpiexec names rank 1's end
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
