@@ -84,12 +84,18 @@ class Engine:
 
     def guarded(self, solve: Callable[..., Any], *args: Any, **kw: Any) -> Any:
         """`solve(*args, **kw)`; an exception on this rank aborts every rank (MPI_Abort), so no
-        rank waits forever on one that has stopped. SceneError and interruptions pass on."""
+        rank waits forever on one that has stopped. Interruptions pass on, and so does a
+        SceneError (exit status 2 after the clean-up), which may be this rank's alone (rank 0's
+        output refused mid-way): the rank then ends without the collective exit handlers
+        (`signals.ends_alone`), and mpiexec ends the others."""
         if self.comm is None or self.size == 1:
             return solve(*args, **kw)
         try:
             return solve(*args, **kw)
-        except (SceneError, KeyboardInterrupt):
+        except SceneError:
+            signals.ends_alone()
+            raise
+        except KeyboardInterrupt:
             raise
         except BaseException as err:
             print(

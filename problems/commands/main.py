@@ -279,6 +279,7 @@ def main(argv: list[str] | None = None) -> int:
             return _dispatch(argv)
     except SceneError as err:
         print(f"mixvi: error: {err}", file=sys.stderr)
+        signals.exit_if_alone(2)  # one rank of several, stopped mid-solve: end now
         return 2
     except signals.Interrupted as sig:
         print(f"mixvi: interrupted by {sig}", file=sys.stderr)

@@ -72,6 +72,7 @@ _calls: queue.SimpleQueue | None = None  # the running worker's requests to the 
 _abandoned: list[threading.Thread] = []  # workers still inside their work after a signal
 _raised: list[int] = []  # the signals the handler has raised as Interrupted
 _one_rank = False  # this process is one rank of several of an MPI run (`one_rank_of_several`)
+_alone = False  # this rank stopped on an error of its own mid-solve (`ends_alone`)
 
 
 def _handler(signum: int, frame) -> None:
@@ -249,6 +250,23 @@ def one_rank_of_several() -> None:
     would never see it end."""
     global _one_rank
     _one_rank = True
+
+
+def ends_alone() -> None:
+    """This process, if one rank of several, stops on an error of its own while the others may
+    still be inside the solve (a refusal only rank 0 meets: its output folder full or over
+    the file-size limit halfway through a load path). `exit_if_alone` then ends it once its
+    clean-up has run, without the exit handlers, which are collective and would wait forever
+    for those ranks; mpiexec ends them once this one has ended with a non-zero status."""
+    global _alone
+    _alone = _one_rank
+
+
+def exit_if_alone(status: int) -> None:
+    """After the clean-up of an error: if this rank stops alone (`ends_alone`), flush the
+    standard streams and end the process now with `status` (`os._exit`); else return."""
+    if _alone:
+        _exit_now(status)
 
 
 def command_done() -> None:

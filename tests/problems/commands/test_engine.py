@@ -294,3 +294,28 @@ def test_rank_interrupted_while_rank_0_writes_ends_the_run(tmp_path):
     assert "Traceback" not in stderr and "Exception ignored" not in stderr, stderr[-2000:]
     assert "signal 15" in stderr, stderr[-2000:]  # mpiexec names rank 1's end
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+@pytest.mark.slow
+def test_output_refused_mid_load_path_ends_every_rank(tmp_path):
+    """Rank 0 alone meets a refusal mid-solve: its file-size limit (ulimit -f 10 KiB) is
+    reached writing a load step's files while rank 1 goes on to the next step. Rank 0 says
+    why, cleans up (no folder left) and ends without the collective exit handlers, mpiexec
+    ends rank 1: exit status 2. On the old code rank 0 waited in its exit handlers for rank 1,
+    which waited for it in the next step's solve: a hang."""
+    need_petsc()
+    out = tmp_path / "o"
+    # level 2: the first step's block.vtu (19 KB) is over the limit, rank 1 has 29 steps to go
+    argv = [mixvi(), "solve", "shear_strip_path", "--level", "2", "--engine", "petsc"]
+    argv += ["--out", str(out)]
+    limited = ["bash", "-c", 'ulimit -f 10 && exec "$0" "$@"', *argv]
+    tag = str(os.getpid())
+    run = mpiexec(1, [*limited, ":", "-n", "1", *argv], popen=True, env={"MIXVI_KILL_TEST": tag})
+    try:
+        _, stderr = _ended(run, tag, 2, 120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 2, stderr[-2000:]
+    assert "mixvi: error: --out" in stderr and "ulimit -f" in stderr, stderr[-2000:]
+    assert not out.exists()
