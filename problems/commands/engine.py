@@ -9,10 +9,11 @@ tells the others whether it could (`Engine.agree`): a refused folder ends every 
 Then every rank runs the same solve (nested iteration included: each level's Newton loop is
 `vi_core.petsc.solve_ssn_petsc`); rank 0 writes the results as the serial command does (same files,
 same summary.json fields, plus solver_info["engine"] and ["ranks"]), the other ranks write nothing
-and exit with the same status. An exception on one rank mid-solve aborts the whole run (MPI_Abort)
-with a line naming the rank; a rank killed by a signal ends the run through mpiexec, and so does a
-rank interrupted by SIGTERM or SIGINT: it ends at once with 143 or 130, without the exit handlers,
-which are collective (`signals.one_rank_of_several`, `signals.command_done`). Rank 0 opens its
+and exit with the same status. An exception on one rank mid-solve ends that rank with the serial
+line and exit status once its clean-up has run, and mpiexec ends the others; a rank killed by a
+signal ends the run through mpiexec, and so does a rank interrupted by SIGTERM or SIGINT: it ends
+at once with 143 or 130, without the exit handlers, which are collective
+(`signals.one_rank_of_several`, `signals.command_done`, `signals.ends_alone`). Rank 0 opens its
 staging folder only once the solve is done (`solve._solve`): inside a PETSc call (petsc4py holds
 the GIL) it cannot run its SIGTERM handling before mpiexec's SIGKILL, so a run ended mid-solve
 leaves the claimed folder as it was but for its lock file (a load path's steps, written as they
@@ -83,11 +84,12 @@ class Engine:
         raise RuntimeError(f"rank {rank} of {self.size} failed: {line}")
 
     def guarded(self, solve: Callable[..., Any], *args: Any, **kw: Any) -> Any:
-        """`solve(*args, **kw)`; an exception on this rank aborts every rank (MPI_Abort), so no
-        rank waits forever on one that has stopped. Interruptions pass on, and so does a
-        SceneError (exit status 2 after the clean-up), which may be this rank's alone (rank 0's
-        output refused mid-way): the rank then ends without the collective exit handlers
-        (`signals.ends_alone`), and mpiexec ends the others."""
+        """`solve(*args, **kw)`; an exception on this rank ends this rank alone once its
+        clean-up has run, with the serial command's line and exit status (a SceneError 2,
+        memory 1, an internal error 3) and without the exit handlers, which are collective
+        (`signals.ends_alone`): mpiexec then ends the others, so no rank waits forever on one
+        that has stopped. The error may be this rank's alone (rank 0's output refused mid-way,
+        a failure on one rank) or every rank's. Interruptions pass on."""
         if self.comm is None or self.size == 1:
             return solve(*args, **kw)
         try:
@@ -95,16 +97,14 @@ class Engine:
         except SceneError:
             signals.ends_alone()
             raise
-        except KeyboardInterrupt:
-            raise
-        except BaseException as err:
+        except Exception as err:
             print(
-                f"mixvi: rank {self.rank} of {self.size} failed: {type(err).__name__}: {err}; "
-                "aborting every rank (nothing was written)",
+                f"mixvi: rank {self.rank} of {self.size} failed ({type(err).__name__}); "
+                "mpiexec ends the other ranks",
                 file=sys.stderr,
                 flush=True,
             )
-            self.comm.Abort(1)
+            signals.ends_alone()
             raise
 
 

@@ -319,3 +319,39 @@ def test_output_refused_mid_load_path_ends_every_rank(tmp_path):
     assert run.returncode == 2, stderr[-2000:]
     assert "mixvi: error: --out" in stderr and "ulimit -f" in stderr, stderr[-2000:]
     assert not out.exists()
+
+
+def test_internal_error_on_one_rank_ends_the_run_with_the_serial_status(tmp_path):
+    """A RuntimeError in rank 1's Newton loop alone (mpi_scene's "fail_rank_1"): rank 1 says
+    so with the serial line and ends with the serial status of an internal error (3), mpiexec
+    ends rank 0, whose clean-up leaves the previous run as it was. The old code called
+    MPI_Abort(1): exit status 1, where the serial command exits 3."""
+    need_petsc()
+    import sys
+
+    out = tmp_path / "o"
+    first = subprocess.run(
+        [mixvi(), "solve", SCENE, "--level", "0", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert first.returncode == 0, first.stderr
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    tag = str(os.getpid())
+    cli = [sys.executable, "-m", "tests.vi_core.petsc.mpi_cli", "--mutation", "fail_rank_1"]
+    run = mpiexec(
+        2,
+        [*cli, "solve", "paper_two_body", "--level", "2", "--engine", "petsc", "--out", str(out)],
+        popen=True,
+        env={"MIXVI_KILL_TEST": tag},
+    )
+    try:
+        _, stderr = _ended(run, tag, 2, 120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 3, stderr[-2000:]
+    assert "mixvi: rank 1 of 2 failed (RuntimeError)" in stderr, stderr[-2000:]
+    assert "mixvi: internal error: RuntimeError: injected on rank 1" in stderr, stderr[-2000:]
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
