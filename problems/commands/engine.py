@@ -23,6 +23,7 @@ with a note).
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -128,12 +129,33 @@ def _odd(value: Any) -> bool:
     return not isinstance(value, str | int | float | bool | type(None))
 
 
+def launched_processes() -> int:
+    """How many processes the MPI launcher started with this one (Open MPI's
+    OMPI_COMM_WORLD_SIZE, MPICH's and Slurm's PMI_SIZE; 1 when not under a launcher)."""
+    for var in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE"):
+        try:
+            return max(int(os.environ[var]), 1)
+        except (KeyError, ValueError):
+            continue
+    return 1
+
+
 def start(name: str) -> Engine:
-    """The engine `name` (ENGINES), its rank and size; SceneError on --engine if unknown or
-    if petsc4py/mpi4py are missing (on every rank alike)."""
+    """The engine `name` (ENGINES), its rank and size; SceneError on --engine if unknown, if
+    petsc4py/mpi4py are missing, or if serial under an MPI launcher of several processes (on
+    every rank alike)."""
     if name not in ENGINES:
         raise SceneError("--engine", name, "one of " + ", ".join(ENGINES))
     if name == "serial":
+        launched = launched_processes()
+        if launched > 1:
+            raise SceneError(
+                "--engine",
+                name,
+                f"petsc under mpiexec with {launched} processes: the serial engine would solve "
+                "the whole problem once per process, each into the same folder (add --engine "
+                "petsc, or run without mpiexec)",
+            )
         return Engine(name)
     from vi_core import petsc as vi_petsc
 

@@ -355,3 +355,16 @@ def test_internal_error_on_one_rank_ends_the_run_with_the_serial_status(tmp_path
     assert "mixvi: rank 1 of 2 failed (RuntimeError)" in stderr, stderr[-2000:]
     assert "mixvi: internal error: RuntimeError: injected on rank 1" in stderr, stderr[-2000:]
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_serial_engine_under_mpiexec_refused_on_every_rank(tmp_path):
+    """`mpiexec -n 2 mixvi solve` without --engine petsc: every rank refuses with one line
+    naming --engine (exit 2, no folder). The old code ran two whole serial solves into one
+    folder: one was refused by the other's lock, mpiexec then ended the other (exit 2, a
+    message about a lock)."""
+    need_petsc()
+    out = tmp_path / "o"
+    done = mpiexec(2, [mixvi(), "solve", SCENE, "--out", str(out)], timeout=120)
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert done.stderr.count("mixvi: error: --engine = 'serial': petsc under mpiexec") == 2
+    assert not out.exists()
