@@ -33,6 +33,7 @@ def run() -> int:
     status = main()
     if status in (130, 143):  # interrupted, its clean-up done: no interpreter tear-down
         signals.finish(status)
+    signals.command_done()
     return status
 
 

@@ -279,6 +279,7 @@ def main(argv: list[str] | None = None) -> int:
             return _dispatch(argv)
     except SceneError as err:
         print(f"mixvi: error: {err}", file=sys.stderr)
+        signals.exit_if_alone(2)  # one rank of several, stopped mid-solve: end now
         return 2
     except signals.Interrupted as sig:
         print(f"mixvi: interrupted by {sig}", file=sys.stderr)
@@ -291,7 +292,9 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # exit's flush is quiet
         return 128 + signal.SIGPIPE  # 141, as for a tool the shell saw ended by SIGPIPE
     except Exception as err:  # exhausted resources (exit 2 or 1) and internal errors (3)
-        return failures.report(err, debug)
+        status = failures.report(err, debug)
+        signals.exit_if_alone(status)  # one rank of several, stopped mid-solve: end now
+        return status
 
 
 if __name__ == "__main__":

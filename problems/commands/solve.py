@@ -41,20 +41,10 @@ def cmd_solve(args: argparse.Namespace) -> int:
         from .adapt import run
 
         return run(args, load(args), args.accuracy)
-    if args.accuracy is not None:  # a preset fills in what was not given explicitly
-        level, tol = ACCURACY[args.accuracy]
-        args.level = level if args.level is None else args.level
-        args.tol = tol if args.tol is None else args.tol
-    loaded = load(args)
-    scene, plugin = loaded.scene, loaded.plugin
-    method = args.solver
-    if method is not None and method not in pipeline.SOLVERS:
-        raise SceneError("--solver", method, "one of " + ", ".join(pipeline.SOLVERS))
-    level, option = resources.requested_level(args.level, plugin, scene)
-    resources.check_levels(
-        plugin, scene, (level, level), option, str(level), args.force, args.linear_solver
-    )
-    out = Path(args.out) if args.out else Path("out") / scene.name
+    # on every rank of --engine petsc, refused on all of them if on one (the memory check
+    # reads what is available when each rank looks)
+    loaded, level = eng.unanimous(_checked, args)
+    out = Path(args.out) if args.out else Path("out") / loaded.scene.name
     inputs = loaded.scene.files()
     with engine.running(eng):
         if not eng.writes:  # ranks above 0 of --engine petsc: the same solve, no output
@@ -72,6 +62,26 @@ def cmd_solve(args: argparse.Namespace) -> int:
                 raise
             eng.agree(True)
             return eng.guarded(_solve, args, t0, loaded, level, folder)
+
+
+def _checked(args: argparse.Namespace) -> tuple[pipeline.Loaded, int]:
+    """The scene loaded and validated with the level to solve (an --accuracy preset fills in
+    --level and --tol where they were not given); SceneError on a bad solver, a level out of
+    range or one that does not fit in the memory available now."""
+    if args.accuracy is not None:  # a preset fills in what was not given explicitly
+        level, tol = ACCURACY[args.accuracy]
+        args.level = level if args.level is None else args.level
+        args.tol = tol if args.tol is None else args.tol
+    loaded = load(args)
+    scene, plugin = loaded.scene, loaded.plugin
+    method = args.solver
+    if method is not None and method not in pipeline.SOLVERS:
+        raise SceneError("--solver", method, "one of " + ", ".join(pipeline.SOLVERS))
+    level, option = resources.requested_level(args.level, plugin, scene)
+    resources.check_levels(
+        plugin, scene, (level, level), option, str(level), args.force, args.linear_solver
+    )
+    return loaded, level
 
 
 def _solve_unwritten(args, loaded: pipeline.Loaded, level: int) -> int:

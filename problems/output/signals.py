@@ -71,6 +71,8 @@ _installed = False
 _calls: queue.SimpleQueue | None = None  # the running worker's requests to the main thread
 _abandoned: list[threading.Thread] = []  # workers still inside their work after a signal
 _raised: list[int] = []  # the signals the handler has raised as Interrupted
+_one_rank = False  # this process is one rank of several of an MPI run (`one_rank_of_several`)
+_alone = False  # this rank stopped on an error of its own mid-solve (`ends_alone`)
 
 
 def _handler(signum: int, frame) -> None:
@@ -238,14 +240,56 @@ def exit_if_abandoned(status: int) -> None:
         _exit_now(status)
 
 
+def one_rank_of_several() -> None:
+    """Mark this process as one rank of an MPI run of several (`mixvi solve --engine petsc`
+    under mpiexec): `finish` then ends it without the exit handlers. An interruption ends one
+    rank alone while the others may still be inside the solve, and the handlers petsc4py and
+    mpi4py registered are collective (PETSc's garbage clean-up duplicates a communicator, then
+    MPI_Finalize): the rank would wait in them forever for ranks that wait for it in the
+    solve, and mpiexec, which ends the others once one rank has ended with a non-zero status,
+    would never see it end."""
+    global _one_rank
+    _one_rank = True
+
+
+def ends_alone() -> None:
+    """This process, if one rank of several, stops on an error of its own while the others may
+    still be inside the solve (a refusal only rank 0 meets: its output folder full or over
+    the file-size limit halfway through a load path). `exit_if_alone` then ends it once its
+    clean-up has run, without the exit handlers, which are collective and would wait forever
+    for those ranks; mpiexec ends them once this one has ended with a non-zero status."""
+    global _alone
+    _alone = _one_rank
+
+
+def exit_if_alone(status: int) -> None:
+    """After the clean-up of an error: if this rank stops alone (`ends_alone`), flush the
+    standard streams and end the process now with `status` (`os._exit`); else return."""
+    if _alone:
+        _exit_now(status)
+
+
+def command_done() -> None:
+    """The command has returned, its clean-up done. One rank of several (`one_rank_of_several`)
+    then waits in its exit handlers, inside compiled code that runs no Python signal handler,
+    for the others (rank 0 may still be writing the results): SIGINT and SIGTERM get their
+    default action back, so a signal there ends this rank at once and mpiexec ends the others
+    (rank 0's clean-up leaves its folder as it was), where it would raise `Interrupted` inside
+    an exit handler once they end (a traceback, the run going on). A no-op for one process."""
+    if _one_rank and threading.current_thread() is threading.main_thread():
+        for s in SIGNALS:
+            signal.signal(s, signal.SIG_DFL)
+
+
 def finish(status: int) -> None:
     """End the process now with `status` after an interruption whose clean-up has run (the
     `finally` blocks the signal went through): the exit handlers (`atexit`) unless a worker is
     still inside its work, the standard streams flushed, then `os._exit` — without the
     interpreter's tear-down of every module and object, which took 1.1–1.4 s of the 1.2–1.5 s
     from a SIGTERM to the exit of `mixvi bench` on a loaded 2-core machine (its child, the
-    solve, was already gone after 0.1 s)."""
-    if not _worker_running():
+    solve, was already gone after 0.1 s). One rank of several (`one_rank_of_several`): no exit
+    handlers either (they are collective)."""
+    if not _worker_running() and not _one_rank:
         import atexit
 
         atexit._run_exitfuncs()

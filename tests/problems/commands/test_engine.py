@@ -156,3 +156,215 @@ def test_rank_killed_mid_solve_ends_the_run(tmp_path):
     assert not any(p.name.startswith(".mixvi-tmp-") for p in tmp_path.rglob("*")), list(
         tmp_path.rglob("*")
     )
+
+
+def _ended(run: subprocess.Popen, tag: str, ranks: int, timeout: float) -> tuple[str, str]:
+    """The run's (stdout, stderr) once mpiexec has ended; if it has not within `timeout`
+    (a hang), every rank and mpiexec are killed (no rank left behind) and the test fails."""
+    try:
+        return run.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        for rank in range(ranks):
+            pid = _rank_pid(int(tag), rank)
+            if pid is not None:
+                os.kill(pid, signal.SIGKILL)
+        run.kill()
+        run.communicate()
+        pytest.fail(f"mpiexec still running {timeout:.0f} s on: a rank waits on one that ended")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_rank_interrupted_mid_solve_ends_the_run(tmp_path, signum):
+    """SIGTERM / SIGINT to rank 1 while the ranks solve: rank 1 ends at once with 143 / 130
+    (no collective exit handler: petsc4py's garbage clean-up duplicates a communicator, and
+    rank 0 is inside the solve waiting for rank 1), mpiexec ends rank 0, whose clean-up
+    leaves the previous run's files as they were, with no lock or staging folder. On the old
+    code rank 1 waited in its exit handlers for rank 0 forever."""
+    need_petsc()
+    out = tmp_path / "o"
+    first = subprocess.run(
+        [mixvi(), "solve", SCENE, "--level", "0", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert first.returncode == 0, first.stderr
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    tag = str(os.getpid())
+    run = mpiexec(
+        2,
+        [mixvi(), "solve", "paper_two_body", "--level", "4", "--cold", "--engine", "petsc"]
+        + ["--out", str(out)],
+        popen=True,
+        env={"MIXVI_KILL_TEST": tag},
+    )
+    try:
+        pid, t0 = None, time.monotonic()
+        while pid is None and time.monotonic() - t0 < 60:
+            pid = _rank_pid(int(tag), 1)
+            time.sleep(0.2)
+        assert pid is not None
+        while not (out / ".mixvi-lock").exists() and run.poll() is None:
+            time.sleep(0.1)  # rank 0 has claimed the folder: the ranks build and solve
+        assert run.poll() is None, run.communicate()
+        time.sleep(1.0)
+        os.kill(pid, signum)
+        _, stderr = _ended(run, tag, 2, 90)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 128 + signum, stderr[-2000:]
+    assert f"mixvi: interrupted by {signal.Signals(signum).name}" in stderr, stderr[-2000:]
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+@pytest.mark.slow
+def test_refused_on_one_rank_refused_on_every_rank(tmp_path):
+    """A level that one rank's memory cannot hold (ulimit -v on rank 1 only) while rank 0's
+    can: every rank refuses it with rank 1's line, exit status 2, no folder made. On the old
+    code rank 0 went on into the solve and rank 1 waited for it in its exit handlers: a
+    hang."""
+    need_petsc()
+    from problems.commands.resources import memory
+
+    if memory()[1] < 5e9:
+        pytest.skip("rank 0 must accept paper_two_body level 6 (up to 3.4 GB): too little memory")
+    out = tmp_path / "o"
+    argv = [mixvi(), "solve", "paper_two_body", "--level", "6", "--engine", "petsc"]
+    argv += ["--out", str(out)]
+    limited = ["bash", "-c", 'ulimit -v 3000000 && exec "$0" "$@"', *argv]  # 2.9 GiB
+    tag = str(os.getpid())
+    run = mpiexec(1, [*argv, ":", "-n", "1", *limited], popen=True, env={"MIXVI_KILL_TEST": tag})
+    try:
+        _, stderr = _ended(run, tag, 2, 120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 2, stderr[-2000:]
+    assert stderr.count("mixvi: error: --level = '6'") == 2, stderr  # each rank says why
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_rank_interrupted_while_rank_0_writes_ends_the_run(tmp_path):
+    """SIGTERM to rank 1 once its solve is done, while rank 0 writes the results (rank 1
+    waits for it in its collective exit handlers, where no Python handler runs): rank 1 ends
+    at once, mpiexec ends rank 0, whose clean-up leaves the previous run as it was; exit
+    status 143 and no traceback. On the old code the handler raised inside an exit handler
+    once rank 0 was done ("Exception ignored in atexit callback", a traceback) and the run
+    went on to exit 0."""
+    need_petsc()
+    out = tmp_path / "o"
+    first = subprocess.run(
+        [mixvi(), "solve", SCENE, "--level", "0", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert first.returncode == 0, first.stderr
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    tag = str(os.getpid())
+    run = mpiexec(
+        2,
+        [mixvi(), "solve", "paper_two_body", "--level", "4", "--engine", "petsc"]
+        + ["--out", str(out)],
+        popen=True,
+        env={"MIXVI_KILL_TEST": tag},
+    )
+    try:
+        pid, t0 = None, time.monotonic()
+        while pid is None and time.monotonic() - t0 < 60:
+            pid = _rank_pid(int(tag), 1)
+            time.sleep(0.2)
+        assert pid is not None
+
+        def staged() -> bool:
+            return any(p.name.startswith(".mixvi-tmp-") for p in out.iterdir())
+
+        while not staged() and run.poll() is None:
+            time.sleep(0.05)  # rank 0 writes into its staging folder: the solve is done
+        assert run.poll() is None, run.communicate()
+        os.kill(pid, signal.SIGTERM)
+        _, stderr = _ended(run, tag, 2, 90)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 143, stderr[-2000:]
+    assert "Traceback" not in stderr and "Exception ignored" not in stderr, stderr[-2000:]
+    assert "signal 15" in stderr, stderr[-2000:]  # mpiexec names rank 1's end
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+@pytest.mark.slow
+def test_output_refused_mid_load_path_ends_every_rank(tmp_path):
+    """Rank 0 alone meets a refusal mid-solve: its file-size limit (ulimit -f 10 KiB) is
+    reached writing a load step's files while rank 1 goes on to the next step. Rank 0 says
+    why, cleans up (no folder left) and ends without the collective exit handlers, mpiexec
+    ends rank 1: exit status 2. On the old code rank 0 waited in its exit handlers for rank 1,
+    which waited for it in the next step's solve: a hang."""
+    need_petsc()
+    out = tmp_path / "o"
+    # level 2: the first step's block.vtu (19 KB) is over the limit, rank 1 has 29 steps to go
+    argv = [mixvi(), "solve", "shear_strip_path", "--level", "2", "--engine", "petsc"]
+    argv += ["--out", str(out)]
+    limited = ["bash", "-c", 'ulimit -f 10 && exec "$0" "$@"', *argv]
+    tag = str(os.getpid())
+    run = mpiexec(1, [*limited, ":", "-n", "1", *argv], popen=True, env={"MIXVI_KILL_TEST": tag})
+    try:
+        _, stderr = _ended(run, tag, 2, 120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 2, stderr[-2000:]
+    assert "mixvi: error: --out" in stderr and "ulimit -f" in stderr, stderr[-2000:]
+    assert not out.exists()
+
+
+def test_internal_error_on_one_rank_ends_the_run_with_the_serial_status(tmp_path):
+    """A RuntimeError in rank 1's Newton loop alone (mpi_scene's "fail_rank_1"): rank 1 says
+    so with the serial line and ends with the serial status of an internal error (3), mpiexec
+    ends rank 0, whose clean-up leaves the previous run as it was. The old code called
+    MPI_Abort(1): exit status 1, where the serial command exits 3."""
+    need_petsc()
+    import sys
+
+    out = tmp_path / "o"
+    first = subprocess.run(
+        [mixvi(), "solve", SCENE, "--level", "0", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert first.returncode == 0, first.stderr
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    tag = str(os.getpid())
+    cli = [sys.executable, "-m", "tests.vi_core.petsc.mpi_cli", "--mutation", "fail_rank_1"]
+    run = mpiexec(
+        2,
+        [*cli, "solve", "paper_two_body", "--level", "2", "--engine", "petsc", "--out", str(out)],
+        popen=True,
+        env={"MIXVI_KILL_TEST": tag},
+    )
+    try:
+        _, stderr = _ended(run, tag, 2, 120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 3, stderr[-2000:]
+    assert "mixvi: rank 1 of 2 failed (RuntimeError)" in stderr, stderr[-2000:]
+    assert "mixvi: internal error: RuntimeError: injected on rank 1" in stderr, stderr[-2000:]
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_serial_engine_under_mpiexec_refused_on_every_rank(tmp_path):
+    """`mpiexec -n 2 mixvi solve` without --engine petsc: every rank refuses with one line
+    naming --engine (exit 2, no folder). The old code ran two whole serial solves into one
+    folder: one was refused by the other's lock, mpiexec then ended the other (exit 2, a
+    message about a lock)."""
+    need_petsc()
+    out = tmp_path / "o"
+    done = mpiexec(2, [mixvi(), "solve", SCENE, "--out", str(out)], timeout=120)
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert done.stderr.count("mixvi: error: --engine = 'serial': petsc under mpiexec") == 2
+    assert not out.exists()

@@ -87,14 +87,24 @@ SOURCE_FAULTS = {
 
 
 def _mutate(name: str) -> None:
-    """Inject a fault the tests must see (mutation tests): "local_gather" gathers only this
+    """Inject a fault the tests must see (mutation tests): "fail_rank_1" raises a RuntimeError
+    in rank 1's Newton loop only; "local_gather" gathers only this
     rank's owned entries of each new iterate (the others stay 0: the off-rank entries
     dropped); a SOURCE_FAULTS name rewrites vi_core.petsc.newton's source (ValueError if the
     pattern is no longer there: the mutation must then be updated, not skipped)."""
     from vi_core import petsc as vi_petsc
     from vi_core.petsc import newton, runtime
 
-    if name == "local_gather":
+    if name == "fail_rank_1":  # an internal error on rank 1 alone, in its first Newton loop
+
+        def failing(*args, **kw):
+            if runtime.comm_rank_size()[0] == 1:
+                raise RuntimeError("injected on rank 1")
+            return solve(*args, **kw)
+
+        solve = newton.solve_ssn_petsc
+        vi_petsc.solve_ssn_petsc = failing
+    elif name == "local_gather":
 
         def gather(self, index, local, size):
             out = np.zeros(size)
