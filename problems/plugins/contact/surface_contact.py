@@ -11,7 +11,7 @@ is diagonal. g_k = ∫g φ_k / W_k. Frames (t1, t2, n) are right-handed and cont
 surfaces (`fem.facets.frames`). With a rigid foundation (the slave surface itself, flat or
 curved: bilateral contact has no initial gap) the rows are W_k n_kᵀu_k and W_k t_kᵀu_k; a
 master body adds −Σ_j M_kj (·)ᵀu_m,j (an `interface.Coupling`: the 3D dual mortar of
-`fem.mortar`, `mortar_coupling`; docs/fem3d.md "Two bodies in contact3d").
+`fem.mortar`, `mortar_coupling`; docs/fem3d.md "Two bodies in 3D").
 
 Multiplier order: the normal rows, then the disc nodes (t1, t2 per node), then the nodes that
 keep one tangent only. Crosspoint rules (per node, from its prescribed displacement
