@@ -114,8 +114,8 @@ for _name in COUPLING_NAMES:
         Body,
         _name,
         Gone(
-            f"'Body' object has no attribute {_name!r}: Interface.master is the master Body "
-            "since issue 30; the mortar coupling it was in 3D (M_loc, dofs, covered, "
+            f"'Body' object has no attribute {_name!r}: Interface.master is the master Body; "
+            "the mortar coupling the 3D master was (M_loc, dofs, covered, "
             "patch_defect) is Interface.coupling"
         ),
     )

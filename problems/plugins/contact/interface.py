@@ -115,7 +115,7 @@ class Interface:
     master_phi: sp.csr_matrix | None = None
     # a name of the former 2D `Contact` and 3D `SolidContact` that cannot come back
     pairs = Gone(
-        "Interface.pairs is gone (issue 30): the unilateral rows of a node stand side by side, "
+        "Interface.pairs is gone: the unilateral rows of a node stand side by side, "
         "[n, t1, t2] per disc node, [n, t] per line node, then the normal-only nodes: use "
         "Interface.rows() for the rows of each kind (the former 2D pairs [n, τ] are the line "
         "nodes, line.size of them)"
