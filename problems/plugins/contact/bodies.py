@@ -115,7 +115,7 @@ for _name in COUPLING_NAMES:
         _name,
         Gone(
             f"'Body' object has no attribute {_name!r}: Interface.master is the master Body; "
-            "the mortar coupling the 3D master was (M_loc, dofs, covered, "
+            "the mortar coupling that the 3D master held (M_loc, dofs, covered, "
             "patch_defect) is Interface.coupling"
         ),
     )
