@@ -3,9 +3,12 @@ rigid-body near-null space, fieldsplit for the piezoelectric scene) on 2 ranks g
 solution to 1e-8 (each field of u, λ) with the same contact states and Newton steps, in the CI
 tier (one mpiexec launch, ~12 s here): a 2D Coulomb strip, a 3D piezoelectric Tresca box and
 hertz (2D, the signorini plug-in, g = 0), whose node on the symmetry axis has a slip of 0
-exactly, read 1.8e-14 after a GMRES step (rtol 1e-12): its label must not follow that noise
-(`vi_core.states.solution_thresholds` reads the step's accuracy, `LinearSolve.accuracy`).
-The states must be equal, "ambiguous" included: no node is excused."""
+exactly, read ~1e-15 after a GMRES step (rtol 1e-12): its label must not follow that noise
+(`vi_core.states.solution_thresholds` reads the step's accuracy, `LinearSolve.accuracy`; that
+the engine records it is test_accuracy.py's check, which fails when the thresholds do not
+get it: the noise here stays under the residual's floor, 100 · 16 eps · max|u|, so this
+comparison alone need not see that fault). The states must be equal, "ambiguous" included:
+no node is excused."""
 
 from __future__ import annotations
 
@@ -30,7 +33,7 @@ def test_amg_path_on_2_ranks_equals_serial(tmp_path):
 
 # faults of mpi_scene._mutate the comparison above must see (slow tier: one launch each)
 @pytest.mark.slow
-@pytest.mark.parametrize("mutation", ["slave_sign", "local_gather", "no_accuracy"])
+@pytest.mark.parametrize("mutation", ["slave_sign", "local_gather"])
 def test_amg_mutation_is_seen(tmp_path, mutation):
     need_petsc()
     got = launch(tmp_path, 2, CASES, mutation=mutation, linear="amg")

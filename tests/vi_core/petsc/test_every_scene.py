@@ -78,12 +78,10 @@ def test_every_scene_equals_serial(tmp_path, ranks):
 @pytest.mark.slow
 def test_every_scene_on_gamg_equals_serial(tmp_path):
     """The iterative path (GMRES + GAMG, `--linear-solver amg`) on 2 ranks gives the serial
-    solution too: its KSP is made again at every Newton step (`ksp.LinearSolve.solve` frees
-    it after each solve), the near-null spaces made once. The same states, "ambiguous"
-    included: the thresholds read the last GMRES step's accuracy (rtol 1e-12,
-    `vi_core.states.solution_thresholds`), not only the residual it reaches (hertz's node on
-    the symmetry axis read "slip" at residual 2.6e-14 where the direct solve says
-    "ambiguous": its slip, 0 exactly, read 1.8e-14 against a threshold of 1.6e-14)."""
+    solution too: one KSP per Newton loop, its PC set up again at every step on the step's
+    matrix (`ksp.LinearSolve.solve`), the index sets and near-null spaces made once. The same
+    states, "ambiguous" included: the thresholds read the last GMRES step's accuracy (rtol
+    1e-12, `vi_core.states.solution_thresholds`), not only the residual it reaches."""
     need_petsc()
     got = launch(tmp_path, 2, linear="amg")
     assert not mismatches(got, 2)
