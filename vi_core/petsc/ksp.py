@@ -1,14 +1,18 @@
 """The linear solves of the condensed Newton steps on PETSc: one `mpiaij` matrix per Newton
 loop, the fixed rows written once and the slave rows rewritten at every step, solved by MUMPS LU
-or by GMRES(15) preconditioned by GAMG with the near-null space, with a MUMPS fallback. One KSP
-and its PC for the loop: at each step its operator is set again (the matrix's values changed, so
-the PC is set up again on them: MUMPS keeps its symbolic analysis, PCFIELDSPLIT its
-sub-matrices, sub-KSPs and index sets, GAMG builds its hierarchy anew); the index sets and
-near-null spaces are made once, and every PETSc object of the loop is destroyed with it
-(`LinearSolve.destroy`: PETSc's own allocations are back to what they were before the loop). A
-KSP made and destroyed at every step freed its objects too, but the process's heap grew with each
-new hierarchy: block3d level 2's first step solved 12 times on 2 ranks, rank 0's RSS rose by
-4 MiB and its peak by 4.7 MiB over the solves, flat with one KSP.
+(one KSP for the loop: the symbolic analysis is kept) or by GMRES(15) preconditioned by GAMG
+with the near-null space, with a MUMPS fallback. The iterative path makes its KSP (and
+fieldsplit's index sets) at each step and destroys it after the solve; the near-null spaces are
+made once; every PETSc object is destroyed with the loop (`LinearSolve.destroy`: PETSc's own
+allocations, -malloc_debug, are back to what they were before it, and constant from step to
+step). Why not one KSP for the loop: GAMG builds its hierarchy anew at each step anyway (its
+matrix changed), and a kept KSP holds it, fieldsplit's blocks and GMRES's basis through the
+step's damping and multiplier recovery: paper_two_body level 4 on 2 ranks, peak 104 / 107 →
+107 / 112 MiB above the imports. What a KSP per step costs instead is heap the process keeps
+after the destroyed hierarchies (glibc's, not PETSc's objects): block3d level 2's first step
+solved 12 times on 2 ranks, rank 0's peak rose 180.0 → 184.7 MiB over the first five solves,
+then stayed (one KSP: flat at 180.3); block3d level 2's four steps end ~2 MiB higher than with
+one KSP (docs/benchmarks.md, "Memory").
 
 Preconditioners of the iterative path (``linear_solver="amg"``), chosen by the PETSc option
 ``-mixvi_amg_pc`` (PETSC_OPTIONS; default ``fieldsplit`` where the problem has several fields):
@@ -229,6 +233,8 @@ class LinearSolve:
         b, x = self.b, self.x
         b.setArray(rhs)
         x.setArray(guess)
+        if self.ksp is None:
+            self.ksp = self._ksp(self.kind, self.e)
         self.ksp.setOperators(self.K)  # its values changed (`set_rows`): the PC is set up again
         self.ksp.solve(b, x)
         if self.pc == "fieldsplit" and not self.blocks:
@@ -247,13 +253,19 @@ class LinearSolve:
                 direct.solve(b, x)
                 direct.destroy()
                 record["fallback"] = "mumps"
+            self.ksp.destroy()
+            self.ksp = None
+            for index in self._index:
+                index.destroy()
+            self._index = []
         self.steps.append(record)
         return x.getArray().copy()
 
     def destroy(self) -> None:
         """Free the loop's PETSc objects (collective): the KSP (its PC, sub-KSPs and
         sub-matrices with it), the matrix, the vectors, the index sets and near-null spaces."""
-        for obj in (self.ksp, self.K, self.b, self.x, *self._index, *self._nullspaces.values()):
+        kept = [self.ksp] if self.ksp is not None else []
+        for obj in (*kept, self.K, self.b, self.x, *self._index, *self._nullspaces.values()):
             obj.destroy()
 
     def accuracy(self) -> float | None:

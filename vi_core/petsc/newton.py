@@ -63,7 +63,7 @@ from vi_core.ssn import (
 )
 
 from .ksp import LinearSolve
-from .layout import Layout, groups
+from .layout import Layout, chosen
 from .runtime import Reductions, RowPartition, peak_mb, petsc
 
 
@@ -255,7 +255,7 @@ def solve_ssn_petsc(
         )
     lo, hi = red.owned(e.n)
     A_S = _slave_rows(vi, cond.S, lo, hi, red)  # (m, n) the slave rows of A', on every rank
-    layout = Layout.balanced(groups(e.n, e.fields, cond.S), comm.getRank(), comm.getSize())
+    layout = chosen(e.n, e.fields, cond.S, _held_rows(vi, lo, hi), lo, red.comm)
     own = _Owned(vi, e, cond, A_S, lo, hi, layout)
     kind = "gamg" if linear_solver == "amg" else "mumps"
     solver = LinearSolve(PETSc, comm, kind, e, layout, own.first(red.comm))
@@ -311,6 +311,7 @@ def solve_ssn_petsc(
         "engine": "petsc",
         "ranks": comm.getSize(),
         "owned_rows": red.comm.allgather(int(nloc)),
+        "layout": layout.kind,  # the linear solve's (`layout.chosen`)
         "condensed": True,
         "damped_steps": steps.damped,
         "inside": sol.info["inside"],

@@ -68,6 +68,7 @@ def solved(scene: str, level: int, linear_solver: str, name: str = "serial") -> 
         "engine": sol.info.get("engine", "serial"),
         "krylov": np.asarray(sol.info.get("krylov_iterations") or [], dtype=int),
         "fallbacks": len(sol.info.get("fallback") or []),
+        "layout": str(sol.info.get("layout", "")),  # the linear solve's (`layout.chosen`)
         # PCFIELDSPLIT's blocks, in the fields' order: rows, near-null space dimension
         "blocks": np.array(list((sol.info.get("fieldsplit") or {}).values()), dtype=int),
         "rank": eng.rank,

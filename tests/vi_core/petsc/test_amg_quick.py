@@ -3,7 +3,7 @@ rigid-body near-null space, fieldsplit for the piezoelectric scene) on 2 ranks g
 solution to 1e-8 (each field of u, λ) with the same contact states and Newton steps, in the CI
 tier (one mpiexec launch, ~12 s here): a 2D Coulomb strip, a 3D piezoelectric Tresca box and
 hertz (2D, the signorini plug-in, g = 0), whose node on the symmetry axis has a slip of 0
-exactly, read ~1e-15 after a GMRES step (rtol 1e-12): its label must not follow that noise
+exactly, read 1e-15 to 2e-14 after a GMRES step (rtol 1e-12): its label must not follow that noise
 (`vi_core.states.solution_thresholds` reads the step's accuracy, `LinearSolve.accuracy`; that
 the engine records it is test_accuracy.py's check, which fails when the thresholds do not
 get it: the noise here stays under the residual's floor, 100 · 16 eps · max|u|, so this

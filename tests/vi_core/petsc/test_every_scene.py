@@ -73,15 +73,17 @@ def test_every_scene_equals_serial(tmp_path, ranks):
     need_petsc()
     got = launch(tmp_path, ranks)
     assert not mismatches(got, ranks)
+    if ranks > 1:  # both layouts of the linear solve ran (`vi_core.petsc.layout.chosen`)
+        assert {str(g["layout"]) for g in got.values()} == {"even", "fields"}
 
 
 @pytest.mark.slow
 def test_every_scene_on_gamg_equals_serial(tmp_path):
     """The iterative path (GMRES + GAMG, `--linear-solver amg`) on 2 ranks gives the serial
-    solution too: one KSP per Newton loop, its PC set up again at every step on the step's
-    matrix (`ksp.LinearSolve.solve`), the index sets and near-null spaces made once. The same
-    states, "ambiguous" included: the thresholds read the last GMRES step's accuracy (rtol
-    1e-12, `vi_core.states.solution_thresholds`), not only the residual it reaches."""
+    solution too: its KSP is made again at every Newton step (`ksp.LinearSolve.solve` frees
+    it after each solve), the near-null spaces made once. The same states, "ambiguous"
+    included: the thresholds read the last GMRES step's accuracy (rtol 1e-12,
+    `vi_core.states.solution_thresholds`), not only the residual it reaches."""
     need_petsc()
     got = launch(tmp_path, 2, linear="amg")
     assert not mismatches(got, 2)

@@ -139,3 +139,27 @@ def test_moved_rows_are_the_whole_matrix_in_the_layout(seed):
 def test_a_row_lost_on_the_way_is_seen(fault, seed):
     """Mutation: process 0's last row reaches its rank with its values lost."""
     assert not all(g is True for g in moved_everywhere(seed, fault))
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_off_rank_counts_the_couplings_across_ranks(seed):
+    """`off_rank` over the ranks' row blocks (chunked: CHUNK lowered to 3 rows) is the count
+    of the whole matrix's entries whose row and column the layout puts on different ranks."""
+    from vi_core.petsc import layout
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 50))
+    M = sp.csr_matrix(sp.random(n, n, density=0.2, format="csr", random_state=rng))
+    cuts = cuts_of(rng, n)
+    size = len(cuts) - 1
+    lay = Layout.balanced(random_groups(rng, n), 0, size)
+    holder = np.searchsorted(lay.bounds, lay.new, side="right") - 1  # (n,)
+    rows, cols = M.nonzero()
+    want = int(np.count_nonzero(holder[rows] != holder[cols]))
+    chunk, layout.CHUNK = layout.CHUNK, 3
+    try:
+        got = sum(lay.off_rank(M[lo:hi], lo) for lo, hi in zip(cuts[:-1], cuts[1:], strict=True))
+    finally:
+        layout.CHUNK = chunk
+    assert got == want
