@@ -56,9 +56,10 @@ def solution_thresholds(sol: Solution, lam_scale: float, u_scale: float) -> Thre
     (|[u]_t|, the margin ρ − |λ_t|). A direct solve's last step is exact to rounding, so its
     u and λ are accurate to about the residual; a step solved by GMRES to a relative
     residual rtol is accurate only to about rtol, which may stand far above the residual it
-    reaches (hertz level 0 on the petsc engine's amg path: residual 2.6e-14, u within 4e-12
-    of the direct solve's, and the slip of the node on the symmetry axis, 0 exactly, read
-    1.8e-14 against a threshold of 1.6e-14: "slip" where the direct solve says "ambiguous")."""
+    reaches (hertz level 0 on the petsc engine's amg path, a KSP made per Newton step: residual
+    2.6e-14, u within 4e-12 of the direct solve's, and the slip of the node on the symmetry
+    axis, 0 exactly, read 1.8e-14 against a threshold of 1.6e-14: "slip" where the direct
+    solve says "ambiguous")."""
     info = sol.info.get("states") or {}
     th = thresholds(max(sol.residual, float(info.get("accuracy", 0.0))), lam_scale, u_scale)
     acc = float(info.get("lam_accuracy", 0.0))

@@ -1,9 +1,18 @@
 """The linear solves of the condensed Newton steps on PETSc: one `mpiaij` matrix per Newton
 loop, the fixed rows written once and the slave rows rewritten at every step, solved by MUMPS LU
 (one KSP for the loop: the symbolic analysis is kept) or by GMRES(15) preconditioned by GAMG
-with the near-null space, with a MUMPS fallback (a KSP per step, freed after its solve: its
-preconditioner is set up again at each step anyway, and its hierarchies and Krylov basis were
-a rank's peak during the step's damping; the near-null spaces are made once).
+with the near-null space, with a MUMPS fallback. The iterative path makes its KSP (and
+fieldsplit's index sets) at each step and destroys it after the solve; the near-null spaces are
+made once; every PETSc object is destroyed with the loop (`LinearSolve.destroy`: PETSc's own
+allocations, -malloc_debug, are back to what they were before it, and constant from step to
+step). Why not one KSP for the loop: GAMG builds its hierarchy anew at each step anyway (its
+matrix changed), and a kept KSP holds it, fieldsplit's blocks and GMRES's basis through the
+step's damping and multiplier recovery: paper_two_body level 4 on 2 ranks, peak 104 / 107 →
+107 / 112 MiB above the imports. What a KSP per step costs instead is heap the process keeps
+after the destroyed hierarchies (glibc's, not PETSc's objects): block3d level 2's first step
+solved 12 times on 2 ranks, rank 0's peak rose 180.0 → 184.7 MiB over the first five solves,
+then stayed (one KSP: flat at 180.3); block3d level 2's four steps end ~2 MiB higher than with
+one KSP (docs/benchmarks.md, "Memory").
 
 Preconditioners of the iterative path (``linear_solver="amg"``), chosen by the PETSc option
 ``-mixvi_amg_pc`` (PETSC_OPTIONS; default ``fieldsplit`` where the problem has several fields):
@@ -28,6 +37,7 @@ from typing import Any, Protocol
 import numpy as np
 import scipy.sparse as sp
 
+from .layout import Layout
 from .runtime import Reductions
 
 KINDS = ("mumps", "gamg")
@@ -66,34 +76,37 @@ def orthonormal(local: np.ndarray, red: Reductions) -> np.ndarray:
     return Q
 
 
-def near_null_rows(e: Fields, name: str, lo: int, hi: int) -> np.ndarray:
-    """(k_f, d) the near-null vectors of field `name` on its rows owned here ([lo, hi) ∩ the
-    field), in the field's order; one constant column for a field without any."""
-    mask = e.fields[name]
-    owned = mask[lo:hi]  # (k,) which owned rows are in the field
+def near_null_rows(e: Fields, name: str, layout: Layout) -> np.ndarray:
+    """(k_f, d) the near-null vectors of field `name` on this rank's rows of the field
+    (`layout`), in the rows' order; one constant column for a field without any."""
+    at = layout.field_positions(e.fields[name])  # (k_f,) rows of the field's vectors
     N = (e.near_null or {}).get(name)
-    if N is None:
-        return np.ones((int(owned.sum()), 1))
-    first = int(mask[:lo].sum())  # the field's rows before this rank's
-    return N[first : first + int(owned.sum())]  # (k_f, d)
+    return np.ones((at.size, 1)) if N is None else N[at]
 
 
 class LinearSolve:
     """The condensed Newton matrix of one Newton loop on the ranks of `comm` and its KSP.
 
-    K_local : (k, n) csr, this rank's rows [lo, lo + k) of the matrix, on its fixed pattern (the
-        rows `set_rows` rewrites hold their every possible entry, explicit zeros included).
+    K_local : (k, n) csr, this rank's rows of the matrix in `layout` (its rows' order; columns
+        as PETSc rows, `Layout.new`), on its fixed pattern (the rows `set_rows` rewrites hold
+        their every possible entry, explicit zeros included).
     kind : "mumps" (LU) or "gamg" (GMRES with the preconditioner ``-mixvi_amg_pc``)."""
 
     def __init__(
-        self, PETSc: Any, comm: Any, kind: str, e: Fields, lo: int, K_local: sp.csr_matrix
+        self,
+        PETSc: Any,
+        comm: Any,
+        kind: str,
+        e: Fields,
+        layout: Layout,
+        K_local: sp.csr_matrix,
     ):
         if kind not in KINDS:
             raise ValueError(f"petsc linear solver {kind!r} unknown; allowed: {', '.join(KINDS)}")
         self.PETSc, self.comm, self.kind = PETSc, comm, kind
         self.red = Reductions(comm)
+        self.layout = layout
         k, n = K_local.shape
-        self.lo, self.hi = lo, lo + k
         self.K = PETSc.Mat().createAIJ(
             size=((k, n), (k, n)),
             csr=(
@@ -109,9 +122,11 @@ class LinearSolve:
         self.e = e
         self.pc = self._amg_pc(e) if kind == "gamg" else None
         self._nullspaces: dict[str, Any] = {}  # by field ("" for the whole matrix), made once
+        self._index: list[Any] = []  # fieldsplit's index sets, made once
         self.ksp = self._ksp(kind, e)
         self.iterations = 0  # GMRES iterations so far
         self.steps: list[dict] = []  # per solve: its KSP, iterations, reason
+        self.blocks: dict[str, list[int]] = {}  # fieldsplit's: field → [rows, near-null dim]
 
     def _amg_pc(self, e: Fields) -> str:
         """The preconditioner of the iterative path: ``-mixvi_amg_pc`` or the default."""
@@ -140,12 +155,12 @@ class LinearSolve:
         return space
 
     def _whole_near_null(self, e: Fields) -> np.ndarray:
-        """(k, Σ d_f) each field's near-null vectors on its owned rows, 0 on the others."""
-        cols = []
+        """(k, Σ d_f) each field's near-null vectors on its rows here, 0 on the others."""
+        cols, rows = [], self.layout.rows
         for name, mask in e.fields.items():
-            N = near_null_rows(e, name, self.lo, self.hi)  # (k_f, d)
-            Z = np.zeros((self.hi - self.lo, N.shape[1]))
-            Z[mask[self.lo : self.hi]] = N
+            N = near_null_rows(e, name, self.layout)  # (k_f, d)
+            Z = np.zeros((rows.size, N.shape[1]))
+            Z[mask[rows]] = N
             cols.append(Z)
         return np.hstack(cols)
 
@@ -181,20 +196,31 @@ class LinearSolve:
         pc.setFieldSplitType(PETSc.PC.CompositeType.MULTIPLICATIVE)
         opts = PETSc.Options()
         for name, mask in e.fields.items():
-            rows = self.lo + np.flatnonzero(mask[self.lo : self.hi])  # (k_f,) global rows
+            rows = self.layout.field_rows(mask)  # (k_f,) the field's PETSc rows here
             index = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=self.comm)
             if (e.near_null or {}).get(name) is not None:
                 # PCFIELDSPLIT hands a "nearnullspace" composed on the IS to its block
-                near = self._nullspace(name, partial(near_null_rows, e, name, self.lo, self.hi))
+                near = self._nullspace(name, partial(near_null_rows, e, name, self.layout))
                 index.compose("nearnullspace", near)
             pc.setFieldSplitIS((name, index))
+            self._index.append(index)
             for key, value in (("ksp_type", "preonly"), ("pc_type", "gamg")):
                 if not opts.hasName(f"mixvi_fieldsplit_{name}_{key}"):
                     opts.setValue(f"mixvi_fieldsplit_{name}_{key}", value)
 
+    def _record_blocks(self) -> None:
+        """Each field's block as PCFIELDSPLIT solves it: its rows and the dimension of the
+        near-null space its GAMG got (0: none, GAMG's constant)."""
+        subs = self.ksp.getPC().getFieldSplitSubKSP()
+        for name, sub in zip(self.e.fields, subs, strict=True):
+            A = sub.getOperators()[0]
+            near = A.getNearNullSpace()
+            self.blocks[name] = [A.getSize()[0], len(near.getVecs()) if near.handle else 0]
+
     def set_rows(self, rows: np.ndarray, pattern: sp.csr_matrix, values: np.ndarray) -> None:
-        """Rows `rows` (global, (r,)) of the matrix overwritten with `values` (pattern.nnz,) on
-        `pattern` ((r, n) csr, the rows' fixed pattern), then the matrix assembled."""
+        """Rows `rows` ((r,) PETSc rows, this rank's) of the matrix overwritten with `values`
+        (pattern.nnz,) on `pattern` ((r, n) csr, the rows' fixed pattern, columns as PETSc
+        rows), then the matrix assembled."""
         K, ip, insert = self.K, pattern.indptr, self.PETSc.InsertMode.INSERT_VALUES
         idx = pattern.indices.astype(self.PETSc.IntType)
         for i, row in enumerate(rows):
@@ -202,14 +228,17 @@ class LinearSolve:
         K.assemble()
 
     def solve(self, rhs: np.ndarray, guess: np.ndarray) -> np.ndarray:
-        """x (k,) owned part of the solution of K x = rhs (rhs (k,), guess (k,) owned parts;
-        the guess starts GMRES)."""
+        """x (k,) this rank's part of the solution of K x = rhs (rhs (k,), guess (k,) its
+        parts: the entries of `layout.rows`; the guess starts GMRES)."""
         b, x = self.b, self.x
         b.setArray(rhs)
         x.setArray(guess)
         if self.ksp is None:
             self.ksp = self._ksp(self.kind, self.e)
+        self.ksp.setOperators(self.K)  # its values changed (`set_rows`): the PC is set up again
         self.ksp.solve(b, x)
+        if self.pc == "fieldsplit" and not self.blocks:
+            self._record_blocks()
         record = {
             "ksp": self.kind,
             "iterations": self.ksp.getIterationNumber(),
@@ -224,18 +253,19 @@ class LinearSolve:
                 direct.solve(b, x)
                 direct.destroy()
                 record["fallback"] = "mumps"
-            # the preconditioner is set up again at the next step anyway (its matrix changes):
-            # its hierarchies, fieldsplit's blocks and GMRES's basis are freed now, before the
-            # step's damping and multiplier recovery run (they were the peak after the solve)
             self.ksp.destroy()
             self.ksp = None
+            for index in self._index:
+                index.destroy()
+            self._index = []
         self.steps.append(record)
         return x.getArray().copy()
 
     def destroy(self) -> None:
-        """Free the PETSc objects (collective)."""
+        """Free the loop's PETSc objects (collective): the KSP (its PC, sub-KSPs and
+        sub-matrices with it), the matrix, the vectors, the index sets and near-null spaces."""
         kept = [self.ksp] if self.ksp is not None else []
-        for obj in (*kept, self.K, self.b, self.x, *self._nullspaces.values()):
+        for obj in (*kept, self.K, self.b, self.x, *self._index, *self._nullspaces.values()):
             obj.destroy()
 
     def accuracy(self) -> float | None:
@@ -257,6 +287,8 @@ class LinearSolve:
         out = {"linear_solver": f"petsc-{self.kind}", "petsc_solves": self.steps}
         if self.kind == "gamg":
             out["preconditioner"] = self.pc
+            if self.blocks:
+                out["fieldsplit"] = self.blocks
             out["krylov_iterations"] = [s["iterations"] for s in self.steps]
             out["fallback"] = [
                 {"step": i + 1, "reason": f"KSP reason {s['reason']}: MUMPS"}

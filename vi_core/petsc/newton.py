@@ -3,14 +3,19 @@ the ranks of COMM_WORLD.
 
 What is distributed and what is not (issue 33, docs/distributed.md):
 
-* **Rows.** PETSc's default layout gives each rank a contiguous range [lo, hi) of the n
-  primal unknowns; the rank assembles the rows of the condensed Newton matrix K it owns into an
-  ``mpiaij`` matrix: the fixed rows R (A_R − B_Rᵀ D^{-T} A_S) once, the slave rows S
-  (Dᵀ(W D^{-T} A_S + J B)) of its owned multipliers at every step.
-* **Multipliers follow their slave dof.** Multiplier row i is owned by the rank owning dof
-  S[i] (the condensation's slave column): its condensed row, its recovery
+* **Rows.** The model's row partition (PETSc's default layout: each rank a contiguous range
+  [lo, hi) of the n primal unknowns, what it assembled of A) gives the equilibrium residual's
+  rows and the condensed Newton matrix K's fixed rows R (A_R − B_Rᵀ D^{-T} A_S), assembled
+  there once and moved to the linear solve's layout (`layout.Layout`: each field's dofs and
+  its slave dofs split evenly over the ranks, so every rank holds its share of each field's
+  preconditioner; one all-to-all). In that layout each rank writes the slave rows S
+  (Dᵀ(W D^{-T} A_S + J B)) of its multipliers at every step into the ``mpiaij`` matrix and
+  solves.
+* **Multipliers follow their slave dof.** Multiplier row i is owned by the rank whose layout
+  rows hold dof S[i] (the condensation's slave column): its condensed row, its recovery
   λ_i = (D^{-T}(f_S − A_S u))_i and its part of the complementarity residual are computed
-  there, with no communication but the gather of the new iterate.
+  there (from replicated data: D, B, A_S), with no communication but the gather of the new
+  iterate.
 * **Reductions.** The residual norms (damping line search included) are sums of squares over
   owned parts, summed over the ranks (`runtime.Reductions`): every rank takes the same
   decisions.
@@ -58,6 +63,7 @@ from vi_core.ssn import (
 )
 
 from .ksp import LinearSolve
+from .layout import Layout, chosen
 from .runtime import Reductions, RowPartition, peak_mb, petsc
 
 
@@ -120,58 +126,89 @@ def _kept(vi: MixedVI) -> _Kept:
 
 
 class _Owned:
-    """The rows a rank owns, what its steps need of the slave rows, and its first condensed
-    Newton matrix (`first`: the fixed rows and the slave rows' pattern, handed to PETSc once).
-    The equilibrium residual's rows are vi's own (physical) A's, not copied: A' = S A S with
-    S = diag(s_u) (`MixedVI.scaling`)."""
+    """What a rank's steps need: the model's rows [lo, hi) it holds of A (the equilibrium
+    residual's rows, and the condensed matrix's fixed rows, assembled here once: `first`), and
+    the unknowns of its rows in the PETSc layout (`layout.Layout`: the linear solve's rows, the
+    multipliers of the slave dofs among them, their condensed rows at every step, the
+    right-hand side). The equilibrium residual's rows are vi's own (physical) A's, not copied:
+    A' = S A S with S = diag(s_u) (`MixedVI.scaling`)."""
 
     def __init__(
-        self, vi: MixedVI, e: _Kept, cond: Condensation, A_S: sp.csr_matrix, lo: int, hi: int
+        self,
+        vi: MixedVI,
+        e: _Kept,
+        cond: Condensation,
+        A_S: sp.csr_matrix,
+        lo: int,
+        hi: int,
+        layout: Layout,
     ):
         self.lo, self.hi = lo, hi
         R, S = cond.R, cond.S
-        self.dofs = np.arange(lo, hi)  # (k,) owned primal rows
-        R_own = R[(R >= lo) & (R < hi)]  # (k_R,) owned fixed rows
-        self.mult = np.flatnonzero((S >= lo) & (S < hi))  # (k_m,) owned multiplier rows
-        A_R = vi.equilibrated_rows(R_own)  # (k_R, n) the owned fixed rows of A'
-        self.A_own = _held_rows(vi, lo, hi)  # (k, n) physical rows, no copy
+        self.rows = layout.rows  # (k,) the unknowns of this rank's rows in the layout
+        here = np.zeros(e.n, dtype=bool)
+        here[self.rows] = True
+        R_model = R[(R >= lo) & (R < hi)]  # (k_R,) fixed rows assembled here (A's rows)
+        R_own = R[here[R]]  # (k_R',) fixed rows in the layout's rows here (right-hand side)
+        self.mult = np.flatnonzero(here[S])  # (k_m,) multipliers whose slave dof is here
+        A_R = vi.equilibrated_rows(R_model)  # (k_R, n) the model's fixed rows of A' here
+        self.A_own = _held_rows(vi, lo, hi)  # (hi − lo, n) physical rows, no copy
         self.s_u = vi.scaling.s_u  # (n,)
         self.A_S = A_S  # (m, n) the slave rows of A' (a multiplier's recovery reads its D
         # block's)
         self.f_S = e.f[S]  # (m,)
         self.X = (cond.Dt_inv @ self.A_S).tocsr()  # (m, n) D^{-T} A_S
-        self.Dt = cond.D.T.tocsr()[self.mult]  # (k_m, m) owned rows of Dᵀ
-        self.Dt_inv = cond.Dt_inv[self.mult]  # (k_m, m) owned rows of D^{-T}
-        self.Bt_own = sp.csr_matrix(e.B.T)[lo:hi]  # (k, m)
-        BR_t = sp.csr_matrix(e.B[:, R_own].T)  # (k_R, m) owned rows of B_Rᵀ
-        self.rhs_R = e.f[R_own] - BR_t @ (cond.Dt_inv @ self.f_S)  # (k_R,)
-        # the owned slave rows' pattern: Dᵀ(W D^{-T} A_S + J B) with every entry of J and W
-        # present (blocks of Λ), the same at every step whatever the active set
+        Dt = cond.D.T.tocsr()  # (m, m)
+        self.Dt = Dt[self.mult]  # (k_m, m) rows of Dᵀ of the multipliers here
+        self.Dt_inv = cond.Dt_inv[self.mult]  # (k_m, m) their rows of D^{-T}
+        self.Bt_own = sp.csr_matrix(e.B.T)[lo:hi]  # (hi − lo, m)
+        self.rhs_R = e.f[R_own] - sp.csr_matrix(e.B[:, R_own].T) @ (
+            cond.Dt_inv @ self.f_S
+        )  # (k_R',)
+        # the slave rows' pattern: Dᵀ(W D^{-T} A_S + J B) with every entry of J and W present
+        # (blocks of Λ), the same at every step whatever the active set
         G = _block_structure(e.Lambda.block_sizes())  # (m, m)
-        self.pattern_S = _structure(
-            _structure(self.Dt) @ (G @ (_structure(self.X) + _structure(e.B)))
-        )
-        self.pattern_S.sort_indices()  # (k_m, n)
-        self.rows_S = S[self.mult]  # (k_m,) their global rows
-        # local row of each stacked row [owned R; owned S], and that order
-        self.order = np.argsort(np.concatenate([R_own, self.rows_S]) - lo)  # (k,)
-        self.K_R = (A_R - BR_t @ self.X).tocsr()  # (k_R, n) A_R − B_Rᵀ D^{-T} A_S
+        reach = G @ (_structure(self.X) + _structure(e.B))  # (m, n)
 
-    def first(self) -> sp.csr_matrix:
-        """(k, n) the owned rows of the condensed Newton matrix in local order: the fixed rows,
-        and the slave rows on their pattern with explicit zeros (`set_rows` fills them); the
-        fixed rows' scipy copy is released (PETSc holds them from now on)."""
-        zeros = sp.csr_matrix(
-            (np.zeros(self.pattern_S.nnz), self.pattern_S.indices, self.pattern_S.indptr),
+        def pattern(mult: np.ndarray) -> sp.csr_matrix:
+            P = _structure(_structure(Dt[mult]) @ reach)  # (len(mult), n)
+            P.sort_indices()
+            return P
+
+        self.pattern_S = pattern(self.mult)  # (k_m, n)
+        rows_S = S[self.mult]  # (k_m,) their unknowns
+        # their PETSc rows, and their pattern with the columns as PETSc rows (`set_rows`)
+        self.petsc_S = layout.new[rows_S]  # (k_m,)
+        self.petsc_pattern_S = sp.csr_matrix(
+            (self.pattern_S.data, layout.new[self.pattern_S.indices], self.pattern_S.indptr),
             shape=self.pattern_S.shape,
         )
-        stacked = sp.vstack([self.K_R, zeros], format="csr")[self.order]  # (k, n)
-        stacked.sort_indices()
-        self.K_R = None
-        return stacked
+        # the right-hand side [owned R; owned S] put in the layout's row order
+        self.order = np.argsort(np.searchsorted(self.rows, np.concatenate([R_own, rows_S])))
+        # the model's rows here: the fixed rows, and the slave rows' pattern (zeros), stacked
+        # in the order `Layout.moved` sends them
+        slaves = np.flatnonzero((S >= lo) & (S < hi))  # (k_s,) slave dofs in [lo, hi)
+        self._zeros = pattern(slaves)  # (k_s, n)
+        model = np.concatenate([R_model, S[slaves]])  # (hi − lo,) the stacked rows' unknowns
+        self._send = np.argsort(model)[layout.sending(lo, hi)]  # (hi − lo,)
+        self._layout = layout
+        BR_t = sp.csr_matrix(e.B[:, R_model].T)  # (k_R, m) model rows of B_Rᵀ
+        self.K_R = (A_R - BR_t @ self.X).tocsr()  # (k_R, n) A_R − B_Rᵀ D^{-T} A_S
+
+    def first(self, comm: Any) -> sp.csr_matrix:
+        """(k, n) this rank's rows of the condensed Newton matrix in the layout (columns as
+        PETSc rows): the fixed rows, and the slave rows on their pattern with explicit zeros
+        (`set_rows` fills them), assembled on the model's rows [lo, hi) and moved
+        (`Layout.moved`, mpi4py's `comm`); the scipy copies here are released."""
+        zeros = self._zeros
+        zeros.data[:] = 0.0
+        stacked = sp.vstack([self.K_R, zeros], format="csr")
+        self.K_R = self._zeros = None
+        stacked = stacked[self._send]  # (hi − lo, n) in sending order
+        return self._layout.moved(stacked, self.lo, self.hi, comm)
 
     def slave_rows(self, e: MixedVI, J: sp.csr_matrix, W: sp.csr_matrix) -> np.ndarray:
-        """(pattern_S.nnz,) the owned slave rows Dᵀ(W D^{-T} A_S + J B) on their pattern."""
+        """(pattern_S.nnz,) the slave rows Dᵀ(W D^{-T} A_S + J B) here on their pattern."""
         K_S = self.Dt @ (W @ self.X) + self.Dt @ (J @ e.B)  # (k_m, n)
         return _on_pattern(K_S, self.pattern_S).data
 
@@ -218,9 +255,10 @@ def solve_ssn_petsc(
         )
     lo, hi = red.owned(e.n)
     A_S = _slave_rows(vi, cond.S, lo, hi, red)  # (m, n) the slave rows of A', on every rank
-    own = _Owned(vi, e, cond, A_S, lo, hi)
+    layout = chosen(e.n, e.fields, cond.S, _held_rows(vi, lo, hi), lo, red.comm)
+    own = _Owned(vi, e, cond, A_S, lo, hi, layout)
     kind = "gamg" if linear_solver == "amg" else "mumps"
-    solver = LinearSolve(PETSc, comm, kind, e, own.lo, own.first())
+    solver = LinearSolve(PETSc, comm, kind, e, layout, own.first(red.comm))
     memory = {"set_up": red.comm.allgather(peak_mb())}
     u = np.zeros(e.n) if u0 is None else np.asarray(u0, float) / sc.s_u
     lam = np.zeros(e.m) if lam0 is None else np.asarray(lam0, float) / sc.s_lam
@@ -228,7 +266,7 @@ def solve_ssn_petsc(
     scale = max(red.norm(e.f[own.lo : own.hi]), red.norm(e.gap[own.mult])) or 1.0
     res = _residual(e, own, red, u, lam, scale)
     steps, k = NewtonSteps(tol, [res]), 0
-    nloc = own.hi - own.lo
+    nloc = own.rows.size
     while not steps.converged and k < max_iter:
         k += 1
         y = lam + e.B @ u - e.gap  # (m,)
@@ -237,11 +275,11 @@ def solve_ssn_petsc(
         W = sp.identity(e.m, format="csr") - J
         rhs_c = p - J @ y - J @ e.gap
         # owned slave rows: Dᵀ(W D^{-T} A_S + J B) u = Dᵀ(W D^{-T} f_S − rhs_c)
-        solver.set_rows(own.rows_S, own.pattern_S, own.slave_rows(e, J, W))
+        solver.set_rows(own.petsc_S, own.petsc_pattern_S, own.slave_rows(e, J, W))
         rhs_S = own.Dt @ (W @ (cond.Dt_inv @ own.f_S) - rhs_c)  # (k_m,)
-        rhs = np.concatenate([own.rhs_R, rhs_S])[own.order]  # (k,) in local row order
-        x = solver.solve(rhs, u[own.lo : own.hi])
-        u_new = red.gather(own.dofs, x, e.n)
+        rhs = np.concatenate([own.rhs_R, rhs_S])[own.order]  # (k,) in the layout's order
+        x = solver.solve(rhs, u[own.rows])
+        u_new = red.gather(own.rows, x, e.n)
         lam_own = own.Dt_inv @ (own.f_S - own.A_S @ u_new)  # (k_m,)
         lam_new = red.gather(own.mult, lam_own, e.m)
         u, lam, t, res = damped_step(
@@ -273,6 +311,7 @@ def solve_ssn_petsc(
         "engine": "petsc",
         "ranks": comm.getSize(),
         "owned_rows": red.comm.allgather(int(nloc)),
+        "layout": layout.kind,  # the linear solve's (`layout.chosen`)
         "condensed": True,
         "damped_steps": steps.damped,
         "inside": sol.info["inside"],

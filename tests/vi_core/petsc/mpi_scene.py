@@ -68,21 +68,40 @@ def solved(scene: str, level: int, linear_solver: str, name: str = "serial") -> 
         "engine": sol.info.get("engine", "serial"),
         "krylov": np.asarray(sol.info.get("krylov_iterations") or [], dtype=int),
         "fallbacks": len(sol.info.get("fallback") or []),
+        "layout": str(sol.info.get("layout", "")),  # the linear solve's (`layout.chosen`)
+        # PCFIELDSPLIT's blocks, in the fields' order: rows, near-null space dimension
+        "blocks": np.array(list((sol.info.get("fieldsplit") or {}).values()), dtype=int),
         "rank": eng.rank,
     }
 
 
-# faults injected into vi_core/petsc/newton.py's source: name → (pattern, replacement)
+# faults injected into the source of a module of vi_core/petsc: name → (module, pattern,
+# replacement)
 SOURCE_FAULTS = {
     # the W term of the owned slave rows Dᵀ(W D^{-T} A_S + J B) with its sign flipped (the J B
     # term's sign is invisible in 2D: J is 0 or 1 there and its rows' right-hand side 0)
-    "slave_sign": (r"Dt @ \(W @ (\w+)\.X\)", r"Dt @ (-W @ \1.X)"),
+    "slave_sign": ("newton", r"Dt @ \(W @ (\w+)\.X\)", r"Dt @ (-W @ \1.X)"),
     # the states read the achieved residual only, not the GMRES step's accuracy
     # (`vi_core.states.solution_thresholds`): hertz's node on the symmetry axis reads "slip"
-    "no_accuracy": (r"if solver\.accuracy\(\) is not None:", "if False:"),
+    "no_accuracy": ("newton", r"if solver\.accuracy\(\) is not None:", "if False:"),
     # A u at the answer not gathered at the end of the solve: the post-processing rank 0 runs
     # alone (a unilateral law's force scale, `contact_state`) waits on a collective forever
-    "no_kept_product": (r"\n    vi\.matvec\(sol\.u\)", "\n    pass"),
+    "no_kept_product": ("newton", r"\n    vi\.matvec\(sol\.u\)", "\n    pass"),
+    # the moved rows' columns left as unknowns, not the layout's PETSc rows (`Layout.moved`)
+    "columns_unmapped": ("layout", r"\n        block\.indices = self\.new\[.*\n", "\n"),
+    # the right-hand side in the order of its pieces [fixed rows; slave rows], not the
+    # layout's rows' (a permutation applied where its inverse belongs)
+    "rhs_order": (
+        "newton",
+        r"np\.argsort\(np\.searchsorted\(self\.rows, (.*)\)\)",
+        r"np.searchsorted(self.rows, \1)",
+    ),
+    # each field's index set of PCFIELDSPLIT given the other fields' rows
+    "fieldsplit_swapped": (
+        "ksp",
+        r"self\.layout\.field_rows\(mask\)",
+        "self.layout.field_rows(~mask)",
+    ),
 }
 
 
@@ -90,10 +109,11 @@ def _mutate(name: str) -> None:
     """Inject a fault the tests must see (mutation tests): "fail_rank_1" raises a RuntimeError
     in rank 1's Newton loop only; "local_gather" gathers only this
     rank's owned entries of each new iterate (the others stay 0: the off-rank entries
-    dropped); a SOURCE_FAULTS name rewrites vi_core.petsc.newton's source (ValueError if the
-    pattern is no longer there: the mutation must then be updated, not skipped)."""
+    dropped); a SOURCE_FAULTS name rewrites that module's source (ValueError if the pattern
+    is not there once: the mutation must then be updated, not skipped), the names the other
+    modules imported from it bound again."""
     from vi_core import petsc as vi_petsc
-    from vi_core.petsc import newton, runtime
+    from vi_core.petsc import ksp, layout, newton, runtime
 
     if name == "fail_rank_1":  # an internal error on rank 1 alone, in its first Newton loop
 
@@ -113,11 +133,16 @@ def _mutate(name: str) -> None:
 
         runtime.Reductions.gather = gather
     elif name in SOURCE_FAULTS:
-        pattern, new = SOURCE_FAULTS[name]
-        src, count = re.subn(pattern, new, inspect.getsource(newton))
+        where, pattern, new = SOURCE_FAULTS[name]
+        module = {"newton": newton, "layout": layout, "ksp": ksp}[where]
+        src, count = re.subn(pattern, new, inspect.getsource(module))
         if count != 1:
-            raise ValueError(f"mutation {name}: {pattern!r} found {count} times in newton.py")
-        exec(compile(src, newton.__file__, "exec"), vars(newton))
+            raise ValueError(f"mutation {name}: {pattern!r} found {count} times in {where}.py")
+        exec(compile(src, module.__file__, "exec"), vars(module))
+        for other in (newton, ksp):  # `from .layout import Layout`, `from .ksp import ...`
+            for key in vars(other).keys() & vars(module).keys():
+                if getattr(vars(module)[key], "__module__", "") == module.__name__:
+                    setattr(other, key, vars(module)[key])
         vi_petsc.solve_ssn_petsc = newton.solve_ssn_petsc
     elif name:
         raise ValueError(f"unknown mutation {name!r}")
