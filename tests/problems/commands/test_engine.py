@@ -95,6 +95,20 @@ def test_output_refused_on_rank_0_ends_every_rank(tmp_path):
     assert mine.read_text() == "mine"
 
 
+def earlier_run(tmp_path: Path) -> tuple[Path, dict[str, bytes]]:
+    """(the output folder of a serial solve of SCENE at level 0, its files' bytes by name):
+    what a failed or interrupted run into the same folder must leave as it was."""
+    out = tmp_path / "o"
+    first = subprocess.run(
+        [mixvi(), "solve", SCENE, "--level", "0", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert first.returncode == 0, first.stderr
+    return out, {p.name: p.read_bytes() for p in out.iterdir()}
+
+
 def _rank_pid(launcher: int, rank: int) -> int | None:
     """The pid of MPI rank `rank` among the descendants of `launcher` (its environment)."""
     for p in Path("/proc").iterdir():
@@ -182,15 +196,7 @@ def test_rank_interrupted_mid_solve_ends_the_run(tmp_path, signum):
     leaves the previous run's files as they were, with no lock or staging folder. On the old
     code rank 1 waited in its exit handlers for rank 0 forever."""
     need_petsc()
-    out = tmp_path / "o"
-    first = subprocess.run(
-        [mixvi(), "solve", SCENE, "--level", "0", "--out", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert first.returncode == 0, first.stderr
-    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    out, before = earlier_run(tmp_path)
     tag = str(os.getpid())
     run = mpiexec(
         2,
@@ -255,15 +261,7 @@ def test_rank_interrupted_while_rank_0_writes_ends_the_run(tmp_path):
     once rank 0 was done ("Exception ignored in atexit callback", a traceback) and the run
     went on to exit 0."""
     need_petsc()
-    out = tmp_path / "o"
-    first = subprocess.run(
-        [mixvi(), "solve", SCENE, "--level", "0", "--out", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert first.returncode == 0, first.stderr
-    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    out, before = earlier_run(tmp_path)
     tag = str(os.getpid())
     run = mpiexec(
         2,
@@ -329,15 +327,7 @@ def test_internal_error_on_one_rank_ends_the_run_with_the_serial_status(tmp_path
     need_petsc()
     import sys
 
-    out = tmp_path / "o"
-    first = subprocess.run(
-        [mixvi(), "solve", SCENE, "--level", "0", "--out", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert first.returncode == 0, first.stderr
-    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    out, before = earlier_run(tmp_path)
     tag = str(os.getpid())
     cli = [sys.executable, "-m", "tests.vi_core.petsc.mpi_cli", "--mutation", "fail_rank_1"]
     run = mpiexec(
