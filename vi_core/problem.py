@@ -70,9 +70,6 @@ class MixedVI:
         used by the iterative linear path (`vi_core.krylov`).
     near_null : optional {field name: (k, d) array} near-null space of that field's block of A,
         rows in the field's order (e.g. the rigid-body modes of the displacement block).
-    blocks : optional (n,) int, a label per unknown: unknowns that belong together (e.g. one
-        body's); the petsc engine's layout splits each block's members of each field evenly
-        over the ranks (`vi_core.petsc.layout`). None: one block.
     partition : optional row partition of A over processes (`vi_core.engine.row_partition`: an
         object with ``owned(n) -> (lo, hi)`` and the reductions ``gatherv``, ``all_true``,
         ``norm``); A is then (hi − lo, n), this process's rows [lo, hi) of the whole A, and
@@ -93,7 +90,6 @@ class MixedVI:
     fields: dict | None = None
     near_null: dict | None = None
     partition: Any = None
-    blocks: Any = None
 
     def __post_init__(self):
         self.A = sp.csr_matrix(self.A, dtype=float)
@@ -133,10 +129,6 @@ class MixedVI:
             if not np.isfinite(getattr(self, name)).all():
                 raise ValueError(f"{name} contains NaN or inf")
         self._check_fields(n)
-        if self.blocks is not None:
-            self.blocks = np.asarray(self.blocks)
-            if self.blocks.shape != (n,) or not np.issubdtype(self.blocks.dtype, np.integer):
-                raise ValueError(f"blocks must be an integer label per unknown ({n},)")
         d = self._diagonal()  # (hi − lo,) the owned rows'
         bad = np.flatnonzero(d <= 0)[:1]  # the first nonpositive one here, if any
         lo = self.row_range[0]
@@ -321,9 +313,9 @@ class MixedVI:
         return MixedVI(A=self._scaled_A(), **self.equilibrated_parts())
 
     def equilibrated_parts(self) -> dict:
-        """Everything of `equilibrated` but its A (B, f, Lambda, gap, info, fields, near_null,
-        blocks; interface- and vector-sized), for a solver that reads A' by rows
-        (`equilibrated_rows`) and so never holds a whole-size copy of A's values."""
+        """Everything of `equilibrated` but its A (B, f, Lambda, gap, info, fields, near_null;
+        interface- and vector-sized), for a solver that reads A' by rows (`equilibrated_rows`)
+        and so never holds a whole-size copy of A's values."""
         s = self.scaling
         Su, Sl = sp.diags(s.s_u), sp.diags(s.s_lam)
         # A u + Bᵀλ = f  →  (Su A Su) u' + (Su Bᵀ Sl) λ' = Su f
@@ -340,7 +332,6 @@ class MixedVI:
                 k: N / s.s_u[self.fields[k]][:, None] for k, N in (self.near_null or {}).items()
             }
             or None,
-            blocks=self.blocks,
         )
 
     def equilibrated_rows(self, rows: np.ndarray) -> sp.csr_matrix:
@@ -405,7 +396,6 @@ class MixedVI:
             fields=self.fields,
             near_null=self.near_null,
             partition=self.partition,
-            blocks=self.blocks,
         )
 
     def __repr__(self):

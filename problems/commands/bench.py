@@ -102,7 +102,7 @@ def stick_limit(vi: MixedVI) -> MixedVI:
     vi.__dict__.pop("equilibrated", None)  # the cached property (recomputed where asked again)
     return MixedVI(
         A=vi.A, B=vi.B, f=vi.f, Lambda=Free(vi.m), gap=vi.gap, fields=vi.fields,
-        near_null=vi.near_null, blocks=vi.blocks,
+        near_null=vi.near_null,
     )  # fmt: skip
 
 

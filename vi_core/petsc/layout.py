@@ -1,16 +1,15 @@
 """The PETSc layout of the condensed Newton matrix: which unknowns each rank's rows of the
-`mpiaij` matrix hold, balanced over the blocks (bodies) and fields (issue 33).
+`mpiaij` matrix hold, balanced over the fields (issue 33).
 
 The unknowns are numbered field by field (all displacement dofs, then the potential's) and the
 slave dofs of the condensation are the contact surface's, so PETSc's even split of 0..n−1 gave
 one rank displacement rows only, every slave row among them, and the other the potential: the
 displacement block's multigrid (d components, its rigid-body modes) costs more per row, and
 that rank's peak was the run's (block3d level 2 on 2 ranks: 44 / 39 MiB above the imports).
-Here every group of unknowns (a block's field's slave dofs, its other dofs; the blocks are
-`MixedVI.blocks`, a contact model's bodies) is split evenly over the ranks in its own order,
-contiguous chunks as PETSc splits a range (`split`); a rank's rows are its chunks of every
-group, in the unknowns' order. The layout is computed alike on every rank
-from replicated data (the blocks, the fields, the slave dofs): no communication.
+Here every group of unknowns (a field's slave dofs, its other dofs) is split evenly over the
+ranks in its own order, contiguous chunks as PETSc splits a range (`split`); a rank's rows are
+its chunks of every group, in the unknowns' order. The layout is computed alike on every rank
+from replicated data (the fields, the slave dofs): no communication.
 
 The model's own row partition (`runtime.RowPartition`, contiguous [lo, hi): what each rank
 assembles of A) is not changed; the Newton matrix's fixed rows are assembled there and moved to
@@ -148,44 +147,32 @@ def _offsets(counts: np.ndarray) -> np.ndarray:
 
 
 def chosen(
-    n: int,
-    fields: dict | None,
-    blocks: np.ndarray | None,
-    slaves: np.ndarray,
-    block: sp.csr_matrix,
-    lo: int,
-    comm: Any,
+    n: int, fields: dict | None, slaves: np.ndarray, block: sp.csr_matrix, lo: int, comm: Any
 ) -> Layout:
-    """The layout of the linear solve: each block's fields balanced (`groups`) unless that
-    puts more of the matrix's couplings across ranks than PETSc's even split of 0..n−1 (one
-    group); block (k_p, n): this rank's rows lo, lo + 1, … of the matrix's structure (the
-    model's rows of A), its off-rank entries summed over the ranks (mpi4py's `comm`). Where a
-    block's fields follow one mesh in one node order (a body's displacement and potential)
-    the balanced layout keeps each node's unknowns together and cuts the couplings across
-    ranks (2 ranks, entries each way: block3d level 2, one body, 129968 → 60911;
-    paper_two_body level 4, two bodies, 67754 → 10563; by field alone, not by body, that
-    split its second body's displacement from its potential: 165767)."""
+    """The layout of the linear solve: the fields balanced (`groups`) unless that puts more
+    of the matrix's couplings across ranks than PETSc's even split of 0..n−1 (one group);
+    block (k_p, n): this rank's rows lo, lo + 1, … of the matrix's structure (the model's
+    rows of A), its off-rank entries summed over the ranks (mpi4py's `comm`). Where the
+    fields' runs follow one mesh in one node order (block3d: displacement, then potential,
+    of one body) the balanced layout keeps each node's unknowns together and cuts the
+    couplings across ranks (block3d level 2 on 2 ranks: 129968 → 60911 entries each way);
+    where they do not (paper_two_body: the displacements of two bodies, then the potential of
+    one) it splits a body's displacement from its potential (67754 → 165767) and the even
+    split is kept."""
     rank, size = comm.Get_rank(), comm.Get_size()
     candidates = [
         Layout.balanced(np.zeros(n, dtype=np.int64), rank, size, "even"),
-        Layout.balanced(groups(n, fields, blocks, slaves), rank, size),
+        Layout.balanced(groups(n, fields, slaves), rank, size),
     ]
     off = [comm.allreduce(c.off_rank(block, lo)) for c in candidates]
     return candidates[int(np.argmin(off))]  # the even split on a tie (one rank)
 
 
-def groups(
-    n: int, fields: dict | None, blocks: np.ndarray | None, slaves: np.ndarray
-) -> np.ndarray:
-    """(n,) the group of each unknown `Layout.balanced` splits: one per (block of `blocks`
-    (n,) labels, None: one block; field of `fields`, None: one field; on the condensation's
-    slave dofs `slaves` or not): 2 · (its block's rank among the labels · the fields' count
-    + its field's index) + (1 on a slave dof)."""
+def groups(n: int, fields: dict | None, slaves: np.ndarray) -> np.ndarray:
+    """(n,) the group of each unknown `Layout.balanced` splits: 2 · (its field's index in
+    `fields`, 0 without fields) + (1 on the condensation's slave dofs `slaves`)."""
     out = np.zeros(n, dtype=np.int64)
     for i, mask in enumerate((fields or {}).values()):
         out[mask] = 2 * i
-    if blocks is not None:
-        labels = np.unique(blocks, return_inverse=True)[1].reshape(n)  # (n,) 0, 1, …
-        out += 2 * max(len(fields or {}), 1) * labels
     out[slaves] += 1
     return out

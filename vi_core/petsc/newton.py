@@ -88,7 +88,6 @@ class _Kept:
     Lambda: Any
     fields: dict | None
     near_null: dict | None
-    blocks: np.ndarray | None  # (n,) `MixedVI.blocks`
     n: int
     m: int
 
@@ -123,9 +122,7 @@ def _kept(vi: MixedVI) -> _Kept:
     one (a whole-size copy of A's values), dropped."""
     vi.__dict__.pop("equilibrated", None)  # the cached_property's value
     p = vi.equilibrated_parts()
-    return _Kept(
-        p["B"], p["f"], p["gap"], p["Lambda"], p["fields"], p["near_null"], p["blocks"], vi.n, vi.m
-    )
+    return _Kept(p["B"], p["f"], p["gap"], p["Lambda"], p["fields"], p["near_null"], vi.n, vi.m)
 
 
 class _Owned:
@@ -258,7 +255,7 @@ def solve_ssn_petsc(
         )
     lo, hi = red.owned(e.n)
     A_S = _slave_rows(vi, cond.S, lo, hi, red)  # (m, n) the slave rows of A', on every rank
-    layout = chosen(e.n, e.fields, e.blocks, cond.S, _held_rows(vi, lo, hi), lo, red.comm)
+    layout = chosen(e.n, e.fields, cond.S, _held_rows(vi, lo, hi), lo, red.comm)
     own = _Owned(vi, e, cond, A_S, lo, hi, layout)
     kind = "gamg" if linear_solver == "amg" else "mumps"
     solver = LinearSolve(PETSc, comm, kind, e, layout, own.first(red.comm))

@@ -360,15 +360,11 @@ def field_data(bodies: list[Body], free: np.ndarray, n_full: int) -> dict:
     """`MixedVI` keywords fields and near_null, for `vi_core.krylov`'s per-field multigrid:
     displacement and potential masks over the unknowns `free` (full indices), and the
     displacement block's rigid-body modes (n_disp, d + len(ROTATIONS[d])): the d translations,
-    then the rotations (the potential block's near-null space is the constant, the default);
-    and blocks (n,), each unknown's body (its index in `bodies`), for the petsc engine's layout
-    (a body's displacement and potential kept together)."""
+    then the rotations (the potential block's near-null space is the constant, the default)."""
     dim = bodies[0].dim
     comp = np.full(n_full, -1)  # displacement component of each full dof, −1 = potential
-    body = np.zeros(n_full, dtype=np.int64)  # (n_full,) the body of each full dof
     xyz = np.zeros((n_full, dim))  # (n_full, d) node coordinates of each displacement dof
-    for i, b in enumerate(bodies):
-        body[b.offset : b.offset + b.size] = i
+    for b in bodies:
         d = b.u_dofs(np.arange(b.n_nodes))  # (N, d)
         comp[d] = np.arange(dim)[None, :]
         for k in range(dim):
@@ -384,4 +380,4 @@ def field_data(bodies: list[Body], free: np.ndarray, n_full: int) -> dict:
     fields = {"displacement": disp}
     if (~disp).any():
         fields["potential"] = ~disp
-    return {"fields": fields, "near_null": {"displacement": modes[disp]}, "blocks": body[free]}
+    return {"fields": fields, "near_null": {"displacement": modes[disp]}}

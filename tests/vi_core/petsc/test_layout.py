@@ -13,29 +13,20 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vi_core.petsc.layout import Layout, chosen, groups, split
+from vi_core.petsc.layout import Layout, groups, split
 
 from ..processes import World, cuts_of, on_processes
 
 
-def random_labels(rng: np.random.Generator, n: int) -> tuple:
-    """(fields, blocks (n,) or None, slaves) as the engine has them: fields in runs
-    (displacement, then potential), 1–3 blocks (bodies) of random labels in runs, slave dofs
-    scattered in the first field."""
+def random_groups(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(n,) groups as the engine makes them: fields in runs (displacement, then potential),
+    slave dofs scattered in the first field."""
     fields = {"displacement": np.arange(n) < int(rng.integers(1, n + 1))}
     if (~fields["displacement"]).any():
         fields["potential"] = ~fields["displacement"]
-    cuts = np.sort(rng.integers(0, n + 1, size=int(rng.integers(0, 3))))
-    labels = rng.choice(100, size=cuts.size + 1, replace=False)  # not 0, 1, …: any labels
-    blocks = None if rng.random() < 0.2 else labels[np.searchsorted(cuts, np.arange(n), "right")]
     first = np.flatnonzero(fields["displacement"])
     slaves = rng.choice(first, size=int(rng.integers(0, first.size + 1)), replace=False)
-    return fields, blocks, slaves
-
-
-def random_groups(rng: np.random.Generator, n: int) -> np.ndarray:
-    """(n,) groups as the engine makes them (`random_labels`)."""
-    return groups(n, *random_labels(rng, n))
+    return groups(n, fields, slaves)
 
 
 @settings(max_examples=40, deadline=None)
@@ -58,88 +49,6 @@ def test_every_group_is_split_evenly_and_the_ranks_tile_the_unknowns(seed):
         assert np.array_equal(held, members)  # contiguous chunks, in rank order
         counts = [np.isin(members, lay.rows).sum() for lay in layouts]
         assert np.array_equal(counts, np.diff(split(members.size, size)))
-
-
-@settings(max_examples=40, deadline=None)
-@given(st.integers(0, 2**32 - 1))
-def test_each_blocks_field_is_split_evenly(seed):
-    """Every (block, field, slave or not) of the labels, read from them and not from `groups`,
-    is split over the ranks as PETSc splits a range (mutation: the blocks ignored in `groups`
-    splits the union of the blocks' fields, not each block's)."""
-    rng = np.random.default_rng(seed)
-    n, size = int(rng.integers(1, 60)), int(rng.integers(2, 5))
-    fields, blocks, slaves = random_labels(rng, n)
-    layouts = [Layout.balanced(groups(n, fields, blocks, slaves), r, size) for r in range(size)]
-    slave = np.isin(np.arange(n), slaves)
-    for b in np.unique(blocks if blocks is not None else [0]):
-        inside = np.ones(n, bool) if blocks is None else blocks == b
-        for mask in fields.values():
-            for s in (False, True):
-                members = np.flatnonzero(inside & mask & (slave == s))  # (n_g,)
-                counts = [np.isin(members, lay.rows).sum() for lay in layouts]
-                assert np.array_equal(counts, np.diff(split(members.size, size)))
-
-
-def two_bodies(nodes: tuple[int, int]) -> tuple[sp.csr_matrix, dict, np.ndarray]:
-    """A paper_two_body in small: two chains of nodes, body 0 displacement only (2 dofs a
-    node), body 1 displacement and potential (3 a node), numbered body by body as the contact
-    model does (body 0's displacement, body 1's, body 1's potential), each dof coupled to every
-    dof of its node and the neighbouring nodes of its body; (A (n, n), fields, blocks (n,))."""
-    rows, cols, disp, blocks, start = [], [], [], [], 0
-    for body, (count, per) in enumerate(zip(nodes, (2, 3), strict=True)):
-        d = 2 * count  # the body's displacement dofs, node-major, then its potential's
-        dof = np.array(
-            [
-                [start + 2 * k, start + 2 * k + 1] + [start + d + k] * (per == 3)
-                for k in range(count)
-            ]
-        )  # (count, per) the dofs of each node
-        for k in range(count):
-            near = dof[max(k - 1, 0) : k + 2].ravel()
-            rows += np.repeat(dof[k], near.size).tolist()
-            cols += np.tile(near, per).tolist()
-        disp += [True] * d + [False] * (count * per - d)
-        blocks += [body] * (count * per)
-        start += count * per
-    A = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(start, start))
-    disp = np.array(disp)
-    return A, {"displacement": disp, "potential": ~disp}, np.array(blocks)
-
-
-class Whole:
-    """mpi4py's communicator for `chosen` on rank 0 of 2 given the whole matrix: its off-rank
-    count is the sum over the ranks already."""
-
-    def Get_rank(self) -> int:  # noqa: N802  mpi4py's name
-        return 0
-
-    def Get_size(self) -> int:  # noqa: N802
-        return 2
-
-    def allreduce(self, value: int) -> int:
-        return value
-
-
-@pytest.mark.parametrize("nodes", [(30, 40), (20, 50)])
-def test_the_bodies_keep_a_nodes_displacement_and_potential_together(nodes):
-    """Two bodies (`two_bodies`, even node counts): split by field alone, the second body's
-    displacement and potential of one node land on different ranks, and the even split puts
-    its potential on rank 1 alone; split by body and field, each body's chain is cut once, between
-    two nodes (2 × 2 + 3 × 3 entries each way), and `chosen` takes that layout (mutation: the
-    blocks ignored)."""
-    A, fields, blocks = two_bodies(nodes)
-    n, none = A.shape[0], np.zeros(0, dtype=np.int64)
-    off = {
-        name: Layout.balanced(g, 0, 2).off_rank(A, 0)
-        for name, g in [
-            ("even", np.zeros(n, dtype=np.int64)),
-            ("fields", groups(n, fields, None, none)),
-            ("bodies", groups(n, fields, blocks, none)),
-        ]
-    }
-    assert min(off["fields"], off["even"]) > off["bodies"] == 2 * (2 * 2 + 3 * 3)
-    lay = chosen(n, fields, blocks, none, A, 0, Whole())
-    assert lay.kind == "fields" and lay.off_rank(A, 0) == off["bodies"]
 
 
 @settings(max_examples=20, deadline=None)

@@ -14,7 +14,6 @@ from problems.plugins.contact.bodies import field_data, operator
 from problems.scene import load_scene
 from vi_core import MixedVI
 from vi_core import ssn as ssn_module
-from vi_core.amg import bodies
 
 pytest.importorskip("pyamg")
 
@@ -74,19 +73,6 @@ def test_field_data_rigid_body_modes_are_null_vectors(name):
     assert np.abs(K @ wrong).max() > 1e-3 * scale
     if model.vi.fields is not None:
         assert set(model.vi.fields) <= {"displacement", "potential"}
-
-
-@pytest.mark.parametrize("name", ["paper_two_body", "block3d"])
-def test_field_data_blocks_are_the_bodies(name):
-    """vi.blocks (the petsc engine's layout keeps a block's fields together) labels each body's
-    unknowns alike and no two bodies alike: the connected components of A, which only the
-    multipliers couple (mutations: every body labelled 0; a body's label on its first half
-    only. A body's block one dof short or shifted by one is not seen: each body's first and
-    last dofs are prescribed, not unknowns)."""
-    vi = _model(name, 1).vi
-    parts = bodies(vi.A)  # (n,) the connected component of each unknown
-    pairs = np.unique(np.stack([vi.blocks, parts]), axis=1)  # (2, k) the (block, part) met
-    assert pairs.shape[1] == np.unique(parts).size == np.unique(vi.blocks).size
 
 
 def _tied_iterations(vi: MixedVI) -> int:
