@@ -126,6 +126,16 @@ def _rank_pid(launcher: int, rank: int) -> int | None:
     return None
 
 
+def _started_rank(tag: str, rank: int, seconds: float = 60) -> int:
+    """The pid of rank `rank` of the run tagged `tag` once it has started; the test fails if
+    it has not within `seconds`."""
+    t0 = time.monotonic()
+    while (pid := _rank_pid(int(tag), rank)) is None:
+        assert time.monotonic() - t0 < seconds, f"rank {rank} not started in {seconds:.0f} s"
+        time.sleep(0.2)
+    return pid
+
+
 @pytest.mark.slow
 def test_rank_killed_mid_solve_ends_the_run(tmp_path):
     """SIGKILL to rank 1 while the ranks solve: mpiexec ends every rank, says which one died,
@@ -150,11 +160,7 @@ def test_rank_killed_mid_solve_ends_the_run(tmp_path):
         env={"MIXVI_KILL_TEST": tag},
     )
     try:
-        pid, t0 = None, time.monotonic()
-        while pid is None and time.monotonic() - t0 < 60:
-            pid = _rank_pid(int(tag), 1)
-            time.sleep(0.2)
-        assert pid is not None
+        pid, t0 = _started_rank(tag, 1), time.monotonic()
         while not out.exists() and run.poll() is None and time.monotonic() - t0 < 120:
             time.sleep(0.2)  # rank 0 has claimed the folder: the solve runs
         time.sleep(1.0)
@@ -187,6 +193,19 @@ def _ended(run: subprocess.Popen, tag: str, ranks: int, timeout: float) -> tuple
         pytest.fail(f"mpiexec still running {timeout:.0f} s on: a rank waits on one that ended")
 
 
+def _run_to_end(n: int, argv: list[str], timeout: float) -> tuple[int, str]:
+    """`mpiexec -n n ARGV` (two ranks in all), tagged for `_rank_pid`, run to its end: (exit
+    status, stderr); a hang kills every rank and fails the test (`_ended`)."""
+    tag = str(os.getpid())
+    run = mpiexec(n, argv, popen=True, env={"MIXVI_KILL_TEST": tag})
+    try:
+        _, stderr = _ended(run, tag, 2, timeout)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    return run.returncode, stderr
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_rank_interrupted_mid_solve_ends_the_run(tmp_path, signum):
@@ -206,11 +225,7 @@ def test_rank_interrupted_mid_solve_ends_the_run(tmp_path, signum):
         env={"MIXVI_KILL_TEST": tag},
     )
     try:
-        pid, t0 = None, time.monotonic()
-        while pid is None and time.monotonic() - t0 < 60:
-            pid = _rank_pid(int(tag), 1)
-            time.sleep(0.2)
-        assert pid is not None
+        pid = _started_rank(tag, 1)
         while not (out / ".mixvi-lock").exists() and run.poll() is None:
             time.sleep(0.1)  # rank 0 has claimed the folder: the ranks build and solve
         assert run.poll() is None, run.communicate()
@@ -240,14 +255,8 @@ def test_refused_on_one_rank_refused_on_every_rank(tmp_path):
     argv = [mixvi(), "solve", "paper_two_body", "--level", "6", "--engine", "petsc"]
     argv += ["--out", str(out)]
     limited = ["bash", "-c", 'ulimit -v 3000000 && exec "$0" "$@"', *argv]  # 2.9 GiB
-    tag = str(os.getpid())
-    run = mpiexec(1, [*argv, ":", "-n", "1", *limited], popen=True, env={"MIXVI_KILL_TEST": tag})
-    try:
-        _, stderr = _ended(run, tag, 2, 120)
-    finally:
-        if run.poll() is None:
-            run.kill()
-    assert run.returncode == 2, stderr[-2000:]
+    status, stderr = _run_to_end(1, [*argv, ":", "-n", "1", *limited], 120)
+    assert status == 2, stderr[-2000:]
     assert stderr.count("mixvi: error: --level = '6'") == 2, stderr  # each rank says why
     assert not out.exists()
 
@@ -271,11 +280,7 @@ def test_rank_interrupted_while_rank_0_writes_ends_the_run(tmp_path):
         env={"MIXVI_KILL_TEST": tag},
     )
     try:
-        pid, t0 = None, time.monotonic()
-        while pid is None and time.monotonic() - t0 < 60:
-            pid = _rank_pid(int(tag), 1)
-            time.sleep(0.2)
-        assert pid is not None
+        pid = _started_rank(tag, 1)
 
         def staged() -> bool:
             return any(p.name.startswith(".mixvi-tmp-") for p in out.iterdir())
@@ -307,14 +312,8 @@ def test_output_refused_mid_load_path_ends_every_rank(tmp_path):
     argv = [mixvi(), "solve", "shear_strip_path", "--level", "2", "--engine", "petsc"]
     argv += ["--out", str(out)]
     limited = ["bash", "-c", 'ulimit -f 10 && exec "$0" "$@"', *argv]
-    tag = str(os.getpid())
-    run = mpiexec(1, [*limited, ":", "-n", "1", *argv], popen=True, env={"MIXVI_KILL_TEST": tag})
-    try:
-        _, stderr = _ended(run, tag, 2, 120)
-    finally:
-        if run.poll() is None:
-            run.kill()
-    assert run.returncode == 2, stderr[-2000:]
+    status, stderr = _run_to_end(1, [*limited, ":", "-n", "1", *argv], 120)
+    assert status == 2, stderr[-2000:]
     assert "mixvi: error: --out" in stderr and "ulimit -f" in stderr, stderr[-2000:]
     assert not out.exists()
 
@@ -328,20 +327,10 @@ def test_internal_error_on_one_rank_ends_the_run_with_the_serial_status(tmp_path
     import sys
 
     out, before = earlier_run(tmp_path)
-    tag = str(os.getpid())
     cli = [sys.executable, "-m", "tests.vi_core.petsc.mpi_cli", "--mutation", "fail_rank_1"]
-    run = mpiexec(
-        2,
-        [*cli, "solve", "paper_two_body", "--level", "2", "--engine", "petsc", "--out", str(out)],
-        popen=True,
-        env={"MIXVI_KILL_TEST": tag},
-    )
-    try:
-        _, stderr = _ended(run, tag, 2, 120)
-    finally:
-        if run.poll() is None:
-            run.kill()
-    assert run.returncode == 3, stderr[-2000:]
+    argv = [*cli, "solve", "paper_two_body", "--level", "2", "--engine", "petsc"]
+    status, stderr = _run_to_end(2, [*argv, "--out", str(out)], 120)
+    assert status == 3, stderr[-2000:]
     assert "mixvi: rank 1 of 2 failed (RuntimeError)" in stderr, stderr[-2000:]
     assert "mixvi: internal error: RuntimeError: injected on rank 1" in stderr, stderr[-2000:]
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
