@@ -95,16 +95,14 @@ class Engine:
             return solve(*args, **kw)
         try:
             return solve(*args, **kw)
-        except SceneError:
-            signals.ends_alone()
-            raise
         except Exception as err:
-            print(
-                f"mixvi: rank {self.rank} of {self.size} failed ({type(err).__name__}); "
-                "mpiexec ends the other ranks",
-                file=sys.stderr,
-                flush=True,
-            )
+            if not isinstance(err, SceneError):  # bad input: its own line says why
+                print(
+                    f"mixvi: rank {self.rank} of {self.size} failed ({type(err).__name__}); "
+                    "mpiexec ends the other ranks",
+                    file=sys.stderr,
+                    flush=True,
+                )
             signals.ends_alone()
             raise
 
