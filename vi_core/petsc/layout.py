@@ -75,7 +75,7 @@ class Layout:
         columns by unknown) whose row and column this layout puts on different ranks (the
         couplings a rank's rows reach off it; counted by chunks of rows: no temporary of the
         block's size)."""
-        holder = np.searchsorted(self.bounds, self.new, side="right") - 1  # (n,)
+        holder = self._holder(0, self.new.size)  # (n,)
         count, ip = 0, block.indptr
         for start in range(0, block.shape[0], CHUNK):
             stop = min(start + CHUNK, block.shape[0])
