@@ -354,7 +354,7 @@ def near_level(
     half = 0.5 * float(np.max(np.linalg.norm(p[:, None] - p[None], axis=-1)))
     h_zone = float(c.tr.measures[touch[c.tr.facets].all(axis=1)].max())
     P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
-    h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)  # (n_cells,)
+    h = longest_edges(P)  # (n_cells,)
     d = cKDTree(p).query(P.mean(axis=1))[0]  # (n_cells,)
     out = {c.slave.name: marked[c.slave.name] | ((d < radius * half) & (h > factor * h_zone))}
     return red_fans(model, meshes, out, touch)
@@ -409,6 +409,11 @@ def red_layers(
     return red_split(model, meshes, marked, near[mesh.cells].any(axis=1), bisect)
 
 
+def longest_edges(P: np.ndarray) -> np.ndarray:
+    """(n_cells,) each triangle's longest edge, P (n_cells, 3, 2) its corners."""
+    return np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)
+
+
 def _zone_frame(model: Any, sol: Any, mesh: Any) -> tuple[float, float, float, float]:
     """(ℓ, x_c, y_top, h_zone): the zone's half-length (half the x-extent of the touching
     nodes), its centre, its highest touching node's y and its median touching segment."""
@@ -435,7 +440,7 @@ def box_coarse(
     depth `full` ℓ, then twice coarser every `step` ℓ."""
     half, xc, y_top, _ = frame
     P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
-    h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)  # (n_cells,)
+    h = longest_edges(P)  # (n_cells,)
     centroid = P.mean(axis=1)  # (n_cells, 2)
     t = (y_top - centroid[:, 1]) / half  # (n_cells,) depth in zone half-lengths
     inside = (np.abs(centroid[:, 0] - xc) < width * half) & (t < depth)
@@ -514,8 +519,7 @@ def size_graded(
     c = model.contact
     mesh = meshes[c.slave.name]
     frame = _zone_frame(model, sol, mesh)
-    P = mesh.points[mesh.cells]  # (n_cells, 3, 2)
-    h = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=-1).max(axis=1)  # (n_cells,)
+    h = longest_edges(mesh.points[mesh.cells])  # (n_cells,)
     d = zone_distance(mesh, frame)  # (n_cells,)
     coarse = h > factor * frame[3] * 2.0 ** np.maximum(0.0, (d - full) / step)
     out = {c.slave.name: marked[c.slave.name] | coarse}
