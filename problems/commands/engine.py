@@ -84,6 +84,18 @@ class Engine:
         rank, (_, line) = failed[0]
         raise RuntimeError(f"rank {rank} of {self.size} failed: {line}")
 
+    def on_host(self, value: T) -> list[T]:
+        """`value` of every rank on this rank's host (the ranks that share its memory, MPI's
+        COMM_TYPE_SHARED: `host_ranks`), this rank's among them; [value] on one rank.
+        Collective: every rank calls it."""
+        if self.comm is None or self.size == 1:
+            return [value]
+        host = host_ranks(self.comm)
+        try:
+            return host.allgather(value)
+        finally:
+            host.Free()
+
     def guarded(self, solve: Callable[..., Any], *args: Any, **kw: Any) -> Any:
         """`solve(*args, **kw)`; an exception on this rank ends this rank alone once its
         clean-up has run, with the serial command's line and exit status (a SceneError 2,
@@ -125,6 +137,15 @@ def _verdict(err: Exception | None) -> tuple[str, Any] | None:
 def _odd(value: Any) -> bool:
     """Whether `value` is anything but a plain str, number, bool or None (sent as its text)."""
     return not isinstance(value, str | int | float | bool | type(None))
+
+
+def host_ranks(comm: Any) -> Any:
+    """The ranks of `comm` on the calling rank's host, as a new communicator (the caller frees
+    it): those that can share memory (`MPI.COMM_TYPE_SHARED`), one host's ranks whatever their
+    order in `comm`."""
+    from mpi4py import MPI
+
+    return comm.Split_type(MPI.COMM_TYPE_SHARED)
 
 
 def launched_processes() -> int:

@@ -68,7 +68,9 @@ Caps. A level whose upper estimate (the estimate divided by the smallest estimat
 ratio seen for that solver, WORST_RATIO) exceeds the machine's memory (physical, cgroup or
 RLIMIT_AS) is above the scene's cap; a level whose upper estimate exceeds the memory available
 now is refused. Both are SceneErrors naming the option and printing the estimate (exit 2);
-`--force` skips them.
+`--force` skips them. The ranks of `mixvi solve --engine petsc` each build the level: those
+that share a host are refused together when the sum of their upper estimates exceeds the host's
+memory available now (`check_host`; ranks on other hosts are not counted).
 """
 
 from __future__ import annotations
@@ -227,10 +229,10 @@ def _read_int(path: str) -> int | None:
     return int(text) if text.isdigit() else None
 
 
-def memory() -> tuple[float, float]:
-    """(total, available) bytes for this process: physical memory (MemTotal/MemAvailable),
-    bounded by a cgroup v2 limit and by RLIMIT_AS where set."""
-    total = available = None
+def host_memory() -> tuple[float, float]:
+    """(total, available) bytes of this host for the processes of this cgroup: physical memory
+    (MemTotal/MemAvailable), bounded by a cgroup v2 limit where set; what the ranks of an
+    `mpiexec` run on one host share (`check_host`)."""
     try:
         info = dict(line.split(":", 1) for line in Path("/proc/meminfo").read_text().splitlines())
         total = int(info["MemTotal"].split()[0]) * 1024
@@ -243,6 +245,13 @@ def memory() -> tuple[float, float]:
     if limit is not None:
         used = _read_int("/sys/fs/cgroup/memory.current") or 0
         total, available = min(total, limit), min(available, max(limit - used, 0))
+    return float(total), float(available)
+
+
+def memory() -> tuple[float, float]:
+    """(total, available) bytes for this process: the host's (`host_memory`), bounded by
+    RLIMIT_AS where set."""
+    total, available = host_memory()
     soft, _ = resource.getrlimit(resource.RLIMIT_AS)
     if soft != resource.RLIM_INFINITY:
         total, available = min(total, soft), min(available, soft)
@@ -368,6 +377,25 @@ def check_levels(
             f"{gb(available)} available (--force to try anyway)",
         )
     return sizes
+
+
+def check_host(e: Estimate, uppers: list[float], available: float, option: str, text: str) -> None:
+    """Refuse (SceneError naming `option` and its value `text`) the level of `e` when the
+    ranks on this host need more than `available`, the host's memory available now, together:
+    `uppers` holds the upper estimate of every rank on this host (this one's among them; each
+    rank of `--engine petsc` builds the level), ranks on other hosts not counted. One rank:
+    nothing more than `check_levels`' own check."""
+    if len(uppers) < 2:
+        return
+    total = sum(uppers)
+    if total > available:
+        raise SceneError(
+            option,
+            text,
+            f"a level that fits in the memory available now: {describe(e)} on each rank, "
+            f"{len(uppers)} ranks on this host need up to {gb(total)} together, "
+            f"{gb(available)} available (fewer ranks per host, or --force to try anyway)",
+        )
 
 
 def requested_level(level: int | None, plugin, scene) -> tuple[int, str]:

@@ -42,8 +42,10 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
         return run(args, load(args), args.accuracy)
     # on every rank of --engine petsc, refused on all of them if on one (the memory check
-    # reads what is available when each rank looks)
-    loaded, level = eng.unanimous(_checked, args)
+    # reads what is available when each rank looks); then the ranks on one host together
+    loaded, level, estimate, option = eng.unanimous(_checked, args)
+    if not args.force:
+        eng.unanimous(_fits_host, eng, estimate, option)
     out = Path(args.out) if args.out else Path("out") / loaded.scene.name
     inputs = loaded.scene.files()
     with engine.running(eng):
@@ -64,10 +66,13 @@ def cmd_solve(args: argparse.Namespace) -> int:
             return eng.guarded(_solve, args, t0, loaded, level, folder)
 
 
-def _checked(args: argparse.Namespace) -> tuple[pipeline.Loaded, int]:
-    """The scene loaded and validated with the level to solve (an --accuracy preset fills in
-    --level and --tol where they were not given); SceneError on a bad solver, a level out of
-    range or one that does not fit in the memory available now."""
+def _checked(
+    args: argparse.Namespace,
+) -> tuple[pipeline.Loaded, int, resources.Estimate, str]:
+    """The scene loaded and validated, the level to solve, its estimate and the option that
+    gave the level (an --accuracy preset fills in --level and --tol where they were not
+    given); SceneError on a bad solver, a level out of range or one that does not fit in the
+    memory available now."""
     if args.accuracy is not None:  # a preset fills in what was not given explicitly
         level, tol = ACCURACY[args.accuracy]
         args.level = level if args.level is None else args.level
@@ -78,10 +83,20 @@ def _checked(args: argparse.Namespace) -> tuple[pipeline.Loaded, int]:
     if method is not None and method not in pipeline.SOLVERS:
         raise SceneError("--solver", method, "one of " + ", ".join(pipeline.SOLVERS))
     level, option = resources.requested_level(args.level, plugin, scene)
-    resources.check_levels(
+    sizes = resources.check_levels(
         plugin, scene, (level, level), option, str(level), args.force, args.linear_solver
     )
-    return loaded, level
+    return loaded, level, sizes.estimate(level), option
+
+
+def _fits_host(eng: engine.Engine, e: resources.Estimate, option: str) -> None:
+    """Refuse (SceneError on `option`) the level of `e` if the ranks on this rank's host
+    together need more than the host has available (each builds the level): their upper
+    estimates summed against the smallest reading of the host's memory available now. Every
+    rank of `eng` calls it (`Engine.on_host` is collective)."""
+    here = eng.on_host((e.upper_bytes, resources.host_memory()[1]))
+    uppers, available = zip(*here, strict=True)
+    resources.check_host(e, list(uppers), min(available), option, str(e.level))
 
 
 def _solve_unwritten(args, loaded: pipeline.Loaded, level: int) -> int:

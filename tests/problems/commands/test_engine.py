@@ -347,3 +347,68 @@ def test_serial_engine_under_mpiexec_refused_on_every_rank(tmp_path):
     assert done.returncode == 2, done.stderr[-2000:]
     assert done.stderr.count("mixvi: error: --engine = 'serial': petsc under mpiexec") == 2
     assert not out.exists()
+
+
+def _upper(level: int) -> float:
+    """SCENE's upper memory estimate at `level` (bytes): what each rank may need."""
+    from problems import pipeline
+    from problems.commands.resources import Sizes
+
+    loaded = pipeline.load(SCENE)
+    return Sizes(loaded.plugin, loaded.scene).estimate(level).upper_bytes
+
+
+def _guarded_run(tmp_path: Path, available: float, *stand_ins: str) -> tuple[int, str, Path]:
+    """`mpiexec -n 2 mixvi solve SCENE --level 0 --engine petsc` with the host's memory
+    available now read as `available` bytes (mpi_cli's stand-in) and `stand_ins` (mpi_cli's
+    other options): (exit status, stderr, the output folder)."""
+    import sys
+
+    out = tmp_path / "o"
+    cli = [sys.executable, "-m", "tests.vi_core.petsc.mpi_cli", "--available", str(available)]
+    argv = [*cli, *stand_ins, "solve", SCENE, "--level", "0", "--engine", "petsc"]
+    status, stderr = _run_to_end(2, [*argv, "--out", str(out)], 120)
+    return status, stderr, out
+
+
+def test_ranks_on_one_host_are_refused_by_their_sum(tmp_path):
+    """Two ranks on this host, which has 1.5 times what one rank may need: each fits alone,
+    the two do not together. Every rank refuses with one line naming the sum, the ranks and
+    what is available (exit 2), and no folder is made. On the old code each rank checked its
+    own estimate only, and the run went on."""
+    need_petsc()
+    from problems.commands.resources import gb
+
+    upper = _upper(0)
+    status, stderr, out = _guarded_run(tmp_path, 1.5 * upper)
+    assert status == 2, stderr[-2000:]
+    says = f"2 ranks on this host need up to {gb(2 * upper)} together, {gb(1.5 * upper)} available"
+    assert stderr.count(says) == 2, stderr[-2000:]
+    assert stderr.count("mixvi: error: --level = '0'") == 2, stderr[-2000:]
+    assert not out.exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("factor", "stand_ins"),
+    [(2.5, ()), (1.5, ("--host-per-rank",))],
+    ids=["room_for_both", "a_host_each"],
+)
+def test_ranks_that_fit_their_host_solve(tmp_path, factor, stand_ins):
+    """Two ranks that fit together (2.5 times one rank's upper estimate available), or that are
+    on hosts of their own (each host 1.5 times: ranks on other hosts are not counted): the run
+    solves and writes its results."""
+    need_petsc()
+    status, stderr, out = _guarded_run(tmp_path, factor * _upper(0), *stand_ins)
+    assert status == 0, stderr[-2000:]
+    assert (out / "summary.json").exists()
+
+
+def test_mutation_counting_one_rank_per_host_is_seen(tmp_path):
+    """The fault `test_ranks_on_one_host_are_refused_by_their_sum` catches: each rank counted
+    alone on its host (mpi_scene's "host_one_rank"), the two ranks that do not fit together are
+    let through and the run solves."""
+    need_petsc()
+    status, stderr, out = _guarded_run(tmp_path, 1.5 * _upper(0), "--mutation", "host_one_rank")
+    assert status == 0, stderr[-2000:]
+    assert "ranks on this host" not in stderr

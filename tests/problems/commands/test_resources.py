@@ -8,6 +8,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from problems.commands import resources
 from problems.commands.resources import Sizes, check_levels
@@ -94,6 +96,28 @@ def test_caps_and_refusals_name_the_option_and_print_the_estimate(monkeypatch):
         check_levels(plugin, scene, (4, 4), "--level", "4", linear_solver="splu")
     assert "--level" in str(err.value) and "available" in str(err.value)
     check_levels(plugin, scene, (4, 4), "--level", "4", force=True)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_ranks_on_one_host_are_refused_by_their_sum(seed):
+    """`check_host`: P ≥ 2 ranks on a host are refused exactly when their upper estimates
+    together exceed what the host has available, naming that sum, P and what is available;
+    one rank never (its own check is `check_levels`')."""
+    rng = np.random.default_rng(seed)
+    ranks = int(rng.integers(1, 9))
+    uppers = list(rng.uniform(1e8, 4e9, ranks))  # bytes
+    available = float(rng.uniform(0.5, 1.5) * sum(uppers))
+    e = resources.Estimate("s", 3, 1000, "splu", uppers[0] * resources.WORST_RATIO["splu"])
+    if ranks < 2 or sum(uppers) <= available:
+        resources.check_host(e, uppers, available, "--level", "3")
+        return
+    with pytest.raises(SceneError) as err:
+        resources.check_host(e, uppers, available, "--level", "3")
+    msg = str(err.value)
+    assert "--level" in msg and "--force" in msg, msg
+    assert f"{ranks} ranks on this host need up to {resources.gb(sum(uppers))}" in msg, msg
+    assert f"{resources.gb(available)} available" in msg, msg
 
 
 def test_auto_is_estimated_as_the_solver_it_will_choose():

@@ -107,7 +107,8 @@ SOURCE_FAULTS = {
 
 def _mutate(name: str) -> None:
     """Inject a fault the tests must see (mutation tests): "fail_rank_1" raises a RuntimeError
-    in rank 1's Newton loop only; "local_gather" gathers only this
+    in rank 1's Newton loop only; "host_one_rank" makes `Engine.on_host` return this rank's
+    value alone (the memory guard counts one rank per host); "local_gather" gathers only this
     rank's owned entries of each new iterate (the others stay 0: the off-rank entries
     dropped); a SOURCE_FAULTS name rewrites that module's source (ValueError if the pattern
     is not there once: the mutation must then be updated, not skipped), the names the other
@@ -124,6 +125,12 @@ def _mutate(name: str) -> None:
 
         solve = newton.solve_ssn_petsc
         vi_petsc.solve_ssn_petsc = failing
+    elif name == "host_one_rank":  # the memory guard counts this rank alone on its host
+
+        def mine_only(self, value):
+            return [value]
+
+        engine.Engine.on_host = mine_only
     elif name == "local_gather":
 
         def gather(self, index, local, size):
