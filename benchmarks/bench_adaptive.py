@@ -1,4 +1,4 @@
-"""Adaptive against uniform refinement (issue 32, part 4).
+"""Adaptive against uniform refinement.
 
     python benchmarks/bench_adaptive.py [--uniform L] [--max-unknowns N] [--zone-levels Z]
         [--contact-zone | --zone NAME ...] [--box U,Z,W,D,S ...] [--limit-box W,D]

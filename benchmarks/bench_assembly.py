@@ -1,4 +1,4 @@
-"""CPU time and peak memory of the vectorised assembly (`fem.assembly`, issue 30).
+"""CPU time and peak memory of the vectorised assembly (`fem.assembly`).
 
     python benchmarks/bench_assembly.py [--level2 6] [--level3 4] [--repeat 3] [--json FILE]
 

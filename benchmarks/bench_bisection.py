@@ -1,4 +1,4 @@
-"""Local refinement by newest-vertex bisection (`fem.bisection.refine_marked`, issue 32) against
+"""Local refinement by newest-vertex bisection (`fem.bisection.refine_marked`) against
 one uniform refinement of the same mesh (`fem.refine.refine`).
 
     python benchmarks/bench_bisection.py [--json FILE] [--overwrite] [--quick]

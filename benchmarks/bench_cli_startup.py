@@ -1,4 +1,4 @@
-"""How long `mixvi --help` takes (issue 31: under 0.5 s), against a bare interpreter.
+"""How long `mixvi --help` takes (the target: under 0.5 s), against a bare interpreter.
 
     python benchmarks/bench_cli_startup.py [--repeat N] [--json FILE]
 

@@ -1,4 +1,4 @@
-"""The memory guard's estimate against the solve it guards (issue 34 item 5).
+"""The memory guard's estimate against the solve it guards.
 
     python benchmarks/bench_estimate.py [--level L] [--json FILE] SCENE ...
 

@@ -1,4 +1,4 @@
-"""Uniform refinement of structured 2D and 3D meshes (`fem.refine.refine`, issue 30).
+"""Uniform refinement of structured 2D and 3D meshes (`fem.refine.refine`).
 
     python benchmarks/bench_refine.py [--json FILE] [--overwrite]
 

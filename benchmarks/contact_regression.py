@@ -1,4 +1,4 @@
-"""Snapshot and compare the contact plug-ins' answers, field by field (issue 30's unification).
+"""Snapshot and compare the contact plug-ins' answers, field by field, between two checkouts.
 
     python -m benchmarks.contact_regression snap DIR [--levels 0] [--scenes a,b]
     python -m benchmarks.contact_regression compare DIR NEWDIR [--rtol 1e-12]

@@ -1,7 +1,7 @@
 """The range of the friction coefficient F over which the two Coulomb paths converge and agree
-on a scene (issue 17): semismooth Newton on the combined map and the fixed point on Tresca
+on a scene: semismooth Newton on the combined map and the fixed point on Tresca
 problems g ← F λ_n (vi_core.tresca_fixed_point), each Tresca problem solved by `inner`; for
-piezo_contact (2D) and contact3d (3D) scenes with law = "unilateral".
+contact scenes (2D and 3D) with law = "unilateral".
 
     python benchmarks/coulomb_range.py SCENE [--F 0,0.1,0.3] [--levels 0..2]
         [--inner conic|ssn|homotopy] [--set KEY=VALUE ...] [--json FILE]
@@ -49,13 +49,13 @@ def _scene(name: str, overrides: list[str], F: float, friction: str = "coulomb",
 
 
 def _zones(st: dict) -> tuple[int, int, int, float]:
-    """(open, stick, slip, mean λ_n where touching) of a contact state: piezo_contact's (per
-    multiplier row: touch over the normal rows, touch_t over the tangential ones) or
-    contact3d's (per surface node, with its state names)."""
+    """(open, stick, slip, mean λ_n where touching) of a contact state: 2D's (per multiplier
+    row: touch over the normal rows, touch_t over the tangential ones) or 3D's (per surface
+    node, with its state names)."""
     touch = st["touch"]
     mean_p = float(np.mean(st["lam_n"][touch])) if touch.any() else 0.0
     slip = int(st["slip"].sum())
-    if "has_t" in st:  # contact3d
+    if "has_t" in st:  # 3D
         state = st["state"]
         return int((state == "open").sum()), int((state == "stick").sum()), slip, mean_p
     state = st["state"]

@@ -62,7 +62,7 @@ def measure(
 
 
 def of_model(model, sol, R: float) -> LineContact:
-    """`measure` on a solved signorini or piezo_contact (rigid foundation) model, with the
+    """`measure` on a solved signorini or 2D contact (rigid foundation) model, with the
     contact body's E* from the Barnett–Lothe tensor (`hertz_modulus`): the charge-free surface
     for a piezoelectric body (insulating, or no [contact.electrical]), the conducting indenter
     for `grounded` (φ = φ_F where it touches); a `conductive` law (finite k) has no closed form

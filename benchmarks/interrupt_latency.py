@@ -1,4 +1,4 @@
-"""How fast each `mixvi` command ends on a signal sent inside a compiled call (issue 34 item 3).
+"""How fast each `mixvi` command ends on a signal sent inside a compiled call.
 
     python benchmarks/interrupt_latency.py [--repeat N] [--json FILE] [CASE ...]
 

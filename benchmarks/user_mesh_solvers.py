@@ -1,4 +1,4 @@
-"""The linear solvers on the user-like meshes (issue 34): what `auto` picks against the others.
+"""The linear solvers on the user-like meshes: what `auto` picks against the others.
 
     python benchmarks/user_mesh_solvers.py [SCENE ...] [--levels L,...] [--solvers S,...]
         [--timeout S] [--out FILE]

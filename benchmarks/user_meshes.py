@@ -1,4 +1,4 @@
-"""User-like scenes on unstructured gmsh meshes (issue 34): the test tier the defaults must solve.
+"""User-like scenes on unstructured gmsh meshes: the test tier the defaults must solve.
 
     python benchmarks/user_meshes.py OUTDIR [NAME ...]     (needs `pip install gmsh`)
 
@@ -175,7 +175,7 @@ def _actuator(gmsh, path: Path, quads: bool) -> None:
 
 ACTUATOR_TOML = """\
 # {comment}
-# Made by benchmarks/user_meshes.py (issue 34); units m, Pa, V.
+# Made by benchmarks/user_meshes.py; units m, Pa, V.
 
 format = 2
 
@@ -281,7 +281,7 @@ def punch_graded(gmsh, path: Path) -> str:
 # A BaTiO3 T-punch with filleted corners on a rigid conductive foundation: bilateral contact
 # with Tresca friction and the saturated electrical contact law (foundation at 100 V); a graded
 # triangle mesh (0.3 mm at the fillets, 2 mm away from them).
-# Made by benchmarks/user_meshes.py (issue 34); units m, Pa, V, C, F/m².
+# Made by benchmarks/user_meshes.py; units m, Pa, V, C, F/m².
 
 format = 2
 
@@ -358,7 +358,7 @@ def cylinder_on_block(gmsh, path: Path) -> str:
 # A steel half cylinder (radius 20 mm) pressed down and sideways onto an aluminium block
 # (Hertz-like line contact): two bodies meshed separately with triangles graded towards the
 # first touching point, unilateral contact with Coulomb friction; the slave is the lower ±40°
-# of the arc. Made by benchmarks/user_meshes.py (issue 34); units m, Pa.
+# of the arc. Made by benchmarks/user_meshes.py; units m, Pa.
 
 format = 2
 
@@ -425,7 +425,7 @@ def notched_block3d(gmsh, path: Path) -> str:
 # A PZT-5H block (poled along z) with a slot across its top and a through hole, meshed with
 # tetrahedra, on a rigid foundation: bilateral contact with Tresca friction on its bottom, its
 # top clamped to a plate pushed down and sideways, top electrode grounded.
-# Made by benchmarks/user_meshes.py (issue 34); units m, Pa, V.
+# Made by benchmarks/user_meshes.py; units m, Pa, V.
 
 format = 2
 
@@ -493,7 +493,7 @@ def punch_on_block3d(gmsh, path: Path) -> str:
 # A steel cylindrical punch (radius 8 mm) with a filleted bottom edge (radius 2 mm) pressed down
 # and sideways onto an aluminium block: two bodies meshed separately with tetrahedra, unilateral
 # contact with Coulomb friction through the 3D dual mortar, the punch's flat bottom the slave.
-# Made by benchmarks/user_meshes.py (issue 34); units m, Pa.
+# Made by benchmarks/user_meshes.py; units m, Pa.
 
 format = 2
 

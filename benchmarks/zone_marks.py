@@ -40,8 +40,9 @@ and more}, for `adapt(..., contact_zone=MARKS[name])`:
   zone's surface, plus "layers3" (`near_box`); "near_box_f2r2" its size target 2√2 × the
   zone's median segment instead of 2× (a cycle's near field √2 coarser: the step between two
   near_box cycles); "near_box_tight" a narrower box (width 1.1 ℓ), full size only to 0.8 ℓ
-  deep, 2.5× the median segment (tuned on the shipped Hertz load, where it meets issue 32's
-  target; frozen, it meets it on one of four other loads: docs/benchmarks.md, "Held out");
+  deep, 2.5× the median segment (tuned on the shipped Hertz load, where it meets the target:
+  uniform level 5's error with 5× fewer unknowns; frozen, it meets it on one of four other
+  loads: docs/benchmarks.md, "Held out");
   "near_box_paced" the target falling by at most √2 per cycle (`NearBoxPaced`);
   "near_box_nvb" its box cells bisected once (h ÷ √2) instead of split into 4, the rings
   still red (`near_box_nvb`); "size_graded" no box: every cell graded by its distance to
@@ -233,12 +234,12 @@ def near_zone(
 
 def _slave_eta(model: Any, sol: Any, drop: str | None = None) -> np.ndarray:
     """(n_cells,) η_T of the slave body (`error_estimate.indicators`, with `drop`), for a
-    piezo_contact or a signorini model."""
+    2D contact or a signorini model."""
     from problems.plugins import signorini
     from problems.plugins.contact import error_estimate as ce
     from problems.plugins.contact import plane as pc
 
-    if "bodies" in model.scene.data:  # a piezo_contact scene
+    if "bodies" in model.scene.data:  # a contact scene
         spec = pc.SCENE_MODEL
     else:
 

@@ -157,9 +157,9 @@ def nodal_rows(mo: Mortar) -> sp.csr_matrix:
 # of the sum of its clipped pieces, nothing more. Measured deficit of fully covered facets:
 # ≤ 5.6e-16 on every shipped two-body scene (2D and 3D, levels 0-2) and ≤ 8.9e-16 on the curved
 # non-matching sphere and cylinder pairs of tests/fem/test_mortar.py (warped Q1 faces too), so
-# 1e-12 keeps a factor 1000 over rounding; a looser bound (contact3d's former 1e-9) would keep
-# rows whose support misses up to that share of master, whose rigid-body transfer (patch
-# test) is then off by about as much, silently.
+# 1e-12 keeps a factor 1000 over rounding; a looser bound (the 3D contact plug-in's former
+# 1e-9) would keep rows whose support misses up to that share of master, whose rigid-body
+# transfer (patch test) is then off by about as much, silently.
 COVER_TOL = 1e-12
 
 

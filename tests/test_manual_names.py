@@ -1,14 +1,18 @@
 """The manual (docs/) states what is there: every code name it cites in backticks
 (`vi_core.…`, `fem.…`, `problems.…`) imports, no former plug-in name is cited as a module
 (`piezo_contact.…`, `contact3d.…`: they are aliases of the scene's `plugin` key only), and no
-page carries an issue number (history lives in git). docs/scenes.md is generated
-(`mixvi schema --markdown`) and left out. The mutation tests inject each fault into a copy of
-a page's text and see it found."""
+page carries an issue number (history lives in git), nor does any comment or docstring of the
+installed packages (vi_core, fem, problems). docs/scenes.md is generated (`mixvi schema
+--markdown`) and left out. The mutation tests inject each fault into a copy of a page's text or
+of a module's source and see it found."""
 
 from __future__ import annotations
 
+import ast
 import importlib
+import io
 import re
+import tokenize
 from pathlib import Path
 
 import pytest
@@ -24,7 +28,8 @@ ROOTS = ("vi_core", "fem", "problems")
 RETIRED = ("piezo_contact", "contact3d")  # plug-in names kept as scene aliases, not modules
 PREFIXES = "|".join(ROOTS + RETIRED)
 CODE_NAME = re.compile(rf"`((?:{PREFIXES})(?:\.[A-Za-z_]\w*)+)(?=[`(\[ ,])")
-ISSUE = re.compile(r"\bissues? \d+|\(#\d+\)", re.I)
+ISSUE = re.compile(r"\bissues? #?\d+|#\d+\b", re.I)  # issue 30, issues 29, (#42), #27
+MODULES = sorted(p for root in ROOTS for p in (ROOT / root).rglob("*.py"))
 
 
 def _resolves(dotted: str) -> bool:
@@ -70,6 +75,28 @@ def issue_numbers(text: str) -> list[tuple[int, str]]:
     return [
         (n, m.group(0)) for n, line in enumerate(text.splitlines(), 1) for m in ISSUE.finditer(line)
     ]
+
+
+def comments_and_docstrings(source: str) -> list[tuple[int, str]]:
+    """(first line, text) of each comment (its # dropped) and each docstring (module, class,
+    function) of a module's source."""
+    tokens = tokenize.generate_tokens(io.StringIO(source).readline)
+    out = [(t.start[0], t.string[1:]) for t in tokens if t.type == tokenize.COMMENT]
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+            doc = ast.get_docstring(node, clean=False)
+            if doc is not None:
+                out.append((node.body[0].lineno, doc))
+    return out
+
+
+def issues_in_code(source: str) -> list[tuple[int, str]]:
+    """(line, match) of each issue number in a comment or docstring of a module's source."""
+    return sorted(
+        (first + n - 1, found)
+        for first, text in comments_and_docstrings(source)
+        for n, found in issue_numbers(text)
+    )
 
 
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT / "docs")))
@@ -122,3 +149,43 @@ def test_an_issue_number_is_found(fault):
     """Mutation: an issue number written into a copy of a page is reported."""
     text = (ROOT / "docs" / "fem3d.md").read_text() + f"\n{fault}\n"
     assert len(issue_numbers(text)) == 1
+
+
+def test_no_comment_or_docstring_of_the_packages_carries_an_issue_number():
+    found = {
+        str(p.relative_to(ROOT)): hits for p in MODULES if (hits := issues_in_code(p.read_text()))
+    }
+    assert found == {}
+
+
+def test_the_packages_have_comments_and_docstrings_to_check():
+    """The check has something to check: every package's modules, their docstrings and
+    comments."""
+    assert {p.relative_to(ROOT).parts[0] for p in MODULES} == set(ROOTS)
+    read = [comments_and_docstrings(p.read_text()) for p in MODULES]
+    assert sum(map(len, read)) > 2000
+
+
+@pytest.mark.parametrize(
+    ("line", "fault"),
+    [
+        (0, '"""Tresca everywhere (issue 30)."""'),  # the module docstring, replaced
+        (1, "x = 1  # since issue 17"),  # a comment after code
+        (1, "# see #27"),  # a comment line
+        (2, 'def f():\n    """As (#33) asked."""'),  # a function's docstring
+        (2, 'class C:\n    """Issues 29 and 31."""'),  # a class's docstring
+    ],
+)
+def test_an_issue_number_in_code_is_found(line, fault):
+    """Mutation: an issue number written into a copy of a module's source, in place of its
+    docstring (line 0: reported at line 1) or `line` lines after it, is reported at its
+    line."""
+    source = (ROOT / "fem" / "mortar.py").read_text()
+    _, doc, rest = source.split('"""', 2)
+    end = doc.count("\n") + 1  # the docstring's last line
+    if line == 0:
+        mutated, expected = fault + rest, 1
+    else:
+        mutated, expected = f'"""{doc}"""\n{fault}{rest}', end + line
+    assert issues_in_code(source) == []
+    assert [n for n, _ in issues_in_code(mutated)] == [expected]

@@ -21,8 +21,9 @@ from __future__ import annotations
 # requested tolerance, 0.1·tol·‖b‖). Measured with the fine level of the paper scene (GMRES
 # iterations / Newton steps): level 3 cold, 0.1 → 78 / 9, 1e-3 → 97 / 7; level 4 nested,
 # 1e-4 → 98 / 4, 1e-8 → 71 / 2; with the warm start's stick/slip prediction at the transitions
-# (piezo_contact.warm_start) level 4 nested, 1e-8 → 13 + 6 its in 2 steps, 0 → 18 in 1 step,
-# 3.13 s → 3.04 s (each step also costs a K_SS factorisation, residuals and the line search)
+# (the 2D contact plug-in's warm_start) level 4 nested, 1e-8 → 13 + 6 its in 2 steps, 0 → 18
+# in 1 step, 3.13 s → 3.04 s (each step also costs a K_SS factorisation, residuals and the line
+# search)
 ETA_MAX = 0.1
 ETA_MAX_WARM = 0.0
 

@@ -280,7 +280,7 @@ def tied_start(
     of B u0 unchanged; None where B has no condensation (`Condensation`). From (u0, λ0) the
     first step then ties the same rows (y is the same on them): the active set λ0 predicts,
     with u0's fields. (A 3D friction disc gives `tied`: its λ0 on the bound has |y| = radius
-    to rounding, which J counts as inside, `contact3d.warm_start`.)
+    to rounding, which J counts as inside, the 3D contact plug-in's `warm_start`.)
 
     Why: a warm start u0 carried from another mesh (nested iteration) does not satisfy the
     fine level's tying conditions, and its residual there, added to λ0 in the first active set

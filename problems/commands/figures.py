@@ -5,7 +5,7 @@ otherwise)`: the scene value at `path` is set to each of `values`, or to the sce
 times each of `factors` (a scene without a number there: the `otherwise` sweep, e.g. Coulomb
 friction's coefficient F where Tresca friction has a bound g), and `draw(ax, model, sol)`
 (default `contract.draw_multiplier`) draws each panel.
-For piezo_contact on the paper scene this is Fig. 5.4: g = 1.5e8, 1e8, 0.6e8 Pa.
+For the contact plug-in on the paper scene this is Fig. 5.4: g = 1.5e8, 1e8, 0.6e8 Pa.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ of degree d in s (cells ~ s^d, boundary and contact nodes ~ s^(d-1), corners ~ 1
 fitted exactly through the levels 0 … d; in 2D a level multiplies the unknowns by about 4,
 in 3D by 8. Level 0 is built (its model tells d), and the levels 1 … d too, unless the
 plug-in declares `count(scene, levels) -> [(unknowns, nnz(A), n), …]` (and DIMENSION),
-which counts them on the level-0 meshes (contact3d: `fem.refined_counts`, exact formulas of
+which counts them on the level-0 meshes (3D contact: `fem.refined_counts`, exact formulas of
 uniform refinement in the coarse mesh's vertices, edges, faces and cells and the parts holding
 them; nothing is assembled and nothing finer than level 0 meshed: meshing level 3 to count it
 took 26 s of CPU for a level-0 block of 16 × 8 × 8 hexahedra, docs/benchmarks.md).
@@ -15,16 +15,16 @@ Peak memory. peak ≈ base + a · x^b per linear solver (MEMORY_MODEL), where x 
 quantity predicts that solver's measured peaks better. SuperLU: x = nnz(A), the stored entries
 of the matrix Newton factorises (like the unknowns, a polynomial of degree d in 2^level); on
 the unknowns instead the peaks scatter more (a scalar obstacle problem needs 2.4 kB per
-unknown, the piezoelectric scenes 5–14 kB). Refitted after issue 16 item 1 (one factor alive,
+unknown, the piezoelectric scenes 5–14 kB). Refitted after the memory changes (one factor alive,
 minimum-degree ordering, chunked assembly) on 9 runs of 6 shipped scenes, 25k … 386k
 unknowns: with b fixed at 1 (a free fit gives b = 0.89, which would extrapolate sublinearly
 while the factor's fill grows faster than N), a = 245.4 bytes per stored entry, within
 ×0.71 … ×1.20 of the measurements. PARDISO: x = the unknowns n + m (within ×0.54 … ×1.73),
-measured before issue 16 item 1 and not refitted (the changes only removed copies, so it
+measured before those changes and not refitted (the changes only removed copies, so it
 over- rather than underestimates). AMG (`--linear-solver amg`): x = nnz(A), b = 1, a = 64.77
 bytes per stored entry, fitted (least squares, base fixed) to the 16 peaks AMG_MEASURED (VmHWM
 of one child per run, `python benchmarks/user_mesh_solvers.py SCENES --levels L,... --solvers
-amg`, issue 34): the user-like gmsh meshes actuator_tri, actuator_quad, punch_graded and
+amg`): the user-like gmsh meshes actuator_tri, actuator_quad, punch_graded and
 cylinder_on_block at levels 2 and 3, rigid_foundation and paper_two_body at levels 2–5
 (punch_graded 3 from the earlier run of docs/benchmarks.md: it timed out under load in this
 one), 39k … 8.9M stored entries, 133 … 612 MiB: estimate / measured 0.796 … 1.076. Its upper
@@ -124,9 +124,9 @@ AMG_MARGIN = {2: 0.10, 3: 0.0}
 # down: refusals and caps use the estimate divided by it (the most a level can need as far
 # as the measurements go)
 WORST_RATIO = {"splu": 0.71, "pardiso": 0.54, "amg": 0.72}
-# 3D (contact3d): a sparse factor of a 3D mesh fills far more (nested dissection: memory
-# ~ n^(4/3) against n log n in 2D), so the 2D fit would underestimate a 3D level about 3.6×
-# (block3d level 3: 0.93 GB estimated, 3.33 GB measured). PARDISO fitted through block3d
+# 3D (contact scenes in 3D): a sparse factor of a 3D mesh fills far more (nested dissection:
+# memory ~ n^(4/3) against n log n in 2D), so the 2D fit would underestimate a 3D level about
+# 3.6× (block3d level 3: 0.93 GB estimated, 3.33 GB measured). PARDISO fitted through block3d
 # levels 2 and 3 (10,115 and 72,963 unknowns: 437 MB and 3.33 GB, `/usr/bin/time -f %M mixvi
 # solve block3d --level L`): b = 1.259 on the unknowns. SuperLU: one point (level 2, nnz(A) =
 # 845,152: 389 MB) with PARDISO's exponent on nnz(A) (level 3 with SuperLU was not run: its
@@ -271,7 +271,7 @@ class Sizes:
             dim = int(getattr(model, "dimension", 2))
             counts = [(model.vi.n + model.vi.m, model.vi.A.nnz, model.vi.n)]
             del model
-        else:  # nothing built (contact3d: levels 0 … d counted on the level-0 mesh)
+        else:  # nothing built (3D contact: levels 0 … d counted on the level-0 mesh)
             with threadpool_limits(1):  # small arrays: BLAS threads cost more than they give
                 counts = [tuple(int(v) for v in c) for c in count(scene, range(dim + 1))]
         for lev in range(len(counts), dim + 1):  # levels 1 … d built where the plug-in

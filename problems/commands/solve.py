@@ -37,7 +37,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
             True,
             "only with --accuracy NUMBER (adaptive refinement), e.g. --accuracy 1e-3",
         )
-    if isinstance(args.accuracy, float):  # adaptive refinement to that estimate (issue 32)
+    if isinstance(args.accuracy, float):  # adaptive refinement to that estimate
         from .adapt import run
 
         return run(args, load(args), args.accuracy)
@@ -299,7 +299,7 @@ def console_summary(summary: dict, levels: list[dict]) -> list[str]:
             f"{info['krylov_iterations']}, {len(fb)} direct fallback(s)"
             + "".join(f"; step {f['step']}: {f['reason']}" for f in fb)
         )
-    if "estimate" in summary:  # the plug-in's a posteriori estimate (issue 32)
+    if "estimate" in summary:  # the plug-in's a posteriori estimate
         est = summary["estimate"]
         out.append(f"  error estimate {est['total']:.3e} (relative {est['relative']:.2e})")
     t = summary["time_s"]

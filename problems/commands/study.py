@@ -483,7 +483,7 @@ def study_main(argv: list[str] | None = None) -> int:
     for s in solvers:
         if s not in can:
             raise SceneError("--solvers", s, f"one of {', '.join(can)} for this scene ({why})")
-    if args.workers is not None:  # 256 workers on 2 cores were killed for memory (issue 29)
+    if args.workers is not None:  # 256 workers on 2 cores were killed for memory
         per_worker = sizes.estimate(b).upper_bytes + DASK_WORKER_BYTES
         args.workers, note = worker_count(args.workers, per_worker, (b - a + 1) * len(solvers))
         if note:

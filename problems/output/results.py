@@ -5,7 +5,7 @@ tensors, von Mises — the files a ParaView or pandas user reads (the .pvd colle
 Conventions (docs/design.md, "Results"): lengths in m, multipliers (contact tractions) in Pa,
 forces per unit thickness in N/m. The multiplier λ = λ_n n + λ_t τ enters the equations as
 A u + Bᵀλ = f, so the traction the other side exerts on the slave body is −λ; for the
-bilateral contact of piezo_contact λ_n > 0 is compression, and for unilateral contact
+bilateral contact of the contact plug-in λ_n > 0 is compression, and for unilateral contact
 (signorini) the pressure is λ_n ≥ 0 as well. τ = (−n_y, n_x): n turned counterclockwise by 90°.
 """
 

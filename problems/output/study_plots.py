@@ -74,8 +74,8 @@ def plot_errors_vs_h(result: dict, path: Path) -> None:
 
 
 def plot_errors_vs_time(result: dict, path: Path) -> None:
-    """(b) the speed/accuracy front: the first error norm and the last (for piezo_contact u and
-    λ) against solve time, every level and tolerance, one marker per solver (lines join the
+    """(b) the speed/accuracy front: the first error norm and the last (for the contact plug-in u
+    and λ) against solve time, every level and tolerance, one marker per solver (lines join the
     levels of one tolerance)."""
     solvers = list(dict.fromkeys(r["solver"] for r in result["records"]))
     tols = sorted({r["tol"] for r in result["records"]}, reverse=True)

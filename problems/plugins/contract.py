@@ -43,7 +43,7 @@ declaration it needs with exit status 2, naming the declaration):
                                                the estimate builds no level at all
     solve(model, **options) -> Solution       `mixvi solve`, the Python API, the regression
                                                baselines: an outer iteration around model.vi
-                                               (e.g. piezo_contact's electrical contact fixed
+                                               (e.g. the contact plug-in's electrical fixed
                                                point); default vi_core.solve(model.vi, **options)
                                                (`solve_model`, re-exported by
                                                problems.pipeline: every command solves
@@ -321,7 +321,7 @@ def nested_start(plugin: Any, coarse: Any, coarse_sol: Solution, fine: Any) -> t
 
 def problem_at(plugin: Any, model: Any, sol: Solution) -> MixedVI:
     """The mixed VI that `sol` must solve: the plug-in's `problem_at(model, sol)` where its
-    `solve` iterates around the VI (piezo_contact's electrical contact: the VI with the
+    `solve` iterates around the VI (the contact plug-in's electrical contact: the VI with the
     conductances frozen at k(λ_n) of `sol`), else `model.vi`. Checkers judge an answer of
     `solve_model` against this problem, never against the VI the solver was last given."""
     if hasattr(plugin, "problem_at"):

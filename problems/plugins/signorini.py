@@ -1,21 +1,20 @@
 """Plug-in: a linear elastic body in unilateral (Signorini) contact with a rigid obstacle, with
-Tresca friction where it touches or Coulomb friction — a scene preset of piezo_contact.
+Tresca friction where it touches or Coulomb friction — a scene preset of the contact plug-in.
 
-A signorini scene ([body], [contact] boundary, gap, friction, g or F) is built as the
-piezo_contact scene with that one body and [contact] slave = "body.BOUNDARY", master = "rigid",
-law = "unilateral", ends = "keep" (`piezo_contact.build_model`): one implementation of the
-contact laws (docs/coulomb.md, "Contact laws of the plug-ins"). With ends = "keep" the dual
+A signorini scene ([body], [contact] boundary, gap, friction, g or F) is built as the 2D
+contact scene with that one body and [contact] slave = "body.BOUNDARY", master = "rigid", law =
+"unilateral", ends = "keep" (`problems.plugins.contact.plane.build_model`): one implementation
+of the contact laws (docs/coulomb.md, "Contact laws of the plug-ins"). With ends = "keep" the dual
 mortar rows of a rigid obstacle are the lumped rows D_i n_iᵀu_i, D_i τ_iᵀu_i (D_i = ∫φ_i), and
 vi_core's conditions read, node by node: u_n ≤ gap, pressure λ_n ≥ 0, λ_n (u_n − gap) = 0, and
 |λ_τ| ≤ g_i where the node touches (λ_τ = 0 where it is apart; Coulomb: |λ_τ| ≤ F_i λ_n), with
 λ_τ = ρ sign(u_τ) where u_τ ≠ 0. Lemma 4.2 becomes λᵀ(Bu − gap_B) = Σ_i ρ_i D_i |u_τ,i|.
 
-Until issue 17 Tresca acted on all of Γ3, touching or not; it now acts only where the body
-touches (UnilateralTresca, contact-only): a quasi-variational set, solved by ssn directly and
-by the fixed point on Tresca problems (vi_core.tresca_fixed_point), not by conic or homotopy
-directly.
+Tresca acts only where the body touches (UnilateralTresca, contact-only; it once acted on all of
+Γ3, touching or not): a quasi-variational set, solved by ssn directly and by the fixed point on
+Tresca problems (vi_core.tresca_fixed_point), not by conic or homotopy directly.
 
-Scene tables: [body] as one [bodies.NAME] table of piezo_contact (an elastic material);
+Scene tables: [body] as one [bodies.NAME] table of a contact scene (an elastic material);
 [contact] boundary, gap (field ≥ 0), friction ("tresca" with g, or "coulomb" with F);
 optional [solver].
 """
@@ -39,6 +38,7 @@ from vi_core import Solution
 from .contact import plane as pc
 from .contact import scene_model
 from .contact.bodies import BodySection
+from .contact.error_estimate import estimate as _estimate
 from .contact.law import FrictionLaw
 from .contract import ExtremeRow, Sweep, check_boundaries, expect
 from .transfer import nodal_reference_errors
@@ -49,7 +49,7 @@ Head = head(NAME, 1)
 
 
 class Model(pc.Model):
-    """The piezo_contact Model of the preset, with its Lemma 4.2 identity."""
+    """The contact plug-in's (2D) Model of the preset, with its Lemma 4.2 identity."""
 
     def complementarity(self, sol: Solution) -> float:
         """Relative defect of Lemma 4.2: λᵀ(Bu − gap) = Σ_i ρ_i D_i |u_τ,i|."""
@@ -93,11 +93,11 @@ class SignoriniScene(SceneModel):
 
 
 SCENE_MODEL = SignoriniScene
-BODY = "body"  # the body's name in the piezo_contact model
+BODY = "body"  # the body's name in the contact model
 
 
 def piezo_spec(spec: SignoriniScene) -> scene_model.ContactScene:
-    """The piezo_contact scene model of a validated signorini scene (module docstring); its
+    """The contact scene model (2D) of a validated signorini scene (module docstring); its
     expressions keep their signorini field paths for the errors of the build."""
     ct = spec.contact
     contact = scene_model.ContactSection.model_construct(
@@ -123,7 +123,7 @@ def piezo_spec(spec: SignoriniScene) -> scene_model.ContactScene:
 
 
 def build(scene: Scene, level: int | None = None) -> Model:
-    """Scene → the piezo_contact Model of its preset (module docstring)."""
+    """Scene → the contact plug-in's (2D) Model of its preset (module docstring)."""
     spec = scene.validated(SCENE_MODEL)
     try:
         return pc.build_model(piezo_spec(spec), scene, level, Model)
@@ -148,7 +148,7 @@ def fields(model: Model, sol: Solution) -> dict[str, np.ndarray]:
 
 
 def postprocess(model: Model, sol: Solution, outdir: Path) -> dict:
-    """piezo_contact's files (body.vtu, contact.csv/.vtu, results.pvd, friction plots), the
+    """The contact plug-in's files (body.vtu, contact.csv/.vtu, results.pvd, friction plots), the
     normal plot contact_normal.png and the summary entry "signorini" (nodes in contact)."""
     out = pc.postprocess(model, sol, outdir)
     st = contact_state(model, sol)
@@ -243,9 +243,6 @@ def extremes() -> list[ExtremeRow]:
             checks=(expect(_counts, in_contact=0),),
         ),
     ]
-
-
-from .contact.error_estimate import estimate as _estimate  # noqa: E402 (issue 32)
 
 
 def estimate(model: Model, sol: Solution) -> dict:

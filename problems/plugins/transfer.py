@@ -14,7 +14,7 @@ from fem.locate import OUTSIDE_TOL, evaluate, interpolate, locate
 from fem.mesh import Mesh
 from vi_core.ssn import tied_start
 
-# Nested iteration's start guess (the warm starts of piezo_contact and contact3d): a coarse
+# Nested iteration's start guess (the contact plug-in's warm starts, 2D and 3D): a coarse
 # node whose interpolated ratio |λ_t|/ρ reaches 1 − ON_BOUND starts on the friction bound. An
 # internal active-set guess, never a reported state (those follow from the answer by
 # vi_core.states): a wrong guess costs the fine level a Newton step, never a wrong answer.

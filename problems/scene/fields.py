@@ -293,9 +293,10 @@ Direction = Annotated[_numbers(3), AfterValidator(_nonzero)]  # a 3D direction, 
 
 
 def renamed(module: str, names: dict[str, str]) -> Callable[[str], Any]:
-    """The `__getattr__` of `module` that serves its names of before issue 30 for one release,
-    with a DeprecationWarning: `names` maps each to the name that replaced it, NAME in `module`
-    itself (a former 3D name: the one type of 2D and 3D) or MODULE.NAME elsewhere."""
+    """The `__getattr__` of `module` that serves its former names (of before the 2D and 3D
+    contact plug-ins became one) for one release, with a DeprecationWarning: `names` maps each
+    to the name that replaced it, NAME in `module` itself (a former 3D name: the one type of 2D
+    and 3D) or MODULE.NAME elsewhere."""
 
     def __getattr__(name: str) -> Any:
         if name not in names:

@@ -1,5 +1,5 @@
 """vi_core.petsc: the semismooth Newton loop of `vi_core.ssn` on PETSc, one problem on many MPI
-processes (issue 33, docs/distributed.md).
+processes (docs/distributed.md).
 
     from vi_core.petsc import available, solve_ssn_petsc
     with vi_core.engine.using(solve_ssn_petsc): vi_core.solve(vi, "ssn")

@@ -1,5 +1,5 @@
 """The PETSc layout of the condensed Newton matrix: which unknowns each rank's rows of the
-`mpiaij` matrix hold, balanced over the fields (issue 33).
+`mpiaij` matrix hold, balanced over the fields.
 
 The unknowns are numbered field by field (all displacement dofs, then the potential's) and the
 slave dofs of the condensation are the contact surface's, so PETSc's even split of 0..n−1 gave

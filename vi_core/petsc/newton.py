@@ -1,7 +1,7 @@
 """The semismooth Newton loop of `vi_core.ssn` with its condensed steps solved by PETSc over
 the ranks of COMM_WORLD.
 
-What is distributed and what is not (issue 33, docs/distributed.md):
+What is distributed and what is not (docs/distributed.md):
 
 * **Rows.** The model's row partition (PETSc's default layout: each rank a contiguous range
   [lo, hi) of the n primal unknowns, what it assembled of A) gives the equilibrium residual's

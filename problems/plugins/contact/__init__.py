@@ -1,5 +1,5 @@
 """Plug-in `contact`: elastic or piezoelectric bodies in bilateral Tresca or unilateral
-Tresca/Coulomb contact with dual mortar multipliers, in 2D and in 3D (issue 30).
+Tresca/Coulomb contact with dual mortar multipliers, in 2D and in 3D.
 
 One plug-in, one registered name, one scene language: `[scene] plugin = "contact"`, one scene
 model (`scene_model.ContactScene`) whose dimension is the bodies' geometries'

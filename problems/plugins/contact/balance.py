@@ -1,4 +1,4 @@
-"""Physical checks of a piezo_contact solution computed by code independent of the contact
+"""Physical checks of a contact solution computed by code independent of the contact
 assembly: the global force balance of every body and Lemma 4.2.
 
 Neither check reads the row weights ∫φ̃_k, the dual mass, the mortar matrices or the friction

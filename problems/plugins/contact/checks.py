@@ -205,7 +205,8 @@ def separation(model, sol) -> dict[str, float]:
     neighbours), by a quadrature and a merge rule of this module. Two bodies, and a step of a
     load path (its slip since the previous step): from the rows,
     d_k = (gap_k − (B u)_n,k)/W_k and the slip |(B u − origin)_t,k|/W_k (the discrete
-    conditions as assembled; test_contact3d_unilateral checks the geometry apart).
+    conditions as assembled; tests/problems/plugins/contact/test_solid_unilateral.py checks
+    the geometry apart).
 
     Reported, relative to the length scale max(|gap|, |u|) and the pressure scale max(λ_n):
     `penetration` max(−d_k, 0), `tension` max(−λ_n,k, 0), `open_pressure` max λ_n,k over the

@@ -53,7 +53,7 @@ def jumps(model: Any, sol: Solution, radius: np.ndarray) -> Jumps:
     a λ_n. It is the same quantity in any dimension (W_n,k a length in 2D, an area in 3D: the
     row sums of the normal class, `class_blocks`), and it ignores the weights of nodes without
     a normal row (clamped crosspoints, uncovered nodes), which no force can load as a λ_n. (3D
-    took the smallest nodal W of any trace node before issue 30, those nodes included.)"""
+    once took the smallest nodal W of any trace node, those nodes included.)"""
     c = model.contact
     x_full = model.full(sol.u)
     Bu = c.B_full @ x_full  # (m,)

@@ -1,7 +1,7 @@
 """Electrical contact conditions of a piezoelectric body on its contact boundary Γ3
 (docs/electrical_contact.md): the law, its boundary assembly and the outer fixed point.
 
-Three conditions, the `[contact.electrical]` table of a piezo_contact scene (`kind`):
+Three conditions, the `[contact.electrical]` table of a contact scene (`kind`):
 
 - "insulating": D·n = 0 on Γ3 — the natural condition of the weak form, nothing assembled.
 - "conductive": a foundation at potential φ_F through a contact conductance,

@@ -1,4 +1,4 @@
-"""A posteriori error estimator of the 2D contact plug-in (piezo_contact): per cell η_T.
+"""A posteriori error estimator of the contact plug-in in 2D (`plane`): per cell η_T.
 
 Residual-type, after Wohlmuth (dual mortar multipliers), Hild and Nicaise (residual
 estimators for Signorini/Tresca contact) and Weiss and Wohlmuth (frictional contact with
@@ -143,7 +143,7 @@ def _on_trace(contact: Any, mesh_nodes: np.ndarray, t: np.ndarray):
 def estimate(spec_model: Any, model: Any, sol: Solution) -> dict[str, Indicator]:
     """The plug-in declaration `estimate` (`problems.plugins.contract`): per body its mesh, η_T
     (`indicators`) and the energy ‖U_h‖² (`energy_map`); `spec_model` is the plug-in's
-    SCENE_MODEL (piezo_contact: `estimate = partial(error_estimate.estimate, SCENE_MODEL)`)."""
+    SCENE_MODEL (`plane`: `estimate = partial(error_estimate.estimate, SCENE_MODEL)`)."""
     eta = indicators(spec_model, model, sol)
     spec = _spec(spec_model, model)
     U = _nodal(model, sol)
@@ -181,7 +181,7 @@ def indicators(
     """dict body name → (n_cells,) η_T of the module docstring (mutation tests: `drop`, one of
     TERMS left out; `flip`, one of TERMS with the sign of λ_h or of the defect inside it
     reversed: σ_h n − λ_h, (G − |λ_t|)_+, (G|s_h| + λ_t s_h)_+, g − u_n). `spec_model`: the
-    plug-in's SCENE_MODEL, or a function scene → its piezo_contact scene model (signorini:
+    plug-in's SCENE_MODEL, or a function scene → its contact scene model (signorini:
     `signorini.piezo_spec`)."""
     for arg, value in (("drop", drop), ("flip", flip)):
         if value is not None and value not in TERMS:

@@ -195,7 +195,7 @@ def _scaled(f: float) -> tuple[str, ...]:
 
 
 def counts(model: Any, sol: vi_core.Solution) -> dict[str, int]:
-    """Touching, open, stick and slip nodes along Γ3 (`piezo_contact.contact_state`)."""
+    """Touching, open, stick and slip nodes along Γ3 (`contact_state.contact_state`)."""
     st = model.contact_state(sol)
     return {
         "touching": int(st["touch"].sum()),

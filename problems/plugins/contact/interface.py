@@ -56,7 +56,8 @@ class Coupling:
 
 
 class Gone:
-    """A class attribute for a name the class had before issue 30 and cannot have again:
+    """A class attribute for a name the class had before the 2D and 3D contact plug-ins
+    became one and cannot have again:
     reading it raises an AttributeError with `message` (what to use instead). A descriptor,
     not a `__getattr__`: Python also calls `__getattr__` when a property raises AttributeError
     inside, and the hint would hide that error."""

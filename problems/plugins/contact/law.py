@@ -1,5 +1,6 @@
-"""The contact law of a [contact] table, shared by piezo_contact (2D, signorini's preset) and
-contact3d (3D): the keys, their validation and the multiplier set they make.
+"""The contact law of a [contact] table, shared by the contact plug-in's fronts `plane` (2D,
+signorini's preset too) and `solid` (3D): the keys, their validation and the multiplier set
+they make.
 
     law = "bilateral"    the bodies stay in contact, λ_n of any sign (the paper's model)
           "unilateral"   λ_n ≥ 0, gap ≥ 0, λ_n·gap = 0

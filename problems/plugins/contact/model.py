@@ -1,4 +1,4 @@
-"""What the contact plug-ins piezo_contact (2D) and contact3d (3D) share besides the contact law
+"""What the contact plug-in's fronts plane (2D) and solid (3D) share besides the contact law
 (`contact_law`): the built model's bookkeeping (`BodiesModel`: the unknowns of each field, the
 full vector with its Dirichlet values), the assembly of the bodies into the MixedVI
 (`mixed_vi`), the nodal fields by name, the mesh size, and the check

@@ -1,5 +1,5 @@
-"""The bodies' operators assembled by owned rows under an engine's row partition (issue 33,
-docs/distributed.md): each process assembles a contiguous block of the full rows only
+"""The bodies' operators assembled by owned rows under an engine's row partition (the petsc
+engine, docs/distributed.md): each process assembles a contiguous block of the full rows only
 (`fem.assembly`'s owned-rows forms), and the blocks' Dirichlet-reduced parts are gathered in
 rank order, bit for bit the slices of the serial A_full (`sp.block_diag` of the bodies' whole
 operators), which is never formed."""

@@ -25,6 +25,7 @@ from . import extremes as contact_extremes
 from . import model as contact_model
 from .contact_state import contact_state as one_contact_state
 from .curve_contact import from_scene
+from .error_estimate import estimate as _estimate
 from .interface import Interface
 from .model import BodiesModel
 from .scene_model import ContactScene, count, update  # noqa: F401 (contract)
@@ -195,7 +196,5 @@ def draw(ax, model: Model, sol: Solution) -> str:
 
 incremental = contact_model.incremental
 
-
-from .error_estimate import estimate as _estimate  # noqa: E402 (issue 32)
 
 estimate = partial(_estimate, SCENE_MODEL)  # a posteriori error indicators per cell
