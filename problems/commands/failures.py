@@ -22,6 +22,8 @@ import resource
 import stat
 import sys
 import traceback
+from collections.abc import Callable
+from typing import Any
 
 from problems.output import signals
 
@@ -206,21 +208,13 @@ class GuardedStdout:
         except (AttributeError, OSError, ValueError):  # io.StringIO, a closed stream
             self._start = None
 
-    def _call(self, name: str, *args):
-        try:
-            return getattr(self._inner, name)(*args)
-        except BrokenPipeError:
-            raise
-        except OSError as err:
-            raise StdoutError(err.errno, err.strerror) from None
-
     def write(self, text: str) -> int:
         if self._start is not None:
             self.written += len(text.encode(self._inner.encoding, self._inner.errors))
-        return self._call("write", text)
+        return _on_stdout(self._inner.write, text)
 
     def flush(self) -> None:
-        self._call("flush")
+        _on_stdout(self._inner.flush)
         self.check_complete()
 
     def check_complete(self) -> None:
@@ -275,10 +269,15 @@ def flush_stdout() -> None:
     """Flush stdout inside the command (not at interpreter exit, where a failure would be
     printed as 'Exception ignored' with status 120): StdoutError if it fails."""
     out = sys.stdout
-    if out is None:
-        return
+    if out is not None:
+        _on_stdout(out.flush)
+
+
+def _on_stdout(call: Callable[..., Any], *args: Any) -> Any:
+    """`call(*args)`, a write or flush of stdout: a failure raises StdoutError (so the message
+    names stdout), a reader that left still BrokenPipeError (exit 141)."""
     try:
-        out.flush()
+        return call(*args)
     except BrokenPipeError:
         raise
     except OSError as err:
