@@ -4,8 +4,11 @@
 Under `mpiexec -n P mixvi solve SCENE --engine petsc` every rank reads and validates the scene and
 builds the model; the ranks agree on the checks of the input (`Engine.unanimous`: refused on one
 rank, e.g. by a memory limit of its own, it is refused on every rank, exit status 2, before the
-solve's first collective call: no rank waits on another); rank 0 alone opens the output folder and
-tells the others whether it could (`Engine.agree`): a refused folder ends every rank with status 2.
+solve's first collective call: no rank waits on another), then on the memory of each host: the
+ranks that share one are refused together when the sum of their upper estimates exceeds what it
+has available now (`Engine.on_host`, `resources.check_host`); rank 0 alone opens the output
+folder and tells the others whether it could (`Engine.agree`): a refused folder ends every rank
+with status 2.
 Then every rank runs the same solve (nested iteration included: each level's Newton loop is
 `vi_core.petsc.solve_ssn_petsc`); rank 0 writes the results as the serial command does (same files,
 same summary.json fields, plus solver_info["engine"] and ["ranks"]), the other ranks write nothing
