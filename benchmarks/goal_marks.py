@@ -194,7 +194,13 @@ def _coarse_part(fine: Any, P: Any, v_free: np.ndarray) -> np.ndarray:
 
 
 def midpoint_indicators(
-    model: Any, sol: Any, mesh: Any, fine: Any, P: Any, goals: tuple[str, ...] = GOALS
+    model: Any,
+    sol: Any,
+    mesh: Any,
+    fine: Any,
+    P: Any,
+    goals: tuple[str, ...] = GOALS,
+    patch: bool = False,
 ) -> dict[str, tuple[np.ndarray, float]]:
     """Per goal: ((n_cells,) η_T ≥ 0 of the module docstring, the signed estimate of
     J(λ_f) − J(λ_h), λ_f the fine solution with the touching set frozen: exact for it) on the
@@ -207,7 +213,7 @@ def midpoint_indicators(
     off[fine.contact.idx_n[~touch]] = True
     lam_off = np.where(off, lam_f, 0.0)  # λ_h there: the fine problem has 0
     return {
-        goal: _localised(fine, P, mesh, R_u, r, lam_off, z, mu)
+        goal: _localised(fine, P, mesh, R_u, r, lam_off, z, mu, patch)
         for goal, (z, mu) in zip(goals, duals, strict=True)
     }
 
@@ -221,12 +227,16 @@ def _localised(
     lam_off: np.ndarray,
     z: np.ndarray,
     mu: np.ndarray,
+    patch: bool = False,
 ) -> tuple[np.ndarray, float]:
     """((n_cells,) η_T, the signed estimate) of one dual solution (`midpoint_indicators`):
     J(λ_f) − J(λ_h) = (z − I_h z)ᵀ R_u + μᵀ r + (B z)ᵀ λ_off, the first term per fine node
     (the coarse edges' midpoints), the others per fine contact row (λ_off: λ_h on the rows
     off the frozen set, which the fine problem sets to 0); each node's |term| split evenly
-    between the coarse cells at its coarse edge or vertex."""
+    between the coarse cells at its coarse edge or vertex. With `patch` the signed terms are
+    first summed per coarse vertex a with the coarse hat ψ_a as weight (ψ_a = ½ at its
+    edges' midpoints: Pᵀ; a partition of unity, Richter and Wick 2015), |that| split evenly
+    between the cells at a: the terms' signs cancel within a vertex patch."""
     from fem.bisection import _edge_cells, _edges
 
     fs = fine.contact.slave
@@ -237,10 +247,10 @@ def _localised(
     rows = mu * r + (fine.vi.B @ z) * lam_off  # (m_f,)
     node_c = _nodal(fine, rows, n_f).sum(axis=1)  # (n_f_nodes,)
     estimate = float(node_u.sum() + node_c.sum())
+    if patch:
+        return spread(mesh, np.abs(P.T @ (node_u + node_c))), estimate  # the patch sums
     eta = np.abs(node_u) + np.abs(node_c)  # (n_f_nodes,)
-    out = np.zeros(mesh.n_cells)
-    valence = np.bincount(mesh.cells.ravel(), minlength=n)  # (n,)
-    np.add.at(out, np.arange(mesh.n_cells).repeat(3), (eta[:n] / valence)[mesh.cells.ravel()])
+    out = spread(mesh, eta[:n])
     # fine node n + k is the midpoint of the coarse edge k (all edges bisected, in code order)
     codes, cell_edges = _edges(mesh.cells, n)  # (n_edges,), (n_cells, 3)
     cells = _edge_cells(cell_edges, codes.size)  # (n_edges, 2), −1 for none
@@ -251,6 +261,23 @@ def _localised(
     return out, estimate
 
 
+def spread(mesh: Any, values: np.ndarray) -> np.ndarray:
+    """(n_cells,) per-vertex values (n_nodes,) split evenly between the cells at each vertex
+    (their sum kept)."""
+    valence = np.bincount(mesh.cells.ravel(), minlength=mesh.n_nodes)  # (n_nodes,)
+    out = np.zeros(mesh.n_cells)
+    share = np.divide(values, valence, out=np.zeros(mesh.n_nodes), where=valence > 0)
+    np.add.at(out, np.arange(mesh.n_cells).repeat(3), share[mesh.cells.ravel()])
+    return out
+
+
+def goal_set(eta: np.ndarray, theta: float) -> np.ndarray:
+    """(n_cells,) bool: the smallest set M with Σ_M η_T ≥ θ Σ η_T (ties completed), η_T ≥ 0
+    (n_cells,) shares of a goal's error itself, not of a square: `dorfler_mark` of η_T^½
+    (of η_T, on Hertz, it marked one or two cells at the zone's edge or centre)."""
+    return dorfler_mark(np.sqrt(eta), theta)
+
+
 def dwr(
     model: Any,
     sol: Any,
@@ -259,16 +286,18 @@ def dwr(
     theta: float = 0.5,
     energy: bool = True,
     rings: int = 3,
+    patch: bool = False,
 ) -> dict:
-    """ "dwr": per goal of `GOALS` the Dörfler set (θ) of `midpoint_indicators`, added to the
-    energy's marks (with `energy`; else instead of them), then `zone_marks.red_layers` with
-    `rings` rings."""
+    """ "dwr": per goal of `GOALS` the bulk set (`goal_set`, θ) of `midpoint_indicators`,
+    added to the energy's marks (with `energy`; else instead of them), then
+    `zone_marks.red_layers` with `rings` rings; `patch`: the indicators localised by vertex
+    patches (`_localised`)."""
     from benchmarks.zone_marks import red_layers
 
     name = model.contact.slave.name
     mesh = meshes[name]
     fine, _, P = fine_model(model, mesh)
     m = marked[name].copy() if energy else np.zeros(mesh.n_cells, dtype=bool)
-    for eta, _ in midpoint_indicators(model, sol, mesh, fine, P).values():
-        m |= dorfler_mark(eta, theta)
+    for eta, _ in midpoint_indicators(model, sol, mesh, fine, P, patch=patch).values():
+        m |= goal_set(eta, theta)
     return red_layers(model, sol, meshes, {name: m}, rings=int(rings))

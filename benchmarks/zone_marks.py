@@ -642,6 +642,7 @@ MARKS = {
     "near_box_nvb": near_box_nvb,
     "dwr": dwr,
     "dwr_goal": lambda *a: dwr(*a, energy=False),
+    "dwr_goal_pu": lambda *a: dwr(*a, energy=False, patch=True),
     "size_graded": size_graded,
     "box_dorfler30": lambda *a: box_dorfler(*a, theta=0.3),
     "box_dorfler60": box_dorfler,

@@ -104,13 +104,11 @@ def test_mutation_estimate_misses_the_frozen_fine_error(hertz, monkeypatch, muta
         monkeypatch.setattr(
             gm,
             "_localised",
-            lambda f, P_, m, R, r, off, z, mu: real(f, P_, m, R, r, 0 * off, z, mu),
+            lambda f, P_, m, R, r, off, *a: real(f, P_, m, R, r, 0 * off, *a),
         )
     elif mutant == "mu_sign":
         real = gm._localised
-        monkeypatch.setattr(
-            gm, "_localised", lambda f, P_, m, R, r, off, z, mu: real(f, P_, m, R, -r, off, z, mu)
-        )
+        monkeypatch.setattr(gm, "_localised", lambda f, P_, m, R, r, *a: real(f, P_, m, R, -r, *a))
     else:
         monkeypatch.setattr(gm, "_coarse_part", lambda fine, P, v: 0 * v)
     out = gm.midpoint_indicators(model, sol, mesh, fine, P)
@@ -208,3 +206,60 @@ def test_dwr_marks_keep_the_mesh_conforming_and_the_rings_red(hertz, name):
     touching = c.tr.nodes[zm._touch(model, sol)]
     assert red[np.isin(mesh.cells, touching).any(axis=1)].all()
     check_conforming(refine_marked(mesh, red)[0], mesh)
+
+
+def _bulk_holds(eta, m, theta) -> bool:
+    """Σ_M η ≥ θ Σ η, and not without M's smallest cell (M minimal up to ties)."""
+    need = theta * eta.sum()
+    smallest = np.flatnonzero(m)[np.argmin(eta[m])]
+    return eta[m].sum() >= need * (1 - 1e-12) and eta[m].sum() - eta[smallest] < need
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), theta=st.floats(0.1, 0.9))
+def test_goal_set_is_the_bulk_of_the_error_itself(seed, theta):
+    """Random indicators spread over decades (seeded): `goal_set` is the smallest set holding
+    θ of Σ η (not of Σ η²)."""
+    rng = np.random.default_rng(seed)
+    eta = 10.0 ** rng.uniform(-4, 0, size=200)
+    assert _bulk_holds(eta, gm.goal_set(eta, theta), theta)
+
+
+def test_mutation_squared_bulk_marks_too_few():
+    """`dorfler_mark` of η itself (the bulk of Σ η²) on a spread of indicators marks fewer
+    cells than θ of Σ η needs."""
+    eta = 10.0 ** np.random.default_rng(3).uniform(-4, 0, size=200)
+    m = zm.dorfler_mark(eta, 0.5)
+    assert eta[m].sum() < 0.5 * eta.sum()
+
+
+def _patch_bounds(model, sol, mesh, fine, P) -> bool:
+    """Per goal: |estimate| ≤ Σ η_T(patch) ≤ Σ η_T (the patch sums only cancel: ψ_a ≥ 0 a
+    partition of unity), with the same estimate."""
+    nodal = gm.midpoint_indicators(model, sol, mesh, fine, P)
+    patch = gm.midpoint_indicators(model, sol, mesh, fine, P, patch=True)
+    ok = True
+    for goal in gm.GOALS:
+        (eta, est), (eta_p, est_p) = nodal[goal], patch[goal]
+        ok &= est_p == pytest.approx(est, rel=1e-12)
+        ok &= abs(est) * (1 - 1e-12) <= eta_p.sum() <= eta.sum() * (1 + 1e-12)
+    return bool(ok)
+
+
+def test_patch_indicators_lie_between_the_estimate_and_the_nodal_ones(hertz):
+    """The vertex-patch localisation keeps the estimate, sums to at least its size and to at
+    most the per-node indicators' sum."""
+    assert _patch_bounds(*hertz)
+
+
+def test_mutation_spread_without_the_valence_breaks_the_patch_bounds(hertz, monkeypatch):
+    """Each vertex value given whole to every cell at it (not split by the valence): the
+    patch indicators sum past the nodal ones."""
+
+    def whole(mesh, values):
+        out = np.zeros(mesh.n_cells)
+        np.add.at(out, np.arange(mesh.n_cells).repeat(3), values[mesh.cells.ravel()])
+        return out
+
+    monkeypatch.setattr(gm, "spread", whole)
+    assert not _patch_bounds(*hertz)
