@@ -12,15 +12,22 @@ for straight segments)
 
     R_u = f − A u_h − Bᵀ λ_h   (n_f,),    r_λ = gap_R − B_R u_h   (n_R,)
 
-give J(λ_f) − J(λ_h) = zᵀ R_u + μᵀ r_λ for the fine solution with the same touching set
-(A symmetric). Since the coarse equations hold, P1 functions of the coarse mesh are in the
-kernel of R_u, so z may be replaced by z − I_h z (I_h the nodal interpolant on the coarse
-mesh, zero at its nodes): the error lives at the fine mesh's new nodes, the coarse edges'
-midpoints. The indicator of a midpoint is |Σ_c (z − I_h z)_c R_u,c| + |(μ − I_h μ) r_λ| (its
-displacement components, and its normal row where it touches), split between the coarse
-cells of its edge. No parameter is fitted: θ = 0.5 per goal as the energy loop's Dörfler
-marking, and the three red rings of `zone_marks.red_layers` that keep the nodal multiplier
-free of its odd-even mode.
+give J(λ_f) − J(λ_h) = zᵀ R_u + μᵀ r_λ + (B z)ᵀ λ_off for the fine solution λ_f with the
+same touching set (A symmetric; λ_off: λ_h on the fine rows off R, just past the zone's
+edge, which the fine problem sets to 0). The coarse equations hold, so R_u vanishes on the
+coarse P1 functions and z may be replaced by z − I_h z in its term (I_h the nodal
+interpolant on the coarse mesh, zero at its nodes): that term lives at the fine mesh's new
+nodes, the coarse edges' midpoints. The indicator of a fine node is |Σ_c (z − I_h z)_c
+R_u,c| + |its contact rows' terms|, split between the coarse cells of its coarse edge or
+vertex (`_localised`; with `patch` summed per coarse vertex patch first). No
+parameter is fitted: θ = 0.5 per goal (`goal_set`) as the energy loop's Dörfler marking, and
+the three red rings of `zone_marks.red_layers` that keep the nodal multiplier free of its
+odd-even mode. The markings: `zone_marks.MARKS` "dwr", "dwr_goal", "dwr_goal_pu" (`dwr`).
+
+    python benchmarks/goal_marks.py NAME CYCLES A_LIMIT P0_LIMIT
+
+prints the estimate on the Hertz scene's mesh after CYCLES − 1 refinements with marking NAME
+against the once refined mesh's own solution and the limit's relative errors (`effectivity`).
 """
 
 from __future__ import annotations
@@ -31,7 +38,7 @@ import numpy as np
 
 from fem.marking import dorfler_mark
 
-GOALS = ("p0", "a")  # `zone_marks.dual_solution`'s goals
+GOALS = ("p0", "a")  # the Hertz measures (`goal_vector`)
 
 
 def fine_model(model: Any, mesh: Any) -> tuple[Any, Any, Any]:
@@ -301,3 +308,58 @@ def dwr(
     for eta, _ in midpoint_indicators(model, sol, mesh, fine, P, patch=patch).values():
         m |= goal_set(eta, theta)
     return red_layers(model, sol, meshes, {name: m}, rings=int(rings))
+
+
+def effectivity(name: str, cycles: int, limit: tuple[float, float]) -> dict:
+    """The estimate on the Hertz scene's last mesh of `cycles` adaptive cycles with marking
+    `name` (of `zone_marks.MARKS`) against the once refined mesh's own solution and the
+    limit's (a, p0) relative errors `limit`: per goal {"estimate", "fine", "limit"}, each a
+    change of G from the cycle's solution, and "terms", Σ η_T (the terms' sizes before their
+    cancellation), plus "unknowns", "fine_unknowns"."""
+    from benchmarks import hertz
+    from benchmarks.zone_marks import MARKS
+    from problems import pipeline
+    from problems.pipeline import adaptive
+    from problems.plugins.contract import solve_model
+
+    loaded = pipeline.load("hertz")
+    options = {"method": "ssn", "tol": 1e-10}
+    model, sol, _, _ = adaptive.adapt(
+        loaded.plugin,
+        loaded.scene,
+        1e-9,
+        max_cycles=cycles,
+        solve_options=options,
+        contact_zone=MARKS[name],
+    )
+    mesh = model.contact.slave.mesh
+    fine, _, P = fine_model(model, mesh)
+    out = midpoint_indicators(model, sol, mesh, fine, P, patch=name.endswith("_pu"))
+    fsol = solve_model(loaded.plugin, fine, **options)
+    coarse, refined = (hertz.of_model(m, s, 1.0).errors for m, s in ((model, sol), (fine, fsol)))
+    row: dict = {"unknowns": int(sum(model.dofs.values())), "fine_unknowns": fine.vi.A.shape[0]}
+    for goal, lim in zip(("a", "p0"), limit, strict=True):
+        base = np.log1p(coarse[goal])
+        row[goal] = {
+            "estimate": out[goal][1],
+            "fine": float(np.log1p(refined[goal]) - base),
+            "limit": float(np.log1p(lim) - base),
+            "terms": float(out[goal][0].sum()),
+        }
+    return row
+
+
+if __name__ == "__main__":  # python benchmarks/goal_marks.py NAME CYCLES A_LIMIT P0_LIMIT
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    name, cycles, a_lim, p0_lim = sys.argv[1:5]
+    row = effectivity(name, int(cycles), (float(a_lim), float(p0_lim)))
+    print(f"{name}, {row['unknowns']} unknowns (fine {row['fine_unknowns']}):")
+    for goal in ("a", "p0"):
+        r = row[goal]
+        print(
+            f"  G_{goal}: estimate {r['estimate']:+.3e}, fine − coarse {r['fine']:+.3e}, "
+            f"limit − coarse {r['limit']:+.3e}; Σ η_T {r['terms']:.3e}"
+        )

@@ -51,7 +51,8 @@ and more}, for `adapt(..., contact_zone=MARKS[name])`:
 - "dwr" goal-oriented marks with the weights z − I_h z of the dual solution z on the once
   uniformly refined mesh (`goal_marks.dwr`): per goal (p0, a) the Dörfler set (θ = 0.5) of
   the fine residual of (u_h, λ_h) weighted by z − I_h z, added to the energy's, then
-  "layers3"; "dwr_goal" the same without the energy's marks;
+  "layers3"; "dwr_goal" the same without the energy's marks; "dwr_goal_pu" dwr_goal with
+  the indicators summed per vertex patch (signs cancelling) before their size is taken;
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of

@@ -263,3 +263,31 @@ def test_mutation_spread_without_the_valence_breaks_the_patch_bounds(hertz, monk
 
     monkeypatch.setattr(gm, "spread", whole)
     assert not _patch_bounds(*hertz)
+
+
+LIMIT_6MM = (-1.292e-3, 1.276e-3)  # the shipped load's limit (docs/benchmarks.md)
+
+
+def _estimates_track_the_fine_change(row) -> bool:
+    """Per goal: the estimate has the fine mesh's change's sign and lies within 2× of it."""
+    return all(
+        np.sign(row[g]["estimate"]) == np.sign(row[g]["fine"])
+        and 0.5 <= row[g]["estimate"] / row[g]["fine"] <= 2.0
+        for g in ("a", "p0")
+    )
+
+
+def test_effectivity_on_an_adapted_mesh():
+    """`effectivity` on dwr_goal_pu's cycle 4 (2,122 unknowns): each goal's estimate within
+    2× of the once refined mesh's own change (measured: 0.97 and 1.54), "limit" the change to
+    the given limit's errors."""
+    row = gm.effectivity("dwr_goal_pu", 5, LIMIT_6MM)
+    assert row["unknowns"] < row["fine_unknowns"] and _estimates_track_the_fine_change(row)
+    assert row["a"]["terms"] >= abs(row["a"]["estimate"])
+
+
+def test_mutation_negated_goal_vector_is_caught(monkeypatch):
+    """The goals' derivatives negated (j → −j): the estimates take the wrong sign."""
+    real = gm.goal_vector
+    monkeypatch.setattr(gm, "goal_vector", lambda *a: -real(*a))
+    assert not _estimates_track_the_fine_change(gm.effectivity("dwr_goal_pu", 5, LIMIT_6MM))
