@@ -49,6 +49,11 @@ and more}, for `adapt(..., contact_zone=MARKS[name])`:
   the zone's surface (`size_graded`, `zone_distance`); "box_dorfler30",
   "box_dorfler60" a second Dörfler set (θ = 0.3, 0.6) of the estimate restricted to
   near_box's box (`box_dorfler`);
+- "dwr" goal-oriented marks with the weights z − I_h z of the dual solution z on the once
+  uniformly refined mesh (`goal_marks.dwr`): per goal (p0, a) the Dörfler set (θ = 0.5) of
+  the fine residual of (u_h, λ_h) weighted by z − I_h z, added to the energy's, then
+  "layers3"; "dwr_goal" the same without the energy's marks; "dwr_goal_pu" dwr_goal with
+  the indicators summed per vertex patch (signs cancelling) before their size is taken;
 - NAME + "_graded", and "graded" (Dörfler's marks alone): NAME's marks closed so that
   neighbouring contact segments of the slave differ by at most a factor 2 after refinement
   (`graded_chain`, predicted from the marked cells' contact segments; the bisections of
@@ -63,6 +68,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.goal_marks import dwr
 from fem.marking import TIE, dorfler_mark
 from problems.pipeline.adaptive import touching_cells
 
@@ -636,6 +642,9 @@ MARKS = {
     "near_box_tight": lambda *a: near_box(*a, width=1.1, full=0.8, factor=2.5),
     "near_box_paced": NearBoxPaced(),
     "near_box_nvb": near_box_nvb,
+    "dwr": dwr,
+    "dwr_goal": lambda *a: dwr(*a, energy=False),
+    "dwr_goal_pu": lambda *a: dwr(*a, energy=False, patch=True),
     "size_graded": size_graded,
     "box_dorfler30": lambda *a: box_dorfler(*a, theta=0.3),
     "box_dorfler60": box_dorfler,
