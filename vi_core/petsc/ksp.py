@@ -29,11 +29,12 @@ Preconditioners of the iterative path (``linear_solver="amg"``), chosen by the P
 * ``gamg``: GAMG on the whole condensed matrix, each field's near-null vectors on its rows and a
   constant on each field without any.
 
-GAMG's Galerkin products P^T A P are formed by PETSc's "allatonce" algorithm (the global option
-``-matptap_via allatonce``, set unless PETSC_OPTIONS gives ``-matptap_via``: PETSc reads it
-without a prefix): the default "scalable" keeps intermediate products that were the rest of the
-set-up's peak (paper_two_body level 4 on 2 ranks: rank 1, 110 → 101 MiB alone; both changes: 106
-/ 110 → 85 / 94; docs/benchmarks.md, "Memory").
+On several ranks GAMG's Galerkin products P^T A P are formed by PETSc's "allatonce" algorithm
+(the global option ``-matptap_via allatonce``, set unless PETSC_OPTIONS gives ``-matptap_via``:
+PETSc reads it without a prefix; a sequential matrix, one rank, has no such algorithm): the
+default "scalable" keeps intermediate products that were the rest of the set-up's peak
+(paper_two_body level 4 on 2 ranks: rank 1, 110 → 101 MiB alone; both changes: 106 / 110 → 85
+/ 94; docs/benchmarks.md, "Memory").
 
 Any ``-mixvi_*`` option (``-mixvi_ksp_rtol``, ``-mixvi_fieldsplit_displacement_pc_gamg_*``, …)
 overrides the defaults set here.
@@ -216,8 +217,8 @@ class LinearSolve:
             ksp.setGMRESRestart(GMRES_RESTART)
             ksp.setInitialGuessNonzero(True)
             opts = PETSc.Options()
-            if not opts.hasName("matptap_via"):  # GAMG's P^T A P (module docstring)
-                opts.setValue("matptap_via", "allatonce")
+            if self.comm.getSize() > 1 and not opts.hasName("matptap_via"):
+                opts.setValue("matptap_via", "allatonce")  # GAMG's P^T A P (module docstring)
             if self.pc == "fieldsplit":
                 self._fieldsplit(pc, e)
             else:
