@@ -99,6 +99,8 @@ SOURCE_FAULTS = {
     ),
     # the displacement's index set of PCFIELDSPLIT left at block size 1 (`ksp.node_block`)
     "no_node_block": ("ksp", r"index\.setBlockSize\(self\._block_size\(name\)\)", "None"),
+    # the balanced layout's groups split by unknowns, not nodes (`layout.node_groups`)
+    "node_cut": ("layout", r"nodes=node_groups\(g, fields, per_node or \{\}\)", "nodes=None"),
     # each field's index set of PCFIELDSPLIT given the other fields' rows
     "fieldsplit_swapped": (
         "ksp",

@@ -23,10 +23,11 @@ pytestmark = pytest.mark.mpi
 CASES = [("coulomb_strip", 1), ("manufactured3d", 0), ("hertz", 0), ("paper_two_body", 0)]
 # PCFIELDSPLIT's blocks where the scene has two fields: (near-null space dimension, block size)
 # by field. The displacement's rigid-body modes (2D: 2 translations, 1 rotation; 3D: 3 and 3),
-# GAMG's nodes of d components where every rank's rows come in whole nodes (`ksp.node_block`):
-# manufactured3d's 27 displacement dofs are split 14 / 13 (a node cut: block size 1),
-# paper_two_body's even layout splits between nodes. None for the potential: GAMG's constant.
-BLOCKS = {"manufactured3d": [(6, 1), (0, 1)], "paper_two_body": [(3, 2), (0, 1)]}
+# GAMG's nodes of d components where every rank's rows come in whole nodes (`ksp.node_block`;
+# the balanced layout cuts no node, `layout.node_groups`: manufactured3d's 9 displacement nodes
+# split 5 / 4; paper_two_body's even layout splits between nodes). None for the potential:
+# GAMG's constant.
+BLOCKS = {"manufactured3d": [(6, 3), (0, 1)], "paper_two_body": [(3, 2), (0, 1)]}
 
 
 def wrong_blocks(got: dict[str, dict]) -> dict[str, list]:
@@ -59,8 +60,8 @@ def test_amg_path_on_2_ranks_equals_serial(tmp_path):
 
 
 # faults of mpi_scene._mutate the comparisons above must see (slow tier: one launch each);
-# fieldsplit_swapped and no_node_block leave the answers alone (a preconditioner's faults): the
-# blocks show them
+# fieldsplit_swapped, no_node_block and node_cut leave the answers alone (a preconditioner's
+# faults): the blocks show them
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "mutation",
@@ -71,6 +72,7 @@ def test_amg_path_on_2_ranks_equals_serial(tmp_path):
         "rhs_order",
         "fieldsplit_swapped",
         "no_node_block",
+        "node_cut",
     ],
 )
 def test_amg_mutation_is_seen(tmp_path, mutation):
