@@ -59,6 +59,18 @@ def test_amg_path_on_2_ranks_equals_serial(tmp_path):
     assert np.size(got["manufactured3d"]["blocks"])  # fieldsplit ran there
 
 
+def test_amg_path_on_1_rank_equals_serial(tmp_path):
+    """One rank: PETSc's matrices are sequential there, whose products have no "allatonce"
+    P^T A P (`LinearSolve` asks for it on several ranks only); paper_two_body, two fields, the
+    displacement's GAMG on nodes of 2."""
+    need_petsc()
+    case = [("paper_two_body", 0)]
+    got = launch(tmp_path, 1, case, linear="amg")
+    assert int(got["paper_two_body"]["fallbacks"]) == 0
+    assert not mismatches(got, 1, case)
+    assert got["paper_two_body"]["blocks"][:, 1:].tolist() == [[3, 2], [0, 1]]
+
+
 # faults of mpi_scene._mutate the comparisons above must see (slow tier: one launch each);
 # fieldsplit_swapped, no_node_block and node_cut leave the answers alone (a preconditioner's
 # faults): the blocks show them
