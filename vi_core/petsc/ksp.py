@@ -242,18 +242,20 @@ class LinearSolve:
                 # PCFIELDSPLIT hands a "nearnullspace" composed on the IS to its block
                 near = self._nullspace(name, partial(near_null_rows, e, name, self.layout))
                 index.compose("nearnullspace", near)
-                index.setBlockSize(self._block_size(name))  # the block's, GAMG's nodes
+                index.setBlockSize(self._block_size(name, rows.size))  # GAMG's nodes
             pc.setFieldSplitIS((name, index))
             self._index.append(index)
             for key, value in (("ksp_type", "preonly"), ("pc_type", "gamg")):
                 if not opts.hasName(f"mixvi_fieldsplit_{name}_{key}"):
                     opts.setValue(f"mixvi_fieldsplit_{name}_{key}", value)
 
-    def _block_size(self, name: str) -> int:
+    def _block_size(self, name: str, count: int) -> int:
         """Field `name`'s components per node where every rank's rows of it come in whole
-        nodes (`node_block`, the ranks' common answer; made once per field), else 1."""
+        nodes (`node_block`, the ranks' common answer; made once per field), else 1; 1 also
+        where a rank's index set of the field (`count` rows) is not its near-null rows."""
         if name not in self._block_sizes:
-            mine = node_block(near_null_rows(self.e, name, self.layout))
+            N = near_null_rows(self.e, name, self.layout)  # (k_f, d)
+            mine = node_block(N) if N.shape[0] == count else 1
             said = {c for c in self.red.comm.allgather(mine) if c}  # the ranks with rows
             self._block_sizes[name] = said.pop() if len(said) == 1 else 1
         return self._block_sizes[name]

@@ -98,7 +98,11 @@ SOURCE_FAULTS = {
         r"np.searchsorted(self.rows, \1)",
     ),
     # the displacement's index set of PCFIELDSPLIT left at block size 1 (`ksp.node_block`)
-    "no_node_block": ("ksp", r"index\.setBlockSize\(self\._block_size\(name\)\)", "None"),
+    "no_node_block": (
+        "ksp",
+        r"index\.setBlockSize\(self\._block_size\(name, rows\.size\)\)",
+        "None",
+    ),
     # the balanced layout's groups split by unknowns, not nodes (`layout.node_groups`)
     "node_cut": ("layout", r"nodes=node_groups\(g, fields, per_node or \{\}\)", "nodes=None"),
     # each field's index set of PCFIELDSPLIT given the other fields' rows
