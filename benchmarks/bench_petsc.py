@@ -42,9 +42,9 @@ def _peak_mb() -> float:
 
 
 def worker(scene: str, level: int, linear: str, engine_name: str, out: str) -> None:
-    """One solve; rank 0 writes {n, time_build, time_solve, cpu_s (the process's CPU time, per
-    rank), peak_mb per rank, baseline_mb,
-    build_mb per rank, the engine's set-up peak per rank, its preconditioner and iterations}."""
+    """One solve; rank 0 writes {n, time_build, time_solve, cpu_s (each rank's process CPU
+    time, imports included), peak_mb per rank, baseline_mb, build_mb per rank, the engine's
+    set-up peak per rank, its preconditioner and iterations}."""
     import problems.pipeline as pipeline
     from problems.commands import engine
 
