@@ -42,8 +42,9 @@ def _peak_mb() -> float:
 
 
 def worker(scene: str, level: int, linear: str, engine_name: str, out: str) -> None:
-    """One solve; rank 0 writes {n, time_build, time_solve, peak_mb per rank, baseline_mb,
-    build_mb per rank, the engine's set-up peak per rank, its preconditioner and iterations}."""
+    """One solve; rank 0 writes {n, time_build, time_solve, cpu_s (each rank's process CPU
+    time, imports included), peak_mb per rank, baseline_mb, build_mb per rank, the engine's
+    set-up peak per rank, its preconditioner and iterations}."""
     import problems.pipeline as pipeline
     from problems.commands import engine
 
@@ -60,6 +61,8 @@ def worker(scene: str, level: int, linear: str, engine_name: str, out: str) -> N
     peaks = eng.comm.allgather(_peak_mb()) if eng.comm is not None else [_peak_mb()]
     bases = eng.comm.allgather(base) if eng.comm is not None else [base]
     builds = eng.comm.allgather(built) if eng.comm is not None else [built]
+    cpu = time.process_time()
+    cpus = eng.comm.allgather(cpu) if eng.comm is not None else [cpu]
     if eng.rank == 0:
         sol = run.solution
         its = sol.info.get("krylov_iterations")
@@ -75,6 +78,7 @@ def worker(scene: str, level: int, linear: str, engine_name: str, out: str) -> N
             "newton_steps": sol.iterations,
             "time_build_s": t1 - t0,
             "time_solve_s": t2 - t1,
+            "cpu_s": cpus,
             "peak_mb": peaks,
             "baseline_mb": bases,
             "build_mb": builds,

@@ -20,9 +20,21 @@ Preconditioners of the iterative path (``linear_solver="amg"``), chosen by the P
 * ``fieldsplit``: PCFIELDSPLIT over the `MixedVI.fields` (displacement, potential), block
   lower triangular (multiplicative, the serial amg path's `vi_core.block_amg` order), one
   GAMG V-cycle per field (``preonly``); the displacement block gets its rigid-body modes
-  (`MixedVI.near_null`) as GAMG's near-null space, composed on the field's IS.
+  (`MixedVI.near_null`) as GAMG's near-null space, composed on the field's IS, and its
+  components per node as the IS's block size where every rank's rows of it come in whole nodes
+  (`node_block`): GAMG then aggregates nodes, its graph one entry per pair of nodes, not per
+  pair of dofs (the squared graph of the dofs was the largest transient of the set-up:
+  paper_two_body level 4 on 2 ranks, rank 0's peak 106 → 85 MiB above the imports with the
+  Galerkin products below, 49 → 45 GMRES iterations).
 * ``gamg``: GAMG on the whole condensed matrix, each field's near-null vectors on its rows and a
   constant on each field without any.
+
+On several ranks GAMG's Galerkin products P^T A P are formed by PETSc's "allatonce" algorithm
+(the global option ``-matptap_via allatonce``, set unless PETSC_OPTIONS gives ``-matptap_via``:
+PETSc reads it without a prefix; a sequential matrix, one rank, has no such algorithm): the
+default "scalable" keeps intermediate products that were the rest of the set-up's peak
+(paper_two_body level 4 on 2 ranks: rank 1, 110 → 101 MiB alone; both changes: 106 / 110 → 85
+/ 94; docs/benchmarks.md, "Memory").
 
 Any ``-mixvi_*`` option (``-mixvi_ksp_rtol``, ``-mixvi_fieldsplit_displacement_pc_gamg_*``, …)
 overrides the defaults set here.
@@ -76,6 +88,29 @@ def orthonormal(local: np.ndarray, red: Reductions) -> np.ndarray:
     return Q
 
 
+def node_block(N: np.ndarray) -> int:
+    """The components per node c of a field whose near-null vectors N ((k_f, d): a rank's rows
+    of the field, in the rows' order) begin with one translation per component (columns
+    nonzero on their component's rows only, each row nonzero in exactly one of them:
+    `MixedVI.near_null`'s rigid-body modes, scaled as the equilibrated VI scales them), where
+    the rows come in whole nodes (c consecutive rows, components 0, …, c − 1); 1 otherwise (no
+    such columns, a node cut, a component missing); 0 for no rows (no say: `LinearSolve` takes
+    the ranks' common answer)."""
+    k, d = N.shape
+    if k == 0:
+        return 0
+    T = N != 0.0  # (k, d) the rows each column is nonzero on
+    # c: the leading columns whose rows are disjoint, the translations (a component without
+    # rows on this rank counts: its column is empty)
+    c = 1
+    while c < d and not (T[:, c] & T[:, :c].any(axis=1)).any():
+        c += 1
+    if c < 2 or k % c or (T[:, :c].sum(axis=1) != 1).any():
+        return 1
+    comp = T[:, :c].argmax(axis=1).reshape(-1, c)  # (k / c, c) each row's component by node
+    return c if (comp == np.arange(c)).all() else 1
+
+
 def near_null_rows(e: Fields, name: str, layout: Layout) -> np.ndarray:
     """(k_f, d) the near-null vectors of field `name` on this rank's rows of the field
     (`layout`), in the rows' order; one constant column for a field without any."""
@@ -123,10 +158,12 @@ class LinearSolve:
         self.pc = self._amg_pc(e) if kind == "gamg" else None
         self._nullspaces: dict[str, Any] = {}  # by field ("" for the whole matrix), made once
         self._index: list[Any] = []  # fieldsplit's index sets, made once
+        self._block_sizes: dict[str, int] = {}  # by field (`_block_size`)
         self.ksp = self._ksp(kind, e)
         self.iterations = 0  # GMRES iterations so far
         self.steps: list[dict] = []  # per solve: its KSP, iterations, reason
-        self.blocks: dict[str, list[int]] = {}  # fieldsplit's: field → [rows, near-null dim]
+        # fieldsplit's: field → [rows, near-null dim, block size]
+        self.blocks: dict[str, list[int]] = {}
 
     def _amg_pc(self, e: Fields) -> str:
         """The preconditioner of the iterative path: ``-mixvi_amg_pc`` or the default."""
@@ -179,6 +216,9 @@ class LinearSolve:
             ksp.setTolerances(rtol=GMRES_RTOL, atol=0.0, max_it=GMRES_MAX_IT)
             ksp.setGMRESRestart(GMRES_RESTART)
             ksp.setInitialGuessNonzero(True)
+            opts = PETSc.Options()
+            if self.comm.getSize() > 1 and not opts.hasName("matptap_via"):
+                opts.setValue("matptap_via", "allatonce")  # GAMG's P^T A P (module docstring)
             if self.pc == "fieldsplit":
                 self._fieldsplit(pc, e)
             else:
@@ -202,20 +242,33 @@ class LinearSolve:
                 # PCFIELDSPLIT hands a "nearnullspace" composed on the IS to its block
                 near = self._nullspace(name, partial(near_null_rows, e, name, self.layout))
                 index.compose("nearnullspace", near)
+                index.setBlockSize(self._block_size(name, rows.size))  # GAMG's nodes
             pc.setFieldSplitIS((name, index))
             self._index.append(index)
             for key, value in (("ksp_type", "preonly"), ("pc_type", "gamg")):
                 if not opts.hasName(f"mixvi_fieldsplit_{name}_{key}"):
                     opts.setValue(f"mixvi_fieldsplit_{name}_{key}", value)
 
+    def _block_size(self, name: str, count: int) -> int:
+        """Field `name`'s components per node where every rank's rows of it come in whole
+        nodes (`node_block`, the ranks' common answer; made once per field), else 1; 1 also
+        where a rank's index set of the field (`count` rows) is not its near-null rows."""
+        if name not in self._block_sizes:
+            N = near_null_rows(self.e, name, self.layout)  # (k_f, d)
+            mine = node_block(N) if N.shape[0] == count else 1
+            said = {c for c in self.red.comm.allgather(mine) if c}  # the ranks with rows
+            self._block_sizes[name] = said.pop() if len(said) == 1 else 1
+        return self._block_sizes[name]
+
     def _record_blocks(self) -> None:
-        """Each field's block as PCFIELDSPLIT solves it: its rows and the dimension of the
-        near-null space its GAMG got (0: none, GAMG's constant)."""
+        """Each field's block as PCFIELDSPLIT solves it: its rows, the dimension of the
+        near-null space its GAMG got (0: none, GAMG's constant) and its block size."""
         subs = self.ksp.getPC().getFieldSplitSubKSP()
         for name, sub in zip(self.e.fields, subs, strict=True):
             A = sub.getOperators()[0]
             near = A.getNearNullSpace()
-            self.blocks[name] = [A.getSize()[0], len(near.getVecs()) if near.handle else 0]
+            dim = len(near.getVecs()) if near.handle else 0
+            self.blocks[name] = [A.getSize()[0], dim, A.getBlockSize()]
 
     def set_rows(self, rows: np.ndarray, pattern: sp.csr_matrix, values: np.ndarray) -> None:
         """Rows `rows` ((r,) PETSc rows, this rank's) of the matrix overwritten with `values`

@@ -55,13 +55,23 @@ class Layout:
     kind: str = "fields"
 
     @classmethod
-    def balanced(cls, groups: np.ndarray, rank: int, size: int, kind: str = "fields") -> Layout:
+    def balanced(
+        cls,
+        groups: np.ndarray,
+        rank: int,
+        size: int,
+        kind: str = "fields",
+        nodes: dict[int, int] | None = None,
+    ) -> Layout:
         """Each group of unknowns (groups (n,) int: the group of each unknown) split evenly
-        over the ranks in the unknowns' order (`split`); rank r holds chunk r of every group."""
+        over the ranks in the unknowns' order (`split`); rank r holds chunk r of every group.
+        nodes: group → its unknowns per node, for groups whose members come in whole nodes
+        (that many consecutive members each): their nodes are split evenly, no node cut."""
         owner = np.empty(groups.size, dtype=np.int64)  # (n,) the rank holding each unknown
         for g in np.unique(groups):
             members = np.flatnonzero(groups == g)  # (n_g,) increasing
-            bounds = split(members.size, size)  # (size + 1,)
+            c = (nodes or {}).get(int(g), 1)
+            bounds = c * split(members.size // c, size)  # (size + 1,)
             owner[members] = np.repeat(np.arange(size), np.diff(bounds))
         order = np.argsort(owner, kind="stable")  # (n,) by rank, each rank's in increasing order
         new = np.empty(groups.size, dtype=np.int64)
@@ -147,7 +157,13 @@ def _offsets(counts: np.ndarray) -> np.ndarray:
 
 
 def chosen(
-    n: int, fields: dict | None, slaves: np.ndarray, block: sp.csr_matrix, lo: int, comm: Any
+    n: int,
+    fields: dict | None,
+    slaves: np.ndarray,
+    block: sp.csr_matrix,
+    lo: int,
+    comm: Any,
+    per_node: dict[str, int] | None = None,
 ) -> Layout:
     """The layout of the linear solve: the fields balanced (`groups`) unless that puts more
     of the matrix's couplings across ranks than PETSc's even split of 0..n−1 (one group);
@@ -158,11 +174,14 @@ def chosen(
     couplings across ranks (block3d level 2 on 2 ranks: 129968 → 60911 entries each way);
     where they do not (paper_two_body: the displacements of two bodies, then the potential of
     one) it splits a body's displacement from its potential (67754 → 165767) and the even
-    split is kept."""
+    split is kept. per_node: field → its unknowns per node where the field's unknowns come in
+    whole nodes (`ksp.node_block`): the balanced layout then cuts no node of its groups
+    (`node_groups`), so each rank's rows of the field are whole nodes (GAMG's block size)."""
     rank, size = comm.Get_rank(), comm.Get_size()
+    g = groups(n, fields, slaves)
     candidates = [
         Layout.balanced(np.zeros(n, dtype=np.int64), rank, size, "even"),
-        Layout.balanced(groups(n, fields, slaves), rank, size),
+        Layout.balanced(g, rank, size, nodes=node_groups(g, fields, per_node or {})),
     ]
     off = [comm.allreduce(c.off_rank(block, lo)) for c in candidates]
     return candidates[int(np.argmin(off))]  # the even split on a tie (one rank)
@@ -175,4 +194,19 @@ def groups(n: int, fields: dict | None, slaves: np.ndarray) -> np.ndarray:
     for i, mask in enumerate((fields or {}).values()):
         out[mask] = 2 * i
     out[slaves] += 1
+    return out
+
+
+def node_groups(g: np.ndarray, fields: dict | None, per_node: dict[str, int]) -> dict[int, int]:
+    """group → unknowns per node (`Layout.balanced`'s nodes) for the groups of `g` ((n,),
+    `groups`) of each field of per_node (c > 1: the field's unknowns, in order, are whole nodes
+    of c) whose every node lies in one group (a node's c unknowns all slave, or none)."""
+    out = {}
+    for i, (name, mask) in enumerate((fields or {}).items()):
+        c = per_node.get(name, 1)
+        if c < 2:
+            continue
+        labels = g[mask].reshape(-1, c)  # (nodes, c) the group of each unknown of each node
+        if (labels == labels[:, :1]).all():
+            out |= {2 * i: c, 2 * i + 1: c}
     return out

@@ -62,7 +62,7 @@ from vi_core.ssn import (
     finish,
 )
 
-from .ksp import LinearSolve
+from .ksp import LinearSolve, node_block
 from .layout import Layout, chosen
 from .runtime import Reductions, RowPartition, peak_mb, petsc
 
@@ -255,7 +255,8 @@ def solve_ssn_petsc(
         )
     lo, hi = red.owned(e.n)
     A_S = _slave_rows(vi, cond.S, lo, hi, red)  # (m, n) the slave rows of A', on every rank
-    layout = chosen(e.n, e.fields, cond.S, _held_rows(vi, lo, hi), lo, red.comm)
+    per_node = {name: node_block(N) for name, N in (e.near_null or {}).items()}  # (replicated)
+    layout = chosen(e.n, e.fields, cond.S, _held_rows(vi, lo, hi), lo, red.comm, per_node)
     own = _Owned(vi, e, cond, A_S, lo, hi, layout)
     kind = "gamg" if linear_solver == "amg" else "mumps"
     solver = LinearSolve(PETSc, comm, kind, e, layout, own.first(red.comm))

@@ -69,7 +69,8 @@ def solved(scene: str, level: int, linear_solver: str, name: str = "serial") -> 
         "krylov": np.asarray(sol.info.get("krylov_iterations") or [], dtype=int),
         "fallbacks": len(sol.info.get("fallback") or []),
         "layout": str(sol.info.get("layout", "")),  # the linear solve's (`layout.chosen`)
-        # PCFIELDSPLIT's blocks, in the fields' order: rows, near-null space dimension
+        # PCFIELDSPLIT's blocks, in the fields' order: rows, near-null space dimension, block
+        # size
         "blocks": np.array(list((sol.info.get("fieldsplit") or {}).values()), dtype=int),
         "rank": eng.rank,
     }
@@ -96,6 +97,14 @@ SOURCE_FAULTS = {
         r"np\.argsort\(np\.searchsorted\(self\.rows, (.*)\)\)",
         r"np.searchsorted(self.rows, \1)",
     ),
+    # the displacement's index set of PCFIELDSPLIT left at block size 1 (`ksp.node_block`)
+    "no_node_block": (
+        "ksp",
+        r"index\.setBlockSize\(self\._block_size\(name, rows\.size\)\)",
+        "None",
+    ),
+    # the balanced layout's groups split by unknowns, not nodes (`layout.node_groups`)
+    "node_cut": ("layout", r"nodes=node_groups\(g, fields, per_node or \{\}\)", "nodes=None"),
     # each field's index set of PCFIELDSPLIT given the other fields' rows
     "fieldsplit_swapped": (
         "ksp",

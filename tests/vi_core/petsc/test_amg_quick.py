@@ -20,22 +20,28 @@ from .test_every_scene import launch, mismatches, serial
 
 pytestmark = pytest.mark.mpi
 
-CASES = [("coulomb_strip", 1), ("manufactured3d", 0), ("hertz", 0)]
-# PCFIELDSPLIT's blocks where the scene has two fields: near-null space dimensions by field
-# (3D rigid-body modes: 3 translations, 3 rotations; none for the potential: GAMG's constant)
-NEAR_NULL = {"manufactured3d": [6, 0]}
+CASES = [("coulomb_strip", 1), ("manufactured3d", 0), ("hertz", 0), ("paper_two_body", 0)]
+# PCFIELDSPLIT's blocks where the scene has two fields: (near-null space dimension, block size)
+# by field. The displacement's rigid-body modes (2D: 2 translations, 1 rotation; 3D: 3 and 3),
+# GAMG's nodes of d components where every rank's rows come in whole nodes (`ksp.node_block`;
+# the balanced layout cuts no node, `layout.node_groups`: manufactured3d's 9 displacement nodes
+# split 5 / 4; paper_two_body's even layout splits between nodes). None for the potential:
+# GAMG's constant.
+BLOCKS = {"manufactured3d": [(6, 3), (0, 1)], "paper_two_body": [(3, 2), (0, 1)]}
 
 
 def wrong_blocks(got: dict[str, dict]) -> dict[str, list]:
     """scene → its fieldsplit blocks, for each scene whose blocks (rows, near-null dimension
-    of each field's block as PETSc solved it) are not its fields' (the serial solution's
-    field sizes) with NEAR_NULL's dimensions."""
+    and block size of each field's block as PETSc solved it) are not its fields' (the serial
+    solution's field sizes) with BLOCKS's dimensions and block sizes."""
     out = {}
     for scene, level in CASES:
         ref = serial(scene, level)
         want = [
-            [ref[f"u:{f}"].size, d]
-            for f, d in zip(("displacement", "potential"), NEAR_NULL.get(scene, []), strict=False)
+            [ref[f"u:{f}"].size, d, bs]
+            for f, (d, bs) in zip(
+                ("displacement", "potential"), BLOCKS.get(scene, []), strict=False
+            )
         ]
         if got[scene]["blocks"].tolist() != want:
             out[scene] = got[scene]["blocks"].tolist()
@@ -53,11 +59,33 @@ def test_amg_path_on_2_ranks_equals_serial(tmp_path):
     assert np.size(got["manufactured3d"]["blocks"])  # fieldsplit ran there
 
 
+def test_amg_path_on_1_rank_equals_serial(tmp_path):
+    """One rank: PETSc's matrices are sequential there, whose products have no "allatonce"
+    P^T A P (`LinearSolve` asks for it on several ranks only); paper_two_body, two fields, the
+    displacement's GAMG on nodes of 2."""
+    need_petsc()
+    case = [("paper_two_body", 0)]
+    got = launch(tmp_path, 1, case, linear="amg")
+    assert int(got["paper_two_body"]["fallbacks"]) == 0
+    assert not mismatches(got, 1, case)
+    assert got["paper_two_body"]["blocks"][:, 1:].tolist() == [[3, 2], [0, 1]]
+
+
 # faults of mpi_scene._mutate the comparisons above must see (slow tier: one launch each);
-# fieldsplit_swapped leaves the answers alone (a preconditioner's fault): its blocks show it
+# fieldsplit_swapped, no_node_block and node_cut leave the answers alone (a preconditioner's
+# faults): the blocks show them
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "mutation", ["slave_sign", "local_gather", "no_accuracy", "rhs_order", "fieldsplit_swapped"]
+    "mutation",
+    [
+        "slave_sign",
+        "local_gather",
+        "no_accuracy",
+        "rhs_order",
+        "fieldsplit_swapped",
+        "no_node_block",
+        "node_cut",
+    ],
 )
 def test_amg_mutation_is_seen(tmp_path, mutation):
     need_petsc()

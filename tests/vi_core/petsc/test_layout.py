@@ -13,7 +13,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vi_core.petsc.layout import Layout, groups, split
+from vi_core.petsc.layout import Layout, groups, node_groups, split
 
 from ..processes import World, cuts_of, on_processes
 
@@ -49,6 +49,35 @@ def test_every_group_is_split_evenly_and_the_ranks_tile_the_unknowns(seed):
         assert np.array_equal(held, members)  # contiguous chunks, in rank order
         counts = [np.isin(members, lay.rows).sum() for lay in layouts]
         assert np.array_equal(counts, np.diff(split(members.size, size)))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_groups_of_whole_nodes_are_split_between_nodes(seed):
+    """A field whose unknowns come in nodes of c (`ksp.node_block`) with each node's unknowns
+    all slave or none (`node_groups`: its two groups then have nodes of c): every rank holds
+    whole nodes of each group, as evenly as nodes go (`split` of the nodes); a field with a
+    node half slave keeps the split by unknowns."""
+    rng = np.random.default_rng(seed)
+    c, nodes, size = int(rng.integers(2, 4)), int(rng.integers(1, 20)), int(rng.integers(1, 5))
+    n_p = int(rng.integers(0, 8))  # the potential's unknowns, one per node
+    n = c * nodes + n_p
+    fields = {"displacement": np.arange(n) < c * nodes}
+    if n_p:
+        fields["potential"] = ~fields["displacement"]
+    slave_nodes = rng.random(nodes) < 0.4  # (nodes,)
+    slaves = np.flatnonzero(np.repeat(slave_nodes, c))
+    g = groups(n, fields, slaves)
+    nodes_of = node_groups(g, fields, {"displacement": c})
+    assert nodes_of == {0: c, 1: c}
+    for label in (0, 1):
+        members = np.flatnonzero(g == label)  # (n_g,) whole nodes, in order
+        counts = [np.isin(members, Layout.balanced(g, r, size, nodes=nodes_of).rows).sum()
+                  for r in range(size)]  # fmt: skip
+        assert np.array_equal(counts, c * np.diff(split(members.size // c, size)))
+    if slaves.size:  # a node made part slave (its first unknown not)
+        assert node_groups(groups(n, fields, slaves[1:]), fields, {"displacement": c}) == {}
+    assert node_groups(g, fields, {"displacement": 1}) == {}
 
 
 @settings(max_examples=20, deadline=None)
