@@ -1,4 +1,4 @@
-"""Benchmark: the petsc engine (issue 33): time and per-rank peak memory against unknowns, on 1
+"""Benchmark: the petsc engine: time and per-rank peak memory against unknowns, on 1
 and 2 ranks, beside the serial solve (direct and amg) of the same scene and level.
 
     python benchmarks/bench_petsc.py [--cases paper_two_body:2,3,4 block3d:1] [--ranks 1,2]

@@ -96,13 +96,36 @@ def masked(err: BaseException) -> Interrupted | None:
     return Interrupted(_raised[0]) if _raised else None
 
 
+REDELIVER = 0.005  # s after a swallowed interruption before it is raised again
+
+
+def _unraisable(info: Any, default: Callable[[Any], None] = sys.__unraisablehook__) -> None:
+    """`sys.unraisablehook` while the handlers are installed: an `Interrupted` that Python
+    could not raise (the handler ran inside a weakref callback, a `__del__` or a GC callback,
+    whose exceptions Python prints as "Exception ignored in …" and drops: a Ctrl-C during the
+    start-up imports lands in importlib's module-lock callback) is delivered again a moment
+    later, once the main thread is back in ordinary code (`_thread.interrupt_main` from a
+    timer thread); anything else goes to Python's own hook."""
+    if not isinstance(info.exc_value, Interrupted):
+        default(info)
+        return
+    import _thread
+
+    signum = info.exc_value.signum
+    timer = threading.Timer(REDELIVER, _thread.interrupt_main, (signum,))
+    timer.daemon = True
+    timer.start()
+
+
 def install() -> None:
-    """Make SIGINT and SIGTERM raise `Interrupted` (main thread only; a no-op elsewhere)."""
+    """Make SIGINT and SIGTERM raise `Interrupted` (main thread only; a no-op elsewhere), also
+    where Python would drop the exception (`_unraisable`)."""
     global _installed
     if threading.current_thread() is not threading.main_thread():
         return
     for s in SIGNALS:
         signal.signal(s, _handler)
+    sys.unraisablehook = _unraisable
     _installed = True
     _raised.clear()  # a run's own signals only (the API and tests call main more than once)
 

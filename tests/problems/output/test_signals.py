@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
 import threading
 import time
 
@@ -19,10 +21,12 @@ from problems.output import signals
 def handlers():
     """The mixvi handlers installed for one test, the previous ones restored after it."""
     before = {s: signal.getsignal(s) for s in signals.SIGNALS}
+    hook = sys.unraisablehook
     signals.install()
     yield
     for s, h in before.items():
         signal.signal(s, h)
+    sys.unraisablehook = hook
     signals._installed = False
 
 
@@ -90,3 +94,44 @@ def test_a_worker_left_behind_writes_nothing_after_the_clean_up(handlers):
     cleaned_up.set()
     worker.join(10)
     assert not worker.is_alive() and writes == []
+
+
+IN_CALLBACK = """
+import signal, sys, time, weakref
+from problems.output import signals
+signals.install()
+if sys.argv[1] == "default-hook":  # the mutation: Python's own hook, which drops it
+    sys.unraisablehook = sys.__unraisablehook__
+class Box:
+    pass
+def callback(_):  # a weakref callback, like importlib's module-lock one
+    signal.raise_signal(signal.SIGINT)
+    for _ in range(1000):  # the handler runs here, where Python cannot raise its exception
+        pass
+box = Box()
+ref = weakref.ref(box, callback)
+try:
+    del box
+    for _ in range(300):
+        time.sleep(0.01)
+except signals.Interrupted as sig:
+    print("interrupted", sig.signum)
+    sys.exit(130)
+print("signal lost")
+"""
+
+
+@pytest.mark.parametrize("hook", ["mixvi", "default-hook"])
+def test_a_signal_inside_a_weakref_callback_is_not_lost(hook):
+    """A SIGINT whose handler runs inside a weakref callback (a Ctrl-C during the start-up
+    imports lands in importlib's module-lock callback), where Python prints "Exception
+    ignored" and drops the exception, is raised again in ordinary code: exit 130, no
+    traceback. With Python's own unraisable hook (the mutation) the signal is lost."""
+    run = subprocess.run(
+        [sys.executable, "-c", IN_CALLBACK, hook], capture_output=True, text=True, timeout=60
+    )
+    if hook == "mixvi":
+        assert run.returncode == 130 and "interrupted 2" in run.stdout, run
+        assert "Traceback" not in run.stderr and "Exception ignored" not in run.stderr, run
+    else:
+        assert "signal lost" in run.stdout and "Exception ignored" in run.stderr, run
