@@ -197,8 +197,9 @@ def _say(line: str) -> None:
 class GuardedStdout:
     """sys.stdout as the commands see it while `guarded_stdout` is active: a failed write or
     flush raises StdoutError (so the message names stdout, not "an output file"); a reader
-    that left still raises BrokenPipeError (exit 141). Everything else is the wrapped
-    stream's."""
+    that left still raises BrokenPipeError (exit 141); each finished line is flushed, as on a
+    terminal, so a pipe or a file has it before the run ends (or is killed). Everything else
+    is the wrapped stream's."""
 
     def __init__(self, inner):
         self._inner = inner
@@ -211,7 +212,10 @@ class GuardedStdout:
     def write(self, text: str) -> int:
         if self._start is not None:
             self.written += len(text.encode(self._inner.encoding, self._inner.errors))
-        return _on_stdout(self._inner.write, text)
+        n = _on_stdout(self._inner.write, text)
+        if "\n" in text:  # each finished line out now, also into a pipe or a file (mpiexec's,
+            _on_stdout(self._inner.flush)  # `| tee`): a run killed later keeps its lines
+        return n
 
     def flush(self) -> None:
         _on_stdout(self._inner.flush)

@@ -61,3 +61,35 @@ def test_the_start_floor_grows_with_blas_threads(monkeypatch):
     assert "4 BLAS thread(s)" in failures.start_refusal()
     monkeypatch.setattr(failures, "_limit", lambda which: None)
     assert failures.start_refusal() is None
+
+
+@pytest.mark.parametrize("flushed", [True, False])
+def test_each_finished_line_reaches_a_pipe_at_once(flushed, monkeypatch):
+    """stdout a pipe (mpiexec's, `| tee`): a finished line is in the pipe when `print`
+    returns, not when the run ends, so a run killed later (SIGKILL, the OOM killer) keeps its
+    progress lines; a line still being written waits for its end. Mutation (`flushed`
+    False): the wrapped stream's flush a no-op, as without the per-line flush, and the pipe
+    stays empty."""
+    import io
+    import os
+
+    r, w = os.pipe()
+    os.set_blocking(r, False)
+    inner = io.TextIOWrapper(open(w, "wb"), encoding="utf-8")  # block-buffered, as a pipe
+    try:
+        if not flushed:
+            monkeypatch.setattr(inner, "flush", lambda: None)
+        out = failures.GuardedStdout(inner)
+        out.write("level 0 ")
+        with pytest.raises(BlockingIOError):
+            os.read(r, 100)
+        out.write("done\n")
+        if flushed:
+            assert os.read(r, 100) == b"level 0 done\n"
+        else:
+            with pytest.raises(BlockingIOError):
+                os.read(r, 100)
+    finally:
+        monkeypatch.undo()
+        inner.close()
+        os.close(r)
