@@ -44,7 +44,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
     # on every rank of --engine petsc, refused on all of them if on one (the memory check
     # reads what is available when each rank looks); then the ranks on one host together
     loaded, level, estimate, option = eng.unanimous(_checked, args)
-    if not args.force:
+    if not args.force and eng.size > 1:  # one process: `_checked` has checked its memory
         eng.unanimous(_fits_host, eng, estimate, option)
     out = Path(args.out) if args.out else Path("out") / loaded.scene.name
     inputs = loaded.scene.files()
