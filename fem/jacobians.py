@@ -60,18 +60,28 @@ def jacobian_determinants(mesh: Mesh, pts: np.ndarray) -> np.ndarray:
     return _dets(ref.jacobians(mesh.points[mesh.cells], pts))  # (n_cells, n_pts)
 
 
+# the smallest cell extent, relative to the mesh's, that `check_cells` accepts: the coordinates'
+# rounding (~1e-16 of the mesh's extent) is then 1e-6 of the cell
+MIN_CELL = 1e-10
+
+
 def check_cells(mesh: Mesh, chunk: int = CHUNK) -> None:
     """Refuse inverted or degenerate cells: ValueError naming the first cell with det J ≤ 0
-    (relative to the mesh's extent^d), at the reference element's `check_points` (the
-    centroid of a simplex; the corners of a quadrilateral, where its affine det J is extreme;
-    the 8 corners and the 27 Gauss points of a hexahedron), `chunk` cells at a time."""
+    relative to its own size, 1e-14 × h^d (h the longest column of J), or smaller than
+    MIN_CELL × the mesh's extent (lost in the coordinates' rounding), at the reference
+    element's `check_points` (the centroid of a simplex; the corners of a quadrilateral, where
+    its affine det J is extreme; the 8 corners and the 27 Gauss points of a hexahedron),
+    `chunk` cells at a time. A well-shaped cell passes however small adaptive refinement makes
+    it, down to MIN_CELL."""
     ref = reference_element(mesh.cell_type)  # ValueError for points and cells of no cell type
     pts = ref.check_points  # (n_pts, d)
-    scale = np.ptp(mesh.points, axis=0).max() ** ref.dim if mesh.n_nodes else 1.0
+    extent = np.ptp(mesh.points, axis=0).max() if mesh.n_nodes else 1.0
     bad = []
     for lo in range(0, mesh.n_cells, chunk):
         J = ref.jacobians(mesh.points[mesh.cells[lo : lo + chunk]], pts)  # (k, n_pts, d, d)
-        bad.append(np.flatnonzero((_dets(J) <= 1e-14 * scale).any(axis=1)) + lo)  # (n_bad,)
+        h = np.sqrt(np.einsum("cpij,cpij->cpj", J, J).max(axis=(1, 2)))  # (k,) longest ∂x/∂ξ_j
+        flat = (_dets(J) <= 1e-14 * (h**ref.dim)[:, None]).any(axis=1)  # (k,)
+        bad.append(np.flatnonzero(flat | (h < MIN_CELL * extent)) + lo)  # (n_bad,)
     bad = np.concatenate(bad) if bad else np.zeros(0, int)
     if bad.size:
         raise ValueError(

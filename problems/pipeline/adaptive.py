@@ -108,12 +108,13 @@ def adapt(
 
     options = dict(solve_options or {})
     first = plugin.build(scene, 0)
-    meshes = {b.name: prepared(b.mesh) for b in first.bodies}
+    level0 = {b.name: b.mesh for b in first.bodies}  # where the scene's geometry was given
+    meshes = {n: prepared(m) for n, m in level0.items()}
     cycles: list[dict] = []
     prev = None
     for k in range(max_cycles):
         t0 = time.perf_counter()
-        with given_meshes(meshes):
+        with given_meshes(meshes, level0):
             model = plugin.build(scene, 0)
         start = nested_start(plugin, *prev, model)[0] if prev is not None else {}
         sol = solve_model(plugin, model, **options, **start)

@@ -109,3 +109,30 @@ def test_3d_determinants_from_row_0_are_the_cofactor_expansions_bit_for_bit():
     J = np.random.default_rng(3).normal(size=(200, 7, 3, 3))  # (cells, points, 3, 3)
     assert np.array_equal(_dets(J), determinants(J, cofactors(J)))
     assert np.allclose(_dets(J), np.linalg.det(J))
+
+
+@pytest.mark.parametrize("element", ["triangle", "quad"])
+@pytest.mark.parametrize("size", [1e-4, 1e-7, 1e-9])
+def test_a_small_well_shaped_cell_passes_a_flat_one_does_not(element, size):
+    """Adaptive refinement toward a singular point makes cells 2^-k of the mesh's extent
+    (`mixvi solve wavy_two_body --accuracy 0.02` reached ~1e-7 at cycle 18): a well-shaped cell
+    of any size down to MIN_CELL passes; one flattened to 1e-15 of its own size does not.
+    Against the mesh's extent^d (the rule before) the 1e-7 cell was refused."""
+    mesh = rectangle((0, 1), (0, 1), (2, 2), element)
+    corner = mesh.points.copy()
+    near = mesh.points[:, 0] + mesh.points[:, 1] < 1e-12  # the node at the origin
+    cells = mesh.cells[np.isin(mesh.cells, np.flatnonzero(near)).any(axis=1)]  # its cell(s)
+    small = np.isin(np.arange(len(corner)), cells) & ~near
+    corner[small] *= size / 0.5  # that cell shrunk to `size`, its shape kept
+    check_cells(Mesh(corner, mesh.cells))
+    flat = corner.copy()
+    flat[small & (corner[:, 1] > 0), 1] = size * 1e-15
+    with pytest.raises(ValueError, match="inverted or degenerate"):
+        check_cells(Mesh(flat, mesh.cells))
+
+
+def test_a_cell_below_min_cell_is_refused():
+    """Below MIN_CELL × the extent the coordinates' rounding is a part of the cell's shape."""
+    pts = np.array([[0.0, 0.0], [1e-11, 0.0], [0.0, 1e-11], [1.0, 1.0]])
+    with pytest.raises(ValueError, match="degenerate cell 0"):
+        check_cells(Mesh(pts, np.array([[0, 1, 2], [1, 3, 2]])))

@@ -260,15 +260,22 @@ def free_per_entity(
 # The meshes to build the bodies on instead of meshing their geometries (body name → Mesh):
 # the adaptive loop (`problems.pipeline.adaptive`) rebuilds a scene on its refined meshes
 GIVEN_MESHES: ContextVar[dict[str, Mesh] | None] = ContextVar("GIVEN_MESHES", default=None)
+# The level-0 meshes those were refined from (body name → Mesh): a locally refined mesh has no
+# uniform level, so `separation` measures its tolerance against these meshes' sizes
+LEVEL0_MESHES: ContextVar[dict[str, Mesh] | None] = ContextVar("LEVEL0_MESHES", default=None)
 
 
 @contextmanager
-def given_meshes(meshes: dict[str, Mesh]) -> Iterator[None]:
-    """Within it, `build_body` takes the body's mesh from `meshes` where it has one."""
+def given_meshes(meshes: dict[str, Mesh], level0: dict[str, Mesh] | None = None) -> Iterator[None]:
+    """Within it, `build_body` takes the body's mesh from `meshes` where it has one; `level0`
+    (body name → Mesh): the level-0 meshes they were refined from, where the scene's geometry
+    was given (`separation.separation` takes its mesh sizes from them)."""
     token = GIVEN_MESHES.set(meshes)
+    token0 = LEVEL0_MESHES.set(level0)
     try:
         yield
     finally:
+        LEVEL0_MESHES.reset(token0)
         GIVEN_MESHES.reset(token)
 
 

@@ -10,8 +10,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from fem.facets import Trace, trace
+from fem.mesh import Mesh
 from problems.errors import SceneError
 
+from .bodies import LEVEL0_MESHES
 from .interface import SURFACE_ORDER
 
 # Two-body interfaces must coincide in the reference configuration (bilateral contact has no
@@ -70,12 +72,42 @@ def to_master(
 def separation(slave: Any, part: str, tr: Trace, normals, master: Any, mpart: str, level: int):
     """(t, h): the signed distance (N,) of each slave node along its normal to the master
     polyline (NaN where it misses) and h (N,), the longer of the node's adjacent segments and
-    the master segment hit, times 2^level (the level-0 mesh size)."""
-    t, k, mtr = to_master(slave.mesh.points[tr.nodes], normals, master, mpart)
+    the master segment hit, times 2^level (the level-0 mesh size). Bodies built on locally
+    refined meshes (`bodies.given_meshes` with their level-0 meshes) have no uniform level: h is
+    then measured on the level-0 meshes (`level0_sizes`)."""
+    x = slave.mesh.points[tr.nodes]  # (N, 2)
+    t, k, mtr = to_master(x, normals, master, mpart)
+    level0 = LEVEL0_MESHES.get() or {}
+    if slave.name in level0 and master.name in level0:
+        return t, level0_sizes(x, normals, level0[slave.name], part, level0[master.name], mpart)
     h = mtr.measures[k]
     np.maximum.at(h, tr.facets[:, 0], tr.measures)
     np.maximum.at(h, tr.facets[:, 1], tr.measures)
     return t, h * 2.0**level  # the size at level 0, where the interface geometry was given
+
+
+def level0_sizes(
+    x: np.ndarray, n: np.ndarray, slave0: Mesh, part: str, master0: Mesh, mpart: str
+) -> np.ndarray:
+    """The level-0 mesh size (N,) at slave nodes x (N, 2) with normals n (N, 2) of a locally
+    refined slave body: the longer of the level-0 slave segment(s) nearest to the node (both of
+    a level-0 node) and the level-0 master segment its normal hits (`normal_distances`);
+    slave0, master0 the level-0 meshes."""
+    s0 = trace(slave0, part)
+    P = slave0.points[s0.nodes]  # (n_0, 2)
+    a, b = P[s0.facets[:, 0]], P[s0.facets[:, 1]]  # (M, 2) each
+    h = np.empty(len(x))
+    for lo in range(0, len(x), 256):
+        xi = x[lo : lo + 256, None, :]  # (c, 1, 2)
+        d = b - a  # (M, 2)
+        s = np.clip(((xi - a) * d).sum(-1) / (d * d).sum(-1), 0.0, 1.0)  # (c, M)
+        dist = np.linalg.norm(xi - (a + s[..., None] * d), axis=2)  # (c, M)
+        near = dist <= dist.min(axis=1, keepdims=True) + 1e-9 * s0.measures  # (c, M)
+        h[lo : lo + 256] = np.where(near, s0.measures, 0.0).max(axis=1)
+    m0 = trace(master0, mpart)
+    Q = master0.points[m0.nodes]  # (n_m0, 2)
+    _, k = normal_distances(x, n, Q[m0.facets[:, 0]], Q[m0.facets[:, 1]])
+    return np.maximum(h, m0.measures[k])
 
 
 def _refuse(slave, part, master, mpart, tr, t, h, bad, where) -> None:

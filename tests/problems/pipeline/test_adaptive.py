@@ -294,3 +294,21 @@ def test_contact_zone_may_ask_for_one_bisection(level):
     (m0, _), (m1, _) = plugin.solved
     for body in m1.bodies:
         assert body.mesh.n_nodes == expect[body.name] > m0.bodies[0].mesh.n_nodes
+
+
+@pytest.mark.slow
+def test_separately_meshed_curved_interface_refines_to_tiny_cells():
+    """wavy_two_body (two gmsh bodies along one curve, their polylines a sagitta apart) to a
+    relative estimate of 0.02, as `mixvi solve wavy_two_body --accuracy 0.02` runs it: once
+    stopped at cycle 6, its own refined interface refused as an "overlap" (the tolerance taken
+    from the refined segments), then at cycle 18, a cell 2^-18 of its level-0 size at a
+    singular corner refused as degenerate (against the mesh's extent). Now it runs to its cap."""
+    plugin = pc
+    scene = load_scene("wavy_two_body")
+    model, sol, cycles, why = adaptive.adapt(
+        plugin, scene, 0.02, max_unknowns=160_000, solve_options=OPTIONS
+    )
+    assert len(cycles) >= 20 and "could pass" in why and sol.converged
+    assert all(c["converged"] for c in cycles)
+    rel = [c["relative"] for c in cycles]
+    assert rel[-1] < 0.7 * rel[0]

@@ -6,16 +6,18 @@ import copy
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from fem import shapes
+from fem.bisection import prepared, refine_marked
 from fem.meshing import box, rectangle
 from problems.commands.main import main
 from problems.errors import SceneError
 from problems.plugins.contact import plane as pc
 from problems.plugins.contact import separation
 from problems.plugins.contact import solid as contact3d
+from problems.plugins.contact.bodies import given_meshes
 from problems.scene import load_scene
 from tests import optional
 from tests.gmsh_files import write_msh
@@ -266,11 +268,14 @@ def _strip_with_gap(tmp_path, gap: float, level: int = 0):
     """shear_strip_two_body from two gmsh files, the block (slave) lifted by `gap` (negative:
     pushed into the base); its level-0 mesh size on the interface is h0 = 0.4 (the base's
     segments, longer than the block's 0.25)."""
-    meshes = {
+    return pc.build(_imported("shear_strip_two_body", _strip_meshes(gap), tmp_path), level)
+
+
+def _strip_meshes(gap: float) -> dict:
+    return {
         "block": rectangle((0.0, 2.0), (gap, 1.0 + gap), (8, 4), "quad"),
         "base": rectangle((0.0, 2.0), (-0.5, 0.0), (5, 2), "quad"),
     }
-    return pc.build(_imported("shear_strip_two_body", meshes, tmp_path), level)
 
 
 @settings(max_examples=8)
@@ -289,6 +294,63 @@ def test_a_gap_or_overlap_beyond_the_tolerance_is_refused(tmp_path_factory, frac
     with pytest.raises(SceneError, match="overlap the slave" if sign < 0 else "stand apart") as e:
         _strip_with_gap(tmp_path_factory.mktemp("gap"), sign * frac * 0.4)
     assert e.value.key == "contact.master" and "× the local level-0 mesh size 0.4" in str(e.value)
+
+
+def _locally_refined(gap: float, depth: int):
+    """The strip's level-0 meshes (`_strip_meshes`), and both bodies' cells at the left half of
+    the interface refined `depth` times by newest-vertex bisection, as the adaptive loop refines:
+    those segments 2^depth shorter than at level 0."""
+    level0 = _strip_meshes(gap)
+    meshes = {}
+    for name, mesh in level0.items():
+        mesh = prepared(mesh)
+        for _ in range(depth):
+            x, y = mesh.points[mesh.cells].transpose(2, 0, 1)  # (n_cells, 3) each
+            on = np.abs(y - (gap if name == "block" else 0.0)) < 1e-9
+            mesh = refine_marked(mesh, (on & (x < 1.0)).any(axis=1))[0]
+        meshes[name] = mesh
+    return level0, meshes
+
+
+@settings(max_examples=6)
+@given(frac=st.floats(-0.095, 0.095), depth=st.integers(1, 3))
+@example(frac=-0.09, depth=3).via("an overlap the old measure refuses")
+@example(frac=0.09, depth=1).via("a gap the old measure refuses")
+def test_a_locally_refined_interface_is_measured_against_its_level_0_size(
+    tmp_path_factory, frac, depth
+):
+    """A gap or overlap accepted at level 0 stays accepted on a locally refined slave, whose
+    segments are 2^depth shorter (no uniform level says so): the tolerance is measured on the
+    level-0 meshes given with it. Without them (the adaptive loop before: `mixvi solve
+    wavy_two_body --accuracy 0.02` refused its own refined cycle 6 as "overlap"), an overlap of
+    more than 0.1 / 2^depth of h0 is refused."""
+    scene = _imported(
+        "shear_strip_two_body", _strip_meshes(frac * 0.4), tmp_path_factory.mktemp("g")
+    )
+    level0, meshes = _locally_refined(frac * 0.4, depth)
+    with given_meshes(meshes, level0):
+        model = pc.build(scene, 0)
+    h = model.contact.tr.measures
+    assert np.isclose(h.min(), 0.25 / 2**depth) and np.isclose(h.max(), 0.25)  # locally refined
+    sol = solve(model.vi, "ssn", tol=1e-10)
+    assert sol.converged and model.contact.patch_defect < 1e-12
+    if abs(frac) > 0.1 / 2**depth:  # the mutation: no level-0 meshes given
+        with given_meshes(meshes), pytest.raises(SceneError, match="overlap|stand apart"):
+            pc.build(scene, 0)
+
+
+@settings(max_examples=4)
+@given(frac=st.floats(0.105, 0.5), sign=st.sampled_from([-1.0, 1.0]), depth=st.integers(1, 3))
+def test_a_locally_refined_interface_beyond_the_tolerance_is_still_refused(
+    tmp_path_factory, frac, sign, depth
+):
+    scene = _imported(
+        "shear_strip_two_body", _strip_meshes(sign * frac * 0.4), tmp_path_factory.mktemp("g")
+    )
+    level0, meshes = _locally_refined(sign * frac * 0.4, depth)
+    with given_meshes(meshes, level0), pytest.raises(SceneError) as e:
+        pc.build(scene, 0)
+    assert "× the local level-0 mesh size 0.4" in str(e.value)
 
 
 # ------------------------------------------------------------------ 3D scenes on mesh files
