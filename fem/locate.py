@@ -26,6 +26,7 @@ OUTSIDE_TOL = 1e-9  # reference coordinates: a point farther out of a cell is ou
 CANDIDATES = {2: 8, 3: 12}
 NEWTON_STEPS = 8  # at most, inverting a cell map (an affine cell: one step)
 NEWTON_TOL = 1e-13  # reference coordinates: a Newton step this small has converged
+MISS_TOL = 1e-9  # physical: an unconverged inversion this far off its point is not taken
 
 
 def outside(cell_type: str, xi: np.ndarray) -> np.ndarray:
@@ -108,7 +109,8 @@ def _invert(mesh: Mesh, pts: np.ndarray, cand: np.ndarray) -> np.ndarray:
     """Reference coordinates (M, k, d) of the points `pts` (M, d) in each of their candidate
     cells `cand` (M, k): Newton on the cell map, CHUNK point-cell pairs at a time, each pair
     until its step is below NEWTON_TOL (an affine cell: one step; the pairs still iterating
-    are the only ones computed on). A pair whose Jacobian is singular gets inf (outside).
+    are the only ones computed on). A pair whose Jacobian is singular, or whose Newton stops
+    after NEWTON_STEPS with its image off the point (`_misses`), gets inf (outside).
 
     Why written out: the sums over the n_loc nodes as vector operations and the 2 × 2 solves by
     Cramer's rule, where einsum and a batched LAPACK solve took 70 % of the nested warm
@@ -137,9 +139,21 @@ def _invert(mesh: Mesh, pts: np.ndarray, cand: np.ndarray) -> np.ndarray:
             act = act[~(np.abs(dx).max(axis=1) < NEWTON_TOL)]  # NaN (singular) stops too
             if act.size == 0:
                 break
+        if act.size:  # not converged: a point off a non-affine cell may stall inside [-1, 1]^d
+            x[act[_misses(ref, X[act], x[act], p[act])]] = np.inf
         x[~np.isfinite(x).all(axis=1)] = np.inf
         xi[lo : lo + step] = x.reshape(-1, k, d)
     return xi
+
+
+def _misses(ref, X: np.ndarray, xi: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """(a,) bool: the reference points xi (a, d) of cells X (a, n_loc, d) whose image misses
+    p (a, d) by more than MISS_TOL × (the cell's extent + the point's distance from its
+    centroid): Newton stopped without converging, the point is not where xi says. (A point far
+    outside an affine cell converges to rounding relative to that distance, not to NEWTON_TOL.)"""
+    r = np.einsum("an,and->ad", ref.values(xi), X) - p  # (a, d)
+    scale = np.ptp(X, axis=1).max(axis=1) + np.linalg.norm(p - X.mean(axis=1), axis=1)  # (a,)
+    return ~(np.linalg.norm(r, axis=1) <= MISS_TOL * scale)
 
 
 def _solve_small(J: np.ndarray, r: np.ndarray) -> np.ndarray:
