@@ -36,6 +36,14 @@ def run(args: argparse.Namespace, loaded, accuracy: float) -> int:
             f"gives none for this scene"
             + (" (its estimate is 2D only)" if plugin.NAME == "contact" else ""),
         )
+    if loaded.spec.load_path is not None:
+        raise SceneError(
+            "--accuracy",
+            accuracy,
+            f"a preset name ({', '.join(ACCURACY)}) for scene {scene.name!r}: it has a "
+            f"[load_path], and adaptive refinement solves one static problem (the loads at "
+            f"t = 0), not the path",
+        )
     options = {"method": args.solver or "ssn", "tol": args.tol or 1e-10}
     _, available = resources.memory()
     # unknowns whose modelled peak fits in half the available memory (splu: the worst case)

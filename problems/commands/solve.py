@@ -40,6 +40,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
     if isinstance(args.accuracy, float):  # adaptive refinement to that estimate
         from .adapt import run
 
+        _adaptive_options(args)
         return run(args, load(args), args.accuracy)
     # on every rank of --engine petsc, refused on all of them if on one (the memory check
     # reads what is available when each rank looks); then the ranks on one host together
@@ -64,6 +65,27 @@ def cmd_solve(args: argparse.Namespace) -> int:
                 raise
             eng.agree(True)
             return eng.guarded(_solve, args, t0, loaded, level, folder)
+
+
+def _adaptive_options(args: argparse.Namespace) -> None:
+    """SceneError on an option that `--accuracy NUMBER` would otherwise ignore or fail on
+    only after its first cycle: --level, --cold and --write-levels (the adaptive loop starts
+    from the scene's level-0 mesh, chooses its own meshes and starts each from the previous
+    one), an unknown --solver."""
+    why = (
+        f"not with --accuracy {args.accuracy:g} (adaptive refinement starts from the scene's "
+        f"level-0 mesh and chooses its meshes itself); drop it, or give a preset --accuracy "
+        f"({', '.join(ACCURACY)})"
+    )
+    for option, value in (
+        ("--level", args.level),
+        ("--cold", args.cold or None),
+        ("--write-levels", args.write_levels or None),
+    ):
+        if value is not None:
+            raise SceneError(option, value, why)
+    if args.solver is not None and args.solver not in pipeline.SOLVERS:
+        raise SceneError("--solver", args.solver, "one of " + ", ".join(pipeline.SOLVERS))
 
 
 def _checked(
