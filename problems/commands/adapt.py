@@ -24,7 +24,8 @@ UNIFORM_LIMIT = 4  # uniform levels computed beside the adaptive run: 0 … at m
 
 def run(args: argparse.Namespace, loaded, accuracy: float) -> int:
     """The adaptive loop of `loaded` to `accuracy` into --out (default out/SCENE-adaptive);
-    exit 0 when the accuracy was reached, 1 when a limit stopped it first."""
+    exit 0 when the accuracy was reached, 1 when a limit or a solve that did not converge
+    stopped it first."""
     t0 = time.perf_counter()
     scene, plugin = loaded.scene, loaded.plugin
     if not hasattr(plugin, "estimate"):
@@ -80,7 +81,7 @@ def run(args: argparse.Namespace, loaded, accuracy: float) -> int:
             est = adaptive.estimate_output(plugin, model, sol, tmp)
             files = [*extras.get("files", []), *est.get("files", []), "convergence.png"]
             adaptive.convergence_plot(tmp / "convergence.png", cycles, uniform, scene.name)
-            reached = cycles[-1]["relative"] <= accuracy
+            reached = cycles[-1]["relative"] <= accuracy and cycles[-1]["converged"]
             summary = {
                 "scene": scene.name,
                 "plugin": plugin.NAME,

@@ -86,9 +86,11 @@ def adapt(
     meshes (`bodies.given_meshes`) → solve from the plug-in's nested start (`warm_start`: the
     previous solution carried to the new nodes), until the relative estimate is ≤ `accuracy`,
     the next mesh would pass `max_unknowns` (4× the current unknowns, the most one Dörfler step
-    can make), or `max_cycles`. Level 0 of the scene is the first mesh (quadrilaterals split
-    into triangles: `fem.bisection.prepared`). New boundary nodes of a curved part go onto its true
-    curve (the indicators' `curves`, from the geometry), others onto the coarse segments.
+    can make), `max_cycles`, or a cycle's solve does not converge (its estimate would measure
+    the solver's error too and mark for it). Level 0 of the scene is the first mesh
+    (quadrilaterals split into triangles: `fem.bisection.prepared`). New boundary nodes of a
+    curved part go onto its true curve (the indicators' `curves`, from the geometry: for a mesh
+    file a smooth curve through its level-0 polyline), others onto the coarse segments.
 
     `contact_zone`: True, each cycle also marks every cell of the slave body with a vertex at
     a touching contact node (`touching_cells`), so the multiplier's support is refined as a
@@ -133,6 +135,16 @@ def adapt(
         cycles.append(row)
         if on_cycle is not None:
             on_cycle(row)
+        if not sol.converged:  # its estimate measures the solver's error too: marks misled
+            return (
+                model,
+                sol,
+                cycles,
+                (
+                    f"cycle {k}: the solver did not converge (relative residual "
+                    f"{sol.residual:.2g} after {sol.iterations} iterations)"
+                ),
+            )
         if row["relative"] <= accuracy:
             return model, sol, cycles, f"relative estimate {row['relative']:.3g} ≤ {accuracy:g}"
         if 4 * row["unknowns"] > max_unknowns:
