@@ -89,8 +89,8 @@ def adapt(
     the last mesh within it), `max_cycles`, or a cycle's solve does not converge (its estimate
     would measure the solver's error too and mark for it). Level 0 of the scene is the first mesh
     (quadrilaterals split into triangles: `fem.bisection.prepared`). New boundary nodes of a
-    curved part go onto its true curve (the indicators' `curves`, from the geometry: for a mesh
-    file a smooth curve through its level-0 polyline), others onto the coarse segments.
+    curved part go onto its true curve (the indicators' `curves`, from the geometry), others
+    onto the coarse segments.
 
     `contact_zone`: True, each cycle also marks every cell of the slave body with a vertex at
     a touching contact node (`touching_cells`), so the multiplier's support is refined as a
