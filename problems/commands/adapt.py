@@ -37,6 +37,8 @@ def run(args: argparse.Namespace, loaded, accuracy: float) -> int:
             + (" (its estimate is 2D only)" if plugin.NAME == "contact" else ""),
         )
     options = {"method": args.solver or "ssn", "tol": args.tol or 1e-10}
+    options["linear_solver"] = args.linear_solver  # each cycle's:
+    # `adaptive.cycle_linear_solver`; the uniform levels beside it: a solve's own "auto"
     _, available = resources.memory()
     # unknowns whose modelled peak fits in half the available memory (splu: the worst case)
     cap = 200_000
