@@ -70,18 +70,24 @@ def touching_cells(
     return {c.slave.name: marked[c.slave.name] | zone}
 
 
-def cycle_linear_solver(asked: str, n: int) -> str:
-    """The linear solver of an adaptive cycle whose Newton matrices have n rows: the one
-    asked, except "auto": the direct backend (`linalg.resolve_backend`: PARDISO if installed,
-    else SuperLU) at every size, where a solve's "auto" takes amg above
-    `linear_solvers.AUTO_AMG_NNZ`. That threshold was placed on uniform levels; on the
-    loop's locally refined meshes, up to its cap (sized for SuperLU's memory,
-    `commands.adapt`), SuperLU was the fastest in every scene measured, amg 1.3–7× slower on
-    the cycles past the threshold (docs/benchmarks.md, "The adaptive loop's linear solver":
-    the factors fill little, and the nested start from the previous mesh takes up to 18
-    Newton steps, each solved to tolerance on the iterative path). A factorisation over its
-    budget still goes on to amg (`ssn.solve_ssn`)."""
-    return resolve_backend("auto", n) if asked == "auto" else asked
+MAX_UNKNOWNS = 200_000  # the loop's cap on unknowns (`adapt`'s default; `commands.adapt`'s
+# where memory allows), and the largest cycle whose "auto" is the direct path
+
+
+def cycle_linear_solver(asked: str, unknowns: int, n: int) -> str:
+    """The linear solver of an adaptive cycle with `unknowns` unknowns whose Newton matrices
+    have n rows: the one asked, except "auto" on a cycle of at most MAX_UNKNOWNS unknowns: the
+    direct backend (`linalg.resolve_backend`: PARDISO if installed, else SuperLU), where a
+    solve's own "auto" takes amg above `linear_solvers.AUTO_AMG_NNZ`. That threshold was
+    placed on uniform levels; on the loop's locally refined meshes up to its cap SuperLU was
+    the faster on every cycle past the threshold but one (amg 1.2–7× slower; the exception
+    1.6× faster), and past the cap amg took over (docs/benchmarks.md, "The adaptive loop's
+    linear solver": the factors fill little, and the nested start from the previous mesh
+    can take 10–18 Newton steps, each solved to tolerance on the iterative path). A
+    factorisation over its budget still goes on to amg (`ssn.solve_ssn`)."""
+    if asked == "auto" and unknowns <= MAX_UNKNOWNS:
+        return resolve_backend("auto", n)
+    return asked
 
 
 def adapt(
@@ -90,7 +96,7 @@ def adapt(
     accuracy: float,
     *,
     theta: float = 0.5,
-    max_unknowns: int = 200_000,
+    max_unknowns: int = MAX_UNKNOWNS,
     max_cycles: int = 30,
     solve_options: dict | None = None,
     on_cycle: Callable[[dict], None] | None = None,
@@ -135,12 +141,13 @@ def adapt(
         with given_meshes(meshes, level0):
             model = plugin.build(scene, 0)
         start = nested_start(plugin, *prev, model)[0] if prev is not None else {}
-        linear_solver = cycle_linear_solver(asked, model.vi.n)
+        unknowns = int(sum(model.dofs.values()))
+        linear_solver = cycle_linear_solver(asked, unknowns, model.vi.n)
         sol = solve_model(plugin, model, **options, linear_solver=linear_solver, **start)
         indicators = plugin.estimate(model, sol)
         row = {
             "cycle": k,
-            "unknowns": int(sum(model.dofs.values())),
+            "unknowns": unknowns,
             **totals(indicators),
             "contact_nodes": 0 if model.contact is None else int(model.contact.tr.size),
             "converged": bool(sol.converged),
