@@ -362,7 +362,7 @@ def test_adaptive_cycles_past_the_cap_take_a_solves_auto(monkeypatch):
 
 
 def test_cycle_linear_solver():
-    """"auto" up to MAX_UNKNOWNS: the direct backend; above: "auto"; another name: itself."""
+    """ "auto" up to MAX_UNKNOWNS: the direct backend; above: "auto"; another name: itself."""
     from vi_core.linalg import resolve_backend
 
     cap = adaptive.MAX_UNKNOWNS
