@@ -124,15 +124,18 @@ def _measure(scene: str, accuracy: float, solver: str, max_unknowns: int) -> dic
     contract.solve_model = timed  # `adapt` imports it at its call
     loaded = pipeline.load(scene)
     c0 = time.process_time()
-    _, _, rows, why = adaptive.adapt(
-        loaded.plugin,
-        loaded.scene,
-        accuracy,
-        max_unknowns=max_unknowns,
-        solve_options={"method": "ssn", "tol": 1e-10, "linear_solver": solver},
-    )
-    for c, r in zip(cycles, rows, strict=True):
-        c["relative"] = r["relative"]
+    try:
+        why = adaptive.adapt(
+            loaded.plugin,
+            loaded.scene,
+            accuracy,
+            max_unknowns=max_unknowns,
+            solve_options={"method": "ssn", "tol": 1e-10, "linear_solver": solver},
+            on_cycle=lambda row: cycles[-1].update(relative=row["relative"]),
+        )[3]
+    except SceneError as err:  # a later cycle's mesh refused: the cycles before it stand
+        why = f"SceneError: {err}".splitlines()[0][:300]
+        cycles[:] = [c for c in cycles if "relative" in c]
     return {"cycles": cycles, "stopped": why, "cpu_s": time.process_time() - c0}
 
 
