@@ -79,12 +79,12 @@ def cycle_linear_solver(asked: str, unknowns: int, n: int) -> str:
     have n rows: the one asked, except "auto" on a cycle of at most MAX_UNKNOWNS unknowns: the
     direct backend (`linalg.resolve_backend`: PARDISO if installed, else SuperLU), where a
     solve's own "auto" takes amg above `linear_solvers.AUTO_AMG_NNZ`. That threshold was
-    placed on uniform levels; on the loop's locally refined meshes up to its cap SuperLU was
-    the faster on every cycle past the threshold but one (amg 1.2–7× slower; the exception
-    1.6× faster), and past the cap amg took over (docs/benchmarks.md, "The adaptive loop's
-    linear solver": the factors fill little, and the nested start from the previous mesh
-    can take 10–18 Newton steps, each solved to tolerance on the iterative path). A
-    factorisation over its budget still goes on to amg (`ssn.solve_ssn`)."""
+    placed on uniform levels; on the loop's locally refined meshes, on every cycle up to the
+    cap where it takes amg, amg was 1.06–6.7× slower than SuperLU (their factors fill little,
+    and the nested start from the previous mesh can take 10–18 Newton steps, each solved to
+    tolerance on the iterative path); past the cap amg caught up (docs/benchmarks.md, "The
+    adaptive loop's linear solver"). A factorisation over its budget still goes on to amg
+    (`ssn.solve_ssn`)."""
     if asked == "auto" and unknowns <= MAX_UNKNOWNS:
         return resolve_backend("auto", n)
     return asked
