@@ -71,23 +71,22 @@ def touching_cells(
 
 
 MAX_UNKNOWNS = 200_000  # the loop's cap on unknowns (`adapt`'s default; `commands.adapt`'s
-# where memory allows), and the largest cycle whose "auto" is the direct path
+# where memory allows)
 
 
-def cycle_linear_solver(asked: str, unknowns: int, n: int) -> str:
-    """The linear solver of an adaptive cycle with `unknowns` unknowns whose Newton matrices
-    have n rows: the one asked, except "auto" on a cycle of at most MAX_UNKNOWNS unknowns: the
-    direct backend (`linalg.resolve_backend`: PARDISO if installed, else SuperLU), where a
-    solve's own "auto" takes amg above `linear_solvers.AUTO_AMG_NNZ`. That threshold was
-    placed on uniform levels; on the loop's locally refined meshes, on every cycle up to the
-    cap where it takes amg, amg was 1.06–6.7× slower than SuperLU (their factors fill little,
-    and the nested start from the previous mesh can take 10–18 Newton steps, each solved to
-    tolerance on the iterative path); past the cap amg caught up (docs/benchmarks.md, "The
-    adaptive loop's linear solver"). A factorisation over its budget still goes on to amg
+def cycle_linear_solver(asked: str, n: int) -> str:
+    """The linear solver of an adaptive cycle whose Newton matrices have n rows: the one
+    asked, except "auto": the direct backend (`linalg.resolve_backend`: PARDISO if installed,
+    else SuperLU) at every size, where a solve's own "auto" takes amg above
+    `linear_solvers.AUTO_AMG_NNZ`. That threshold was placed on uniform levels; on the loop's
+    locally refined meshes, on every cycle up to the cap where it takes amg, amg was
+    1.06–6.7× slower than SuperLU (their factors fill little, and the nested start from the
+    previous mesh can take 10–18 Newton steps, each solved to tolerance on the iterative
+    path); past the cap (to 250k unknowns, 4.6M entries) amg was at best 1.5× faster and on
+    actuator_tri did not finish where SuperLU took 65 s (docs/benchmarks.md, "The adaptive
+    loop's linear solver"). A factorisation over its budget still goes on to amg
     (`ssn.solve_ssn`)."""
-    if asked == "auto" and unknowns <= MAX_UNKNOWNS:
-        return resolve_backend("auto", n)
-    return asked
+    return resolve_backend("auto", n) if asked == "auto" else asked
 
 
 def adapt(
@@ -142,7 +141,7 @@ def adapt(
             model = plugin.build(scene, 0)
         start = nested_start(plugin, *prev, model)[0] if prev is not None else {}
         unknowns = int(sum(model.dofs.values()))
-        linear_solver = cycle_linear_solver(asked, unknowns, model.vi.n)
+        linear_solver = cycle_linear_solver(asked, model.vi.n)
         sol = solve_model(plugin, model, **options, linear_solver=linear_solver, **start)
         indicators = plugin.estimate(model, sol)
         row = {
