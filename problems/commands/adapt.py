@@ -46,9 +46,11 @@ def run(args: argparse.Namespace, loaded, accuracy: float) -> int:
             f"t = 0), not the path",
         )
     options = {"method": args.solver or "ssn", "tol": args.tol or 1e-10}
+    options["linear_solver"] = args.linear_solver  # each cycle's:
+    # `adaptive.cycle_linear_solver`; the uniform levels beside it: a solve's own "auto"
     _, available = resources.memory()
     # unknowns whose modelled peak fits in half the available memory (splu: the worst case)
-    cap = 200_000
+    cap = adaptive.MAX_UNKNOWNS
     while cap > 1000 and resources.peak_bytes(cap, 12 * cap, "splu") > 0.5 * available:
         cap //= 2
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}-adaptive"

@@ -15,6 +15,7 @@ from fem.io import write_vtu
 from problems.output import plots
 from problems.plugins.contract import Indicator
 from vi_core import Solution
+from vi_core.linalg import resolve_backend
 
 
 def totals(indicators: dict[str, Indicator]) -> dict[str, float]:
@@ -69,13 +70,32 @@ def touching_cells(
     return {c.slave.name: marked[c.slave.name] | zone}
 
 
+MAX_UNKNOWNS = 200_000  # the loop's cap on unknowns (`adapt`'s default; `commands.adapt`'s
+# where memory allows)
+
+
+def cycle_linear_solver(asked: str, n: int) -> str:
+    """The linear solver of an adaptive cycle whose Newton matrices have n rows: the one
+    asked, except "auto": the direct backend (`linalg.resolve_backend`: PARDISO if installed,
+    else SuperLU) at every size, where a solve's own "auto" takes amg above
+    `linear_solvers.AUTO_AMG_NNZ`. That threshold was placed on uniform levels; on the loop's
+    locally refined meshes, on every cycle up to the cap where it takes amg, amg was
+    1.06–6.7× slower than SuperLU (their factors fill little, and the nested start from the
+    previous mesh can take 10–18 Newton steps, each solved to tolerance on the iterative
+    path); past the cap (to 250k unknowns, 4.6M entries) amg was at best 1.5× faster and on
+    actuator_tri did not finish where SuperLU took 65 s (docs/benchmarks.md, "The adaptive
+    loop's linear solver"). A factorisation over its budget still goes on to amg
+    (`ssn.solve_ssn`)."""
+    return resolve_backend("auto", n) if asked == "auto" else asked
+
+
 def adapt(
     plugin: Any,
     scene: Any,
     accuracy: float,
     *,
     theta: float = 0.5,
-    max_unknowns: int = 200_000,
+    max_unknowns: int = MAX_UNKNOWNS,
     max_cycles: int = 30,
     solve_options: dict | None = None,
     on_cycle: Callable[[dict], None] | None = None,
@@ -90,7 +110,8 @@ def adapt(
     would measure the solver's error too and mark for it). Level 0 of the scene is the first mesh
     (quadrilaterals split into triangles: `fem.bisection.prepared`). New boundary nodes of a
     curved part go onto its true curve (the indicators' `curves`, from the geometry), others
-    onto the coarse segments.
+    onto the coarse segments. Each cycle is solved with `solve_options`, its linear solver by
+    `cycle_linear_solver`.
 
     `contact_zone`: True, each cycle also marks every cell of the slave body with a vertex at
     a touching contact node (`touching_cells`), so the multiplier's support is refined as a
@@ -101,14 +122,16 @@ def adapt(
     `benchmarks/zone_marks.py`), and may ask for cells bisected once (`ZoneMarks`).
 
     Returns (model, solution, cycles, why it stopped); each cycle is {"cycle", "unknowns",
-    "estimate", "relative", "contact_nodes", "time_s"} plus the plug-in's exact errors where
-    the scene has them ("errors"); `on_cycle(row)` is called after each."""
+    "total", "relative" (the estimate: `totals`), "contact_nodes", "converged",
+    "linear_solver" (the one that ran), "time_s"} plus the plug-in's exact errors where the
+    scene has them ("errors"); `on_cycle(row)` is called after each."""
     from fem.bisection import prepared, refine_marked
     from fem.marking import dorfler_mark
     from problems.plugins.contact.bodies import given_meshes
     from problems.plugins.contract import nested_start, solve_model
 
     options = dict(solve_options or {})
+    asked = options.pop("linear_solver", "auto")
     first = plugin.build(scene, 0)
     level0 = {b.name: b.mesh for b in first.bodies}  # where the scene's geometry was given
     meshes = {n: prepared(m) for n, m in level0.items()}
@@ -126,7 +149,8 @@ def adapt(
                 f"the next mesh has {unknowns} unknowns, more than {max_unknowns}",
             )
         start = nested_start(plugin, *prev, model)[0] if prev is not None else {}
-        sol = solve_model(plugin, model, **options, **start)
+        linear_solver = cycle_linear_solver(asked, model.vi.n)
+        sol = solve_model(plugin, model, **options, linear_solver=linear_solver, **start)
         indicators = plugin.estimate(model, sol)
         row = {
             "cycle": k,
@@ -134,6 +158,7 @@ def adapt(
             **totals(indicators),
             "contact_nodes": 0 if model.contact is None else int(model.contact.tr.size),
             "converged": bool(sol.converged),
+            "linear_solver": sol.info.get("linear_solver", linear_solver),
         }
         errors = plugin.exact_errors(model, sol) if hasattr(plugin, "exact_errors") else None
         if errors is not None:

@@ -354,3 +354,79 @@ def test_cli_an_unconverged_last_cycle_is_not_reached(tmp_path, monkeypatch, cap
     assert main(["solve", "manufactured", "--accuracy", "0.99", "--out", str(out)]) == 1
     s = json.loads((out / "summary.json").read_text())
     assert not s["reached"] and "did not converge" in s["stopped"]
+
+
+def _hertz_cycles(monkeypatch, **options):
+    """hertz's adaptive cycles to ≤ 2000 unknowns (cycles 0–2, nnz(A) 3k–6k) with the 2D
+    threshold of a solve's "auto" lowered to 1000 entries, so that "auto" there takes amg; and
+    what a solve's own "auto" runs on cycle 0's model."""
+    import problems.pipeline as pipeline
+    import vi_core
+    from vi_core import linear_solvers
+
+    monkeypatch.setitem(linear_solvers.AUTO_AMG_NNZ, 2, 1000)
+    loaded = pipeline.load("hertz")
+    model, _, cycles, _ = adaptive.adapt(
+        loaded.plugin,
+        loaded.scene,
+        1e-6,
+        max_unknowns=2000,
+        solve_options={**OPTIONS, **options},
+    )
+    first = loaded.plugin.build(loaded.scene, 0)
+    solo = vi_core.solve(first.vi, "ssn", tol=1e-10).info["linear_solver"]
+    return model, cycles, solo
+
+
+def test_adaptive_cycles_take_the_direct_path(monkeypatch):
+    """The adaptive loop's "auto" is the direct backend on every cycle, also where a solve's
+    "auto" takes amg (nnz(A) over AUTO_AMG_NNZ): on the loop's locally refined meshes SuperLU
+    was 1.3–7× faster (docs/benchmarks.md, "The adaptive loop's linear solver")."""
+    from vi_core.linalg import resolve_backend
+
+    model, cycles, solo = _hertz_cycles(monkeypatch)
+    assert solo == "amg"  # the rule decides here: a solve's own "auto" would take amg
+    assert len(cycles) == 3 and model.vi.A.nnz > 1000
+    assert [c["linear_solver"] for c in cycles] == [resolve_backend("auto", model.vi.n)] * 3
+
+
+def test_cycle_linear_solver():
+    """ "auto": the direct backend at every size; another name: itself."""
+    from vi_core.linalg import resolve_backend
+
+    for n in (100, 10 * adaptive.MAX_UNKNOWNS):
+        assert adaptive.cycle_linear_solver("auto", n) == resolve_backend("auto", n)
+    for name in ("amg", "splu"):
+        assert adaptive.cycle_linear_solver(name, 100) == name
+
+
+def test_adaptive_cycles_keep_a_linear_solver_asked(monkeypatch):
+    """linear_solver="amg" asked is what every cycle runs."""
+    _, cycles, _ = _hertz_cycles(monkeypatch, linear_solver="amg")
+    assert [c["linear_solver"] for c in cycles] == ["amg"] * 3
+
+
+@pytest.mark.parametrize("asked", [[], ["--linear-solver", "amg"]])
+def test_cli_linear_solver_reaches_the_loop(tmp_path, monkeypatch, asked):
+    """`mixvi solve --accuracy X --linear-solver S` passes S on to the loop (auto without it)."""
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def fake(*args, **kw):
+        seen.update(kw)
+        raise Stop
+
+    monkeypatch.setattr(adaptive, "adapt", fake)
+    out = tmp_path / "o"
+    assert main(["solve", "manufactured", "--accuracy", "0.7", *asked, "--out", str(out)]) != 0
+    assert seen["solve_options"]["linear_solver"] == (asked[-1] if asked else "auto")
+
+
+def test_mutation_auto_passed_on_takes_amg(monkeypatch):
+    """Mutation: with the loop passing "auto" on to each solve (the old behaviour), the same
+    cycles run amg, which test_adaptive_cycles_take_the_direct_path refuses."""
+    monkeypatch.setattr(adaptive, "cycle_linear_solver", lambda asked, *_: asked)
+    _, cycles, _ = _hertz_cycles(monkeypatch)
+    assert [c["linear_solver"] for c in cycles] == ["amg"] * 3
