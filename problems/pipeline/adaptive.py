@@ -105,9 +105,9 @@ def adapt(
     → newest-vertex bisection (`fem.bisection.refine_marked`) → rebuild the scene on the refined
     meshes (`bodies.given_meshes`) → solve from the plug-in's nested start (`warm_start`: the
     previous solution carried to the new nodes), until the relative estimate is ≤ `accuracy`,
-    the next mesh has more than `max_unknowns` (built and counted, not solved: the run returns
-    the last mesh within it), `max_cycles`, or a cycle's solve does not converge (its estimate
-    would measure the solver's error too and mark for it). Level 0 of the scene is the first mesh
+    the next mesh would pass `max_unknowns` (4× the current unknowns, the most one Dörfler step
+    can make), `max_cycles`, or a cycle's solve does not converge (its estimate would measure
+    the solver's error too and mark for it). Level 0 of the scene is the first mesh
     (quadrilaterals split into triangles: `fem.bisection.prepared`). New boundary nodes of a
     curved part go onto its true curve (the indicators' `curves`, from the geometry), others
     onto the coarse segments. Each cycle is solved with `solve_options`, its linear solver by
@@ -141,20 +141,13 @@ def adapt(
         t0 = time.perf_counter()
         with given_meshes(meshes, level0):
             model = plugin.build(scene, 0)
-        unknowns = int(sum(model.dofs.values()))
-        if prev is not None and unknowns > max_unknowns:  # built, not solved: prev stands
-            return (
-                *prev,
-                cycles,
-                f"the next mesh has {unknowns} unknowns, more than {max_unknowns}",
-            )
         start = nested_start(plugin, *prev, model)[0] if prev is not None else {}
         linear_solver = cycle_linear_solver(asked, model.vi.n)
         sol = solve_model(plugin, model, **options, linear_solver=linear_solver, **start)
         indicators = plugin.estimate(model, sol)
         row = {
             "cycle": k,
-            "unknowns": unknowns,
+            "unknowns": int(sum(model.dofs.values())),
             **totals(indicators),
             "contact_nodes": 0 if model.contact is None else int(model.contact.tr.size),
             "converged": bool(sol.converged),
@@ -179,6 +172,8 @@ def adapt(
             )
         if row["relative"] <= accuracy:
             return model, sol, cycles, f"relative estimate {row['relative']:.3g} ≤ {accuracy:g}"
+        if 4 * row["unknowns"] > max_unknowns:
+            return model, sol, cycles, f"the next mesh could pass {max_unknowns} unknowns"
         names = list(indicators)
         eta = np.concatenate([indicators[n].eta for n in names])  # (Σ n_cells,)
         marked = dict(
