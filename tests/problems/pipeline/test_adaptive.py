@@ -204,10 +204,10 @@ def test_contact_zone_bisects_every_touching_segment(zone):
     assert split == zone, (k, int(((x1 >= lo) & (x1 <= hi)).sum()))
 
 
-@pytest.mark.parametrize("zone", [[], ["--contact-zone"]])
-def test_cli_contact_zone_reaches_the_loop(tmp_path, monkeypatch, zone):
-    """`--contact-zone` is passed on as adapt(..., contact_zone=True), and only with it (the
-    loop itself is replaced: this checks the wiring, test_cli_accuracy_number the run)."""
+def _loop_arguments(tmp_path, monkeypatch, options: list[str]) -> dict:
+    """The keyword arguments `mixvi solve manufactured --accuracy 0.7 OPTIONS` gives the
+    adaptive loop (the loop itself replaced by one that stops at once: this checks the wiring,
+    test_cli_accuracy_number the run); the interrupted run leaves nothing behind."""
     seen = {}
 
     class Stop(Exception):
@@ -219,9 +219,15 @@ def test_cli_contact_zone_reaches_the_loop(tmp_path, monkeypatch, zone):
 
     monkeypatch.setattr(adaptive, "adapt", fake)
     out = tmp_path / "o"
-    assert main(["solve", "manufactured", "--accuracy", "0.7", *zone, "--out", str(out)]) != 0
-    assert seen["contact_zone"] is bool(zone)
-    assert not out.exists()  # the interrupted run left nothing behind
+    assert main(["solve", "manufactured", "--accuracy", "0.7", *options, "--out", str(out)]) != 0
+    assert not out.exists()
+    return seen
+
+
+@pytest.mark.parametrize("zone", [[], ["--contact-zone"]])
+def test_cli_contact_zone_reaches_the_loop(tmp_path, monkeypatch, zone):
+    """`--contact-zone` is passed on as adapt(..., contact_zone=True), and only with it."""
+    assert _loop_arguments(tmp_path, monkeypatch, zone)["contact_zone"] is bool(zone)
 
 
 @pytest.mark.parametrize("hook", [True, False])
@@ -402,18 +408,7 @@ def test_adaptive_cycles_keep_a_linear_solver_asked(monkeypatch):
 @pytest.mark.parametrize("asked", [[], ["--linear-solver", "amg"]])
 def test_cli_linear_solver_reaches_the_loop(tmp_path, monkeypatch, asked):
     """`mixvi solve --accuracy X --linear-solver S` passes S on to the loop (auto without it)."""
-    seen = {}
-
-    class Stop(Exception):
-        pass
-
-    def fake(*args, **kw):
-        seen.update(kw)
-        raise Stop
-
-    monkeypatch.setattr(adaptive, "adapt", fake)
-    out = tmp_path / "o"
-    assert main(["solve", "manufactured", "--accuracy", "0.7", *asked, "--out", str(out)]) != 0
+    seen = _loop_arguments(tmp_path, monkeypatch, asked)
     assert seen["solve_options"]["linear_solver"] == (asked[-1] if asked else "auto")
 
 
