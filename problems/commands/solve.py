@@ -84,8 +84,13 @@ def _adaptive_options(args: argparse.Namespace) -> None:
     ):
         if value is not None:
             raise SceneError(option, value, why)
-    if args.solver is not None and args.solver not in pipeline.SOLVERS:
-        raise SceneError("--solver", args.solver, "one of " + ", ".join(pipeline.SOLVERS))
+    _check_solver(args.solver)
+
+
+def _check_solver(method: str | None) -> None:
+    """SceneError on a --solver that is not one of `pipeline.SOLVERS` (None: not given)."""
+    if method is not None and method not in pipeline.SOLVERS:
+        raise SceneError("--solver", method, "one of " + ", ".join(pipeline.SOLVERS))
 
 
 def _checked(
@@ -101,9 +106,7 @@ def _checked(
         args.tol = tol if args.tol is None else args.tol
     loaded = load(args)
     scene, plugin = loaded.scene, loaded.plugin
-    method = args.solver
-    if method is not None and method not in pipeline.SOLVERS:
-        raise SceneError("--solver", method, "one of " + ", ".join(pipeline.SOLVERS))
+    _check_solver(args.solver)
     level, option = resources.requested_level(args.level, plugin, scene)
     sizes = resources.check_levels(
         plugin, scene, (level, level), option, str(level), args.force, args.linear_solver

@@ -96,10 +96,10 @@ def level0_sizes(
     s0 = trace(slave0, part)
     P = slave0.points[s0.nodes]  # (n_0, 2)
     a, b = P[s0.facets[:, 0]], P[s0.facets[:, 1]]  # (M, 2) each
+    d = b - a  # (M, 2)
     h = np.empty(len(x))
     for lo in range(0, len(x), 256):
         xi = x[lo : lo + 256, None, :]  # (c, 1, 2)
-        d = b - a  # (M, 2)
         s = np.clip(((xi - a) * d).sum(-1) / (d * d).sum(-1), 0.0, 1.0)  # (c, M)
         dist = np.linalg.norm(xi - (a + s[..., None] * d), axis=2)  # (c, M)
         near = dist <= dist.min(axis=1, keepdims=True) + 1e-9 * s0.measures  # (c, M)
